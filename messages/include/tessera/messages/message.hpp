@@ -1,0 +1,183 @@
+// Message<T>, Loan<T> and MessageStorage: how Tessera holds Cap'n Proto messages.
+//
+// A publisher asks for a Loan<T>, builds the message in place, and seals it into an immutable
+// MessageStorage. Every subscriber then reads those same bytes through a Message<T>, which keeps
+// the storage alive through a shared pointer: fan-out to N subscribers copies a pointer, never
+// the payload. Bytes that come from outside (a file, another process, the network) enter through
+// decodeMessage(), which checks them under traversal limits and turns malformed input into a
+// MessageError instead of a crash.
+//
+// Ownership: MessageStorage is reference counted and immutable once sealed; a Message<T> is a
+// cheap handle (one shared_ptr plus a Cap'n Proto reader). Readers are safe to use from any
+// number of threads at once.
+#pragma once
+
+#include <capnp/any.h>
+#include <capnp/message.h>
+#include <capnp/schema.h>
+#include <capnp/serialize.h>
+#include <kj/exception.h>
+
+#include <cstddef>
+#include <cstdint>
+#include <memory>
+#include <span>
+#include <stdexcept>
+#include <string>
+#include <utility>
+#include <vector>
+
+namespace tessera {
+
+/// Raised for bytes that are not a valid message (truncated, malformed, too large, wrong type).
+class MessageError : public std::runtime_error {
+ public:
+  using std::runtime_error::runtime_error;
+};
+
+/// Identity of a message type: Cap'n Proto schema id plus a readable name for errors.
+struct MessageType {
+  std::uint64_t id = 0;
+  const char* name = "";
+  friend bool operator==(const MessageType& a, const MessageType& b) { return a.id == b.id; }
+};
+
+/// The MessageType of a generated Cap'n Proto struct.
+template <typename T>
+MessageType messageTypeOf();
+
+/// Immutable bytes of one Cap'n Proto message, shared by every reader of it.
+class MessageStorage {
+ public:
+  virtual ~MessageStorage() = default;
+  /// The root pointer; valid as long as this storage lives.
+  virtual capnp::AnyPointer::Reader root() const = 0;
+  /// The message's segments, e.g. for a recorder or a network bridge to write as-is.
+  virtual kj::ArrayPtr<const kj::ArrayPtr<const capnp::word>> segments() const = 0;
+  /// Total bytes over all segments.
+  std::size_t sizeInBytes() const;
+  /// Address of the first byte of the first segment (to check zero-copy delivery).
+  const void* address() const;
+};
+
+namespace detail {
+/// Storage whose segments were allocated by a Cap'n Proto builder on the heap.
+class BuilderStorage final : public MessageStorage {
+ public:
+  explicit BuilderStorage(std::size_t size_hint_bytes);
+  capnp::MessageBuilder& builder() { return *builder_; }
+  capnp::AnyPointer::Reader root() const override;
+  kj::ArrayPtr<const kj::ArrayPtr<const capnp::word>> segments() const override;
+
+ private:
+  // Small messages are built in this zeroed scratch block, so one allocation (the make_shared
+  // that holds this object) serves both the control block and the first segment.
+  static constexpr std::size_t kInlineWords = 48;
+  capnp::word inline_[kInlineWords];
+  std::unique_ptr<capnp::MallocMessageBuilder> builder_;
+  mutable kj::ArrayPtr<const kj::ArrayPtr<const capnp::word>> segments_cache_;
+};
+}  // namespace detail
+
+/// A read view of one message of type T. Copyable, cheap, thread-safe to read.
+template <typename T>
+class Message {
+ public:
+  using Reader = typename T::Reader;
+
+  Message() = default;
+  explicit Message(std::shared_ptr<const MessageStorage> storage)
+      : storage_(std::move(storage)), reader_(storage_->root().template getAs<T>()) {}
+
+  const Reader& operator*() const { return reader_; }
+  const Reader* operator->() const { return &reader_; }
+  const Reader& reader() const { return reader_; }
+  const std::shared_ptr<const MessageStorage>& storage() const { return storage_; }
+  explicit operator bool() const { return storage_ != nullptr; }
+
+ private:
+  std::shared_ptr<const MessageStorage> storage_;
+  Reader reader_{};
+};
+
+/// A message under construction. Build it through ->, then hand it to Publisher::publish.
+template <typename T>
+class Loan {
+ public:
+  using Builder = typename T::Builder;
+
+  /// size_hint_bytes: expected encoded size; large arrays fit in one segment when it is right.
+  explicit Loan(std::size_t size_hint_bytes = 0)
+      : storage_(std::make_shared<detail::BuilderStorage>(size_hint_bytes)),
+        root_(storage_->builder().template initRoot<T>()) {}
+
+  Builder& operator*() { return root_; }
+  Builder* operator->() { return &root_; }
+  Builder& builder() { return root_; }
+
+  /// Ends construction; the returned storage is immutable and shareable.
+  std::shared_ptr<const MessageStorage> seal() && {
+    root_ = Builder(nullptr);
+    return std::move(storage_);
+  }
+
+ private:
+  std::shared_ptr<detail::BuilderStorage> storage_;
+  Builder root_;
+};
+
+/// Build a stand-alone message (tests, tools) and return its read view.
+template <typename T, typename Fill>
+Message<T> makeMessage(Fill&& fill, std::size_t size_hint_bytes = 0) {
+  Loan<T> loan(size_hint_bytes);
+  fill(*loan);
+  return Message<T>(std::move(loan).seal());
+}
+
+/// Limits applied to bytes from outside the process.
+struct DecodeLimits {
+  std::size_t max_bytes = std::size_t{1} << 30;  ///< larger input is rejected
+  std::uint64_t traversal_limit_words = 0;       ///< 0: 4x the message size, at least 64 Ki words
+  int nesting_limit = 64;
+};
+
+/// Checks and adopts one message in Cap'n Proto's standard (unpacked) framing. The bytes are
+/// copied once into aligned storage when not 8-byte aligned. `what` names the source in errors.
+/// Throws MessageError on truncated or malformed input.
+std::shared_ptr<const MessageStorage> decodeMessage(std::span<const std::byte> bytes,
+                                                    const std::string& what,
+                                                    const DecodeLimits& limits = {});
+
+/// Checks that `storage` holds a readable T (every pointer in bounds, limits respected).
+/// Throws MessageError naming `what` otherwise.
+template <typename T>
+Message<T> checkedMessage(std::shared_ptr<const MessageStorage> storage, const std::string& what);
+
+/// Encodes a message in Cap'n Proto's standard framing (segment table + segments).
+std::vector<std::byte> encodeMessage(const MessageStorage& storage);
+
+// ---- implementation details ----
+
+void throwAsMessageError(const std::string& what, const std::exception& e);
+void validateMessageTree(const MessageStorage& storage, const std::string& what);
+void validateTyped(const MessageStorage& storage, capnp::StructSchema schema,
+                   const std::string& what);
+
+template <typename T>
+MessageType messageTypeOf() {
+  return MessageType{capnp::typeId<T>(), capnp::Schema::from<T>().getShortDisplayName().cStr()};
+}
+
+template <typename T>
+Message<T> checkedMessage(std::shared_ptr<const MessageStorage> storage, const std::string& what) {
+  validateMessageTree(*storage, what);
+  validateTyped(*storage, capnp::Schema::from<T>(), what);
+  try {
+    return Message<T>(std::move(storage));
+  } catch (const kj::Exception& e) {
+    throw MessageError(what + ": not a readable " + messageTypeOf<T>().name + ": " +
+                       e.getDescription().cStr());
+  }
+}
+
+}  // namespace tessera

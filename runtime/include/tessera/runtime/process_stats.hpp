@@ -1,0 +1,13 @@
+// CPU time and peak memory of this process, for run reports and benchmarks.
+#pragma once
+
+#include <string>
+
+namespace tessera {
+
+double processCpuSeconds();
+double peakRssMegabytes();
+/// "Intel(R) Xeon(R) ... , 2 cores, 23.4 GiB, Linux 6.1" — printed by benchmarks.
+std::string machineDescription();
+
+}  // namespace tessera

@@ -1,0 +1,65 @@
+// App profiles: YAML files (apps/profiles/*.yaml) naming the actors of a deployment.
+//
+//   name: sim_mapping
+//   description: simulated office, mapping with known poses
+//   clock: sim            # sim | wall
+//   sim_rate: 0           # sim clock: 0 = as fast as possible, 1 = real time
+//   max_duration_s: 0     # stop after this much data time (0 = until the inputs end)
+//   actors:
+//     sim:                # instance name
+//       type: simulator   # registered actor type (tessera actors lists them)
+//       process: robot    # process group for `tessera launch` (default: main)
+//       remap: {scan: /front/scan}   # local topic -> global topic
+//       params: {world: builtin:office}
+//
+// --set overrides: "ACTOR.KEY=VALUE" sets params.KEY of ACTOR (nested keys with more dots);
+// "KEY=VALUE" sets a top-level key (clock, sim_rate, max_duration_s) or, if no such key
+// exists, the parameter KEY of the only actor whose options have it. Unknown keys, wrong types,
+// unknown actor types and topics nobody publishes are ConfigErrors naming file, line and key.
+#pragma once
+
+#include <tessera/runtime/options.hpp>
+#include <tessera/runtime/runtime.hpp>
+
+#include <map>
+#include <memory>
+#include <string>
+#include <vector>
+
+namespace tessera {
+
+struct ActorSpec {
+  std::string name;
+  std::string type;
+  std::string process = "main";
+  Params params;
+  std::map<std::string, std::string> remap;
+  int line = 0;  // 1-based line of the actor's entry in the profile
+};
+
+struct Profile {
+  std::string path;
+  std::string name;
+  std::string description;
+  ClockKind clock = ClockKind::kSimulated;
+  double sim_rate = 0.0;
+  double max_duration_s = 0.0;
+  std::vector<ActorSpec> actors;
+};
+
+/// Parses and validates a profile file, applying --set overrides in order. Throws ConfigError.
+Profile loadProfile(const std::string& path, const std::vector<std::string>& overrides = {});
+/// Same, from YAML text (`path` only names it in errors).
+Profile parseProfile(const std::string& yaml_text, const std::string& path,
+                     const std::vector<std::string>& overrides = {});
+
+/// Creates every actor through the ActorRegistry and adds it to a new runtime, then configures
+/// it. Option errors are rethrown as ConfigError naming the profile file and actor.
+std::unique_ptr<Runtime> buildRuntime(const Profile& profile, RuntimeOptions options);
+
+/// Finds a profile by name or path: the path as given, else NAME or NAME.yaml in each of
+/// `search_dirs`. Throws ConfigError listing what it tried.
+std::string resolveProfilePath(const std::string& name_or_path,
+                               const std::vector<std::string>& search_dirs);
+
+}  // namespace tessera

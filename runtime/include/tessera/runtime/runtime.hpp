@@ -1,0 +1,120 @@
+// Runtime: owns the actors of one process, the topics between them (the in-process transport:
+// fan-out shares one immutable message, zero copy), the clock and the executor.
+//
+// Two ways to drive it:
+//  * run(): actors run on a TBB task arena; each actor is a strand (one handler at a time).
+//    With a simulated clock, time jumps to the next timer once every mailbox is empty and no
+//    handler runs, so runs are deterministic and as fast as the CPU allows (or paced by
+//    sim_rate). With a wall clock, timers fire on time until stop is requested.
+//  * manual mode (tests, ActorHarness): no threads; the caller steps items and timers.
+#pragma once
+
+#include <tessera/runtime/actor.hpp>
+
+#include <cstdint>
+#include <map>
+#include <memory>
+#include <string>
+#include <vector>
+
+namespace tessera {
+
+struct RuntimeOptions {
+  ClockKind clock = ClockKind::kSimulated;
+  Nanos sim_start = 0;
+  /// Simulated clock only: 0 runs as fast as possible, 1.0 paces at real time, 2.0 twice as fast.
+  double sim_rate = 0.0;
+  /// Where actors write files; "" for none.
+  std::string output_dir;
+  /// Executor threads; 0 uses every core.
+  int threads = 0;
+  /// Print progress of finite sources to stderr about once a second.
+  bool show_progress = true;
+  /// Stop after this much simulated time (0: no limit).
+  Nanos max_sim_duration = 0;
+  /// No executor threads: the caller drives the run with step()/fireDueTimers().
+  bool manual = false;
+};
+
+/// Per-actor figures printed at exit and stored in summary.json.
+struct ActorReport {
+  std::string name;
+  std::uint64_t messages_in = 0;   // handled messages
+  std::uint64_t messages_out = 0;  // published messages
+  std::uint64_t timer_calls = 0;
+  std::uint64_t drops = 0;  // keep_latest evictions, all subscriptions
+  std::uint64_t max_queue_depth = 0;
+  double handler_p50_us = 0, handler_p99_us = 0, handler_total_s = 0;
+  Summary summary;  // the actor's own figures
+};
+
+struct RunReport {
+  double wall_s = 0, cpu_s = 0;
+  double sim_duration_s = 0;  // data / simulated time covered
+  double peak_rss_mb = 0;
+  bool interrupted = false;  // stopped by a signal or requestStop
+  std::string stop_reason;
+  std::vector<ActorReport> actors;
+  std::string table() const;  // human-readable metrics table
+};
+
+class Runtime {
+ public:
+  explicit Runtime(RuntimeOptions options = {});
+  ~Runtime();
+  Runtime(const Runtime&) = delete;
+  Runtime& operator=(const Runtime&) = delete;
+
+  /// Adds an actor instance. `remap` maps the actor's local topic names to global ones.
+  Actor& add(std::string name, std::unique_ptr<Actor> actor,
+             std::map<std::string, std::string> remap = {});
+
+  /// A publisher from outside any actor (tests, benchmarks, bridges). Call before configure().
+  template <typename T>
+  Publisher<T> externalPublisher(const std::string& topic) {
+    auto [state, owner] = externalAdvertise(topic, messageTypeOf<T>());
+    return Publisher<T>(state, owner);
+  }
+
+  /// Configures every actor and checks the wiring: one message type per topic, and every
+  /// subscribed topic has a publisher (unless allow_unpublished). Throws ConfigError.
+  void configure(bool allow_unpublished = false);
+
+  /// Starts, runs until every finite source finished (or stop was requested, or the simulated
+  /// time limit), drains, stops actors upstream-first, and reports.
+  RunReport run();
+
+  /// Thread-safe and async-signal-safe: ask a running run() to stop cleanly.
+  void requestStop();
+  /// Installs SIGINT/SIGTERM handlers that call requestStop() on this runtime.
+  void installSignalHandlers();
+
+  // ---- manual mode ----
+  void start();
+  /// Handles one queued item (deterministic order); false when all mailboxes are empty.
+  bool step();
+  std::size_t runUntilIdle();
+  /// Advances the simulated clock to the earliest timer due at or before `limit`, queues every
+  /// timer due then, and returns true; false (time set to limit) when none is due.
+  bool fireDueTimers(Nanos limit);
+  void stop();
+  RunReport report() const;
+
+  const Clock& clock() const;
+  /// Global name of actor `actor`'s local topic.
+  std::string globalTopic(const std::string& actor, const std::string& local) const;
+  /// Topics an actor subscribes to / publishes (global names), after configure().
+  std::vector<std::string> subscriptionsOf(const std::string& actor) const;
+  std::vector<std::string> publicationsOf(const std::string& actor) const;
+  std::vector<std::string> topicsOfType(MessageType type) const;
+
+  struct Impl;
+
+ private:
+  friend class ActorHarness;
+  std::pair<detail::TopicState*, std::uint32_t> externalAdvertise(const std::string& topic,
+                                                                  MessageType type);
+  std::unique_ptr<Impl> impl_;
+};
+
+}  // namespace tessera

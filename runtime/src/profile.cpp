@@ -1,0 +1,263 @@
+#include <tessera/runtime/profile.hpp>
+#include <tessera/runtime/registry.hpp>
+
+#include <yaml-cpp/yaml.h>
+
+#include <filesystem>
+#include <fstream>
+#include <set>
+#include <sstream>
+
+namespace tessera {
+
+namespace {
+
+std::string at(const std::string& path, const YAML::Node& n) {
+  return n.Mark().line >= 0 ? path + ":" + std::to_string(n.Mark().line + 1) : path;
+}
+
+std::string atKey(const std::string& path, const YAML::const_iterator::value_type& kv) {
+  return kv.first.Mark().line >= 0 ? path + ":" + std::to_string(kv.first.Mark().line + 1) : path;
+}
+
+std::string scalar(const std::string& path, const YAML::Node& n, const std::string& key) {
+  if (!n.IsScalar()) throw ConfigError(at(path, n) + ": " + key + ": expected a string");
+  return n.Scalar();
+}
+
+double number(const std::string& path, const YAML::Node& n, const std::string& key) {
+  try {
+    if (n.IsScalar()) return n.as<double>();
+  } catch (const YAML::Exception&) {
+  }
+  throw ConfigError(at(path, n) + ": " + key + ": expected a number, got '" +
+                    (n.IsScalar() ? n.Scalar() : std::string("a collection")) + "'");
+}
+
+YAML::Node parseValue(const std::string& text) {
+  try {
+    YAML::Node n = YAML::Load(text);
+    if (n.IsNull() && !text.empty() && text != "null" && text != "~") return YAML::Node(text);
+    return n;
+  } catch (const YAML::Exception&) {
+    return YAML::Node(text);
+  }
+}
+
+std::vector<std::string> split(const std::string& s, char sep) {
+  std::vector<std::string> out;
+  std::stringstream ss(s);
+  for (std::string part; std::getline(ss, part, sep);) out.push_back(part);
+  return out;
+}
+
+const std::set<std::string> kTopKeys = {"name",     "description",    "clock",
+                                        "sim_rate", "max_duration_s", "actors"};
+const std::set<std::string> kActorKeys = {"type", "process", "remap", "params"};
+
+void applyOverride(YAML::Node root, const std::string& text, const std::string& path) {
+  const auto eq = text.find('=');
+  if (eq == std::string::npos || eq == 0) {
+    throw ConfigError("--set " + text + ": expected KEY=VALUE or ACTOR.KEY=VALUE");
+  }
+  const std::string key = text.substr(0, eq);
+  const YAML::Node value = parseValue(text.substr(eq + 1));
+  auto parts = split(key, '.');
+  YAML::Node actors = root["actors"];
+  if (parts.size() == 1) {
+    if (kTopKeys.count(key) && key != "actors") {
+      root[key] = value;
+      return;
+    }
+    // A bare parameter name: the one actor whose options declare it.
+    std::vector<std::string> owners;
+    if (actors && actors.IsMap()) {
+      for (const auto& kv : actors) {
+        const YAML::Node type = kv.second["type"];
+        if (!type || !type.IsScalar()) continue;
+        const auto* entry = ActorRegistry::instance().find(type.Scalar());
+        if (entry == nullptr) continue;
+        for (const auto& row : entry->options()) {
+          if (row[0] == key) owners.push_back(kv.first.as<std::string>());
+        }
+      }
+    }
+    if (owners.empty()) {
+      throw ConfigError("--set " + text + ": no profile key or actor parameter named '" + key +
+                        "' in " + path);
+    }
+    if (owners.size() > 1) {
+      std::string list;
+      for (const auto& o : owners) list += (list.empty() ? "" : ", ") + o + "." + key;
+      throw ConfigError("--set " + text + ": '" + key +
+                        "' is a parameter of several actors; use one of " + list);
+    }
+    parts.insert(parts.begin(), owners.front());
+  }
+  if (!actors || !actors.IsMap() || !actors[parts[0]]) {
+    throw ConfigError("--set " + text + ": no actor named '" + parts[0] + "' in " + path);
+  }
+  YAML::Node actor = actors[parts[0]];
+  if (parts.size() == 2 && (parts[1] == "type" || parts[1] == "process")) {
+    actor[parts[1]] = value;
+    return;
+  }
+  if (!actor["params"] || actor["params"].IsNull())
+    actor["params"] = YAML::Node(YAML::NodeType::Map);
+  YAML::Node node = actor["params"];
+  for (std::size_t i = 1; i + 1 < parts.size(); ++i) {
+    if (!node[parts[i]] || !node[parts[i]].IsMap())
+      node[parts[i]] = YAML::Node(YAML::NodeType::Map);
+    node = node[parts[i]];
+  }
+  node[parts.back()] = value;
+}
+
+}  // namespace
+
+Profile parseProfile(const std::string& yaml_text, const std::string& path,
+                     const std::vector<std::string>& overrides) {
+  YAML::Node root;
+  try {
+    root = YAML::Load(yaml_text);
+  } catch (const YAML::ParserException& e) {
+    throw ConfigError(path + ":" + std::to_string(e.mark.line + 1) +
+                      ": YAML syntax error: " + e.msg);
+  }
+  if (!root || !root.IsMap())
+    throw ConfigError(path + ": expected a YAML mapping at the top level");
+  for (const auto& o : overrides) applyOverride(root, o, path);
+
+  Profile p;
+  p.path = path;
+  p.name = std::filesystem::path(path).stem().string();
+  for (const auto& kv : root) {
+    const std::string key = kv.first.as<std::string>();
+    if (!kTopKeys.count(key)) {
+      throw ConfigError(atKey(path, kv) + ": unknown key '" + key +
+                        "' (known: name, description, clock, sim_rate, max_duration_s, actors)");
+    }
+  }
+  if (root["name"]) p.name = scalar(path, root["name"], "name");
+  if (root["description"]) p.description = scalar(path, root["description"], "description");
+  if (root["clock"]) {
+    const std::string c = scalar(path, root["clock"], "clock");
+    if (c == "sim")
+      p.clock = ClockKind::kSimulated;
+    else if (c == "wall")
+      p.clock = ClockKind::kWall;
+    else
+      throw ConfigError(at(path, root["clock"]) + ": clock: expected 'sim' or 'wall', got '" + c +
+                        "'");
+  }
+  if (root["sim_rate"]) {
+    p.sim_rate = number(path, root["sim_rate"], "sim_rate");
+    if (!(p.sim_rate >= 0))
+      throw ConfigError(at(path, root["sim_rate"]) + ": sim_rate must be >= 0");
+  }
+  if (root["max_duration_s"]) {
+    p.max_duration_s = number(path, root["max_duration_s"], "max_duration_s");
+    if (!(p.max_duration_s >= 0))
+      throw ConfigError(at(path, root["max_duration_s"]) + ": max_duration_s must be >= 0");
+  }
+  const YAML::Node actors = root["actors"];
+  if (!actors || !actors.IsMap() || actors.size() == 0) {
+    throw ConfigError(path +
+                      ": 'actors' must be a non-empty mapping of name: {type: ..., params: ...}");
+  }
+  for (const auto& kv : actors) {
+    ActorSpec spec;
+    spec.name = kv.first.as<std::string>();
+    spec.line = kv.first.Mark().line + 1;
+    const YAML::Node& a = kv.second;
+    const std::string where = path + ": actors." + spec.name;
+    if (!a.IsMap())
+      throw ConfigError(atKey(path, kv) + ": actor '" + spec.name +
+                        "': expected a mapping with 'type'");
+    for (const auto& field : a) {
+      const std::string f = field.first.as<std::string>();
+      if (!kActorKeys.count(f)) {
+        throw ConfigError(atKey(path, field) + ": actors." + spec.name + ": unknown key '" + f +
+                          "' (known: type, process, remap, params)");
+      }
+    }
+    if (!a["type"])
+      throw ConfigError(atKey(path, kv) + ": actors." + spec.name + ": missing 'type'");
+    spec.type = scalar(path, a["type"], "actors." + spec.name + ".type");
+    if (!ActorRegistry::instance().find(spec.type)) {
+      std::string known;
+      for (const auto& [name, _] : ActorRegistry::instance().entries())
+        known += (known.empty() ? "" : ", ") + name;
+      throw ConfigError(at(path, a["type"]) + ": actors." + spec.name +
+                        ".type: unknown actor type '" + spec.type + "' (known: " + known + ")");
+    }
+    if (a["process"]) spec.process = scalar(path, a["process"], "actors." + spec.name + ".process");
+    if (a["remap"]) {
+      if (!a["remap"].IsMap())
+        throw ConfigError(at(path, a["remap"]) + ": actors." + spec.name +
+                          ".remap: expected a mapping local: global");
+      for (const auto& r : a["remap"]) {
+        spec.remap[r.first.as<std::string>()] =
+            scalar(path, r.second, "actors." + spec.name + ".remap");
+      }
+    }
+    const std::string params_where = (a["params"] && a["params"].Mark().line >= 0)
+                                         ? path + ": actors." + spec.name + ".params"
+                                         : where + ".params";
+    spec.params = Params(a["params"] ? a["params"] : YAML::Node(YAML::NodeType::Map), params_where);
+    p.actors.push_back(std::move(spec));
+  }
+  return p;
+}
+
+Profile loadProfile(const std::string& path, const std::vector<std::string>& overrides) {
+  std::ifstream in(path);
+  if (!in) throw ConfigError(path + ": cannot open profile file");
+  std::stringstream ss;
+  ss << in.rdbuf();
+  return parseProfile(ss.str(), path, overrides);
+}
+
+std::unique_ptr<Runtime> buildRuntime(const Profile& profile, RuntimeOptions options) {
+  options.clock = profile.clock;
+  options.sim_rate = profile.sim_rate;
+  options.max_sim_duration = secondsToNanos(profile.max_duration_s);
+  auto runtime = std::make_unique<Runtime>(options);
+  for (const auto& spec : profile.actors) {
+    std::unique_ptr<Actor> actor;
+    try {
+      actor = ActorRegistry::instance().create(spec.type, spec.params);
+    } catch (const ConfigError& e) {
+      throw ConfigError(std::string(e.what()));
+    } catch (const std::exception& e) {
+      throw ConfigError(profile.path + ":" + std::to_string(spec.line) + ": actor '" + spec.name +
+                        "' (" + spec.type + "): " + e.what());
+    }
+    runtime->add(spec.name, std::move(actor), spec.remap);
+  }
+  try {
+    runtime->configure();
+  } catch (const ConfigError& e) {
+    throw ConfigError(profile.path + ": " + e.what());
+  }
+  return runtime;
+}
+
+std::string resolveProfilePath(const std::string& name_or_path,
+                               const std::vector<std::string>& search_dirs) {
+  namespace fs = std::filesystem;
+  std::vector<std::string> tried{name_or_path};
+  if (fs::is_regular_file(name_or_path)) return name_or_path;
+  for (const auto& dir : search_dirs) {
+    for (const auto& candidate :
+         {fs::path(dir) / name_or_path, fs::path(dir) / (name_or_path + ".yaml")}) {
+      tried.push_back(candidate.string());
+      if (fs::is_regular_file(candidate)) return candidate.string();
+    }
+  }
+  std::string list;
+  for (const auto& t : tried) list += "\n  " + t;
+  throw ConfigError("profile '" + name_or_path + "' not found; tried:" + list);
+}
+
+}  // namespace tessera

@@ -1,0 +1,33 @@
+#!/usr/bin/env bash
+# Installs (apt-get only) every system package Tessera needs to build, run and test.
+# Idempotent: packages already present are skipped, so a second run costs a dpkg query.
+set -euo pipefail
+
+PACKAGES=(
+  # toolchain
+  build-essential cmake ccache pkg-config git
+  # design-card libraries
+  libeigen3-dev libopencv-dev libpcl-dev liboctomap-dev libceres-dev libtbb-dev
+  iceoryx libiceoryx-posh-dev libiceoryx-hoofs-dev libacl1-dev
+  capnproto libcapnp-dev catch2
+  # support libraries
+  libyaml-cpp-dev nlohmann-json3-dev libcli11-dev libspdlog-dev libfmt-dev libzstd-dev zlib1g-dev libpng-dev
+)
+
+missing=()
+for p in "${PACKAGES[@]}"; do
+  dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")
+done
+
+if [ ${#missing[@]} -eq 0 ]; then
+  echo "[deps] all ${#PACKAGES[@]} packages present"
+  exit 0
+fi
+
+SUDO=""
+if [ "$(id -u)" -ne 0 ]; then SUDO="sudo"; fi
+echo "[deps] installing ${#missing[@]} missing packages: ${missing[*]}"
+export DEBIAN_FRONTEND=noninteractive
+$SUDO apt-get update -qq
+$SUDO apt-get install -y -qq --no-install-recommends "${missing[@]}" >/dev/null
+echo "[deps] done"

@@ -1,0 +1,129 @@
+#include "test_actors.hpp"
+
+#include <tessera/runtime/profile.hpp>
+#include <tessera/runtime/registry.hpp>
+
+#include <catch2/catch.hpp>
+
+using namespace tessera;
+
+namespace {
+struct SourceOptions {
+  int count = 3;
+  double period_s = 0.1;
+  std::string label = "x";
+  template <class V>
+  void visit(V& v) {
+    v("count", count, "messages to publish");
+    v("period_s", period_s, "seconds between messages");
+    v("label", label, "a label");
+  }
+};
+struct SinkOptions {
+  int capacity = 4;
+  double period_s = 1.0;
+  template <class V>
+  void visit(V& v) {
+    v("capacity", capacity, "mailbox capacity");
+    v("period_s", period_s, "unused");
+  }
+};
+struct TestSource : test::CountingSource {
+  explicit TestSource(const SourceOptions& o)
+      : CountingSource(o.count, secondsToNanos(o.period_s)), options(o) {}
+  SourceOptions options;
+};
+struct TestSink : test::Recorder {
+  explicit TestSink(const SinkOptions& o) : Recorder(MailboxPolicy::reliable(o.capacity)) {}
+};
+TESSERA_REGISTER_ACTOR("test_source", TestSource, SourceOptions, "test source");
+TESSERA_REGISTER_ACTOR("test_sink", TestSink, SinkOptions, "test sink");
+
+const char* kGood = R"(name: demo
+clock: sim
+actors:
+  src:
+    type: test_source
+    params:
+      count: 5
+  sink:
+    type: test_sink
+    remap: {in: out}
+)";
+}  // namespace
+
+TEST_CASE("a valid profile builds and runs", "[profile]") {
+  auto p = parseProfile(kGood, "demo.yaml");
+  REQUIRE(p.actors.size() == 2);
+  CHECK(p.actors[0].line == 4);
+  RuntimeOptions o;
+  o.show_progress = false;
+  auto rt = buildRuntime(p, o);
+  auto report = rt->run();
+  CHECK(report.actors[1].messages_in == 5);
+}
+
+TEST_CASE("--set overrides actor parameters and top-level keys", "[profile]") {
+  auto p = parseProfile(kGood, "demo.yaml", {"src.count=7", "label=hello", "max_duration_s=2.5"});
+  CHECK(p.max_duration_s == 2.5);
+  auto o = loadOptions<SourceOptions>(p.actors[0].params);
+  CHECK(o.count == 7);
+  CHECK(o.label == "hello");
+  CHECK_THROWS_WITH(parseProfile(kGood, "demo.yaml", {"period_s=1"}),
+                    Catch::Contains("several actors") && Catch::Contains("src.period_s"));
+  CHECK_THROWS_WITH(parseProfile(kGood, "demo.yaml", {"nosuch=1"}), Catch::Contains("nosuch"));
+  CHECK_THROWS_WITH(parseProfile(kGood, "demo.yaml", {"ghost.count=1"}), Catch::Contains("ghost"));
+  CHECK_THROWS_WITH(parseProfile(kGood, "demo.yaml", {"count"}), Catch::Contains("KEY=VALUE"));
+}
+
+TEST_CASE("profile errors name the file, the line and the key", "[profile]") {
+  RuntimeOptions o;
+  o.show_progress = false;
+  SECTION("unknown top-level key") {
+    CHECK_THROWS_WITH(parseProfile("name: x\nactorz: {}\n", "p.yaml"),
+                      Catch::Contains("p.yaml:2") && Catch::Contains("actorz"));
+  }
+  SECTION("unknown actor field") {
+    CHECK_THROWS_WITH(
+        parseProfile("actors:\n  a:\n    type: test_source\n    parms: {}\n", "p.yaml"),
+        Catch::Contains("p.yaml:4") && Catch::Contains("parms"));
+  }
+  SECTION("unknown actor type") {
+    CHECK_THROWS_WITH(
+        parseProfile("actors:\n  a:\n    type: nope\n", "p.yaml"),
+        Catch::Contains("p.yaml:3") && Catch::Contains("nope") && Catch::Contains("test_source"));
+  }
+  SECTION("unknown parameter") {
+    auto p = parseProfile("actors:\n  a:\n    type: test_source\n    params:\n      cuont: 3\n",
+                          "p.yaml");
+    CHECK_THROWS_WITH(buildRuntime(p, o), Catch::Contains("p.yaml") && Catch::Contains("line 5") &&
+                                              Catch::Contains("cuont") && Catch::Contains("count"));
+  }
+  SECTION("wrong type") {
+    auto p = parseProfile("actors:\n  a:\n    type: test_source\n    params:\n      count: many\n",
+                          "p.yaml");
+    CHECK_THROWS_WITH(buildRuntime(p, o), Catch::Contains("count") &&
+                                              Catch::Contains("whole number") &&
+                                              Catch::Contains("many"));
+    auto q = parseProfile("actors:\n  a:\n    type: test_source\n    params:\n      count: 2.5\n",
+                          "p.yaml");
+    CHECK_THROWS_WITH(buildRuntime(q, o), Catch::Contains("2.5"));
+    auto r = parseProfile(
+        "actors:\n  a:\n    type: test_source\n    params:\n      period_s: .nan\n", "p.yaml");
+    CHECK_THROWS_WITH(buildRuntime(r, o), Catch::Contains("finite"));
+  }
+  SECTION("a topic nobody publishes") {
+    auto p = parseProfile("actors:\n  s:\n    type: test_sink\n", "p.yaml");
+    CHECK_THROWS_WITH(buildRuntime(p, o), Catch::Contains("p.yaml") && Catch::Contains("'in'"));
+  }
+  SECTION("bad clock and YAML syntax") {
+    CHECK_THROWS_WITH(parseProfile("clock: moon\nactors: {a: {type: test_source}}\n", "p.yaml"),
+                      Catch::Contains("moon"));
+    CHECK_THROWS_WITH(parseProfile("actors: [\n", "p.yaml"), Catch::Contains("syntax"));
+    CHECK_THROWS_WITH(parseProfile("", "p.yaml"), Catch::Contains("mapping"));
+  }
+  SECTION("missing file") {
+    CHECK_THROWS_WITH(loadProfile("/nonexistent/x.yaml"), Catch::Contains("/nonexistent/x.yaml"));
+    CHECK_THROWS_WITH(resolveProfilePath("nope", {"/tmp"}), Catch::Contains("/tmp/nope.yaml"));
+  }
+}

@@ -1,0 +1,193 @@
+#include "test_actors.hpp"
+
+#include <tessera/runtime/options.hpp>
+#include <tessera/runtime/runtime.hpp>
+
+#include <catch2/catch.hpp>
+
+#include <thread>
+
+using namespace tessera;
+using namespace tessera::test;
+
+namespace {
+RuntimeOptions manualOptions() {
+  RuntimeOptions o;
+  o.manual = true;
+  o.show_progress = false;
+  return o;
+}
+RuntimeOptions threadedOptions() {
+  RuntimeOptions o;
+  o.show_progress = false;
+  o.threads = 2;
+  return o;
+}
+void publishBlobs(Publisher<msg::Blob>& pub, int n) {
+  for (int i = 0; i < n; ++i) {
+    auto loan = pub.loan();
+    setHeader(loan->initHeader(), 0, "t", pub.nextSeq());
+    pub.publish(std::move(loan));
+  }
+}
+}  // namespace
+
+TEST_CASE("keep_latest keeps the newest n messages and counts the drops", "[runtime]") {
+  Runtime rt(manualOptions());
+  auto pub = rt.externalPublisher<msg::Blob>("in");
+  auto& rec = static_cast<Recorder&>(
+      rt.add("rec", std::make_unique<Recorder>(MailboxPolicy::keepLatest(3))));
+  rt.configure();
+  rt.start();
+  publishBlobs(pub, 10);
+  CHECK(rt.runUntilIdle() == 3);
+  CHECK(rec.seqs == std::vector<std::uint64_t>{7, 8, 9});
+  rt.stop();
+  CHECK(rt.report().actors[0].drops == 7);
+  CHECK(rt.report().actors[0].messages_in == 3);
+}
+
+TEST_CASE("reliable mailboxes never drop, even when the publisher outruns the consumer",
+          "[runtime]") {
+  SECTION("manual stepping: a full mailbox makes the publisher run the consumer") {
+    Runtime rt(manualOptions());
+    auto pub = rt.externalPublisher<msg::Blob>("in");
+    auto& rec = static_cast<Recorder&>(
+        rt.add("rec", std::make_unique<Recorder>(MailboxPolicy::reliable(4))));
+    rt.configure();
+    rt.start();
+    publishBlobs(pub, 100);
+    rt.runUntilIdle();
+    REQUIRE(rec.seqs.size() == 100);
+    for (std::uint64_t i = 0; i < 100; ++i) CHECK(rec.seqs[i] == i);
+    CHECK(rt.report().actors[0].drops == 0);
+    CHECK(rt.report().actors[0].max_queue_depth <= 4);
+  }
+  SECTION("threaded: a slow consumer back-pressures a fast source") {
+    Runtime rt(threadedOptions());
+    rt.add("src", std::make_unique<CountingSource>(300, 1));
+    auto& rec = static_cast<Recorder&>(rt.add(
+        "rec",
+        std::make_unique<Recorder>(MailboxPolicy::reliable(2), std::chrono::microseconds(50)),
+        {{"in", "out"}}));
+    auto report = rt.run();
+    REQUIRE(rec.seqs.size() == 300);
+    for (std::uint64_t i = 0; i < 300; ++i) CHECK(rec.seqs[i] == i);
+    CHECK(report.stop_reason == "all inputs finished");
+  }
+}
+
+TEST_CASE("simulated time advances timer to timer and is deterministic", "[runtime]") {
+  auto once = [] {
+    Runtime rt(threadedOptions());
+    rt.add("src", std::make_unique<CountingSource>(50, secondsToNanos(0.1)));
+    auto& rec = static_cast<Recorder&>(
+        rt.add("rec", std::make_unique<Recorder>(MailboxPolicy::keepLatest(1)), {{"in", "out"}}));
+    auto report = rt.run();
+    return std::make_pair(rec.stamps, report);
+  };
+  auto [a, report] = once();
+  auto [b, report2] = once();
+  REQUIRE(a.size() == 50);  // keep_latest(1) loses nothing: time waits for the consumer
+  CHECK(a == b);
+  CHECK(a.front() == 0);
+  CHECK(a.back() == secondsToNanos(4.9));
+  CHECK(report.sim_duration_s == Approx(4.9));
+  CHECK(report.actors[1].drops == 0);
+}
+
+TEST_CASE("max_sim_duration ends a run that has no finite source", "[runtime]") {
+  auto o = threadedOptions();
+  o.max_sim_duration = secondsToNanos(2.0);
+  Runtime rt(o);
+  rt.add("src", std::make_unique<CountingSource>(1000000, secondsToNanos(0.5)));
+  auto& rec = static_cast<Recorder&>(
+      rt.add("rec", std::make_unique<Recorder>(MailboxPolicy::reliable(8)), {{"in", "out"}}));
+  auto report = rt.run();
+  CHECK(rec.seqs.size() == 5);  // t = 0, 0.5, 1.0, 1.5, 2.0
+  CHECK(report.stop_reason == "reached max_duration_s");
+}
+
+TEST_CASE("stopping drains every reliable mailbox before downstream actors stop", "[runtime]") {
+  auto o = threadedOptions();
+  o.clock = ClockKind::kWall;
+  Runtime rt(o);
+  rt.add("src", std::make_unique<CountingSource>(200, 100'000));  // 10 kHz wall-clock source
+  auto& rec = static_cast<Recorder&>(rt.add(
+      "rec",
+      std::make_unique<Recorder>(MailboxPolicy::reliable(1000), std::chrono::microseconds(200)),
+      {{"in", "out"}}));
+  std::thread stopper([&] {
+    std::this_thread::sleep_for(std::chrono::milliseconds(10));
+    rt.requestStop();
+  });
+  auto report = rt.run();
+  stopper.join();
+  CHECK(report.interrupted);
+  // Whatever the source published before the stop was handled, and before rec.stop() ran.
+  CHECK(rec.seen_at_stop == rec.seqs.size());
+  CHECK(report.actors[1].messages_in == report.actors[0].messages_out);
+  CHECK(report.actors[1].drops == 0);
+}
+
+TEST_CASE("fan-out shares one message: every subscriber sees the same bytes", "[runtime]") {
+  Runtime rt(manualOptions());
+  auto pub = rt.externalPublisher<msg::Blob>("in");
+  std::vector<Recorder*> recs;
+  for (int i = 0; i < 4; ++i) {
+    recs.push_back(&static_cast<Recorder&>(rt.add(
+        "rec" + std::to_string(i), std::make_unique<Recorder>(MailboxPolicy::keepLatest(4)))));
+  }
+  rt.configure();
+  rt.start();
+  auto loan = pub.loan(1 << 20);
+  loan->initPayload(1 << 20);
+  auto sealed = std::move(loan).seal();
+  const void* published_at = sealed->address();
+  pub.publish(Message<msg::Blob>(sealed));
+  rt.runUntilIdle();
+  for (auto* r : recs) {
+    REQUIRE(r->addresses.size() == 1);
+    CHECK(r->addresses[0] == published_at);
+  }
+}
+
+TEST_CASE("wiring errors are reported at configure time", "[runtime]") {
+  SECTION("a subscribed topic that nobody publishes") {
+    Runtime rt(manualOptions());
+    rt.add("rec", std::make_unique<Recorder>(MailboxPolicy::keepLatest(1)));
+    CHECK_THROWS_WITH(rt.configure(),
+                      Catch::Contains("'in'") && Catch::Contains("no actor publishes"));
+  }
+  SECTION("two message types on one topic") {
+    Runtime rt(manualOptions());
+    rt.externalPublisher<msg::LaserScan>("in");
+    rt.add("rec", std::make_unique<Recorder>(MailboxPolicy::keepLatest(1)));
+    CHECK_THROWS_WITH(rt.configure(), Catch::Contains("Blob") && Catch::Contains("LaserScan"));
+  }
+  SECTION("a remap of a topic the actor does not use") {
+    Runtime rt(manualOptions());
+    rt.add("src", std::make_unique<CountingSource>(1, 1), {{"outt", "x"}});
+    CHECK_THROWS_WITH(rt.configure(), Catch::Contains("outt") && Catch::Contains("out"));
+  }
+  SECTION("duplicate actor names") {
+    Runtime rt(manualOptions());
+    rt.add("a", std::make_unique<CountingSource>(1, 1));
+    CHECK_THROWS_AS(rt.add("a", std::make_unique<CountingSource>(1, 1)), ConfigError);
+  }
+}
+
+TEST_CASE("a handler that throws stops the run with a reason instead of crashing", "[runtime]") {
+  struct Thrower : Actor {
+    void configure(ActorContext& ctx) override {
+      ctx.subscribe<msg::Blob>("in", MailboxPolicy::reliable(4),
+                               [](const Message<msg::Blob>&) { throw std::runtime_error("boom"); });
+    }
+  };
+  Runtime rt(threadedOptions());
+  rt.add("src", std::make_unique<CountingSource>(1000, secondsToNanos(0.01)));
+  rt.add("bad", std::make_unique<Thrower>(), {{"in", "out"}});
+  auto report = rt.run();
+  CHECK(report.interrupted);
+  CHECK_THAT(report.stop_reason, Catch::Contains("bad") && Catch::Contains("boom"));
+}
