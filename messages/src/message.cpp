@@ -26,20 +26,27 @@ BuilderStorage::BuilderStorage(std::size_t size_hint_bytes) {
       (size_hint_bytes + sizeof(capnp::word) - 1) / sizeof(capnp::word) + 16;
   if (hint_words <= kInlineWords) {
     std::memset(static_cast<void*>(inline_), 0, sizeof(inline_));
-    builder_ = std::make_unique<capnp::MallocMessageBuilder>(kj::arrayPtr(inline_, kInlineWords));
+    builder_.emplace(kj::arrayPtr(inline_, kInlineWords));
   } else {
-    builder_ = std::make_unique<capnp::MallocMessageBuilder>(static_cast<unsigned>(hint_words));
+    builder_.emplace(static_cast<unsigned>(hint_words));
   }
 }
 
 capnp::AnyPointer::Reader BuilderStorage::root() const {
-  return builder_->getRoot<capnp::AnyPointer>().asReader();
+  // getRoot is non-const in Cap'n Proto; on a sealed message it only reads.
+  return const_cast<capnp::MallocMessageBuilder&>(*builder_)
+      .getRoot<capnp::AnyPointer>()
+      .asReader();
+}
+
+BuilderStorage::~BuilderStorage() noexcept = default;
+
+void BuilderStorage::seal() {
+  segments_ = builder_->getSegmentsForOutput();
 }
 
 kj::ArrayPtr<const kj::ArrayPtr<const capnp::word>> BuilderStorage::segments() const {
-  // Sealed messages never grow, so the segment table is stable once asked for.
-  if (segments_cache_.size() == 0) segments_cache_ = builder_->getSegmentsForOutput();
-  return segments_cache_;
+  return segments_;
 }
 
 namespace {

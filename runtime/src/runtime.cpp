@@ -143,7 +143,7 @@ void Runtime::Impl::enqueue(Cell& cell, Item item) {
     }
     ++slot.queued;
   }
-  item.order = order_counter.fetch_add(1);
+  if (options.manual) item.order = order_counter.fetch_add(1);
   pending.fetch_add(1);
   cell.queue.push_back(std::move(item));
   cell.max_depth = std::max<std::uint64_t>(cell.max_depth, cell.queue.size());
@@ -153,9 +153,64 @@ void Runtime::Impl::enqueue(Cell& cell, Item item) {
 
 void Runtime::Impl::schedule(Cell& cell) {
   if (!cell.scheduled.exchange(true)) {
-    arena->enqueue([this, &cell] { drainTask(cell); });
+    if (pool) {
+      pool->post(cell);
+    } else {
+      arena->enqueue([this, &cell] { drainTask(cell); });
+    }
   }
 }
+
+namespace detail {
+StrandPool::StrandPool(int threads, std::function<void(Cell&)> drain) : drain_(std::move(drain)) {
+  for (int i = 0; i < threads; ++i) threads_.emplace_back([this] { loop(); });
+}
+StrandPool::~StrandPool() {
+  {
+    std::lock_guard lock(mutex_);
+    quit_ = true;
+  }
+  cv_.notify_all();
+  for (auto& t : threads_) t.join();
+}
+void StrandPool::post(Cell& cell) {
+  bool wake;
+  {
+    std::lock_guard lock(mutex_);
+    ready_.push_back(&cell);
+    ready_count_.store(ready_.size(), std::memory_order_release);
+    wake = idle_ > 0;
+  }
+  if (wake) cv_.notify_one();
+}
+void StrandPool::loop() {
+  std::unique_lock lock(mutex_);
+  while (true) {
+    if (ready_.empty()) {
+      if (quit_) return;
+      // Under a steady stream the next strand arrives within microseconds: poll briefly before
+      // paying for a futex sleep and wake-up (yielding, so a publisher on this core still runs).
+      lock.unlock();
+      const Nanos spin_until = steadyNow() + kSpinNanos;
+      while (ready_count_.load(std::memory_order_acquire) == 0 && steadyNow() < spin_until) {
+        std::this_thread::yield();
+      }
+      lock.lock();
+      if (!ready_.empty()) continue;
+      ++idle_;
+      cv_.wait(lock, [&] { return !ready_.empty() || quit_; });
+      --idle_;
+      continue;
+    }
+    Cell* cell = ready_.front();
+    ready_.pop_front();
+    ready_count_.store(ready_.size(), std::memory_order_release);
+    lock.unlock();
+    drain_(*cell);
+    lock.lock();
+  }
+}
+}  // namespace detail
 
 void Runtime::Impl::drainTask(Cell& cell) {
   cell.scheduled.store(false);
@@ -346,7 +401,7 @@ RunReport Runtime::Impl::makeReport() const {
 Runtime::Runtime(RuntimeOptions options) : impl_(std::make_unique<Impl>(std::move(options))) {}
 
 Runtime::~Runtime() {
-  if (impl_->arena) {
+  if (impl_->arena || impl_->pool) {
     impl_->stop_requested = true;
     impl_->waitIdle();
   }
@@ -423,11 +478,16 @@ void Runtime::start() {
     const int threads = impl_->options.threads > 0
                             ? impl_->options.threads
                             : static_cast<int>(std::max(2u, std::thread::hardware_concurrency()));
-    // The arena's threads are all TBB workers (the caller only waits), so lift TBB's default
-    // limit of one worker per core minus the calling thread.
-    impl_->parallelism.emplace(tbb::global_control::max_allowed_parallelism,
-                               static_cast<std::size_t>(threads) + 1);
-    impl_->arena.emplace(threads, 0);
+    if (impl_->options.executor == RuntimeOptions::Executor::kThreadPool) {
+      impl_->pool = std::make_unique<detail::StrandPool>(
+          threads, [rt = impl_.get()](Cell& c) { rt->drainTask(c); });
+    } else {
+      // The arena's threads are all TBB workers (the caller only waits), so lift TBB's default
+      // limit of one worker per core minus the calling thread.
+      impl_->parallelism.emplace(tbb::global_control::max_allowed_parallelism,
+                                 static_cast<std::size_t>(threads) + 1);
+      impl_->arena.emplace(threads, 0);
+    }
   }
   for (auto& c : impl_->cells) c->actor->start();
   impl_->started = true;
@@ -495,6 +555,9 @@ void Runtime::stop() {
   impl_->stopped = true;
   impl_->stopActors();
   impl_->final_report = impl_->makeReport();
+  impl_->pool.reset();
+  impl_->arena.reset();
+  impl_->parallelism.reset();
 }
 
 RunReport Runtime::report() const {
@@ -640,6 +703,7 @@ RunReport Runtime::run() {
   rt.stopped = true;
   rt.stopActors();
   rt.final_report = rt.makeReport();
+  rt.pool.reset();
   rt.arena.reset();
   rt.parallelism.reset();
   g_signal_target.store(nullptr);

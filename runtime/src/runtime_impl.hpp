@@ -15,6 +15,7 @@
 #include <mutex>
 #include <optional>
 #include <set>
+#include <thread>
 
 namespace tessera {
 
@@ -110,6 +111,29 @@ struct Cell {
 
 }  // namespace detail
 
+namespace detail {
+/// Dedicated executor threads: a ready queue of strands and one condition variable, so waking
+/// an idle thread costs one futex wake, like a bare hand-off.
+class StrandPool {
+ public:
+  StrandPool(int threads, std::function<void(Cell&)> drain);
+  ~StrandPool();
+  void post(Cell& cell);
+
+ private:
+  void loop();
+  std::function<void(Cell&)> drain_;
+  std::mutex mutex_;
+  std::condition_variable cv_;
+  std::deque<Cell*> ready_;
+  std::atomic<std::size_t> ready_count_{0};  // ready_.size(), readable without the mutex
+  static constexpr Nanos kSpinNanos = 20'000;
+  int idle_ = 0;
+  bool quit_ = false;
+  std::vector<std::thread> threads_;
+};
+}  // namespace detail
+
 struct Runtime::Impl {
   explicit Impl(RuntimeOptions o);
 
@@ -135,6 +159,7 @@ struct Runtime::Impl {
 
   std::optional<tbb::global_control> parallelism;
   std::optional<tbb::task_arena> arena;
+  std::unique_ptr<detail::StrandPool> pool;
   Nanos start_sim = 0;
   Nanos start_wall = 0;
   double start_cpu = 0;

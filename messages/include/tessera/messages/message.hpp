@@ -21,6 +21,7 @@
 #include <cstddef>
 #include <cstdint>
 #include <memory>
+#include <optional>
 #include <span>
 #include <stdexcept>
 #include <string>
@@ -65,7 +66,11 @@ namespace detail {
 class BuilderStorage final : public MessageStorage {
  public:
   explicit BuilderStorage(std::size_t size_hint_bytes);
+  // Cap'n Proto destructors are noexcept(false); freeing heap segments cannot throw.
+  ~BuilderStorage() noexcept override;
   capnp::MessageBuilder& builder() { return *builder_; }
+  /// Ends construction: records the segment table so readers never touch the builder state.
+  void seal();
   capnp::AnyPointer::Reader root() const override;
   kj::ArrayPtr<const kj::ArrayPtr<const capnp::word>> segments() const override;
 
@@ -74,8 +79,8 @@ class BuilderStorage final : public MessageStorage {
   // that holds this object) serves both the control block and the first segment.
   static constexpr std::size_t kInlineWords = 48;
   capnp::word inline_[kInlineWords];
-  std::unique_ptr<capnp::MallocMessageBuilder> builder_;
-  mutable kj::ArrayPtr<const kj::ArrayPtr<const capnp::word>> segments_cache_;
+  std::optional<capnp::MallocMessageBuilder> builder_;  // in place: no second allocation
+  kj::ArrayPtr<const kj::ArrayPtr<const capnp::word>> segments_;
 };
 }  // namespace detail
 
@@ -118,6 +123,7 @@ class Loan {
   /// Ends construction; the returned storage is immutable and shareable.
   std::shared_ptr<const MessageStorage> seal() && {
     root_ = Builder(nullptr);
+    storage_->seal();
     return std::move(storage_);
   }
 

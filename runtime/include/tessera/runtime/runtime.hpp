@@ -2,7 +2,8 @@
 // fan-out shares one immutable message, zero copy), the clock and the executor.
 //
 // Two ways to drive it:
-//  * run(): actors run on a TBB task arena; each actor is a strand (one handler at a time).
+//  * run(): actors run on the executor (a thread pool, or a TBB task arena); each actor is a
+//    strand (one handler at a time).
 //    With a simulated clock, time jumps to the next timer once every mailbox is empty and no
 //    handler runs, so runs are deterministic and as fast as the CPU allows (or paced by
 //    sim_rate). With a wall clock, timers fire on time until stop is requested.
@@ -28,6 +29,12 @@ struct RuntimeOptions {
   std::string output_dir;
   /// Executor threads; 0 uses every core.
   int threads = 0;
+  /// Who runs the actors' strands. kThreadPool: dedicated threads woken by a condition variable
+  /// (measured wake-up close to a bare hand-off). kTbbArena: tasks enqueued on a TBB task_arena
+  /// (slower wake-up on this VM, see `tessera bench runtime`). Either way, handlers use TBB's
+  /// parallel algorithms for data-parallel work.
+  enum class Executor { kThreadPool, kTbbArena };
+  Executor executor = Executor::kThreadPool;
   /// Print progress of finite sources to stderr about once a second.
   bool show_progress = true;
   /// Stop after this much simulated time (0: no limit).

@@ -1,0 +1,169 @@
+#include "commands.hpp"
+
+#include <tessera/runtime/process_stats.hpp>
+#include <tessera/runtime/profile.hpp>
+#include <tessera/runtime/registry.hpp>
+
+#include <nlohmann/json.hpp>
+
+#include <filesystem>
+#include <fstream>
+#include <iomanip>
+#include <iostream>
+
+namespace tessera::app {
+
+namespace fs = std::filesystem;
+
+std::vector<std::string> profileSearchDirs() {
+  return {std::string(TESSERA_SOURCE_DIR) + "/apps/profiles", "apps/profiles"};
+}
+
+namespace {
+
+nlohmann::json toJson(const SummaryValue& v) {
+  return std::visit([](const auto& x) { return nlohmann::json(x); }, v);
+}
+
+nlohmann::json summaryJson(const Profile& profile, const RunReport& r) {
+  nlohmann::json j;
+  j["profile"] = profile.name;
+  j["wall_s"] = r.wall_s;
+  j["cpu_s"] = r.cpu_s;
+  j["peak_rss_mb"] = r.peak_rss_mb;
+  j["data_duration_s"] = r.sim_duration_s;
+  j["realtime_factor"] = r.wall_s > 0 ? r.sim_duration_s / r.wall_s : 0.0;
+  j["interrupted"] = r.interrupted;
+  j["stop_reason"] = r.stop_reason;
+  nlohmann::json actors = nlohmann::json::object();
+  for (const auto& a : r.actors) {
+    nlohmann::json aj;
+    aj["messages_in"] = a.messages_in;
+    aj["messages_out"] = a.messages_out;
+    aj["timer_calls"] = a.timer_calls;
+    aj["drops"] = a.drops;
+    aj["max_queue_depth"] = a.max_queue_depth;
+    aj["handler_p50_us"] = a.handler_p50_us;
+    aj["handler_p99_us"] = a.handler_p99_us;
+    aj["handler_total_s"] = a.handler_total_s;
+    for (const auto& [k, v] : a.summary) {
+      aj[k] = toJson(v);
+      // Actor figures are also top-level keys (scripts read e.g. summary["scans_processed"]);
+      // on a clash the later actor's key is prefixed with its name.
+      if (j.contains(k))
+        j[a.name + "." + k] = toJson(v);
+      else
+        j[k] = toJson(v);
+    }
+    actors[a.name] = aj;
+  }
+  j["actors"] = actors;
+  return j;
+}
+
+}  // namespace
+
+void addRunCommand(CLI::App& app, int& result) {
+  auto* cmd = app.add_subcommand("run", "run a profile in one process");
+  struct Args {
+    std::string profile;
+    std::vector<std::string> sets;
+    std::string out;
+    int threads = 0;
+    double rate = -1;
+    bool quiet = false;
+  };
+  auto args = std::make_shared<Args>();
+  cmd->add_option("profile", args->profile, "profile name (apps/profiles/NAME.yaml) or path")
+      ->required();
+  cmd->add_option("--set", args->sets, "override: ACTOR.KEY=VALUE, KEY=VALUE (repeatable)");
+  cmd->add_option("--out", args->out, "output folder (created); default: none, nothing is written");
+  cmd->add_option("--threads", args->threads, "executor threads (0: all cores)");
+  cmd->add_option("--rate", args->rate, "simulated clock pace: 0 as fast as possible, 1 real time");
+  cmd->add_flag("--quiet", args->quiet, "no progress line and no metrics table");
+  cmd->callback([args, &result] {
+    const std::string path = resolveProfilePath(args->profile, profileSearchDirs());
+    Profile profile = loadProfile(path, args->sets);
+    if (args->rate >= 0) profile.sim_rate = args->rate;
+    RuntimeOptions options;
+    options.threads = args->threads;
+    options.show_progress = !args->quiet;
+    if (!args->out.empty()) {
+      fs::create_directories(args->out);
+      options.output_dir = fs::absolute(args->out).lexically_normal().string();
+    }
+    auto runtime = buildRuntime(profile, options);
+
+    std::cerr << "tessera run " << profile.name << " (" << path << ")\n";
+    if (!profile.description.empty()) std::cerr << "  " << profile.description << "\n";
+    for (const auto& a : profile.actors) {
+      std::cerr << "  actor " << std::left << std::setw(16) << a.name << std::setw(22) << a.type;
+      auto subs = runtime->subscriptionsOf(a.name);
+      auto pubs = runtime->publicationsOf(a.name);
+      if (!subs.empty()) {
+        std::cerr << " in:";
+        for (const auto& s : subs) std::cerr << " " << s;
+      }
+      if (!pubs.empty()) {
+        std::cerr << " out:";
+        for (const auto& s : pubs) std::cerr << " " << s;
+      }
+      std::cerr << "\n";
+    }
+    std::cerr << "  clock: " << (profile.clock == ClockKind::kSimulated ? "simulated" : "wall")
+              << (profile.clock == ClockKind::kSimulated && profile.sim_rate == 0
+                      ? " (as fast as possible)"
+                      : "")
+              << ", output: "
+              << (options.output_dir.empty() ? "(none; use --out DIR)" : options.output_dir)
+              << "\n  Ctrl-C stops cleanly (outputs are still written)\n";
+
+    runtime->installSignalHandlers();
+    const RunReport report = runtime->run();
+    if (!args->quiet) std::cerr << "\n" << report.table();
+    std::cerr << "stopped: " << report.stop_reason << "\n";
+    std::cerr << std::fixed << std::setprecision(2) << "data " << report.sim_duration_s << " s in "
+              << report.wall_s << " s wall, " << report.cpu_s << " s CPU, peak RSS "
+              << report.peak_rss_mb << " MB\n";
+    if (!options.output_dir.empty()) {
+      const auto j = summaryJson(profile, report);
+      std::ofstream(fs::path(options.output_dir) / "summary.json") << j.dump(2) << "\n";
+      std::cerr << "outputs in " << options.output_dir << ":\n";
+      std::vector<std::string> files;
+      for (const auto& e : fs::directory_iterator(options.output_dir)) {
+        if (e.is_regular_file()) files.push_back(e.path().filename().string());
+      }
+      std::sort(files.begin(), files.end());
+      for (const auto& f : files)
+        std::cerr << "  " << (fs::path(options.output_dir) / f).string() << "\n";
+    }
+    const bool actor_failure = report.interrupted && report.stop_reason.rfind("actor '", 0) == 0;
+    result = actor_failure ? 1 : (report.interrupted ? 130 : 0);
+    if (actor_failure) std::cerr << "error: " << report.stop_reason << "\n";
+  });
+}
+
+void addActorsCommand(CLI::App& app, int& result) {
+  auto* cmd = app.add_subcommand("actors", "list the actor types a profile can name, with options");
+  auto type = std::make_shared<std::string>();
+  cmd->add_option("type", *type, "show only this type");
+  cmd->callback([type, &result] {
+    const auto& entries = ActorRegistry::instance().entries();
+    bool found = false;
+    for (const auto& [name, entry] : entries) {
+      if (!type->empty() && name != *type) continue;
+      found = true;
+      std::cout << name << " - " << entry.summary << "\n";
+      for (const auto& row : entry.options()) {
+        std::cout << "    " << std::left << std::setw(22) << row[0] << std::setw(16) << row[1]
+                  << row[2] << "\n";
+      }
+    }
+    if (!found) {
+      std::cerr << "error: unknown actor type '" << *type << "'\n";
+      result = 2;
+    }
+  });
+}
+
+}  // namespace tessera::app

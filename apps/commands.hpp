@@ -1,0 +1,22 @@
+// Sub-commands of the `tessera` CLI. Each registers itself on the CLI11 app and runs when chosen.
+#pragma once
+
+#include <CLI/CLI.hpp>
+
+#include <functional>
+#include <string>
+#include <vector>
+
+namespace tessera::app {
+
+/// Adds `tessera run`; `result` receives the exit code when it runs.
+void addRunCommand(CLI::App& app, int& result);
+/// Adds `tessera actors` (list registered actor types and their options).
+void addActorsCommand(CLI::App& app, int& result);
+/// Adds `tessera bench runtime`.
+void addBenchRuntimeCommand(CLI::App& bench, int& result);
+
+/// Folders searched for profile names: the source tree's apps/profiles and ./apps/profiles.
+std::vector<std::string> profileSearchDirs();
+
+}  // namespace tessera::app

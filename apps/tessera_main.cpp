@@ -1,0 +1,29 @@
+// tessera: run profiles, list actors, benchmark the runtime.
+#include "commands.hpp"
+
+#include <tessera/runtime/options.hpp>
+
+#include <iostream>
+
+int main(int argc, char** argv) {
+  CLI::App app{"Tessera: mapping, localisation and navigation for mobile robots"};
+  app.require_subcommand(1);
+  int result = 0;
+  tessera::app::addRunCommand(app, result);
+  tessera::app::addActorsCommand(app, result);
+  auto* bench = app.add_subcommand("bench", "benchmarks that print their figures and the machine");
+  bench->require_subcommand(1);
+  tessera::app::addBenchRuntimeCommand(*bench, result);
+  try {
+    app.parse(argc, argv);
+  } catch (const CLI::ParseError& e) {
+    return app.exit(e);
+  } catch (const tessera::ConfigError& e) {
+    std::cerr << "error: " << e.what() << "\n";
+    return 2;
+  } catch (const std::exception& e) {
+    std::cerr << "error: " << e.what() << "\n";
+    return 1;
+  }
+  return result;
+}
