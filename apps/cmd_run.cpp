@@ -97,7 +97,7 @@ void addRunCommand(CLI::App& app, int& result) {
     std::cerr << "tessera run " << profile.name << " (" << path << ")\n";
     if (!profile.description.empty()) std::cerr << "  " << profile.description << "\n";
     for (const auto& a : profile.actors) {
-      std::cerr << "  actor " << std::left << std::setw(16) << a.name << std::setw(22) << a.type;
+      std::cerr << "  actor " << std::left << std::setw(22) << a.name << std::setw(20) << a.type;
       auto subs = runtime->subscriptionsOf(a.name);
       auto pubs = runtime->publicationsOf(a.name);
       if (!subs.empty()) {

@@ -93,6 +93,7 @@ struct Cell {
   std::condition_variable space;  // reliable publishers wait here for room
   std::deque<Item> queue;
   std::uint64_t max_depth = 0;
+  int waiting_publishers = 0;  // publishers blocked on a full reliable slot (under mutex)
 
   // Strand: `strand` is held by whoever runs this actor's handlers; `scheduled` is true while a
   // drain task waits in the executor, so at most one is ever queued.

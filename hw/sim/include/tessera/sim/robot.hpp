@@ -1,0 +1,157 @@
+// The simulated robot: differential-drive kinematics, noisy wheel odometry, and a route follower.
+//
+// Units and frames: metres, radians, seconds. Poses are base_link in the world ("map") frame for
+// the true state and in the "odom" frame for odometry; the odom frame equals the map frame at the
+// start, so the two differ only by accumulated odometry error.
+//
+// Motion is integrated in fixed steps. Over one step the robot moves the increments
+// (D = v dt, theta = omega dt) and moveBy() applies them at the mid-step heading (second-order
+// accurate for arcs). Odometry applies the noise model of SPEC.md section D to the same
+// increments, D' = D + N(0, (sigma_d |D| + floor)^2), theta' = theta + N(0, (sigma_theta |theta|
+// + floor)^2), and integrates D', theta' with moveBy() too, so zero noise reproduces the true
+// pose bit for bit. The noise is drawn once per step: the drift over a distance L grows like
+// sigma_d * sqrt(L * step_length), so it depends on the step rate, which is why the simulator
+// keeps that rate fixed.
+//
+// Everything is deterministic given the seed of the std::mt19937_64 passed in.
+#pragma once
+
+#include <Eigen/Core>
+
+#include <cstdint>
+#include <random>
+#include <vector>
+
+namespace tessera::sim {
+
+/// A planar pose: position [m] and heading [rad].
+struct Pose {
+  double x = 0, y = 0, theta = 0;
+  Eigen::Vector2d xy() const { return {x, y}; }
+};
+
+/// Angle wrapped to [-pi, pi).
+double wrapAngle(double a);
+/// a * b: pose b expressed in a's frame, moved to a's parent frame.
+Pose compose(const Pose& a, const Pose& b);
+/// The pose after moving forward `distance` while turning by `rotation` (mid-step heading).
+Pose moveBy(const Pose& p, double distance, double rotation);
+
+struct OdometryNoise {
+  double sigma_d = 0.05;      ///< distance noise std per metre of the step's distance
+  double sigma_theta = 0.05;  ///< rotation noise std per radian of the step's rotation
+  /// Small absolute std added per moving step when the matching sigma is non-zero, so that
+  /// turning in place still gets some translation noise (and driving straight some heading
+  /// noise). A step without motion gets no noise: a robot at rest does not drift.
+  double floor_d = 1e-5;      ///< [m]
+  double floor_theta = 1e-5;  ///< [rad]
+};
+
+/// Dead reckoning from noisy wheel increments, with its growing covariance.
+class Odometry {
+ public:
+  Odometry(const Pose& start, OdometryNoise noise) : pose_(start), noise_(noise) {}
+
+  /// Corrupts the true increments of one step, integrates them, and returns the noisy
+  /// (distance, rotation) actually integrated.
+  Eigen::Vector2d integrate(double distance, double rotation, std::mt19937_64& rng);
+
+  const Pose& pose() const { return pose_; }
+  /// Covariance of pose() over (x, y, theta), propagated with the model's Jacobians.
+  const Eigen::Matrix3d& covariance() const { return covariance_; }
+  /// Std of the noise added to increments (distance, rotation) of that size.
+  Eigen::Vector2d incrementStd(double distance, double rotation) const;
+  const OdometryNoise& noise() const { return noise_; }
+
+ private:
+  Pose pose_;
+  OdometryNoise noise_;
+  Eigen::Matrix3d covariance_ = Eigen::Matrix3d::Zero();
+};
+
+struct FollowerConfig {
+  double v_max = 0.5;               ///< [m/s]
+  double w_max = 1.0;               ///< [rad/s]
+  double a_max = 0.5;               ///< linear acceleration and braking limit [m/s^2]
+  double alpha_max = 2.0;           ///< angular acceleration limit [rad/s^2]
+  double lookahead = 0.4;           ///< carrot distance along the current segment [m]
+  double waypoint_tolerance = 0.1;  ///< a waypoint counts as reached this close [m]
+  double heading_gain = 2.0;        ///< omega = gain * heading error, before limits [1/s]
+  /// Above this heading error [rad] the robot turns in place instead of driving on.
+  double turn_in_place = 0.6;
+  /// Throws std::invalid_argument naming the first bad field.
+  void validate() const;
+};
+
+struct Twist {
+  double v = 0, omega = 0;
+};
+
+/// Drives through waypoints in order (`laps` times; between laps from the last waypoint back to
+/// the first). Pure pursuit on the current segment: it steers at a carrot `lookahead` ahead of
+/// its projection on the segment, slows by the cosine of the heading error, turns in place at
+/// sharp corners, and brakes in time to take the next corner at a speed that fits its angle.
+class RouteFollower {
+ public:
+  /// Throws std::invalid_argument for fewer than two waypoints, laps < 1, zero-length legs
+  /// or a bad config.
+  RouteFollower(std::vector<Eigen::Vector2d> waypoints, FollowerConfig config, int laps = 1);
+
+  /// Velocity for the next `dt` seconds from the true pose (limited by the config's speeds and
+  /// accelerations); advances past reached waypoints. After the last waypoint it brakes to a
+  /// halt within the limits and then reports done(); zero from then on.
+  Twist command(const Pose& pose, double dt);
+
+  bool done() const { return done_; }
+  /// Fraction of the route's total length completed (by segments finished plus the projection
+  /// on the current one), in [0, 1].
+  double progress() const;
+  /// Length of all laps [m].
+  double totalLength() const { return total_length_; }
+  /// Index of the leg being driven (0-based over all laps) and how many there are.
+  std::size_t legIndex() const { return leg_; }
+  std::size_t legCount() const { return legs_.size(); }
+  /// The start pose: on the first waypoint, facing the second.
+  Pose startPose() const;
+
+ private:
+  struct Leg {
+    Eigen::Vector2d a, b;
+    double length = 0, start_s = 0;  // start_s: route distance at a
+    double corner_speed = 0;         // speed allowed when reaching b
+  };
+  std::vector<Leg> legs_;
+  FollowerConfig config_;
+  double total_length_ = 0;
+  std::size_t leg_ = 0;
+  double along_ = 0;  // projection of the robot on the current leg [m]
+  Twist last_;
+  bool stopping_ = false;  // last waypoint reached, braking to a halt
+  bool done_ = false;
+};
+
+/// True state, odometry and follower together, stepped at a fixed rate.
+class DiffDriveRobot {
+ public:
+  DiffDriveRobot(const Pose& start, OdometryNoise noise, std::uint64_t seed);
+
+  /// Moves with (v, omega) for dt seconds: updates the true pose and the odometry.
+  void step(const Twist& cmd, double dt);
+
+  const Pose& truePose() const { return true_pose_; }
+  const Odometry& odometry() const { return odometry_; }
+  /// Distance driven by the true robot [m].
+  double distanceTravelled() const { return travelled_; }
+  /// The noisy increments (distance, rotation) of the last step, as the wheels reported them.
+  const Eigen::Vector2d& lastOdometryIncrement() const { return last_increment_; }
+  std::mt19937_64& rng() { return rng_; }
+
+ private:
+  Pose true_pose_;
+  Odometry odometry_;
+  std::mt19937_64 rng_;
+  double travelled_ = 0;
+  Eigen::Vector2d last_increment_ = Eigen::Vector2d::Zero();
+};
+
+}  // namespace tessera::sim

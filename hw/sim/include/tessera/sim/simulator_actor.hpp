@@ -1,0 +1,137 @@
+// SimulatorActor ("simulator"): drives a differential-drive robot along a route in a 2D world and
+// publishes what its sensors would see. A finite source: it calls finished() once every lap of
+// the route is driven and publishes nothing after that.
+//
+// Publishes (local topic names):
+//   scan          msg::LaserScan        frame "laser"; mount pose in the message
+//   odom          msg::Odometry         frame "odom", child "base_link"; noisy dead reckoning
+//   ground_truth  msg::GroundTruthPose  frame "map", child "base_link"; the true pose
+//
+// Timing: one timer at step_hz integrates the robot on simulated time. At step k (time
+// k / step_hz, k = 0 being the start pose) odometry is published when k is a multiple of
+// step_hz / odom_hz and a scan when k is a multiple of step_hz / scan_hz; integer step counting
+// keeps the rates exact. Whenever either is published, ground_truth is published first with the
+// same stamp, so a known-pose consumer can pair every scan with its true pose exactly.
+//
+// Frames: map = world frame of the World (origin at its lower-left corner); odom coincides with
+// map at the start pose. Option errors throw ConfigError from the constructor.
+#pragma once
+
+#include <tessera/messages/types.hpp>
+#include <tessera/runtime/actor.hpp>
+#include <tessera/runtime/options.hpp>
+#include <tessera/sim/ray_caster.hpp>
+#include <tessera/sim/robot.hpp>
+#include <tessera/sim/world.hpp>
+
+#include <array>
+#include <cstdint>
+#include <optional>
+#include <random>
+#include <string>
+#include <vector>
+
+namespace tessera::sim {
+
+struct SimulatorOptions {
+  std::string world = "builtin:office";
+  double world_resolution = 0.05;
+  std::vector<std::array<double, 2>> route;
+  int laps = 1;
+  int step_hz = 100;
+  int odom_hz = 50;
+  int scan_hz = 10;
+  double v_max = 0.5;
+  double w_max = 1.0;
+  double sigma_d = 0.05;
+  double sigma_theta = 0.05;
+  double laser_fov_deg = 180;
+  int laser_beams = 181;
+  double laser_max_range = 30;
+  double laser_min_range = 0.05;
+  double laser_range_noise = 0.01;
+  double laser_dropout = 0;
+  std::vector<double> laser_mount = {0, 0, 0};
+  std::uint64_t seed = 1;
+
+  template <class V>
+  void visit(V& v) {
+    v("world", world,
+      "'builtin:office' or the path of a PGM/PNG map (dark pixels < 128 are walls, top row = "
+      "highest y, relative paths from the working directory)");
+    v("world_resolution", world_resolution, "metres per pixel of an image world");
+    v("route", route,
+      "waypoints [[x, y], ...] in metres in the map frame; empty = the world's default route");
+    v("laps", laps, "times to drive the route (an open route is closed between laps)");
+    v("step_hz", step_hz,
+      "integration rate [Hz]; must divide 1e9 ns. Odometry noise is drawn per step, so the "
+      "drift for given sigmas depends on it");
+    v("odom_hz", odom_hz, "odometry rate [Hz]; must divide step_hz");
+    v("scan_hz", scan_hz, "laser rate [Hz]; must divide step_hz");
+    v("v_max", v_max, "top forward speed of the route follower [m/s]");
+    v("w_max", w_max, "top turn rate of the route follower [rad/s]");
+    v("sigma_d", sigma_d, "odometry distance noise: std per step = sigma_d * |step distance|");
+    v("sigma_theta", sigma_theta,
+      "odometry rotation noise: std per step = sigma_theta * |step rotation|");
+    v("laser_fov_deg", laser_fov_deg, "laser field of view [deg], centred ahead, in (0, 360]");
+    v("laser_beams", laser_beams, "beams per scan, first and last on the edges of the view");
+    v("laser_max_range", laser_max_range, "[m] nothing farther is seen (+inf)");
+    v("laser_min_range", laser_min_range, "[m] closer readings are invalid (NaN)");
+    v("laser_range_noise", laser_range_noise, "std of Gaussian range noise [m]");
+    v("laser_dropout", laser_dropout, "probability a beam returns nothing (+inf)");
+    v("laser_mount", laser_mount, "laser pose in base_link [x m, y m, theta rad]");
+    v("seed", seed, "random seed; equal seeds give identical runs");
+  }
+};
+
+class SimulatorActor final : public Actor {
+ public:
+  /// Loads the world and checks every option and the route; throws ConfigError naming the
+  /// option (and for a route, the waypoint index and coordinates).
+  explicit SimulatorActor(SimulatorOptions options);
+  SimulatorActor(const SimulatorActor&) = delete;
+  SimulatorActor& operator=(const SimulatorActor&) = delete;
+
+  void configure(ActorContext& ctx) override;
+  /// route_length_m, sim_time_s, scans_published, odom_published, distance_travelled_m,
+  /// odom_drift_m / odom_heading_drift_rad (final odometry minus truth), route_completed (0/1),
+  /// wall_contacts (steps whose true position was inside a wall).
+  void summarize(Summary& out) const override;
+
+  const World& world() const { return world_; }
+  /// The route being driven (given, or the world's default), one lap.
+  const Route& route() const { return route_; }
+
+ private:
+  void tick();
+  void publishGroundTruth(Nanos stamp);
+  void publishOdometry(Nanos stamp);
+  void publishScan(Nanos stamp);
+
+  SimulatorOptions options_;
+  World world_;
+  Route route_;
+  std::optional<LaserModel> laser_;  // points into world_
+  std::optional<RouteFollower> follower_;
+  std::optional<DiffDriveRobot> robot_;
+  std::mt19937_64 laser_rng_;
+
+  ActorContext* ctx_ = nullptr;
+  Publisher<msg::LaserScan> scan_pub_;
+  Publisher<msg::Odometry> odom_pub_;
+  Publisher<msg::GroundTruthPose> gt_pub_;
+
+  Nanos period_ = 0;
+  double dt_ = 0;
+  std::uint64_t odom_every_ = 1, scan_every_ = 1;
+  std::uint64_t step_ = 0;
+  bool finished_ = false;
+
+  // Noisy increments since the last odometry message, for its twist.
+  double odom_sum_d_ = 0, odom_sum_t_ = 0, odom_var_d_ = 0, odom_var_t_ = 0;
+  std::uint64_t odom_steps_ = 0;
+
+  std::int64_t scans_published_ = 0, odom_published_ = 0, wall_contacts_ = 0;
+};
+
+}  // namespace tessera::sim

@@ -1,0 +1,252 @@
+#include <tessera/sim/simulator_actor.hpp>
+
+#include <tessera/messages/views.hpp>
+#include <tessera/runtime/registry.hpp>
+
+#include <cmath>
+#include <sstream>
+#include <stdexcept>
+
+namespace tessera::sim {
+
+namespace {
+
+[[noreturn]] void fail(const std::string& key, const std::string& what) {
+  throw ConfigError("simulator: option '" + key + "': " + what);
+}
+
+template <typename T>
+std::string str(const T& v) {
+  std::ostringstream s;
+  s << v;
+  return s.str();
+}
+
+World loadWorld(const SimulatorOptions& o) {
+  constexpr std::string_view kBuiltin = "builtin:";
+  try {
+    if (o.world.starts_with(kBuiltin)) return World::builtin(o.world.substr(kBuiltin.size()));
+    return World::fromImage(o.world, o.world_resolution);
+  } catch (const std::invalid_argument& e) {
+    fail("world_resolution", e.what());
+  } catch (const std::exception& e) {
+    fail("world", e.what());
+  }
+}
+
+// Noise draws for the laser come from their own stream, so changing the laser (beam count,
+// dropout) does not change the odometry noise of a run with the same seed.
+std::mt19937_64 laserRng(std::uint64_t seed) {
+  std::seed_seq seq{static_cast<std::uint32_t>(seed), static_cast<std::uint32_t>(seed >> 32),
+                    0x6c617372u};  // "lasr"
+  return std::mt19937_64(seq);
+}
+
+}  // namespace
+
+SimulatorActor::SimulatorActor(SimulatorOptions options)
+    : options_(std::move(options)),
+      world_(loadWorld(options_)),
+      laser_rng_(laserRng(options_.seed)) {
+  const auto& o = options_;
+
+  // Rates: exact integer periods, so every stamp is a whole number of steps.
+  if (o.step_hz <= 0) fail("step_hz", "must be positive, got " + str(o.step_hz));
+  if (kNanosPerSecond % o.step_hz != 0)
+    fail("step_hz", str(o.step_hz) +
+                        " Hz has no whole-nanosecond period; use a divisor of 1e9 such as 50, "
+                        "100, 200, 250, 500 or 1000");
+  auto divisor = [&](const char* key, int hz) -> std::uint64_t {
+    if (hz <= 0) fail(key, "must be positive, got " + str(hz));
+    if (hz > o.step_hz || o.step_hz % hz != 0)
+      fail(key, str(hz) + " Hz must divide step_hz (" + str(o.step_hz) + " Hz)");
+    return static_cast<std::uint64_t>(o.step_hz / hz);
+  };
+  odom_every_ = divisor("odom_hz", o.odom_hz);
+  scan_every_ = divisor("scan_hz", o.scan_hz);
+  period_ = kNanosPerSecond / o.step_hz;
+  dt_ = nanosToSeconds(period_);
+
+  if (o.laps < 1) fail("laps", "must be at least 1, got " + str(o.laps));
+  if (!(o.sigma_d >= 0) || !std::isfinite(o.sigma_d))
+    fail("sigma_d", "must be >= 0, got " + str(o.sigma_d));
+  if (!(o.sigma_theta >= 0) || !std::isfinite(o.sigma_theta))
+    fail("sigma_theta", "must be >= 0, got " + str(o.sigma_theta));
+  if (!(o.v_max > 0) || !std::isfinite(o.v_max))
+    fail("v_max", "must be positive, got " + str(o.v_max));
+  if (!(o.w_max > 0) || !std::isfinite(o.w_max))
+    fail("w_max", "must be positive, got " + str(o.w_max));
+  if (!(o.laser_min_range >= 0) || !std::isfinite(o.laser_min_range))
+    fail("laser_min_range", "must be >= 0, got " + str(o.laser_min_range));
+  if (!(o.laser_max_range > o.laser_min_range) || !std::isfinite(o.laser_max_range))
+    fail("laser_max_range", "must be finite and above laser_min_range (" + str(o.laser_min_range) +
+                                "), got " + str(o.laser_max_range));
+  if (!(o.laser_range_noise >= 0) || !std::isfinite(o.laser_range_noise))
+    fail("laser_range_noise", "must be >= 0, got " + str(o.laser_range_noise));
+  if (!(o.laser_dropout >= 0 && o.laser_dropout <= 1))
+    fail("laser_dropout", "is a probability in [0, 1], got " + str(o.laser_dropout));
+  if (o.laser_mount.size() != 3)
+    fail("laser_mount", "needs 3 values [x, y, theta], got " + str(o.laser_mount.size()));
+
+  // Laser.
+  LaserConfig laser;
+  try {
+    laser = LaserConfig::fromFieldOfView(o.laser_fov_deg, o.laser_beams);
+  } catch (const std::invalid_argument& e) {
+    fail(o.laser_beams < 1 ? "laser_beams" : "laser_fov_deg", e.what());
+  }
+  laser.range_min = o.laser_min_range;
+  laser.range_max = o.laser_max_range;
+  laser.range_noise = o.laser_range_noise;
+  laser.dropout = o.laser_dropout;
+  laser.mount = {o.laser_mount[0], o.laser_mount[1], o.laser_mount[2]};
+  try {
+    laser_.emplace(world_, laser);
+  } catch (const std::invalid_argument& e) {
+    fail("laser_mount", e.what());  // every other laser field was checked above
+  }
+
+  // Route: given, or the world's own.
+  if (o.route.empty()) {
+    route_ = world_.defaultRoute();
+    if (route_.empty())
+      fail("route", "world '" + world_.name() + "' has no default route; give waypoints");
+  } else {
+    for (const auto& p : o.route) route_.emplace_back(p[0], p[1]);
+  }
+  const bool open = (route_.back() - route_.front()).norm() > 1e-6;
+  try {
+    checkRoute(world_, route_, /*closed=*/o.laps > 1 && open);
+  } catch (const std::invalid_argument& e) {
+    fail("route", e.what());
+  }
+
+  FollowerConfig follow;
+  follow.v_max = o.v_max;
+  follow.w_max = o.w_max;
+  try {
+    follower_.emplace(route_, follow, o.laps);
+  } catch (const std::invalid_argument& e) {
+    fail("route", e.what());  // speeds and laps were checked above
+  }
+  robot_.emplace(follower_->startPose(), OdometryNoise{o.sigma_d, o.sigma_theta}, o.seed);
+}
+
+void SimulatorActor::configure(ActorContext& ctx) {
+  ctx_ = &ctx;
+  ctx.declareFiniteSource();
+  scan_pub_ = ctx.advertise<msg::LaserScan>("scan");
+  odom_pub_ = ctx.advertise<msg::Odometry>("odom");
+  gt_pub_ = ctx.advertise<msg::GroundTruthPose>("ground_truth");
+  ctx.addTimer(
+      period_, [this] { tick(); }, 0);
+}
+
+void SimulatorActor::tick() {
+  if (finished_) return;
+  if (step_ > 0) {
+    const Twist cmd = follower_->command(robot_->truePose(), dt_);
+    robot_->step(cmd, dt_);
+    const Eigen::Vector2d inc = robot_->lastOdometryIncrement();
+    const Eigen::Vector2d sd = robot_->odometry().incrementStd(cmd.v * dt_, cmd.omega * dt_);
+    odom_sum_d_ += inc[0];
+    odom_sum_t_ += inc[1];
+    odom_var_d_ += sd[0] * sd[0];
+    odom_var_t_ += sd[1] * sd[1];
+    ++odom_steps_;
+    if (world_.blocked(robot_->truePose().xy())) ++wall_contacts_;
+  }
+
+  const Nanos stamp = ctx_->now();
+  const bool odom_due = step_ % odom_every_ == 0;
+  const bool scan_due = step_ % scan_every_ == 0;
+  if (odom_due || scan_due) publishGroundTruth(stamp);
+  if (odom_due) publishOdometry(stamp);
+  if (scan_due) {
+    publishScan(stamp);
+    ctx_->reportProgress(follower_->progress());
+  }
+  ++step_;
+
+  if (follower_->done()) {
+    finished_ = true;
+    ctx_->reportProgress(1.0);
+    ctx_->finished();
+  }
+}
+
+void SimulatorActor::publishGroundTruth(Nanos stamp) {
+  auto loan = gt_pub_.loan();
+  auto b = loan.builder();
+  setHeader(b.initHeader(), stamp, "map", gt_pub_.nextSeq());
+  const Pose& p = robot_->truePose();
+  writePose(b.initPose(), PoseXYT{p.x, p.y, p.theta});
+  b.setChildFrameId("base_link");
+  gt_pub_.publish(std::move(loan));
+}
+
+void SimulatorActor::publishOdometry(Nanos stamp) {
+  auto loan = odom_pub_.loan();
+  auto b = loan.builder();
+  setHeader(b.initHeader(), stamp, "odom", odom_pub_.nextSeq());
+  b.setChildFrameId("base_link");
+  const Pose& p = robot_->odometry().pose();
+  const Eigen::Matrix3d cov = robot_->odometry().covariance();
+  writePose(b.initPose(), PoseXYT{p.x, p.y, p.theta}, &cov);
+
+  // Twist: the mean of the noisy wheel velocities since the last message, with the variance of
+  // that mean (a differential drive has no lateral velocity).
+  auto twist = b.initTwist();
+  auto tc = b.initTwistCovariance(9);
+  for (unsigned i = 0; i < 9; ++i) tc.set(i, 0.0);
+  if (odom_steps_ > 0) {
+    const double span = static_cast<double>(odom_steps_) * dt_;
+    twist.setVx(odom_sum_d_ / span);
+    twist.setOmega(odom_sum_t_ / span);
+    tc.set(0, odom_var_d_ / (span * span));
+    tc.set(8, odom_var_t_ / (span * span));
+  }
+  odom_sum_d_ = odom_sum_t_ = odom_var_d_ = odom_var_t_ = 0;
+  odom_steps_ = 0;
+  odom_pub_.publish(std::move(loan));
+  ++odom_published_;
+}
+
+void SimulatorActor::publishScan(Nanos stamp) {
+  const LaserConfig& c = laser_->config();
+  auto loan = scan_pub_.loan(static_cast<std::size_t>(c.beams) * sizeof(float) + 256);
+  auto b = loan.builder();
+  setHeader(b.initHeader(), stamp, "laser", scan_pub_.nextSeq());
+  b.setAngleMin(static_cast<float>(c.angle_min));
+  b.setAngleIncrement(static_cast<float>(c.angle_increment));
+  b.setRangeMin(static_cast<float>(c.range_min));
+  b.setRangeMax(static_cast<float>(c.range_max));
+  b.setScanTimeS(0.0f);  // the simulated sweep is instantaneous
+  b.setMountX(static_cast<float>(c.mount.x));
+  b.setMountY(static_cast<float>(c.mount.y));
+  b.setMountTheta(static_cast<float>(c.mount.theta));
+  laser_->scan(robot_->truePose(), laser_rng_,
+               mutableView<float>(b.initRanges(static_cast<unsigned>(c.beams))));
+  scan_pub_.publish(std::move(loan));
+  ++scans_published_;
+}
+
+void SimulatorActor::summarize(Summary& out) const {
+  const Pose& truth = robot_->truePose();
+  const Pose& odom = robot_->odometry().pose();
+  out["route_length_m"] = follower_->totalLength();
+  out["sim_time_s"] = step_ > 0 ? static_cast<double>(step_ - 1) * dt_ : 0.0;
+  out["scans_published"] = scans_published_;
+  out["odom_published"] = odom_published_;
+  out["distance_travelled_m"] = robot_->distanceTravelled();
+  out["odom_drift_m"] = (odom.xy() - truth.xy()).norm();
+  out["odom_heading_drift_rad"] = std::abs(wrapAngle(odom.theta - truth.theta));
+  out["route_completed"] = static_cast<std::int64_t>(follower_->done() ? 1 : 0);
+  out["wall_contacts"] = wall_contacts_;
+}
+
+TESSERA_REGISTER_ACTOR("simulator", SimulatorActor, SimulatorOptions,
+                       "2D world simulator: drives a route, publishes laser scans, noisy "
+                       "odometry and ground truth");
+
+}  // namespace tessera::sim

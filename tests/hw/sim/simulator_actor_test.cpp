@@ -1,0 +1,407 @@
+#include <tessera/messages/types.hpp>
+#include <tessera/messages/views.hpp>
+#include <tessera/runtime/harness.hpp>
+#include <tessera/runtime/registry.hpp>
+#include <tessera/runtime/runtime.hpp>
+#include <tessera/sim/ray_caster.hpp>
+#include <tessera/sim/simulator_actor.hpp>
+
+#include <yaml-cpp/yaml.h>
+#include <catch2/catch.hpp>
+
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+#include <limits>
+#include <map>
+#include <numbers>
+#include <random>
+
+using namespace tessera;
+using tessera::sim::SimulatorActor;
+using tessera::sim::SimulatorOptions;
+
+namespace {
+
+// A 5 m leg along the bottom corridor of the office: about 12 s of driving.
+SimulatorOptions shortRun() {
+  SimulatorOptions o;
+  o.route = {{7.5, 7.5}, {12.5, 7.5}};
+  return o;
+}
+
+std::unique_ptr<SimulatorActor> make(const SimulatorOptions& o) {
+  return std::make_unique<SimulatorActor>(o);
+}
+
+// Advances in 1 s slices until the simulator stops publishing (it finished) or `limit_s`.
+void runToEnd(ActorHarness& h, double limit_s) {
+  std::size_t last = h.publishedCount("ground_truth");
+  for (double t = 0; t < limit_s; t += 1.0) {
+    h.advance(kNanosPerSecond);
+    const std::size_t now = h.publishedCount("ground_truth");
+    if (now == last) return;
+    last = now;
+  }
+}
+
+std::string configErrorOf(const SimulatorOptions& o) {
+  try {
+    SimulatorActor a(o);
+  } catch (const ConfigError& e) {
+    return e.what();
+  }
+  return "";
+}
+
+SimulatorOptions optionsFromYaml(const std::string& yaml) {
+  return loadOptions<SimulatorOptions>(Params(YAML::Load(yaml), "test"));
+}
+
+}  // namespace
+
+TEST_CASE("SimulatorActor: publishes scans at 10 Hz, odometry at 50 Hz, ground truth with them",
+          "[sim][actor]") {
+  SimulatorOptions o = shortRun();
+  ActorHarness h(make(o));
+  h.advance(kNanosPerSecond);  // ticks at 0, 10 ms, ..., 1000 ms
+
+  const auto scans = h.published<msg::LaserScan>("scan");
+  const auto odom = h.published<msg::Odometry>("odom");
+  const auto gt = h.published<msg::GroundTruthPose>("ground_truth");
+  REQUIRE(scans.size() == 11);
+  REQUIRE(odom.size() == 51);
+  REQUIRE(gt.size() == 51);  // every odometry or scan step; scan steps are odometry steps here
+
+  std::map<std::int64_t, PoseXYT> truth;
+  for (std::size_t i = 0; i < gt.size(); ++i) {
+    const auto hdr = gt[i]->getHeader();
+    CHECK(hdr.getStampNs() == static_cast<std::int64_t>(i) * 20'000'000);
+    CHECK(hdr.getSeq() == i);
+    CHECK(std::string(hdr.getFrameId().cStr()) == "map");
+    CHECK(std::string(gt[i]->getChildFrameId().cStr()) == "base_link");
+    truth[hdr.getStampNs()] = readPose(gt[i]->getPose());
+  }
+  CHECK(truth.at(0).x == 7.5);
+  CHECK(truth.at(0).y == 7.5);
+  CHECK(truth.at(0).theta == 0.0);
+
+  for (std::size_t i = 0; i < scans.size(); ++i) {
+    const auto& s = *scans[i];
+    const auto hdr = s.getHeader();
+    CHECK(hdr.getStampNs() == static_cast<std::int64_t>(i) * 100'000'000);  // exact 10 Hz
+    CHECK(hdr.getSeq() == i);
+    CHECK(std::string(hdr.getFrameId().cStr()) == "laser");
+    CHECK(truth.count(hdr.getStampNs()) == 1);  // a ground-truth pose with the same stamp
+    CHECK(s.getRanges().size() == 181);
+    CHECK(s.getAngleMin() == Approx(-std::numbers::pi / 2));
+    CHECK(s.getAngleIncrement() == Approx(std::numbers::pi / 180));
+    CHECK(s.getRangeMin() == Approx(0.05f));
+    CHECK(s.getRangeMax() == Approx(30.0f));
+    CHECK(s.getMountX() == 0.0f);
+  }
+  for (std::size_t i = 0; i < odom.size(); ++i) {
+    const auto hdr = odom[i]->getHeader();
+    CHECK(hdr.getStampNs() == static_cast<std::int64_t>(i) * 20'000'000);
+    CHECK(std::string(hdr.getFrameId().cStr()) == "odom");
+    CHECK(std::string(odom[i]->getChildFrameId().cStr()) == "base_link");
+    CHECK(odom[i]->getTwistCovariance().size() == 9);
+  }
+  // The robot moves forward at no more than v_max, and odometry reports it.
+  const PoseXYT last = truth.rbegin()->second;
+  CHECK(last.x > 7.6);
+  CHECK(last.x <= 7.5 + 0.5 * 1.0 + 1e-9);
+  CHECK(odom.back()->getTwist().getVx() > 0.1);
+}
+
+TEST_CASE("SimulatorActor: noiseless scans are ray casts from the true pose", "[sim][actor]") {
+  SimulatorOptions o = shortRun();
+  o.laser_range_noise = 0;
+  o.laser_mount = {0.2, 0.0, 0.0};
+  ActorHarness h(make(o));
+  h.advance(secondsToNanos(3.0));
+  const auto scans = h.published<msg::LaserScan>("scan");
+  const auto gt = h.published<msg::GroundTruthPose>("ground_truth");
+  std::map<std::int64_t, PoseXYT> truth;
+  for (const auto& g : gt) truth[g->getHeader().getStampNs()] = readPose(g->getPose());
+
+  const auto world = tessera::sim::World::builtinOffice();
+  const tessera::sim::RayCaster rc(world);
+  REQUIRE(scans.size() == 31);
+  for (const auto& s : scans) {
+    CHECK(s->getMountX() == Approx(0.2f));
+    const PoseXYT p = truth.at(s->getHeader().getStampNs());
+    const Eigen::Vector2d laser(p.x + 0.2 * std::cos(p.theta), p.y + 0.2 * std::sin(p.theta));
+    const auto ranges = view<float>(s->getRanges());
+    for (std::size_t i = 0; i < ranges.size(); i += 10) {
+      const double a = p.theta + s->getAngleMin() + i * static_cast<double>(s->getAngleIncrement());
+      const double expected = rc.cast(laser, a, 30.0);
+      if (std::isinf(expected))
+        CHECK(std::isinf(ranges[i]));
+      else
+        CHECK(ranges[i] == Approx(expected).epsilon(1e-5));
+    }
+  }
+}
+
+TEST_CASE("SimulatorActor: odometry equals ground truth without noise and drifts with it",
+          "[sim][actor]") {
+  // A route with turns, so heading noise matters: along the corridor and into a room.
+  SimulatorOptions o;
+  o.route = {{7.5, 7.5}, {21.0, 7.5}, {21.0, 4.0}, {24.0, 2.5}};
+
+  auto drive = [&](double sigma) {
+    o.sigma_d = o.sigma_theta = sigma;
+    auto h = std::make_unique<ActorHarness>(make(o));
+    runToEnd(*h, 200);
+    return h;
+  };
+
+  auto exact = drive(0.0);
+  {
+    const auto odom = exact->published<msg::Odometry>("odom");
+    const auto gt = exact->published<msg::GroundTruthPose>("ground_truth");
+    REQUIRE(odom.size() == gt.size());  // scan steps are odometry steps: one gt per odometry
+    REQUIRE(odom.size() > 100);
+    for (std::size_t i = 0; i < odom.size(); ++i) {
+      REQUIRE(odom[i]->getHeader().getStampNs() == gt[i]->getHeader().getStampNs());
+      const PoseXYT a = readPose(odom[i]->getPose()), b = readPose(gt[i]->getPose());
+      REQUIRE(a.x == b.x);
+      REQUIRE(a.y == b.y);
+      REQUIRE(a.theta == b.theta);
+    }
+    Summary s;
+    exact->actor().summarize(s);
+    CHECK(std::get<double>(s.at("odom_drift_m")) == 0.0);
+  }
+
+  auto noisy = drive(0.05);
+  {
+    const auto odom = noisy->published<msg::Odometry>("odom");
+    const auto gt = noisy->published<msg::GroundTruthPose>("ground_truth");
+    REQUIRE(odom.size() == gt.size());
+    const PoseXYT a = readPose(odom.back()->getPose()), b = readPose(gt.back()->getPose());
+    const double drift = std::hypot(a.x - b.x, a.y - b.y);
+    CHECK(drift > 1e-3);  // noise accumulates...
+    CHECK(drift < 2.0);   // ...but stays plausible over ~22 m
+    Summary s;
+    noisy->actor().summarize(s);
+    CHECK(std::get<double>(s.at("odom_drift_m")) == Approx(drift));
+    // The reported covariance grows with the distance driven.
+    Eigen::Matrix3d first, final;
+    REQUIRE(readCovariance(odom[1]->getPose(), first));
+    REQUIRE(readCovariance(odom.back()->getPose(), final));
+    CHECK(final(0, 0) + final(1, 1) > 10 * (first(0, 0) + first(1, 1)));
+  }
+}
+
+TEST_CASE("SimulatorActor: finishes after the route and then publishes nothing", "[sim][actor]") {
+  SimulatorOptions o = shortRun();
+  o.laps = 2;  // there and back: the open route is closed between laps
+  ActorHarness h(make(o));
+  runToEnd(h, 200);
+  const std::size_t scans = h.publishedCount("scan");
+  const std::size_t gts = h.publishedCount("ground_truth");
+  h.advance(secondsToNanos(5.0));
+  CHECK(h.publishedCount("scan") == scans);
+  CHECK(h.publishedCount("ground_truth") == gts);
+  CHECK(h.publishedCount("odom") > 0);
+
+  const auto gt = h.published<msg::GroundTruthPose>("ground_truth");
+  const PoseXYT end = readPose(gt.back()->getPose());
+  CHECK(std::hypot(end.x - 12.5, end.y - 7.5) < 0.15);  // lap 2 ends on the last waypoint
+
+  Summary s;
+  h.actor().summarize(s);
+  CHECK(std::get<std::int64_t>(s.at("route_completed")) == 1);
+  CHECK(std::get<double>(s.at("route_length_m")) == Approx(15.0));
+  CHECK(std::get<double>(s.at("distance_travelled_m")) == Approx(15.0).epsilon(0.05));
+  CHECK(std::get<std::int64_t>(s.at("scans_published")) == static_cast<std::int64_t>(scans));
+  CHECK(std::get<std::int64_t>(s.at("wall_contacts")) == 0);
+  const double sim_time = std::get<double>(s.at("sim_time_s"));
+  CHECK(sim_time > 15.0 / 0.5);
+  CHECK(static_cast<double>(scans) == Approx(sim_time * 10 + 1).margin(1.0));
+}
+
+TEST_CASE("SimulatorActor: a run ends by itself when the route is done", "[sim][actor]") {
+  RuntimeOptions ro;
+  ro.threads = 1;
+  ro.show_progress = false;
+  ro.max_sim_duration = secondsToNanos(300);
+  Runtime rt(ro);
+  rt.add("sim", make(shortRun()));
+  rt.configure();
+  const RunReport report = rt.run();
+  CHECK_FALSE(report.interrupted);
+  CHECK(report.stop_reason == "all inputs finished");
+  REQUIRE(report.actors.size() == 1);
+  const Summary& s = report.actors[0].summary;
+  CHECK(std::get<std::int64_t>(s.at("route_completed")) == 1);
+  CHECK(std::get<std::int64_t>(s.at("scans_published")) > 100);
+  CHECK(report.sim_duration_s < 60);
+}
+
+TEST_CASE("SimulatorActor: the default office route with default options", "[sim][actor]") {
+  RuntimeOptions ro;
+  ro.threads = 1;
+  ro.show_progress = false;
+  ro.max_sim_duration = secondsToNanos(1500);
+  Runtime rt(ro);
+  rt.add("sim", make(SimulatorOptions{}));
+  rt.configure();
+  const RunReport report = rt.run();
+  CHECK(report.stop_reason == "all inputs finished");
+  const Summary& s = report.actors.at(0).summary;
+  const double length = std::get<double>(s.at("route_length_m"));
+  const double sim_time = std::get<double>(s.at("sim_time_s"));
+  CHECK(length > 150);
+  CHECK(length < 250);
+  CHECK(std::get<std::int64_t>(s.at("route_completed")) == 1);
+  CHECK(std::get<std::int64_t>(s.at("wall_contacts")) == 0);
+  CHECK(std::get<double>(s.at("distance_travelled_m")) == Approx(length).epsilon(0.02));
+  CHECK(sim_time < 1.6 * length / 0.5);
+  CHECK(std::get<std::int64_t>(s.at("scans_published")) ==
+        static_cast<std::int64_t>(std::floor(sim_time * 10 + 1e-6)) + 1);
+  // Default noise drifts noticeably over ~200 m (a mapper has something to correct), but not
+  // absurdly.
+  const double drift = std::get<double>(s.at("odom_drift_m"));
+  CHECK(drift > 0.05);
+  CHECK(drift < 10.0);
+}
+
+TEST_CASE("SimulatorActor: the same seed gives the same run", "[sim][actor]") {
+  auto finalOdom = [](std::uint64_t seed) {
+    SimulatorOptions o = shortRun();
+    o.seed = seed;
+    ActorHarness h(make(o));
+    h.advance(secondsToNanos(5.0));
+    const auto odom = h.published<msg::Odometry>("odom");
+    const auto scans = h.published<msg::LaserScan>("scan");
+    return std::pair{readPose(odom.back()->getPose()).y,
+                     view<float>(scans.back()->getRanges())[90]};
+  };
+  CHECK(finalOdom(3) == finalOdom(3));
+  CHECK(finalOdom(3).first != finalOdom(4).first);
+  CHECK(finalOdom(3).second != finalOdom(4).second);
+}
+
+TEST_CASE("SimulatorActor: laser options", "[sim][actor]") {
+  SimulatorOptions o = shortRun();
+  o.laser_fov_deg = 360;
+  o.laser_beams = 720;
+  o.laser_max_range = 4.0;
+  o.laser_dropout = 1.0;
+  o.scan_hz = 20;
+  ActorHarness h(make(o));
+  h.advance(secondsToNanos(0.5));
+  const auto scans = h.published<msg::LaserScan>("scan");
+  REQUIRE(scans.size() == 11);
+  CHECK(scans[1]->getHeader().getStampNs() == 50'000'000);
+  CHECK(scans[0]->getRanges().size() == 720);
+  CHECK(scans[0]->getAngleMin() == Approx(-std::numbers::pi));
+  CHECK(scans[0]->getAngleIncrement() == Approx(std::numbers::pi / 360));
+  CHECK(scans[0]->getRangeMax() == Approx(4.0f));
+  for (float r : view<float>(scans[0]->getRanges())) CHECK(std::isinf(r));  // all dropped
+}
+
+TEST_CASE("SimulatorActor: options from YAML and the registry", "[sim][actor][options]") {
+  const SimulatorOptions o =
+      optionsFromYaml("{route: [[7.5, 7.5], [12, 7.5]], laps: 2, sigma_d: 0.1, seed: 9}");
+  REQUIRE(o.route.size() == 2);
+  CHECK(o.route[1][0] == 12.0);
+  CHECK(o.laps == 2);
+  CHECK(o.sigma_d == 0.1);
+  CHECK(o.seed == 9u);
+  CHECK(o.scan_hz == 10);  // default kept
+
+  CHECK_THROWS_AS(optionsFromYaml("{bogus: 1}"), ConfigError);
+  CHECK_THROWS_AS(optionsFromYaml("{laps: many}"), ConfigError);
+
+  const auto* entry = ActorRegistry::instance().find("simulator");
+  REQUIRE(entry != nullptr);
+  const auto rows = entry->options();
+  CHECK(rows.size() == 19);
+  for (const auto& row : rows) CHECK_FALSE(row[2].empty());  // every key documented
+  auto actor = ActorRegistry::instance().create(
+      "simulator", Params(YAML::Load("{route: [[7.5, 7.5], [12, 7.5]]}"), "test"));
+  CHECK(dynamic_cast<SimulatorActor*>(actor.get()) != nullptr);
+}
+
+TEST_CASE("SimulatorActor: bad options are ConfigErrors that say what is wrong",
+          "[sim][actor][options]") {
+  auto with = [](auto change) {
+    SimulatorOptions o = shortRun();
+    change(o);
+    return configErrorOf(o);
+  };
+  auto contains = [](const std::string& msg, const std::string& part) {
+    INFO("message: " << msg);
+    CHECK(msg.find(part) != std::string::npos);
+  };
+
+  SECTION("world") {
+    contains(with([](auto& o) { o.world = "/nonexistent/floor.pgm"; }), "/nonexistent/floor.pgm");
+    contains(with([](auto& o) { o.world = "/nonexistent/floor.pgm"; }), "not found");
+    contains(with([](auto& o) { o.world = "builtin:moon"; }), "office");
+
+    // A readable image world: zero resolution is refused, and it has no default route.
+    const auto dir = std::filesystem::temp_directory_path() /
+                     ("tessera_sim_test_" + std::to_string(std::random_device{}()));
+    std::filesystem::create_directories(dir);
+    const std::string pgm = (dir / "room.pgm").string();
+    {
+      std::ofstream f(pgm, std::ios::binary);
+      f << "P5\n4 4\n255\n";
+      for (int i = 0; i < 16; ++i) f.put(static_cast<char>(255));
+    }
+    contains(with([&](auto& o) {
+               o.world = pgm;
+               o.world_resolution = 0;
+             }),
+             "world_resolution");
+    contains(with([&](auto& o) {
+               o.world = pgm;
+               o.route.clear();
+             }),
+             "no default route");
+    const std::string text = (dir / "notes.pgm").string();
+    std::ofstream(text) << "hello";
+    contains(with([&](auto& o) { o.world = text; }), "not a readable image");
+    std::filesystem::remove_all(dir);
+  }
+
+  SECTION("route") {
+    contains(with([](auto& o) { o.route = {{7.5, 7.5}}; }), "at least two waypoints");
+    const std::string in_wall = with([](auto& o) { o.route = {{7.5, 7.5}, {15, 8.5}}; });
+    contains(in_wall, "option 'route'");
+    contains(in_wall, "waypoint 1 at (15, 8.5) is inside a wall");
+    contains(with([](auto& o) { o.route = {{7.5, 7.5}, {7.5, 7.5}, {9, 7.5}}; }), "coincide");
+    contains(with([](auto& o) { o.route = {{12, 7.5}, {12, 3}}; }), "crosses a wall");
+    contains(with([](auto& o) { o.laps = 0; }), "laps");
+  }
+
+  SECTION("rates") {
+    contains(with([](auto& o) { o.step_hz = 0; }), "step_hz");
+    contains(with([](auto& o) { o.step_hz = 300; }), "whole-nanosecond");
+    contains(with([](auto& o) { o.scan_hz = 7; }), "must divide step_hz");
+    contains(with([](auto& o) { o.odom_hz = -5; }), "odom_hz");
+    contains(with([](auto& o) { o.scan_hz = 200; }), "scan_hz");
+  }
+
+  SECTION("robot and laser") {
+    contains(with([](auto& o) { o.v_max = 0; }), "v_max");
+    contains(with([](auto& o) { o.w_max = -1; }), "w_max");
+    contains(with([](auto& o) { o.sigma_d = -0.1; }), "sigma_d");
+    contains(with([](auto& o) { o.laser_beams = 0; }), "laser_beams");
+    contains(with([](auto& o) { o.laser_fov_deg = 0; }), "laser_fov_deg");
+    contains(with([](auto& o) { o.laser_dropout = 2; }), "laser_dropout");
+    contains(with([](auto& o) { o.laser_max_range = 0.01; }), "laser_max_range");
+    contains(with([](auto& o) { o.laser_min_range = -1; }), "laser_min_range");
+    contains(with([](auto& o) { o.laser_range_noise = -0.01; }), "laser_range_noise");
+    contains(with([](auto& o) {
+               o.laser_mount = {0, 0, std::numeric_limits<double>::quiet_NaN()};
+             }),
+             "laser_mount");
+    contains(with([](auto& o) { o.laser_mount = {1.0}; }), "laser_mount");
+  }
+}
