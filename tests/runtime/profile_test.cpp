@@ -63,7 +63,7 @@ TEST_CASE("a valid profile builds and runs", "[profile]") {
   CHECK(report.actors[1].messages_in == 5);
 }
 
-TEST_CASE("--set overrides actor parameters and top-level keys", "[profile]") {
+TEST_CASE("overrides given with --set change actor parameters and top-level keys", "[profile]") {
   auto p = parseProfile(kGood, "demo.yaml", {"src.count=7", "label=hello", "max_duration_s=2.5"});
   CHECK(p.max_duration_s == 2.5);
   auto o = loadOptions<SourceOptions>(p.actors[0].params);

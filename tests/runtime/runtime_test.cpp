@@ -191,3 +191,20 @@ TEST_CASE("a handler that throws stops the run with a reason instead of crashing
   CHECK(report.interrupted);
   CHECK_THAT(report.stop_reason, Catch::Contains("bad") && Catch::Contains("boom"));
 }
+
+TEST_CASE("an actor that throws in stop() does not keep the others from stopping", "[runtime]") {
+  struct BadStop : Actor {
+    void configure(ActorContext& ctx) override {
+      ctx.subscribe<msg::Blob>("in", MailboxPolicy::reliable(4), [](const Message<msg::Blob>&) {});
+    }
+    void stop() override { throw std::runtime_error("disk full"); }
+  };
+  Runtime rt(threadedOptions());
+  rt.add("src", std::make_unique<CountingSource>(3, secondsToNanos(0.1)));
+  rt.add("bad", std::make_unique<BadStop>(), {{"in", "out"}});
+  auto& rec = static_cast<Recorder&>(
+      rt.add("rec", std::make_unique<Recorder>(MailboxPolicy::reliable(4)), {{"in", "out"}}));
+  auto report = rt.run();
+  CHECK(rec.seen_at_stop == 3);
+  CHECK_THAT(report.stop_reason, Catch::Contains("disk full") && Catch::Contains("bad"));
+}

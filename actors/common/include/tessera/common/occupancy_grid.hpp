@@ -1,5 +1,5 @@
-// OccupancyGrid: a growing 2D log-odds occupancy grid (SPEC §D: S⁺ = clamp(S⁻ + l_meas), S_init =
-// 0).
+// OccupancyGrid: a growing 2D log-odds occupancy grid
+// (SPEC §D: S⁺ = clamp(S⁻ + l_meas, l_min, l_max), S_init = 0).
 //
 // Frames and units: everything is in one planar frame (normally "map"), metres and radians.
 // Cells are addressed by absolute integer indices: cell (i, j) covers
