@@ -7,16 +7,10 @@
 namespace tessera {
 
 namespace {
-/// Records every message of one topic, in arrival order.
+/// The hidden actor that owns the harness's capture subscriptions; its slots are wired directly.
 class CaptureActor final : public Actor {
  public:
-  CaptureActor(std::string topic, MessageType type,
-               std::vector<std::shared_ptr<const MessageStorage>>* sink)
-      : topic_(std::move(topic)), type_(type), sink_(sink) {}
   void configure(ActorContext&) override {}
-  std::string topic_;
-  MessageType type_;
-  std::vector<std::shared_ptr<const MessageStorage>>* sink_;
 };
 }  // namespace
 
@@ -43,7 +37,7 @@ ActorHarness::ActorHarness(std::unique_ptr<Actor> actor, std::string output_dir,
   auto cell = std::make_unique<detail::Cell>();
   cell->index = static_cast<std::uint32_t>(impl.cells.size());
   cell->name = "(harness capture)";
-  cell->actor = std::make_unique<CaptureActor>("", MessageType{}, nullptr);
+  cell->actor = std::make_unique<CaptureActor>();
   for (const auto& topic_name : impl.cells[0]->publishes) {
     auto& topic = *impl.topics.at(topic_name);
     auto* sink = &captures_->by_topic[topic_name];

@@ -142,7 +142,6 @@ struct Runtime::Impl {
   Clock clock;
   std::vector<std::unique_ptr<detail::Cell>> cells;
   std::map<std::string, std::unique_ptr<detail::TopicState>> topics;
-  std::vector<std::unique_ptr<detail::Cell>> externals;  // unused placeholder for symmetry
   std::mutex timers_mutex;
   std::vector<detail::Timer> timers;
   bool configured = false, started = false, stopped = false, configuring = false;
