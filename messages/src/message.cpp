@@ -77,9 +77,11 @@ class FlatStorage final : public MessageStorage {
 }  // namespace
 }  // namespace detail
 
-void throwAsMessageError(const std::string& what, const std::exception& e) {
+namespace {
+[[noreturn]] void throwAsMessageError(const std::string& what, const std::exception& e) {
   throw MessageError(what + ": malformed message: " + e.what());
 }
+}  // namespace
 
 namespace {
 std::string kjText(const kj::Exception& e) {

@@ -164,7 +164,6 @@ std::vector<std::byte> encodeMessage(const MessageStorage& storage);
 
 // ---- implementation details ----
 
-void throwAsMessageError(const std::string& what, const std::exception& e);
 void validateMessageTree(const MessageStorage& storage, const std::string& what);
 void validateTyped(const MessageStorage& storage, capnp::StructSchema schema,
                    const std::string& what);
