@@ -1,0 +1,25 @@
+# Environment camera network (SPEC.md §A): fixed ceiling cameras that see a marker on the robot.
+# Evolve by Cap'n Proto rules: add fields, never renumber.
+@0x9f0646620a43b2e5;
+
+using Cxx = import "/capnp/c++.capnp";
+$Cxx.namespace("tessera::msg");
+
+using Common = import "common.capnp";
+
+# What one camera reported at one frame time.
+struct MarkerDetection {
+  header @0 :Common.Header;   # frameId = "camera_<id>"
+  cameraId @1 :Int32;
+  detected @2 :Bool;          # false: the marker is in view but was missed, or out of view
+  u @3 :Float64;              # [px] marker image position (column); valid when detected
+  v @4 :Float64;              # [px] (row)
+  pixelStd @5 :Float64;       # [px] 1-sigma noise the camera claims
+}
+
+# The robot entered or left a camera's floor footprint.
+struct CameraEvent {
+  header @0 :Common.Header;
+  cameraId @1 :Int32;
+  entered @2 :Bool;           # true = entered the view, false = left it
+}
