@@ -43,6 +43,7 @@ struct TextReader::Source {
   std::vector<char> buffer = std::vector<char>(1 << 16);
   std::size_t begin = 0, end = 0;
   bool eof = false;
+  bool in_memory = false;
 
   ~Source() {
     if (gz) gzclose(gz);
@@ -65,6 +66,18 @@ TextReader::TextReader(std::filesystem::path path) : path_(std::move(path)) {
   gzbuffer(source_->gz, 1 << 17);
 }
 
+TextReader TextReader::fromString(std::filesystem::path name, std::string contents) {
+  TextReader reader;
+  reader.path_ = std::move(name);
+  reader.source_ = std::make_unique<Source>();
+  reader.source_->in_memory = true;
+  reader.source_->file_size = contents.size();
+  reader.source_->buffer.assign(contents.begin(), contents.end());
+  reader.source_->end = reader.source_->buffer.size();
+  reader.source_->eof = true;
+  return reader;
+}
+
 TextReader::~TextReader() = default;
 TextReader::TextReader(TextReader&&) noexcept = default;
 TextReader& TextReader::operator=(TextReader&&) noexcept = default;
@@ -73,7 +86,8 @@ bool TextReader::compressed() const { return source_->is_gzip; }
 
 double TextReader::progress() const {
   if (source_->file_size == 0) return 0;
-  const double consumed = static_cast<double>(gzoffset(source_->gz));
+  const double consumed = source_->in_memory ? static_cast<double>(source_->begin)
+                                             : static_cast<double>(gzoffset(source_->gz));
   return std::min(1.0, consumed / static_cast<double>(source_->file_size));
 }
 

@@ -104,3 +104,16 @@ TEST_CASE("ParseReport counts skips by reason and keeps the first examples", "[d
   CHECK(report.first_skips.front() == "f.log:1: PARAM");
   CHECK(report.describe().find("PARAM: 15") != std::string::npos);
 }
+
+TEST_CASE("TextReader::fromString reads in-memory text like a file", "[datasets]") {
+  auto reader = TextReader::fromString("mem.log", "a b\nc\n");
+  std::string line;
+  REQUIRE(reader.next(line));
+  CHECK(line == "a b");
+  REQUIRE(reader.next(line));
+  CHECK(line == "c");
+  CHECK(reader.lineNumber() == 2);
+  CHECK_FALSE(reader.next(line));
+  CHECK(reader.progress() == 1.0);
+  CHECK_THROWS_WITH(reader.fail("bad"), Catch::Contains("mem.log:2: bad"));
+}

@@ -38,6 +38,8 @@ class DatasetError : public std::runtime_error {
 class TextReader {
  public:
   explicit TextReader(std::filesystem::path path);  // throws DatasetError if it cannot be opened
+  // Reads `contents` (plain text only) as if it were the file `name`: for tests and fuzzing.
+  static TextReader fromString(std::filesystem::path name, std::string contents);
   ~TextReader();
   TextReader(TextReader&&) noexcept;
   TextReader& operator=(TextReader&&) noexcept;
@@ -60,6 +62,7 @@ class TextReader {
  private:
   struct Source;
   std::filesystem::path path_;
+  TextReader() = default;
   std::unique_ptr<Source> source_;
   std::size_t line_ = 0;
 };
