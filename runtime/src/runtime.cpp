@@ -280,10 +280,17 @@ void Runtime::Impl::dispatch(Cell& cell, Item& item) {
   } else {
     const auto index = static_cast<std::size_t>(-item.slot - 1);
     std::function<void()>* callback;
+    std::function<void()> one_shot;  // moved out so the callback may schedule the next one
     {
       std::lock_guard lock(timers_mutex);
       timers[index].queued = false;
-      callback = &timers[index].callback;
+      if (timers[index].period == 0) {
+        one_shot = std::move(timers[index].callback);
+        timers[index].callback = nullptr;
+        callback = &one_shot;
+      } else {
+        callback = &timers[index].callback;
+      }
     }
     ++cell.timer_calls;
     try {
@@ -537,9 +544,10 @@ bool Runtime::fireDueTimers(Nanos limit) {
   {
     std::lock_guard lock(rt.timers_mutex);
     for (std::size_t i = 0; i < rt.timers.size(); ++i) {
-      if (rt.timers[i].next == due) {
+      auto& t = rt.timers[i];
+      if (t.next == due) {
         fire.push_back(i);
-        rt.timers[i].next += rt.timers[i].period;
+        t.next = t.period == 0 ? detail::Timer::kIdle : t.next + t.period;
       }
     }
   }
@@ -704,6 +712,10 @@ RunReport Runtime::run() {
           auto& t = rt.timers[i];
           if (t.next > now) continue;
           fire.push_back(i);
+          if (t.period == 0) {
+            t.next = detail::Timer::kIdle;
+            continue;
+          }
           t.next += t.period;
           if (t.next <= now) {  // fell behind by more than a period: skip, don't burst
             ++t.overruns;

@@ -68,8 +68,9 @@ struct Item {
 };
 
 struct Timer {
+  static constexpr Nanos kIdle = std::numeric_limits<Nanos>::max();
   std::uint32_t cell;
-  Nanos period;
+  Nanos period;  // 0 = one-shot (callAt): idle (next = kIdle) once fired, then reusable
   Nanos next;
   std::function<void()> callback;
   bool queued = false;  // a tick waits in the inbox: do not queue another
@@ -143,7 +144,7 @@ struct Runtime::Impl {
   std::vector<std::unique_ptr<detail::Cell>> cells;
   std::map<std::string, std::unique_ptr<detail::TopicState>> topics;
   std::mutex timers_mutex;
-  std::vector<detail::Timer> timers;
+  std::deque<detail::Timer> timers;  // deque: callAt may add while others run callbacks
   bool configured = false, started = false, stopped = false, configuring = false;
 
   // Outstanding work: queued items plus running handlers. Zero means idle.
@@ -199,6 +200,20 @@ class CellContext final : public ActorContext {
     rt_.timers.push_back(Timer{cell_.index, period,
                                rt_.clock.now() + std::max<Nanos>(first_delay, 0),
                                std::move(callback)});
+    cell_.timers.push_back(rt_.timers.size() - 1);
+  }
+  void callAt(Nanos when, std::function<void()> callback) override {
+    std::lock_guard lock(rt_.timers_mutex);
+    when = std::max(when, rt_.clock.now());
+    for (auto index : cell_.timers) {
+      auto& t = rt_.timers[index];
+      if (t.period == 0 && t.next == Timer::kIdle && !t.queued && !t.callback) {
+        t.next = when;
+        t.callback = std::move(callback);
+        return;
+      }
+    }
+    rt_.timers.push_back(Timer{cell_.index, 0, when, std::move(callback)});
     cell_.timers.push_back(rt_.timers.size() - 1);
   }
   const Clock& clock() const override { return rt_.clock; }

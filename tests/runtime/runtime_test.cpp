@@ -208,3 +208,47 @@ TEST_CASE("an actor that throws in stop() does not keep the others from stopping
   CHECK(rec.seen_at_stop == 3);
   CHECK_THAT(report.stop_reason, Catch::Contains("disk full") && Catch::Contains("bad"));
 }
+
+namespace {
+/// Publishes at irregular given times by chaining one-shot callAt timers, like a dataset player.
+class IrregularSource : public Actor {
+ public:
+  explicit IrregularSource(std::vector<double> times_s) : times_(std::move(times_s)) {}
+  void configure(ActorContext& ctx) override {
+    ctx_ = &ctx;
+    out_ = ctx.advertise<msg::Blob>("out");
+    ctx.declareFiniteSource();
+    ctx.callAt(secondsToNanos(times_.front()), [this] { emit(); });
+  }
+  void emit() {
+    auto loan = out_.loan();
+    setHeader(loan->initHeader(), ctx_->now(), "src", out_.nextSeq());
+    out_.publish(std::move(loan));
+    if (++next_ == times_.size()) {
+      ctx_->finished();
+      return;
+    }
+    ctx_->callAt(secondsToNanos(times_[next_]), [this] { emit(); });
+  }
+
+ private:
+  std::vector<double> times_;
+  std::size_t next_ = 0;
+  ActorContext* ctx_ = nullptr;
+  Publisher<msg::Blob> out_;
+};
+}  // namespace
+
+TEST_CASE("callAt timers fire once at their time and can chain from inside a callback",
+          "[runtime]") {
+  const std::vector<double> times = {0.25, 0.5, 0.5, 3.0, 10.125, 10.5};
+  Runtime rt(threadedOptions());
+  rt.add("src", std::make_unique<IrregularSource>(times));
+  auto& rec = static_cast<Recorder&>(
+      rt.add("rec", std::make_unique<Recorder>(MailboxPolicy::reliable(4)), {{"in", "out"}}));
+  auto report = rt.run();
+  REQUIRE(rec.stamps.size() == times.size());
+  for (std::size_t i = 0; i < times.size(); ++i) CHECK(rec.stamps[i] == secondsToNanos(times[i]));
+  CHECK(report.stop_reason == "all inputs finished");
+  CHECK(report.actors[0].timer_calls == times.size());
+}

@@ -113,6 +113,9 @@ class ActorContext {
 
   /// Calls `callback` every `period` of runtime-clock time, first at now + first_delay.
   virtual void addTimer(Nanos period, std::function<void()> callback, Nanos first_delay = 0) = 0;
+  /// Calls `callback` once, at runtime-clock time `when` (at once if that has passed). Players
+  /// chain these to follow a dataset's own timestamps; may be called from handlers and timers.
+  virtual void callAt(Nanos when, std::function<void()> callback) = 0;
 
   virtual const Clock& clock() const = 0;
   Nanos now() const { return clock().now(); }
