@@ -3,7 +3,11 @@
 #include <capnp/dynamic.h>
 #include <kj/exception.h>
 
+#include <array>
+#include <cstdlib>
 #include <cstring>
+#include <mutex>
+#include <vector>
 #include <sstream>
 
 namespace tessera {
@@ -20,13 +24,72 @@ const void* MessageStorage::address() const {
 }
 
 namespace detail {
+namespace {
+
+/// Zeroed first segments by power-of-two size class. Buffers are calloc'ed once and recycled;
+/// each class keeps a few, so memory held is bounded by kPerClass times the sizes in use.
+class SegmentPool {
+ public:
+  static constexpr std::size_t kMinWords = std::size_t{1} << 10;  // 8 KiB: below, malloc is fine
+  static constexpr std::size_t kMaxWords = std::size_t{1} << 24;  // 128 MiB: above, not pooled
+  static constexpr std::size_t kPerClass = 16;
+
+  static SegmentPool& instance() {
+    static SegmentPool* pool = new SegmentPool;  // never destroyed: storages may outlive statics
+    return *pool;
+  }
+
+  /// Rounds `words` up to its class. Returns nullptr when the size is not pooled.
+  capnp::word* take(std::size_t& words) {
+    if (words < kMinWords || words > kMaxWords) return nullptr;
+    const unsigned cls = classOf(words);
+    words = std::size_t{1} << cls;
+    {
+      std::lock_guard lock(mutex_);
+      auto& free = free_[cls];
+      if (!free.empty()) {
+        capnp::word* p = free.back();
+        free.pop_back();
+        return p;
+      }
+    }
+    return static_cast<capnp::word*>(std::calloc(words, sizeof(capnp::word)));
+  }
+
+  /// `p` must be zeroed again (Cap'n Proto's builder does this for the part it used).
+  void give(capnp::word* p, std::size_t words) {
+    const unsigned cls = classOf(words);
+    {
+      std::lock_guard lock(mutex_);
+      auto& free = free_[cls];
+      if (free.size() < kPerClass) {
+        free.push_back(p);
+        return;
+      }
+    }
+    std::free(p);
+  }
+
+ private:
+  static unsigned classOf(std::size_t words) {
+    unsigned c = 0;
+    while ((std::size_t{1} << c) < words) ++c;
+    return c;
+  }
+  std::mutex mutex_;
+  std::array<std::vector<capnp::word*>, 25> free_;
+};
+
+}  // namespace
 
 BuilderStorage::BuilderStorage(std::size_t size_hint_bytes) {
-  const std::size_t hint_words =
-      (size_hint_bytes + sizeof(capnp::word) - 1) / sizeof(capnp::word) + 16;
+  std::size_t hint_words = (size_hint_bytes + sizeof(capnp::word) - 1) / sizeof(capnp::word) + 16;
   if (hint_words <= kInlineWords) {
     std::memset(static_cast<void*>(inline_), 0, sizeof(inline_));
     builder_.emplace(kj::arrayPtr(inline_, kInlineWords));
+  } else if ((pooled_ = SegmentPool::instance().take(hint_words)) != nullptr) {
+    pooled_words_ = hint_words;
+    builder_.emplace(kj::arrayPtr(pooled_, pooled_words_));
   } else {
     builder_.emplace(static_cast<unsigned>(hint_words));
   }
@@ -39,7 +102,15 @@ capnp::AnyPointer::Reader BuilderStorage::root() const {
       .asReader();
 }
 
-BuilderStorage::~BuilderStorage() noexcept = default;
+BuilderStorage::~BuilderStorage() noexcept {
+  try {
+    builder_.reset();  // zeroes the part of a caller-provided first segment it used
+  } catch (...) {
+    // Cannot happen for a well-formed builder; never return a possibly dirty buffer.
+    pooled_ = nullptr;
+  }
+  if (pooled_ != nullptr) SegmentPool::instance().give(pooled_, pooled_words_);
+}
 
 void BuilderStorage::seal() {
   segments_ = builder_->getSegmentsForOutput();

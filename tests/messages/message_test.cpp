@@ -4,7 +4,9 @@
 
 #include <catch2/catch.hpp>
 
+#include <algorithm>
 #include <cmath>
+#include <cstring>
 #include <random>
 
 using namespace tessera;
@@ -115,4 +117,26 @@ TEST_CASE("malformed bytes give a MessageError naming the source, never a crash"
     }
     SUCCEED();
   }
+}
+
+TEST_CASE("large messages recycle their first segment and always start zeroed", "[messages]") {
+  constexpr std::size_t kBytes = 200'000;
+  const void* first_address = nullptr;
+  {
+    auto m = tessera::makeMessage<tessera::msg::Blob>(
+        [&](tessera::msg::Blob::Builder b) {
+          auto bytes = b.initPayload(kBytes);
+          std::memset(bytes.begin(), 0xff, bytes.size());
+        },
+        kBytes + 64);
+    first_address = m.storage()->address();
+  }
+  // The same size class comes back from the pool: the builder must have re-zeroed what it used,
+  // or the new message would read the old bytes as its (default) fields.
+  tessera::Loan<tessera::msg::Blob> again(kBytes + 64);
+  CHECK(again->getHeader().getSeq() == 0);
+  auto bytes = again->initPayload(kBytes);
+  CHECK(std::all_of(bytes.begin(), bytes.end(), [](capnp::byte c) { return c == 0; }));
+  auto sealed = std::move(again).seal();
+  CHECK(sealed->address() == first_address);
 }

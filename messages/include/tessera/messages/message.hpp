@@ -79,6 +79,11 @@ class BuilderStorage final : public MessageStorage {
   // that holds this object) serves both the control block and the first segment.
   static constexpr std::size_t kInlineWords = 48;
   capnp::word inline_[kInlineWords];
+  // Larger first segments come zeroed from a process-wide pool and go back to it (Cap'n Proto
+  // re-zeroes the used part when the builder dies), so a steady stream of large messages
+  // reuses warm memory instead of paying mmap, page faults and munmap per message.
+  capnp::word* pooled_ = nullptr;
+  std::size_t pooled_words_ = 0;
   std::optional<capnp::MallocMessageBuilder> builder_;  // in place: no second allocation
   kj::ArrayPtr<const kj::ArrayPtr<const capnp::word>> segments_;
 };
