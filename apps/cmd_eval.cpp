@@ -13,6 +13,7 @@
 
 #include <nlohmann/json.hpp>
 
+#include <cmath>
 #include <filesystem>
 #include <iomanip>
 #include <iostream>
@@ -31,6 +32,10 @@ void requireFile(const std::string& path, const char* option) {
   if (!fs::is_regular_file(path, ec))
     throw ConfigError(std::string(option) + " " + path +
                       (fs::exists(path, ec) ? ": not a regular file" : ": no such file"));
+}
+
+void requireFinite(double v, const char* option) {
+  if (!std::isfinite(v)) throw ConfigError(std::string(option) + " must be a finite number");
 }
 
 std::vector<TumPose> loadTrajectory(const std::string& path, const char* option) {
@@ -53,10 +58,9 @@ class Summary {
     out_ << "\n";
   }
   void stats(const std::string& label, const ErrorStats& s, const std::string& unit, int digits) {
-    row(label,
-        num(s.rmse, digits) + " rmse   " + num(s.mean, digits) + " mean   " +
-            num(s.median, digits) + " median   " + num(s.max, digits) + " max",
-        unit);
+    row(label + " [" + unit + "]", "rmse " + num(s.rmse, digits) + "   mean " +
+                                       num(s.mean, digits) + "   median " + num(s.median, digits) +
+                                       "   max " + num(s.max, digits));
   }
   void meanStd(const std::string& label, const ErrorStats& s, const std::string& unit, int digits) {
     row(label, num(s.mean, digits) + " ± " + num(s.std, digits), unit);
@@ -102,7 +106,8 @@ void addRelations(CLI::App& eval, int& result) {
       ->capture_default_str();
   cmd->add_flag("--json", a->json, "print one JSON object on stdout");
   cmd->callback([a, &result] {
-    if (a->max_gap_s < 0) throw ConfigError("--max-gap must not be negative");
+    if (!(a->max_gap_s >= 0)) throw ConfigError("--max-gap must be a number >= 0");
+    requireFinite(a->time_offset_s, "--time-offset");
     const auto trajectory = loadTrajectory(a->trajectory, "--trajectory");
     requireFile(a->relations, "--relations");
     const auto file = datasets::readRelations(a->relations);
@@ -178,7 +183,8 @@ void addAte(CLI::App& eval, int& result) {
       ->capture_default_str();
   cmd->add_flag("--scale", a->scale, "also estimate a scale (monocular estimates)");
   cmd->callback([a, &result] {
-    if (a->max_diff_s < 0) throw ConfigError("--max-diff must not be negative");
+    if (!(a->max_diff_s >= 0)) throw ConfigError("--max-diff must be a number >= 0");
+    requireFinite(a->offset_s, "--offset");
     const auto estimate = loadTrajectory(a->estimate, "--estimate");
     const auto reference = loadTrajectory(a->reference, "--reference");
     AteOptions options;
@@ -231,7 +237,9 @@ void addRpe(CLI::App& eval, int& result) {
   cmd->callback([a, &result] {
     RpeOptions options;
     options.unit = a->unit == "f" ? DeltaUnit::kFrames : DeltaUnit::kSeconds;
-    if (!(a->delta > 0)) throw ConfigError("--delta must be positive");
+    if (!(a->delta > 0) || !std::isfinite(a->delta))
+      throw ConfigError("--delta must be a positive number");
+    requireFinite(a->offset_s, "--offset");
     if (options.unit == DeltaUnit::kFrames && a->delta != std::floor(a->delta))
       throw ConfigError("--delta in frames must be a whole number");
     const auto estimate = loadTrajectory(a->estimate, "--estimate");

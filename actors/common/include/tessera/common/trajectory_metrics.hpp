@@ -13,7 +13,8 @@
 //   true relative pose δ between times t1 and t2, e = δ⁻¹ ⊕ (x(t1)⁻¹ ⊕ x(t2)) with x(t) the
 //   estimate interpolated on SE(2) at t. Reported, as in the paper's tables: mean ± std of the
 //   absolute translational error |e_xy| [m], of its square [m²], of the absolute rotational error
-//   |e_θ| [deg] and of its square [deg²].
+//   |e_θ| [deg] and of its square [deg²]. (|e| is the same for e⁻¹, so the order of the
+//   composition does not matter; the frame convention of δ does.)
 // - Landmarks: estimate and reference landmarks associated by id, rigid 2D alignment (Umeyama),
 //   position errors [m].
 //
@@ -141,7 +142,9 @@ struct PoseRelation {
 };
 struct RelationsOptions {
   /// [s] a relation time between two trajectory poses further apart than this is not matched
-  /// (interpolating across a hole would invent the pose). ≤ 0: no limit.
+  /// (interpolating across a hole would invent the pose). ≤ 0: no limit. 30 s lets through
+  /// the sparse key-frame trajectories SLAM front ends write (GMapping's Intel run: 14 s gaps
+  /// while the robot stands still) and stops lost-tracking holes.
   double max_gap_s = 30.0;
   /// [s] added to the trajectory stamps, for trajectories in another time base.
   double time_offset_s = 0.0;
