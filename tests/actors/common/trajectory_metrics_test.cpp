@@ -162,7 +162,7 @@ TEST_CASE("ATE associates stamps within max difference, closest first, with an o
   CHECK(pairs[0] == std::pair<std::size_t, std::size_t>{1, 0});
 }
 
-TEST_CASE("RPE of a rigidly moved copy is zero; ATE-style frame changes do not matter",
+TEST_CASE("RPE of a rigidly moved copy is zero: changes of world frame do not matter",
           "[eval][rpe]") {
   const auto reference = helix(300, 10);
   const Eigen::Quaterniond q(Eigen::AngleAxisd(1.1, Eigen::Vector3d(0, 1, 1).normalized()));
