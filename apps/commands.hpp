@@ -13,6 +13,8 @@ namespace tessera::app {
 void addRunCommand(CLI::App& app, int& result);
 /// Adds `tessera actors` (list registered actor types and their options).
 void addActorsCommand(CLI::App& app, int& result);
+/// Adds `tessera eval relations|ate|rpe|landmarks` (trajectory and map accuracy).
+void addEvalCommand(CLI::App& app, int& result);
 /// Adds `tessera bench runtime`.
 void addBenchRuntimeCommand(CLI::App& bench, int& result);
 

@@ -11,6 +11,7 @@ int main(int argc, char** argv) {
   int result = 0;
   tessera::app::addRunCommand(app, result);
   tessera::app::addActorsCommand(app, result);
+  tessera::app::addEvalCommand(app, result);
   auto* bench = app.add_subcommand("bench", "benchmarks that print their figures and the machine");
   bench->require_subcommand(1);
   tessera::app::addBenchRuntimeCommand(*bench, result);

@@ -1,0 +1,179 @@
+// `tessera eval ...` end to end: runs the built CLI on files written here and reads its JSON.
+#include <tessera/common/landmark_io.hpp>
+#include <tessera/common/trajectory_io.hpp>
+
+#include <nlohmann/json.hpp>
+
+#include <sys/wait.h>
+
+#include <cstdio>
+#include <fstream>
+#include <numbers>
+#include <sstream>
+
+#include "../shared_data.hpp"
+
+namespace fs = std::filesystem;
+using namespace tessera::common;
+
+namespace {
+
+struct CliRun {
+  int exit_code = -1;
+  std::string out, err;
+};
+
+CliRun runCli(const std::string& args, const fs::path& dir) {
+  const fs::path err_file = dir / "stderr.txt";
+  const std::string command =
+      std::string(TESSERA_CLI_PATH) + " " + args + " 2>" + err_file.string();
+  CliRun run;
+  FILE* pipe = ::popen(command.c_str(), "r");
+  REQUIRE(pipe != nullptr);
+  char buf[4096];
+  std::size_t n;
+  while ((n = std::fread(buf, 1, sizeof buf, pipe)) > 0) run.out.append(buf, n);
+  const int status = ::pclose(pipe);
+  run.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+  std::ifstream in(err_file);
+  std::ostringstream s;
+  s << in.rdbuf();
+  run.err = s.str();
+  return run;
+}
+
+std::vector<TumPose> square(double side, int per_side) {
+  std::vector<TumPose> out;
+  const std::int64_t dt = 100'000'000;  // 10 Hz
+  double x = 0, y = 0, th = 0;
+  for (int s = 0; s < 4; ++s) {
+    for (int k = 0; k < per_side; ++k) {
+      out.push_back(
+          TumPose::fromPlanar(static_cast<std::int64_t>(out.size()) * dt, Pose2(x, y, th)));
+      x += side / per_side * std::cos(th);
+      y += side / per_side * std::sin(th);
+    }
+    th += std::numbers::pi / 2;
+  }
+  return out;
+}
+
+}  // namespace
+
+TEST_CASE("tessera eval ate/rpe print one JSON object with the documented keys", "[eval][cli]") {
+  const auto dir = tessera::test::scratchDir("eval_cli");
+  const auto reference = square(4, 40);
+  auto estimate = reference;
+  // The estimate in another world frame (rotated 30°, shifted): ATE aligns it away.
+  const Pose2 frame(3, -1, std::numbers::pi / 6);
+  for (auto& p : estimate) p = TumPose::fromPlanar(p.stamp_ns, frame * p.planar());
+  writeTum(dir / "ref.tum", reference);
+  writeTum(dir / "est.tum", estimate);
+
+  const std::string files =
+      " --estimate " + (dir / "est.tum").string() + " --reference " + (dir / "ref.tum").string();
+  const CliRun ate = runCli("eval ate" + files + " --json", dir);
+  INFO(ate.err);
+  REQUIRE(ate.exit_code == 0);
+  const auto j = nlohmann::json::parse(ate.out);
+  for (const char* key : {"pairs", "rmse_m", "mean_m", "median_m", "max_m"}) CHECK(j.contains(key));
+  CHECK(j["pairs"] == 160);
+  CHECK(j["rmse_m"].get<double>() < 1e-9);
+  CHECK(j["mode"] == "se2");
+  CHECK_THAT(ate.err, Catch::Contains("rmse"));  // the human summary went to stderr
+
+  const CliRun rpe = runCli("eval rpe" + files + " --json --delta 10 --delta-unit f", dir);
+  REQUIRE(rpe.exit_code == 0);
+  const auto r = nlohmann::json::parse(rpe.out);
+  for (const char* key : {"pairs", "rmse_m", "mean_m", "median_m", "max_m", "rot_rmse_deg"})
+    CHECK(r.contains(key));
+  CHECK(r["pairs"] == 150);
+  CHECK(r["rot_rmse_deg"].get<double>() < 1e-6);
+
+  // Without --json: the summary on stdout, with units.
+  const CliRun human = runCli("eval ate" + files, dir);
+  REQUIRE(human.exit_code == 0);
+  CHECK_THAT(human.out, Catch::Contains("pairs") && Catch::Contains(" m"));
+}
+
+TEST_CASE("tessera eval relations and landmarks report their keys", "[eval][cli]") {
+  const auto dir = tessera::test::scratchDir("eval_cli_rel");
+  const auto traj = square(4, 40);
+  writeTum(dir / "traj.tum", traj);
+  {
+    // One exact relation (1 s = 10 poses straight ahead, 0.1 m each) and one 0.5 m too long.
+    std::ofstream rel(dir / "r.relations");
+    rel << "# t1 t2 dx dy dz roll pitch yaw\n"
+        << "0.0 1.0 1.0 0 0 0 0 0\n"
+        << "0.5 1.5 1.5 0 0 0 0 0\n"
+        << "100 101 1 0 0 0 0 0\n";  // after the end of the trajectory
+  }
+  const CliRun rel = runCli("eval relations --trajectory " + (dir / "traj.tum").string() +
+                                " --relations " + (dir / "r.relations").string() + " --json",
+                            dir);
+  INFO(rel.err);
+  REQUIRE(rel.exit_code == 0);
+  const auto j = nlohmann::json::parse(rel.out);
+  CHECK(j["relations"] == 3);
+  CHECK(j["matched"] == 2);
+  CHECK(j["trans_mean_m"].get<double>() == Approx(0.25));
+  CHECK(j["trans2_mean"].get<double>() == Approx(0.125));
+  CHECK(j["trans_std_m"].get<double>() == Approx(std::sqrt(0.125)));
+  for (const char* key : {"trans2_std", "rot_mean_deg", "rot_std_deg", "rot2_mean", "rot2_std"})
+    CHECK(j.contains(key));
+
+  writeLandmarks(dir / "a.txt", {{1, {0, 0}}, {2, {1, 0}}, {3, {0, 2}}});
+  writeLandmarks(dir / "b.txt", {{1, {5, 5}}, {2, {5, 6}}, {3, {3, 5}}, {4, {0, 0}}});
+  const CliRun lm = runCli("eval landmarks --estimate " + (dir / "a.txt").string() +
+                               " --reference " + (dir / "b.txt").string() + " --json",
+                           dir);
+  REQUIRE(lm.exit_code == 0);
+  const auto l = nlohmann::json::parse(lm.out);
+  CHECK(l["pairs"] == 3);
+  CHECK(l["rmse_m"].get<double>() < 1e-9);
+  CHECK(l.contains("median_m"));
+}
+
+TEST_CASE("tessera eval: missing files are usage errors, bad lines name file:line", "[eval][cli]") {
+  const auto dir = tessera::test::scratchDir("eval_cli_err");
+  writeTum(dir / "good.tum", square(2, 10));
+  {
+    std::ofstream bad(dir / "bad.tum");
+    bad << "# header\n0.0 0 0 0 0 0 0 1\n0.1 0 0 0 0 0 0\n";
+  }
+  const std::string good = (dir / "good.tum").string();
+  const CliRun missing =
+      runCli("eval ate --estimate " + (dir / "nope.tum").string() + " --reference " + good, dir);
+  CHECK(missing.exit_code == 2);
+  CHECK_THAT(missing.err, Catch::Contains("nope.tum") && Catch::Contains("no such file"));
+
+  const CliRun bad = runCli(
+      "eval ate --estimate " + (dir / "bad.tum").string() + " --reference " + good + " --json",
+      dir);
+  CHECK(bad.exit_code == 1);
+  CHECK_THAT(bad.err, Catch::Contains("bad.tum:3:"));
+  CHECK(bad.out.empty());
+
+  {
+    std::ofstream rel(dir / "bad.relations");
+    rel << "0 1 1 0 0 0 0 0\n0 1 1 0 zero 0 0 0\n";
+  }
+  const CliRun bad_rel = runCli(
+      "eval relations --trajectory " + good + " --relations " + (dir / "bad.relations").string(),
+      dir);
+  CHECK(bad_rel.exit_code == 1);
+  CHECK_THAT(bad_rel.err, Catch::Contains("bad.relations:2:") && Catch::Contains("(dz)"));
+
+  const CliRun bad_delta =
+      runCli("eval rpe --estimate " + good + " --reference " + good + " --delta -1", dir);
+  CHECK(bad_delta.exit_code == 2);
+
+  // Nothing to compare (other time base): an error, not a score of 0.
+  auto late = square(2, 10);
+  for (auto& p : late) p.stamp_ns += 5'000'000'000;
+  writeTum(dir / "late.tum", late);
+  const CliRun disjoint =
+      runCli("eval ate --estimate " + (dir / "late.tum").string() + " --reference " + good, dir);
+  CHECK(disjoint.exit_code == 1);
+  CHECK_THAT(disjoint.err, Catch::Contains("no estimate/reference stamps"));
+}
