@@ -18,7 +18,9 @@ int main(int argc, char** argv) {
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
-    return app.exit(e);
+    // --help/--version exit 0; every usage error exits 2, as the subcommands' own checks do.
+    const int code = app.exit(e);
+    return code == 0 ? 0 : 2;
   } catch (const tessera::ConfigError& e) {
     std::cerr << "error: " << e.what() << "\n";
     return 2;

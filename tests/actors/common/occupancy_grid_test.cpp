@@ -35,7 +35,7 @@ RangeScan oneBeam(const std::vector<float>& r, double angle = 0.0) {
 }
 }  // namespace
 
-TEST_CASE("normalizeAngle maps to (-pi, pi]", "[pose2]") {
+TEST_CASE("normalizeAngle maps angles into the half-open interval from -pi to pi", "[pose2]") {
   using tessera::common::normalizeAngle;
   CHECK(normalizeAngle(0.0) == 0.0);
   CHECK(normalizeAngle(kPi) == Approx(kPi));
