@@ -8,10 +8,11 @@
 using namespace tessera;
 namespace fs = std::filesystem;
 
-TEST_CASE("rgbd_replay writes the TUM sequence's ground truth", "[e2e][rgbd]") {
+TEST_CASE("rgbd_replay writes the ground truth of the TUM sequence", "[e2e][rgbd]") {
   TESSERA_SHARED_DATA(dir, "tum-rgbd-fr1-desk-9frames");
   const fs::path out = tessera::test::scratchDir("e2e_rgbd_replay");
-  const std::string profile_path = std::string(TESSERA_SOURCE_DIR) + "/apps/profiles/rgbd_replay.yaml";
+  const std::string profile_path =
+      std::string(TESSERA_SOURCE_DIR) + "/apps/profiles/rgbd_replay.yaml";
 
   CHECK_THROWS_WITH(buildRuntime(loadProfile(profile_path), {}),
                     Catch::Contains("path") && Catch::Contains("required"));

@@ -49,8 +49,9 @@ bool isFile(const fs::path& p) {
 // A timestamp: finite, not negative (TUM uses Unix time, 7-Scenes none).
 double timestampField(const Fields& f, std::size_t i, std::string_view label) {
   const double t = f.real(i, label);
-  if (t < 0) f.fail("field " + std::to_string(i + 1) + " (" + std::string(label) +
-                    "): negative timestamp " + str(t));
+  if (t < 0)
+    f.fail("field " + std::to_string(i + 1) + " (" + std::string(label) + "): negative timestamp " +
+           str(t));
   return t;
 }
 
@@ -256,8 +257,7 @@ std::vector<TimedPose> parseTumGroundTruth(TextReader& reader) {
 
 std::vector<TumAssociation> associateTum(const std::vector<TimedFile>& color,
                                          const std::vector<TimedFile>& depth,
-                                         double max_time_difference,
-                                         std::size_t* unmatched_color) {
+                                         double max_time_difference, std::size_t* unmatched_color) {
   // Candidate pairs closer than the tolerance, found by a window search on the sorted depth
   // times, then taken closest first so each image ends up in at most one pair.
   std::vector<std::tuple<double, std::size_t, std::size_t>> candidates;
@@ -322,9 +322,8 @@ RgbdSequence readTumSequence(const fs::path& folder, const TumOptions& options) 
   std::error_code ec;
   if (!fs::is_directory(folder, ec)) throw DatasetError(folder, 0, "not a folder");
   if (!(options.max_time_difference > 0) || !std::isfinite(options.max_time_difference))
-    throw DatasetError(folder, 0,
-                       "max_time_difference must be > 0 s, got " +
-                           str(options.max_time_difference));
+    throw DatasetError(
+        folder, 0, "max_time_difference must be > 0 s, got " + str(options.max_time_difference));
   if (!(options.max_interpolation_gap >= 0) || !(options.max_pose_time_difference >= 0))
     throw DatasetError(folder, 0, "ground-truth time tolerances must be >= 0");
 
@@ -354,8 +353,7 @@ RgbdSequence readTumSequence(const fs::path& folder, const TumOptions& options) 
     const auto color_list = parseTumFileList(rgb);
     const auto depth_list = parseTumFileList(depth);
     seq.report.lines += rgb.lineNumber() + depth.lineNumber();
-    pairs = associateTum(color_list, depth_list, options.max_time_difference,
-                         &seq.unmatched_color);
+    pairs = associateTum(color_list, depth_list, options.max_time_difference, &seq.unmatched_color);
     list_name = "rgb.txt";
   }
 
@@ -411,8 +409,7 @@ Eigen::MatrixXd readMatrix(TextReader& reader, int rows, int cols, std::string_v
   int r = 0;
   while (reader.next(line)) {
     if (!isData(line)) continue;
-    if (r == rows)
-      reader.fail(std::string(what) + ": more than " + std::to_string(rows) + " rows");
+    if (r == rows) reader.fail(std::string(what) + ": more than " + std::to_string(rows) + " rows");
     Fields f(reader, line);
     f.requireExactly(static_cast<std::size_t>(cols), std::string(what) + " row");
     for (int c = 0; c < cols; ++c)
@@ -502,9 +499,9 @@ RgbdSequence readSevenScenesSequence(const fs::path& folder, const SevenScenesOp
       continue;
     }
     if (!depth_files.emplace(index, name).second)
-      throw DatasetError(folder / name, 0,
-                         "frame " + std::to_string(index) + " appears twice (also as " +
-                             depth_files[index] + ")");
+      throw DatasetError(
+          folder / name, 0,
+          "frame " + std::to_string(index) + " appears twice (also as " + depth_files[index] + ")");
   }
   seq.has_ground_truth = poses_found > 0;
 
@@ -530,9 +527,9 @@ RgbdSequence readSevenScenesSequence(const fs::path& folder, const SevenScenesOp
       frame.pose = parseSevenScenesPose(reader);
       seq.report.lines += reader.lineNumber();
     } else if (seq.has_ground_truth) {
-      throw DatasetError(pose_file, 0,
-                         "pose of frame " + std::to_string(index) +
-                             " is missing while other frames have one");
+      throw DatasetError(
+          pose_file, 0,
+          "pose of frame " + std::to_string(index) + " is missing while other frames have one");
     } else {
       ++seq.frames_without_pose;
     }
@@ -573,10 +570,10 @@ std::vector<unsigned char> readBytes(const fs::path& path) {
 // Decoders fill what a truncated file lacks (libjpeg warns and pads with grey), so completeness
 // is checked from the container: a PNG ends with its IEND chunk, a JPEG with the EOI marker.
 void checkComplete(const fs::path& path, const std::vector<unsigned char>& b) {
-  static constexpr std::array<unsigned char, 8> kPng = {0x89, 'P', 'N', 'G', '\r', '\n', 0x1a,
-                                                        '\n'};
-  static constexpr std::array<unsigned char, 8> kIend = {'I', 'E', 'N', 'D', 0xae, 0x42, 0x60,
-                                                         0x82};
+  static constexpr std::array<unsigned char, 8> kPng = {0x89, 'P',  'N',  'G',
+                                                        '\r', '\n', 0x1a, '\n'};
+  static constexpr std::array<unsigned char, 8> kIend = {'I',  'E',  'N',  'D',
+                                                         0xae, 0x42, 0x60, 0x82};
   if (b.size() >= kPng.size() && std::equal(kPng.begin(), kPng.end(), b.begin())) {
     if (b.size() < 8 + 12 || !std::equal(kIend.begin(), kIend.end(), b.end() - 8))
       throw DatasetError(path, 0, "truncated PNG (no IEND chunk at the end)");

@@ -24,8 +24,7 @@ std::string str(const T& v) {
 }
 
 datasets::RgbdSequence readSequence(const RgbdPlayerOptions& o) {
-  if (o.path.empty())
-    fail("path", "is required: the dataset folder (e.g. --set player.path=DIR)");
+  if (o.path.empty()) fail("path", "is required: the dataset folder (e.g. --set player.path=DIR)");
   datasets::RgbdReadOptions read;
   if (o.layout != "auto") {
     try {
@@ -91,8 +90,8 @@ RgbdPlayerActor::RgbdPlayerActor(RgbdPlayerOptions options)
     fail("first_frame", str(o.first_frame) + " is outside the sequence's " + str(n) + " frames");
   const std::int64_t last = o.last_frame < 0 ? n - 1 : o.last_frame;
   if (o.last_frame < -1 || last >= n || last < o.first_frame)
-    fail("last_frame", str(o.last_frame) + " must be -1 or in [first_frame " +
-                           str(o.first_frame) + ", " + str(n - 1) + "]");
+    fail("last_frame", str(o.last_frame) + " must be -1 or in [first_frame " + str(o.first_frame) +
+                           ", " + str(n - 1) + "]");
   begin_ = next_ = static_cast<std::size_t>(o.first_frame);
   end_ = static_cast<std::size_t>(last) + 1;
   if (o.frame_id.empty()) fail("frame_id", "must not be empty");
@@ -100,8 +99,8 @@ RgbdPlayerActor::RgbdPlayerActor(RgbdPlayerOptions options)
 }
 
 Nanos RgbdPlayerActor::timeOf(std::size_t frame) const {
-  const double dt = (sequence_.frames[frame].timestamp - sequence_.frames[begin_].timestamp) /
-                    options_.rate;
+  const double dt =
+      (sequence_.frames[frame].timestamp - sequence_.frames[begin_].timestamp) / options_.rate;
   return start_ + static_cast<Nanos>(std::llround(dt * 1e9));
 }
 
@@ -178,8 +177,7 @@ void RgbdPlayerActor::playNext() {
     const Eigen::Vector3d axis = frame.pose->rotation().col(2);  // optical axis in the world
     auto gt2 = gt2d_pub_.loan();
     setHeader(gt2->initHeader(), stamp, options_.world_frame, gt2d_pub_.nextSeq());
-    writePose(gt2->initPose(), PoseXYT{frame.pose->translation().x(),
-                                       frame.pose->translation().y(),
+    writePose(gt2->initPose(), PoseXYT{frame.pose->translation().x(), frame.pose->translation().y(),
                                        std::atan2(axis.y(), axis.x())});
     gt2->setChildFrameId(options_.frame_id);
     gt2d_pub_.publish(std::move(gt2));

@@ -3,13 +3,13 @@
 #include <zlib.h>
 
 #include <algorithm>
-#include <cstdio>
-#include <functional>
-#include <map>
 #include <chrono>
 #include <cmath>
+#include <cstdio>
 #include <fstream>
+#include <functional>
 #include <iostream>
+#include <map>
 #include <random>
 #include <sstream>
 
@@ -71,10 +71,9 @@ void checkImages(const RgbdImages& im, double& median_m, double& valid_fraction)
   REQUIRE(im.depth.size() == 640u * 480u);
   const auto metres = depthInMetres(im);
   median_m = median(metres);
-  valid_fraction =
-      static_cast<double>(std::count_if(im.depth.begin(), im.depth.end(),
-                                        [](std::uint16_t d) { return d != 0; })) /
-      static_cast<double>(im.depth.size());
+  valid_fraction = static_cast<double>(std::count_if(im.depth.begin(), im.depth.end(),
+                                                     [](std::uint16_t d) { return d != 0; })) /
+                   static_cast<double>(im.depth.size());
   const auto [lo, hi] = std::minmax_element(im.color.begin(), im.color.end());
   CHECK(*hi - *lo > 100);
   const auto implausible = std::count_if(metres.begin(), metres.end(), [](float m) {
@@ -123,8 +122,8 @@ void writePng16(const fs::path& path, int width, int height,
     be32(out, static_cast<std::uint32_t>(data.size()));
     const std::string body = std::string(type, 4) + data;
     out += body;
-    be32(out, static_cast<std::uint32_t>(
-                  crc32(0, reinterpret_cast<const Bytef*>(body.data()), static_cast<uInt>(body.size()))));
+    be32(out, static_cast<std::uint32_t>(crc32(0, reinterpret_cast<const Bytef*>(body.data()),
+                                               static_cast<uInt>(body.size()))));
   };
   std::string raw;
   for (int r = 0; r < height; ++r) {
@@ -138,12 +137,14 @@ void writePng16(const fs::path& path, int width, int height,
   uLongf packed_size = compressBound(static_cast<uLong>(raw.size()));
   std::string packed(packed_size, '\0');
   REQUIRE(compress(reinterpret_cast<Bytef*>(packed.data()), &packed_size,
-                   reinterpret_cast<const Bytef*>(raw.data()), static_cast<uLong>(raw.size())) == Z_OK);
+                   reinterpret_cast<const Bytef*>(raw.data()),
+                   static_cast<uLong>(raw.size())) == Z_OK);
   packed.resize(packed_size);
   std::string ihdr;
   be32(ihdr, static_cast<std::uint32_t>(width));
   be32(ihdr, static_cast<std::uint32_t>(height));
-  ihdr += std::string("\x10\x00\x00\x00\x00", 5);  // 16 bit, greyscale, deflate, no filter/interlace
+  ihdr +=
+      std::string("\x10\x00\x00\x00\x00", 5);  // 16 bit, greyscale, deflate, no filter/interlace
   std::string png = "\x89PNG\r\n\x1a\n";
   chunk(png, "IHDR", ihdr);
   chunk(png, "IDAT", packed);
@@ -208,8 +209,8 @@ TEST_CASE("TUM fr1/desk: 9 associated frames with interpolated ground truth and 
     CHECK(med < 4.0);
     CHECK(valid > 0.5);
   }
-  const double ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() -
-                                                              t0).count() / 9;
+  const double ms =
+      std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count() / 9;
   std::cout << "TUM fr1/desk: 9 frames, " << ms << " ms per frame load\n";
 }
 
@@ -335,15 +336,15 @@ TEST_CASE("Malformed rgb.txt / depth.txt lines throw naming file, line and field
     return parseError("rgb.txt", text, [](TextReader& r) { return parseTumFileList(r); });
   };
   CHECK(err("# header\n1.0 rgb/a.png\n\n2.0 rgb/b.png\n").empty());
-  CHECK_THAT(err("1.0 rgb/a.png\n2.0\n"), Catch::Contains("rgb.txt:2") &&
-                                              Catch::Contains("expected 2 fields, got 1"));
+  CHECK_THAT(err("1.0 rgb/a.png\n2.0\n"),
+             Catch::Contains("rgb.txt:2") && Catch::Contains("expected 2 fields, got 1"));
   CHECK_THAT(err("1.0 rgb/a.png extra\n"), Catch::Contains("rgb.txt:1"));
   CHECK_THAT(err("nan rgb/a.png\n"), Catch::Contains("timestamp") && Catch::Contains("'nan'"));
   CHECK_THAT(err("inf rgb/a.png\n"), Catch::Contains("finite"));
   CHECK_THAT(err("1e999 rgb/a.png\n"), Catch::Contains("out of range"));
   CHECK_THAT(err("-1 rgb/a.png\n"), Catch::Contains("negative"));
-  CHECK_THAT(err("2.0 rgb/a.png\n1.0 rgb/b.png\n"), Catch::Contains("rgb.txt:2") &&
-                                                        Catch::Contains("not after"));
+  CHECK_THAT(err("2.0 rgb/a.png\n1.0 rgb/b.png\n"),
+             Catch::Contains("rgb.txt:2") && Catch::Contains("not after"));
   CHECK_THAT(err("1.0 rgb/a.png\n1.0 rgb/b.png\n"), Catch::Contains("not after"));
   CHECK_THAT(err("x1.0 rgb/a.png\n"), Catch::Contains("expected a number"));
 }
@@ -354,8 +355,8 @@ TEST_CASE("Malformed groundtruth.txt and associations.txt lines throw", "[datase
                       [](TextReader& r) { return parseTumGroundTruth(r); });
   };
   CHECK(gt("# t tx ty tz qx qy qz qw\n1 0 0 0 0 0 0 1\n2 1 2 3 0 0 0.7071 0.7071\n").empty());
-  CHECK_THAT(gt("1 0 0 0 0 0 1\n"), Catch::Contains("groundtruth.txt:1") &&
-                                        Catch::Contains("expected 8 fields, got 7"));
+  CHECK_THAT(gt("1 0 0 0 0 0 1\n"),
+             Catch::Contains("groundtruth.txt:1") && Catch::Contains("expected 8 fields, got 7"));
   CHECK_THAT(gt("1 0 0 0 0 0 0 1 9\n"), Catch::Contains("expected 8 fields, got 9"));
   CHECK_THAT(gt("1 nan 0 0 0 0 0 1\n"), Catch::Contains("tx"));
   CHECK_THAT(gt("1 0 0 0 0 0 0 inf\n"), Catch::Contains("qw"));
@@ -369,8 +370,8 @@ TEST_CASE("Malformed groundtruth.txt and associations.txt lines throw", "[datase
                       [](TextReader& r) { return parseTumAssociations(r); });
   };
   CHECK(as("1 rgb/a.png 1.01 depth/a.png\n").empty());
-  CHECK_THAT(as("1 rgb/a.png 1.01\n"), Catch::Contains("associations.txt:1") &&
-                                           Catch::Contains("expected 4 fields, got 3"));
+  CHECK_THAT(as("1 rgb/a.png 1.01\n"),
+             Catch::Contains("associations.txt:1") && Catch::Contains("expected 4 fields, got 3"));
   CHECK_THAT(as("1 rgb/a.png nan depth/a.png\n"), Catch::Contains("depth timestamp"));
   CHECK_THAT(as("2 rgb/a.png 2 depth/a.png\n1 rgb/b.png 1 depth/b.png\n"),
              Catch::Contains("associations.txt:2"));
@@ -384,12 +385,11 @@ TEST_CASE("Malformed 7-Scenes pose and intrinsics files throw", "[datasets][rgbd
   const std::string ok = "1 0 0 0.5\n0 1 0 0\n0 0 1 0\n0 0 0 1\n";
   CHECK(pose(ok).empty());
   CHECK_THAT(pose("1 0 0 0.5\n0 1 0 0\n0 0 1 0\n"), Catch::Contains("expected 4 rows, got 3"));
-  CHECK_THAT(pose(ok + "0 0 0 1\n"), Catch::Contains("pose.txt:5") &&
-                                         Catch::Contains("more than 4 rows"));
+  CHECK_THAT(pose(ok + "0 0 0 1\n"),
+             Catch::Contains("pose.txt:5") && Catch::Contains("more than 4 rows"));
   CHECK_THAT(pose("1 0 0\n0 1 0 0\n0 0 1 0\n0 0 0 1\n"),
              Catch::Contains("pose.txt:1") && Catch::Contains("expected 4 fields, got 3"));
-  CHECK_THAT(pose("1 0 0 nan\n0 1 0 0\n0 0 1 0\n0 0 0 1\n"),
-             Catch::Contains("row 1 column 4"));
+  CHECK_THAT(pose("1 0 0 nan\n0 1 0 0\n0 0 1 0\n0 0 0 1\n"), Catch::Contains("row 1 column 4"));
   CHECK_THAT(pose("1 0 0 -inf\n0 1 0 0\n0 0 1 0\n0 0 0 1\n"), Catch::Contains("finite"));
   CHECK_THAT(pose("1 0 0 0\n0 1 0 0\n0 0 1 0\n0 0 1 1\n"), Catch::Contains("0 0 0 1"));
   CHECK_THAT(pose("1 0.5 0 0\n0 1 0 0\n0 0 1 0\n0 0 0 1\n"), Catch::Contains("orthonormal"));
@@ -418,9 +418,9 @@ TEST_CASE("Missing TUM images and lists are errors naming the file, or counted s
   TESSERA_SHARED_DATA(src, kTum);
   const fs::path dir = tumCopy(src, "rgbd_tum_missing");
   fs::remove(dir / "depth" / "1305031453.505218.png");
-  CHECK_THAT(errorOf([&] { readTumSequence(dir); }),
-             Catch::Contains("depth.txt:8") && Catch::Contains("1305031453.505218.png") &&
-                 Catch::Contains("does not exist"));
+  CHECK_THAT(errorOf([&] { readTumSequence(dir); }), Catch::Contains("depth.txt:8") &&
+                                                         Catch::Contains("1305031453.505218.png") &&
+                                                         Catch::Contains("does not exist"));
   TumOptions skip;
   skip.skip_missing_images = true;
   const RgbdSequence seq = readTumSequence(dir, skip);
@@ -491,18 +491,18 @@ TEST_CASE("Truncated, corrupt or wrong-type images throw naming the image file",
   CHECK(loadError().empty());
 
   spit(color, jpg.substr(0, jpg.size() / 2));
-  CHECK_THAT(loadError(), Catch::Contains("frame-000000.color.jpg") &&
-                              Catch::Contains("truncated JPEG"));
+  CHECK_THAT(loadError(),
+             Catch::Contains("frame-000000.color.jpg") && Catch::Contains("truncated JPEG"));
   reset();
   spit(depth, png.substr(0, png.size() - 100));
-  CHECK_THAT(loadError(), Catch::Contains("frame-000000.depth.png") &&
-                              Catch::Contains("truncated PNG"));
+  CHECK_THAT(loadError(),
+             Catch::Contains("frame-000000.depth.png") && Catch::Contains("truncated PNG"));
   reset();
   std::string broken = png;
   for (std::size_t i = 200; i < 400; ++i) broken[i] = static_cast<char>(broken[i] ^ 0x5a);
   spit(depth, broken);  // complete container, corrupt data (CRC / zlib errors)
-  CHECK_THAT(loadError(), Catch::Contains("frame-000000.depth.png") &&
-                              Catch::Contains("cannot decode"));
+  CHECK_THAT(loadError(),
+             Catch::Contains("frame-000000.depth.png") && Catch::Contains("cannot decode"));
   reset();
   spit(depth, "");
   CHECK_THAT(loadError(), Catch::Contains("empty"));
@@ -543,8 +543,9 @@ TEST_CASE("7-Scenes depth 65535 loads as no reading; TUM keeps 16-bit values as 
   const fs::path dir = sevenCopy(src, "rgbd_7s_invalid", 1);
   fs::remove(dir / "frame-000000.depth.png");
   // Column 0 invalid (65535), column 1 no reading (0), elsewhere 1.234 m.
-  writePng16(dir / "frame-000000.depth.png", 640, 480,
-             [](int c, int) -> std::uint16_t { return c == 0 ? 65535 : c == 1 ? 0 : 1234; });
+  writePng16(dir / "frame-000000.depth.png", 640, 480, [](int c, int) -> std::uint16_t {
+    return c == 0 ? 65535 : c == 1 ? 0 : 1234;
+  });
   RgbdSequence seq = readSevenScenesSequence(dir);
   const RgbdImages loaded = loadRgbdImages(seq, 0);
   CHECK(loaded.depth[0] == 0);
@@ -569,11 +570,14 @@ namespace {
 
 // Applies 1-3 random edits of the kinds a damaged or hand-edited file shows.
 std::string mutate(std::string text, std::mt19937& rng) {
-  static const char* kNumbers[] = {"nan", "inf", "-inf", "1e999", "-1e999", "NaN", "0",
-                                   "-0",  "1e308", "18446744073709551616", "", "+", "0x10"};
+  static const char* kNumbers[] = {"nan", "inf", "-inf", "1e999", "-1e999",
+                                   "NaN", "0",   "-0",   "1e308", "18446744073709551616",
+                                   "",    "+",   "0x10"};
   const int edits = std::uniform_int_distribution<int>(1, 3)(rng);
   for (int e = 0; e < edits && !text.empty(); ++e) {
-    auto pos = [&](std::size_t n) { return std::uniform_int_distribution<std::size_t>(0, n - 1)(rng); };
+    auto pos = [&](std::size_t n) {
+      return std::uniform_int_distribution<std::size_t>(0, n - 1)(rng);
+    };
     // Token boundaries of the current text.
     std::vector<std::pair<std::size_t, std::size_t>> tokens;
     for (std::size_t i = 0; i < text.size();) {
@@ -610,11 +614,14 @@ std::string mutate(std::string text, std::mt19937& rng) {
       default:  // line duplication or deletion
         if (!tokens.empty()) {
           const std::size_t at = tokens[pos(tokens.size())].first;
-          const std::size_t b = text.rfind('\n', at) == std::string::npos ? 0 : text.rfind('\n', at) + 1;
+          const std::size_t b =
+              text.rfind('\n', at) == std::string::npos ? 0 : text.rfind('\n', at) + 1;
           const std::size_t end = text.find('\n', at);
           const std::size_t n = (end == std::string::npos ? text.size() : end + 1) - b;
-          if (rng() % 2) text.insert(b, text.substr(b, n));
-          else text.erase(b, n);
+          if (rng() % 2)
+            text.insert(b, text.substr(b, n));
+          else
+            text.erase(b, n);
         }
         break;
     }
@@ -713,6 +720,6 @@ TEST_CASE("Mutated RGB-D text files either parse or throw DatasetError, never an
   CHECK(failures == 0);
   // The mutations must actually hurt: most runs end in a DatasetError.
   CHECK(errors > runs / 2);
-  std::cout << "RGB-D text mutation test: " << runs << " runs, " << errors
-            << " DatasetErrors, " << failures << " other outcomes\n";
+  std::cout << "RGB-D text mutation test: " << runs << " runs, " << errors << " DatasetErrors, "
+            << failures << " other outcomes\n";
 }

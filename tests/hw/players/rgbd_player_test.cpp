@@ -188,8 +188,7 @@ TEST_CASE("rgbd_player rejects bad options naming the option", "[players][rgbd]"
                   ConfigError);
 }
 
-TEST_CASE("rgbd_player stops the run naming the file when an image is corrupt",
-          "[players][rgbd]") {
+TEST_CASE("rgbd_player stops the run naming the file when an image is corrupt", "[players][rgbd]") {
   TESSERA_SHARED_DATA(src, kTum);
   const fs::path dir = tessera::test::scratchDir("rgbd_player_corrupt") / "tum-fr1";
   fs::create_directories(dir / "rgb");

@@ -20,7 +20,8 @@
 //    (30 Hz, the Kinect's nominal rate). Colour is NOT registered to depth and the colour
 //    camera's calibration is not published: intrinsics and poses refer to the depth camera, and
 //    RgbdSequence::color_registered is false. We do not attempt a registration; colour pixel
-//    (u, v) only approximately sees what depth pixel (u, v) sees.
+//    (u, v) only approximately sees what depth pixel (u, v) sees. Other files (3DMatch's
+//    gravity-direction.txt, a derived groundtruth_tum.txt) are ignored.
 //
 // Units and frames: timestamps in seconds, positions in metres, poses are camera-to-world
 // (x_world = pose * x_camera) with the camera in the optical convention (x right, y down,

@@ -20,9 +20,9 @@
 // Option and dataset-index errors throw ConfigError from the constructor.
 #pragma once
 
+#include <tessera/msg/image.capnp.h>
 #include <tessera/datasets/rgbd_sequence.hpp>
 #include <tessera/messages/types.hpp>
-#include <tessera/msg/image.capnp.h>
 #include <tessera/runtime/actor.hpp>
 #include <tessera/runtime/options.hpp>
 
