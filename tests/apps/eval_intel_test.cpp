@@ -101,7 +101,7 @@ TEST_CASE("Intel raw odometry scores the published relations figure", "[eval][re
   CHECK(j["rot_mean_deg"].get<double>() == Approx(r.rotation_deg.mean).epsilon(1e-6));
 }
 
-TEST_CASE("Intel raw odometry with the log's own time fields", "[eval][relations][data]") {
+TEST_CASE("Intel raw odometry with the time fields of the log", "[eval][relations][data]") {
   // Regression figure: the repeated FLASER stamps shift a few relations, 7.45 ± 14.33 m, 41.1°.
   TESSERA_SHARED_DATA(log_path, "intel-lab-mrpt/intel.clf.gz");
   TESSERA_SHARED_DATA(relations_path, "intel-lab-mrpt/intel.relations");

@@ -229,7 +229,7 @@ TEST_CASE("TUM round trip is exact in time and planar pose", "[trajectory_io]") 
   CHECK(formatTumLine(poses[3]).rfind("-1.500000000 ", 0) == 0);
 }
 
-TEST_CASE("TUM reader skips comments, accepts other tools' stamps", "[trajectory_io]") {
+TEST_CASE("TUM reader skips comments, accepts stamps written by other tools", "[trajectory_io]") {
   TempDir dir;
   const fs::path file = dir.path / "t.tum";
   writeText(file,

@@ -177,7 +177,7 @@ TEST_CASE("grid_mapper interpolates between bracketing poses", "[grid_mapper_act
   CHECK_FALSE(grid.isKnown(grid.worldToCell({0.5, 0.01})));
 }
 
-TEST_CASE("grid_mapper uses the scan's mount fields", "[grid_mapper_actor]") {
+TEST_CASE("grid_mapper uses the mount fields of the scan", "[grid_mapper_actor]") {
   auto actor = std::make_unique<GridMapperActor>(GridMapperOptions{});
   auto* mapper = actor.get();
   ActorHarness h(std::move(actor));

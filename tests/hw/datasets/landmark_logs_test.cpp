@@ -6,7 +6,7 @@
 #include <random>
 
 #include "../../shared_data.hpp"
-#include "graph_mutations.hpp"
+#include "mutate.hpp"
 
 namespace fs = std::filesystem;
 using namespace tessera::datasets;
@@ -268,12 +268,12 @@ TEST_CASE("Landmark logs: thousands of random mutations parse or throw DatasetEr
     if (which == 1) readMrclamMeasurements(r, codes, lms, report);
     if (which == 2) readMrclamOdometry(r, report);
   };
-  std::mt19937_64 rng(7);
+  tessera::test::Mutator mutator(7);
   for (int which = 0; which < 3; ++which) {
     REQUIRE_NOTHROW(parse(which, samples[which]));
     std::size_t ok = 0, rejected = 0;
     for (int i = 0; i < 2500; ++i) {
-      const std::string text = tessera::test::mutate(samples[which], rng);
+      const std::string text = mutator.mutate(samples[which]);
       try {
         parse(which, text);
         ++ok;

@@ -7,7 +7,7 @@
 #include <sstream>
 
 #include "../../shared_data.hpp"
-#include "graph_mutations.hpp"
+#include "mutate.hpp"
 
 namespace fs = std::filesystem;
 using namespace tessera::datasets;
@@ -342,7 +342,7 @@ TEST_CASE("Pose graphs: thousands of random mutations either parse or throw Data
                             {"posegraph-g2o/manhattan.g2o", 200},
                             {"posegraph-g2o/sphere2500.g2o", 100},
                             {"posegraph-toro/M3500_P_toro.graph", 100}};
-  std::mt19937_64 rng(20240517);
+  tessera::test::Mutator mutator(20240517);
   for (const auto& s : sources) {
     TESSERA_SHARED_DATA(path, s.file);
     std::string sample;
@@ -362,7 +362,7 @@ TEST_CASE("Pose graphs: thousands of random mutations either parse or throw Data
     REQUIRE_NOTHROW(readText(sample));
     std::size_t ok = 0, rejected = 0;
     for (int i = 0; i < 2500; ++i) {
-      const std::string text = tessera::test::mutate(sample, rng);
+      const std::string text = mutator.mutate(sample);
       try {
         readText(text);
         ++ok;

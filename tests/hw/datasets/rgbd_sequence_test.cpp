@@ -14,6 +14,7 @@
 #include <sstream>
 
 #include "../../shared_data.hpp"
+#include "mutate.hpp"
 
 namespace fs = std::filesystem;
 using namespace tessera::datasets;
@@ -568,66 +569,6 @@ TEST_CASE("7-Scenes depth 65535 loads as no reading; TUM keeps 16-bit values as 
 
 namespace {
 
-// Applies 1-3 random edits of the kinds a damaged or hand-edited file shows.
-std::string mutate(std::string text, std::mt19937& rng) {
-  static const char* kNumbers[] = {"nan", "inf", "-inf", "1e999", "-1e999",
-                                   "NaN", "0",   "-0",   "1e308", "18446744073709551616",
-                                   "",    "+",   "0x10"};
-  const int edits = std::uniform_int_distribution<int>(1, 3)(rng);
-  for (int e = 0; e < edits && !text.empty(); ++e) {
-    auto pos = [&](std::size_t n) {
-      return std::uniform_int_distribution<std::size_t>(0, n - 1)(rng);
-    };
-    // Token boundaries of the current text.
-    std::vector<std::pair<std::size_t, std::size_t>> tokens;
-    for (std::size_t i = 0; i < text.size();) {
-      while (i < text.size() && std::isspace(static_cast<unsigned char>(text[i]))) ++i;
-      const std::size_t s = i;
-      while (i < text.size() && !std::isspace(static_cast<unsigned char>(text[i]))) ++i;
-      if (i > s) tokens.emplace_back(s, i - s);
-    }
-    switch (std::uniform_int_distribution<int>(0, 5)(rng)) {
-      case 0:  // byte flip
-        text[pos(text.size())] = static_cast<char>(std::uniform_int_distribution<int>(0, 255)(rng));
-        break;
-      case 1:  // truncation
-        text.resize(pos(text.size()));
-        break;
-      case 2:  // token deletion
-        if (!tokens.empty()) {
-          const auto [s, n] = tokens[pos(tokens.size())];
-          text.erase(s, n);
-        }
-        break;
-      case 3:  // token duplication
-        if (!tokens.empty()) {
-          const auto [s, n] = tokens[pos(tokens.size())];
-          text.insert(s, text.substr(s, n) + " ");
-        }
-        break;
-      case 4:  // number replaced by a special value
-        if (!tokens.empty()) {
-          const auto [s, n] = tokens[pos(tokens.size())];
-          text.replace(s, n, kNumbers[pos(std::size(kNumbers))]);
-        }
-        break;
-      default:  // line duplication or deletion
-        if (!tokens.empty()) {
-          const std::size_t at = tokens[pos(tokens.size())].first;
-          const std::size_t b =
-              text.rfind('\n', at) == std::string::npos ? 0 : text.rfind('\n', at) + 1;
-          const std::size_t end = text.find('\n', at);
-          const std::size_t n = (end == std::string::npos ? text.size() : end + 1) - b;
-          if (rng() % 2)
-            text.insert(b, text.substr(b, n));
-          else
-            text.erase(b, n);
-        }
-        break;
-    }
-  }
-  return text;
-}
 
 // Runs f; only success or DatasetError are acceptable outcomes.
 template <typename F>
@@ -652,7 +593,7 @@ TEST_CASE("Mutated RGB-D text files either parse or throw DatasetError, never an
           "[datasets][rgbd][fuzz]") {
   TESSERA_SHARED_DATA(tum, kTum);
   TESSERA_SHARED_DATA(seven, kSeven);
-  std::mt19937 rng(20240611);
+  tessera::test::Mutator mutator(20240611);
   std::size_t failures = 0, errors = 0, runs = 0;
 
   // In memory, every parser on its own file.
@@ -679,7 +620,7 @@ TEST_CASE("Mutated RGB-D text files either parse or throw DatasetError, never an
   };
   for (const auto& c : cases) {
     for (int i = 0; i < 400; ++i) {
-      const std::string text = mutate(c.text, rng);
+      const std::string text = mutator.mutate(c.text);
       succeedsOrDatasetError(
           [&] {
             TextReader r = TextReader::fromString(c.name, text);
@@ -698,7 +639,7 @@ TEST_CASE("Mutated RGB-D text files either parse or throw DatasetError, never an
   for (const auto& f : tum_files) originals[f] = slurp(tdir / f);
   for (int i = 0; i < 120; ++i) {
     const std::string& f = tum_files[static_cast<std::size_t>(i) % tum_files.size()];
-    spit(tdir / f, mutate(originals[f], rng));
+    spit(tdir / f, mutator.mutate(originals[f]));
     TumOptions o;
     o.use_associations_file = f == "associations.txt";
     succeedsOrDatasetError([&] { (void)readTumSequence(tdir, o); }, "TUM folder, " + f, failures,
@@ -711,7 +652,7 @@ TEST_CASE("Mutated RGB-D text files either parse or throw DatasetError, never an
   for (const auto& f : seven_files) originals[f] = slurp(sdir / f);
   for (int i = 0; i < 60; ++i) {
     const std::string& f = seven_files[static_cast<std::size_t>(i) % seven_files.size()];
-    spit(sdir / f, mutate(originals[f], rng));
+    spit(sdir / f, mutator.mutate(originals[f]));
     succeedsOrDatasetError([&] { (void)readSevenScenesSequence(sdir); }, "7-Scenes folder, " + f,
                            failures, errors);
     spit(sdir / f, originals[f]);
