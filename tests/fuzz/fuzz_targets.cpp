@@ -1,0 +1,127 @@
+#include "fuzz_targets.hpp"
+
+#include <tessera/datasets/carmen_log.hpp>
+#include <tessera/datasets/landmark_logs.hpp>
+#include <tessera/datasets/pose_graph_io.hpp>
+#include <tessera/datasets/relations.hpp>
+#include <tessera/datasets/rgbd_sequence.hpp>
+#include <tessera/datasets/text_reader.hpp>
+
+#include <iostream>
+
+namespace tessera::fuzz {
+namespace {
+
+using datasets::ParseReport;
+using datasets::TextReader;
+
+TextReader reader(const char* name, const std::string& text) {
+  return TextReader::fromString(name, text);
+}
+
+void carmen(const std::string& text) { (void)datasets::parseCarmenLog("fuzz.clf", text); }
+
+void poseGraph(const std::string& text) {
+  auto r = reader("fuzz.g2o", text);
+  (void)datasets::readPoseGraph(r);
+}
+
+void relations(const std::string& text) {
+  auto r = reader("fuzz.relations", text);
+  (void)datasets::readRelations(r);
+}
+
+void victoria(const std::string& text) {
+  auto r = reader("victoria_park.txt", text);
+  (void)datasets::readVictoriaPark(r);
+}
+
+void mrclam(const std::string& text) {
+  // Measurements need the barcode and landmark tables; use a small fixed pair of them.
+  auto codes_reader = reader("Barcodes.dat", "1 5\n2 14\n6 63\n7 18\n");
+  const auto codes = datasets::readMrclamBarcodes(codes_reader);
+  auto lm_reader = reader("Landmark_Groundtruth.dat", "6 1.0 2.0 0.001 0.001\n7 3.0 -1.0 0 0\n");
+  const auto landmarks = datasets::readMrclamLandmarks(lm_reader, codes);
+  ParseReport report;
+  auto m = reader("Robot1_Measurement.dat", text);
+  (void)datasets::readMrclamMeasurements(m, codes, landmarks, report);
+  auto o = reader("Robot1_Odometry.dat", text);
+  (void)datasets::readMrclamOdometry(o, report);
+}
+
+void tumLists(const std::string& text) {
+  auto a = reader("rgb.txt", text);
+  (void)datasets::parseTumFileList(a);
+  auto b = reader("groundtruth.txt", text);
+  (void)datasets::parseTumGroundTruth(b);
+  auto c = reader("associations.txt", text);
+  (void)datasets::parseTumAssociations(c);
+}
+
+void sevenScenes(const std::string& text) {
+  auto a = reader("frame-000000.pose.txt", text);
+  (void)datasets::parseSevenScenesPose(a);
+  auto b = reader("camera-intrinsics.txt", text);
+  (void)datasets::parseSevenScenesIntrinsics(b);
+}
+
+}  // namespace
+
+const std::vector<Target>& targets() {
+  static const std::vector<Target> all = {
+      {"carmen", "CARMEN laser logs (FLASER, ODOM, ROBOTLASER1, ...)", carmen,
+       "PARAM robot_frontlaser_offset 0.0 nohost 0\n"
+       "ODOM 0 0 0 0 0 0 0.000246 pippo 0.000246\n"
+       "FLASER 4 1.0 2.5 81.83 0.7 0.1 0.2 0.3 0.1 0.2 0.3 1.5 pippo 1.5\n"
+       "ROBOTLASER1 0 -1.5708 3.1416 1.5708 81.9 0.01 0 3 1 2 3 0 0.1 0 0 0.1 0 0 0 0 0.5 0.5 "
+       "0 2.0 host 2.0\n",
+       {"intel-lab-mrpt/intel.clf.gz", "intel-lab-carmen-gfs/intel-corrected.log.gz"}},
+      {"posegraph", "g2o and TORO pose graphs, 2D and 3D", poseGraph,
+       "VERTEX_SE2 0 0 0 0\nVERTEX_SE2 1 1 0 0.1\n"
+       "EDGE_SE2 0 1 1 0 0.1 500 0 0 500 0 5000\n",
+       {"posegraph-g2o/intel.g2o", "posegraph-toro/INTEL_P_toro.graph",
+        "posegraph-g2o/manhattan.g2o", "posegraph-g2o/sphere2500.g2o"}},
+      {"relations", "Kuemmerle et al. relations files", relations,
+       "976052857.34 976052858.34 0.5 0.01 0 0 0 0.02\n",
+       {"intel-lab-mrpt/intel.relations"}},
+      {"victoria", "Victoria Park (GTSAM text)", victoria,
+       "ODOMETRY 0 1 0.1 0 0.01 0.0001 0 0 4e-06 0 4e-06\n"
+       "LANDMARK 1 2 11.5 -3.2 0.4 0 0.4\n"
+       "ODOMETRY 1 3 0.1 0 0.01 0.0001 0 0 4e-06 0 4e-06\n",
+       {"victoria-park-gtsam/victoria_park.txt"}},
+      {"mrclam", "UTIAS MRCLAM measurement and odometry files", mrclam,
+       "# Time [s]  Subject #  range [m]  bearing [rad]\n"
+       "1248272272.841 63 3.1 0.5\n1248272273.1 14 2.0 -0.2\n",
+       {"utias-mrclam-dataset1/Robot1_Measurement.dat.gz",
+        "utias-mrclam-dataset1/Robot1_Odometry.dat.gz"}},
+      {"tum", "TUM RGB-D rgb/depth/groundtruth/associations lists", tumLists,
+       "# timestamp filename\n1305031102.175304 rgb/1305031102.175304.png\n",
+       {"tum-rgbd-fr1-desk-9frames/rgb.txt", "tum-rgbd-fr1-desk-9frames/groundtruth.txt",
+        "tum-rgbd-fr1-desk-9frames/associations.txt"}},
+      {"7scenes", "7-Scenes pose and intrinsics files", sevenScenes,
+       "1 0 0 0.1\n0 1 0 0.2\n0 0 1 0.3\n0 0 0 1\n",
+       {"7scenes-redkitchen-rgbd/frame-000000.pose.txt",
+        "7scenes-redkitchen-rgbd/camera-intrinsics.txt"}},
+  };
+  return all;
+}
+
+const Target* findTarget(std::string_view name) {
+  for (const auto& t : targets())
+    if (name == t.name) return &t;
+  return nullptr;
+}
+
+bool runOne(const Target& target, const std::string& text) {
+  try {
+    target.parse(text);
+  } catch (const datasets::DatasetError&) {
+  } catch (const std::exception& e) {
+    std::cerr << "fuzz " << target.name << ": a " << typeid(e).name()
+              << " escaped the parser: " << e.what() << "\n";
+    return false;
+  }
+  return true;
+}
+
+}  // namespace tessera::fuzz
