@@ -175,8 +175,8 @@ void LandmarkMapWriterActor::stop() {
     if (!out) throw std::runtime_error("cannot write '" + path.string() + "'");
     const auto lms = latest_->getLandmarks();
     out << std::setprecision(12) << "# landmarks in frame '"
-        << latest_->getHeader().getFrameId().cStr() << "' at t = "
-        << seconds(latest_->getHeader().getStampNs()) << " s: " << lms.size()
+        << latest_->getHeader().getFrameId().cStr()
+        << "' at t = " << seconds(latest_->getHeader().getStampNs()) << " s: " << lms.size()
         << "\n# id x y\n";
     for (const auto lm : lms) out << lm.getId() << ' ' << lm.getX() << ' ' << lm.getY() << '\n';
     out.flush();

@@ -71,7 +71,9 @@ EnvironmentCamera::EnvironmentCamera(const CameraSite& site, const CameraIntrins
   Eigen::Matrix3d m;
   m << 1, 0, -site.position.x(), 0, 1, -site.position.y(), 0, 0, -intrinsics_.ceiling_height;
   h_ = k * r_wc.transpose() * m;
-  h_ /= h_(2, 2);  // > 0: the world origin is in front of a camera tilted less than kMaxTilt
+  // The floor point below the camera is always in front of it (tilt < kMaxTilt): scaling by its
+  // depth keeps "third component > 0" meaning "in front" everywhere.
+  h_ /= (h_ * site.position.homogeneous()).z();
   h_inv_ = h_.inverse();
 }
 
@@ -107,7 +109,9 @@ CameraNetwork::CameraNetwork(const std::vector<CameraSite>& sites,
   inside_.assign(cameras_.size(), false);
 }
 
-void CameraNetwork::reset() { inside_.assign(cameras_.size(), false); }
+void CameraNetwork::reset() {
+  inside_.assign(cameras_.size(), false);
+}
 
 CameraNetwork::Frame CameraNetwork::observe(const Eigen::Vector2d& marker, std::mt19937_64& rng) {
   Frame frame;
@@ -129,8 +133,7 @@ CameraNetwork::Frame CameraNetwork::observe(const Eigen::Vector2d& marker, std::
     r.true_pixel = *cam.project(marker);  // in view implies in front
     const double u = uniform(rng), nu = normal(rng), nv = normal(rng);
     r.detected = u >= cam.intrinsics().miss_probability;
-    if (r.detected)
-      r.pixel = r.true_pixel + cam.intrinsics().pixel_noise * Eigen::Vector2d(nu, nv);
+    if (r.detected) r.pixel = r.true_pixel + cam.intrinsics().pixel_noise * Eigen::Vector2d(nu, nv);
     frame.reports.push_back(r);
   }
   return frame;

@@ -25,7 +25,8 @@ void CarLikeConfig::validate() const {
 }
 
 Pose carLikeStep(const Pose& p, double speed, double steer, double dt, double wheelbase) {
-  return {p.x + dt * speed * std::cos(p.theta + steer), p.y + dt * speed * std::sin(p.theta + steer),
+  return {p.x + dt * speed * std::cos(p.theta + steer),
+          p.y + dt * speed * std::sin(p.theta + steer),
           wrapAngle(p.theta + dt * speed * std::sin(steer) / wheelbase)};
 }
 

@@ -11,7 +11,9 @@
 
 namespace tessera::sim {
 
-double wrapBearing(double a) { return -wrapAngle(-a); }
+double wrapBearing(double a) {
+  return -wrapAngle(-a);
+}
 
 void LandmarkSensorConfig::validate() const {
   auto bad = [](const char* name, double v, const char* what) {

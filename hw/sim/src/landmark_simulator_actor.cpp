@@ -45,7 +45,9 @@ std::mt19937_64 sensorRng(std::uint64_t seed) {
 }  // namespace
 
 LandmarkSimulatorActor::LandmarkSimulatorActor(LandmarkSimulatorOptions options)
-    : options_(std::move(options)), world_(loadWorld(options_)), sensor_rng_(sensorRng(options_.seed)) {
+    : options_(std::move(options)),
+      world_(loadWorld(options_)),
+      sensor_rng_(sensorRng(options_.seed)) {
   const auto& o = options_;
   auto positive = [](const char* key, double v) {
     if (!(v > 0) || !std::isfinite(v)) fail(key, "must be positive, got " + str(v));
@@ -71,8 +73,8 @@ LandmarkSimulatorActor::LandmarkSimulatorActor(LandmarkSimulatorOptions options)
     fail("landmark_fov_deg", "must be in (0, 360], got " + str(o.landmark_fov_deg));
   nonNegative("landmark_min_range", o.landmark_min_range);
   if (!(o.landmark_max_range > o.landmark_min_range) || !std::isfinite(o.landmark_max_range))
-    fail("landmark_max_range", "must be finite and above landmark_min_range, got " +
-                                   str(o.landmark_max_range));
+    fail("landmark_max_range",
+         "must be finite and above landmark_min_range, got " + str(o.landmark_max_range));
   nonNegative("landmark_range_noise", o.landmark_range_noise);
   nonNegative("landmark_bearing_noise_deg", o.landmark_bearing_noise_deg);
   if (o.landmark_mount.size() != 3)
@@ -251,8 +253,9 @@ void LandmarkSimulatorActor::summarize(Summary& out) const {
   out["scans_published"] = scans_published_;
 }
 
-TESSERA_REGISTER_ACTOR("landmark_simulator", LandmarkSimulatorActor, LandmarkSimulatorOptions,
-                       "car-like robot among point landmarks (seed 004): range-bearing "
-                       "observations, noisy controls and odometry, ground truth, true landmark map");
+TESSERA_REGISTER_ACTOR(
+    "landmark_simulator", LandmarkSimulatorActor, LandmarkSimulatorOptions,
+    "car-like robot among point landmarks (seed 004): range-bearing "
+    "observations, noisy controls and odometry, ground truth, true landmark map");
 
 }  // namespace tessera::sim

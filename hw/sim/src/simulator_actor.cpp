@@ -4,9 +4,6 @@
 #include <tessera/runtime/registry.hpp>
 
 #include <cmath>
-#include <filesystem>
-#include <fstream>
-#include <iomanip>
 #include <sstream>
 #include <stdexcept>
 
@@ -45,20 +42,12 @@ std::mt19937_64 laserRng(std::uint64_t seed) {
   return std::mt19937_64(seq);
 }
 
-// Camera noise has its own stream too, so enabling cameras leaves laser and odometry unchanged.
-std::mt19937_64 cameraRng(std::uint64_t seed) {
-  std::seed_seq seq{static_cast<std::uint32_t>(seed), static_cast<std::uint32_t>(seed >> 32),
-                    0x63616d73u};  // "cams"
-  return std::mt19937_64(seq);
-}
-
 }  // namespace
 
 SimulatorActor::SimulatorActor(SimulatorOptions options)
     : options_(std::move(options)),
       world_(loadWorld(options_)),
-      laser_rng_(laserRng(options_.seed)),
-      camera_rng_(cameraRng(options_.seed)) {
+      laser_rng_(laserRng(options_.seed)) {
   const auto& o = options_;
 
   // Rates: exact integer periods, so every stamp is a whole number of steps.
@@ -141,110 +130,6 @@ SimulatorActor::SimulatorActor(SimulatorOptions options)
     fail("route", e.what());  // speeds and laps were checked above
   }
   robot_.emplace(follower_->startPose(), OdometryNoise{o.sigma_d, o.sigma_theta}, o.seed);
-
-  // Camera network.
-  if (!(o.walls_min_length >= 0) || !std::isfinite(o.walls_min_length))
-    fail("walls_min_length", "must be >= 0, got " + str(o.walls_min_length));
-  if (!o.cameras_file.empty() && !o.cameras)
-    fail("cameras_file", "needs cameras: true");
-  if (o.cameras) {
-    camera_every_ = divisor("camera_hz", o.camera_hz);
-    if (o.camera_marker.size() != 2)
-      fail("camera_marker", "needs 2 values [x, y], got " + str(o.camera_marker.size()));
-    if (!std::isfinite(o.camera_marker[0]) || !std::isfinite(o.camera_marker[1]))
-      fail("camera_marker", "must be finite");
-    marker_ = {o.camera_marker[0], o.camera_marker[1]};
-    CameraIntrinsics in;
-    in.ceiling_height = o.camera_ceiling_height;
-    in.focal_px = o.camera_focal_px;
-    in.width_px = o.camera_image_width;
-    in.height_px = o.camera_image_height;
-    in.pixel_noise = o.camera_pixel_noise;
-    in.miss_probability = o.camera_miss_prob;
-    struct Check {
-      const char* key;
-      bool ok;
-      double value;
-      const char* rule;
-    };
-    const Check checks[] = {
-        {"camera_ceiling_height", in.ceiling_height > 0 && std::isfinite(in.ceiling_height),
-         in.ceiling_height, "must be positive"},
-        {"camera_focal_px", in.focal_px > 0 && std::isfinite(in.focal_px), in.focal_px,
-         "must be positive"},
-        {"camera_image_width", in.width_px > 0, static_cast<double>(in.width_px),
-         "must be positive"},
-        {"camera_image_height", in.height_px > 0, static_cast<double>(in.height_px),
-         "must be positive"},
-        {"camera_pixel_noise", in.pixel_noise >= 0 && std::isfinite(in.pixel_noise),
-         in.pixel_noise, "must be >= 0"},
-        {"camera_miss_prob", in.miss_probability >= 0 && in.miss_probability <= 1,
-         in.miss_probability, "is a probability in [0, 1]"}};
-    for (const Check& c : checks)
-      if (!c.ok) fail(c.key, std::string(c.rule) + ", got " + str(c.value));
-    std::vector<CameraSite> sites;
-    if (o.camera_sites.empty()) {
-      sites = world_.cameraSites();
-      if (sites.empty())
-        fail("camera_sites", "world '" + world_.name() + "' has no cameras; give camera_sites");
-    } else {
-      for (std::size_t i = 0; i < o.camera_sites.size(); ++i) {
-        CameraSite site;
-        site.id = static_cast<int>(i);
-        site.position = {o.camera_sites[i][0], o.camera_sites[i][1]};
-        if (!site.position.allFinite())
-          fail("camera_sites", "site " + str(i) + " is not finite");
-        sites.push_back(site);
-      }
-    }
-    try {
-      cameras_.emplace(sites, in);
-    } catch (const std::invalid_argument& e) {
-      fail("camera_sites", e.what());
-    }
-  }
-}
-
-void SimulatorActor::start() {
-  const std::string& dir = ctx_->outputDir();
-  if (dir.empty()) return;
-  auto open = [&](const std::string& name) {
-    const auto path = std::filesystem::path(dir) / name;
-    std::ofstream out(path);
-    if (!out) throw std::runtime_error("simulator: cannot write '" + path.string() + "'");
-    out << std::setprecision(10);
-    return std::pair{std::move(out), path.string()};
-  };
-  auto close = [](std::ofstream& out, const std::string& path) {
-    out.flush();
-    if (!out) throw std::runtime_error("simulator: failed writing '" + path + "'");
-  };
-  if (!options_.walls_file.empty()) {
-    auto [out, path] = open(options_.walls_file);
-    const auto segments = wallSegments(world_, options_.walls_min_length);
-    out << "# true wall faces of world '" << world_.name() << "' (map frame, metres), free space "
-        << "on the left of (x0,y0)->(x1,y1); faces shorter than " << options_.walls_min_length
-        << " m omitted\n# count " << segments.size() << "\n# x0 y0 x1 y1\n";
-    for (const auto& w : segments)
-      out << w.a.x() << ' ' << w.a.y() << ' ' << w.b.x() << ' ' << w.b.y() << '\n';
-    close(out, path);
-  }
-  if (!options_.cameras_file.empty()) {
-    auto [out, path] = open(options_.cameras_file);
-    out << "# true cameras of world '" << world_.name() << "': floor point below the camera [m], "
-        << "yaw/roll/pitch [rad], image size [px], floor->pixel homography (row-major, h22 = 1)\n"
-        << "# id x y yaw roll pitch width height h00 h01 h02 h10 h11 h12 h20 h21 h22\n";
-    for (const auto& cam : cameras_->cameras()) {
-      const auto& s = cam.site();
-      out << s.id << ' ' << s.position.x() << ' ' << s.position.y() << ' ' << s.yaw << ' '
-          << s.roll << ' ' << s.pitch << ' ' << cam.intrinsics().width_px << ' '
-          << cam.intrinsics().height_px;
-      for (int r = 0; r < 3; ++r)
-        for (int c = 0; c < 3; ++c) out << ' ' << cam.homography()(r, c);
-      out << '\n';
-    }
-    close(out, path);
-  }
 }
 
 void SimulatorActor::configure(ActorContext& ctx) {
@@ -253,10 +138,6 @@ void SimulatorActor::configure(ActorContext& ctx) {
   scan_pub_ = ctx.advertise<msg::LaserScan>("scan");
   odom_pub_ = ctx.advertise<msg::Odometry>("odom");
   gt_pub_ = ctx.advertise<msg::GroundTruthPose>("ground_truth");
-  if (cameras_) {
-    event_pub_ = ctx.advertise<msg::CameraEvent>("camera_events");
-    detection_pub_ = ctx.advertise<msg::MarkerDetection>("camera_detections");
-  }
   ctx.addTimer(
       period_, [this] { tick(); }, 0);
 }
@@ -279,10 +160,8 @@ void SimulatorActor::tick() {
   const Nanos stamp = ctx_->now();
   const bool odom_due = step_ % odom_every_ == 0;
   const bool scan_due = step_ % scan_every_ == 0;
-  const bool camera_due = cameras_ && step_ % camera_every_ == 0;
-  if (odom_due || scan_due || camera_due) publishGroundTruth(stamp);
+  if (odom_due || scan_due) publishGroundTruth(stamp);
   if (odom_due) publishOdometry(stamp);
-  if (camera_due) publishCameras(stamp);
   if (scan_due) {
     publishScan(stamp);
     ctx_->reportProgress(follower_->progress());
@@ -352,38 +231,6 @@ void SimulatorActor::publishScan(Nanos stamp) {
   ++scans_published_;
 }
 
-void SimulatorActor::publishCameras(Nanos stamp) {
-  const Pose marker = compose(robot_->truePose(), Pose{marker_.x(), marker_.y(), 0});
-  const CameraNetwork::Frame frame = cameras_->observe(marker.xy(), camera_rng_);
-  ++camera_frames_;
-  for (const CameraTransition& t : frame.transitions) {
-    auto loan = event_pub_.loan();
-    auto b = loan.builder();
-    setHeader(b.initHeader(), stamp, "camera_" + std::to_string(t.camera_id), event_pub_.nextSeq());
-    b.setCameraId(t.camera_id);
-    b.setEntered(t.entered);
-    event_pub_.publish(std::move(loan));
-    ++camera_events_;
-  }
-  for (const MarkerReport& r : frame.reports) {
-    auto loan = detection_pub_.loan();
-    auto b = loan.builder();
-    setHeader(b.initHeader(), stamp, "camera_" + std::to_string(r.camera_id),
-              detection_pub_.nextSeq());
-    b.setCameraId(r.camera_id);
-    b.setDetected(r.detected);
-    if (r.detected) {
-      b.setU(r.pixel.x());
-      b.setV(r.pixel.y());
-      ++camera_detections_;
-    } else {
-      ++camera_misses_;
-    }
-    b.setPixelStd(options_.camera_pixel_noise);
-    detection_pub_.publish(std::move(loan));
-  }
-}
-
 void SimulatorActor::summarize(Summary& out) const {
   const Pose& truth = robot_->truePose();
   const Pose& odom = robot_->odometry().pose();
@@ -396,12 +243,6 @@ void SimulatorActor::summarize(Summary& out) const {
   out["odom_heading_drift_rad"] = std::abs(wrapAngle(odom.theta - truth.theta));
   out["route_completed"] = static_cast<std::int64_t>(follower_->done() ? 1 : 0);
   out["wall_contacts"] = wall_contacts_;
-  if (cameras_) {
-    out["camera_frames"] = camera_frames_;
-    out["camera_detections"] = camera_detections_;
-    out["camera_misses"] = camera_misses_;
-    out["camera_events"] = camera_events_;
-  }
 }
 
 TESSERA_REGISTER_ACTOR("simulator", SimulatorActor, SimulatorOptions,

@@ -27,7 +27,9 @@ void vDoor(World& w, double x, double y_centre) {
   w.fillRect(x - kWall, y_centre - kDoor / 2, x + kWall, y_centre + kDoor / 2, false);
 }
 // Door centres snapped to 0.1 m so their edges stay on the 0.05 m lattice.
-double snap(double v) { return std::round(v * 10) / 10; }
+double snap(double v) {
+  return std::round(v * 10) / 10;
+}
 
 }  // namespace
 
@@ -115,7 +117,7 @@ World World::builtinCameraFloor() {
   }
 
   // A few cabinets and tables in the rooms the laser sees through the doors.
-  const double boxes[][4] = {{16.0, 1.0, 18.0, 2.0},  {57.0, 1.0, 58.5, 3.0},
+  const double boxes[][4] = {{16.0, 1.0, 18.0, 2.0},   {57.0, 1.0, 58.5, 3.0},
                              {11.0, 12.0, 12.5, 13.5}, {47.0, 26.0, 49.0, 27.5},
                              {25.0, 45.0, 27.0, 46.0}, {66.0, 36.0, 67.5, 38.0},
                              {1.0, 40.0, 2.5, 42.0},   {81.0, 20.0, 83.0, 21.5},
@@ -183,11 +185,11 @@ World World::builtinRoom() {
   w.fillRect(0, 8.4 - kWall, 10.4, 8.4);
   w.fillRect(0, 0, kWall, 8.4);
   w.fillRect(10.4 - kWall, 0, 10.4, 8.4);
-  w.fillRect(4.9, 5.2, 5.1, 8.2);    // partition hanging from the north wall
-  w.fillRect(2.7, 3.7, 3.3, 4.3);    // square pillar, 0.6 m
-  w.fillRect(7.0, 5.5, 7.5, 6.0);    // second pillar, 0.5 m
-  w.fillRect(6.5, 0.2, 8.0, 0.8);    // cabinet against the south wall
-  w.fillRect(9.6, 3.0, 10.2, 5.0);   // jog in the east wall
+  w.fillRect(4.9, 5.2, 5.1, 8.2);   // partition hanging from the north wall
+  w.fillRect(2.7, 3.7, 3.3, 4.3);   // square pillar, 0.6 m
+  w.fillRect(7.0, 5.5, 7.5, 6.0);   // second pillar, 0.5 m
+  w.fillRect(6.5, 0.2, 8.0, 0.8);   // cabinet against the south wall
+  w.fillRect(9.6, 3.0, 10.2, 5.0);  // jog in the east wall
   // One loop around the square pillar, back to the start: ~15 m.
   w.setDefaultRoute({{1.5, 1.5}, {5.8, 1.5}, {5.8, 4.8}, {1.5, 4.8}, {1.5, 1.5}});
   return w;
@@ -217,7 +219,7 @@ World World::builtinLandmarks() {
   const double lm[27][2] = {{15, 3},  {25, 16}, {40, 2},  {48, 18}, {65, 4},  {72, 19}, {90, 3},
                             {98, 22}, {84, 35}, {97, 45}, {72, 55}, {96, 60}, {85, 88}, {68, 72},
                             {58, 87}, {42, 72}, {38, 88}, {20, 88}, {3, 82},  {18, 68}, {28, 60},
-                            {2, 55},  {15, 45}, {25, 35}, {3, 28},  {45, 30}, {55, 62}};
+                            {2, 55},  {18, 44}, {25, 35}, {3, 28},  {45, 30}, {55, 62}};
   std::vector<PointLandmark> landmarks;
   for (int i = 0; i < 27; ++i) landmarks.push_back({i, {lm[i][0], lm[i][1]}});
   w.setLandmarks(std::move(landmarks));

@@ -16,9 +16,9 @@
 //                      `tessera eval landmarks` reads).
 #pragma once
 
-#include <tessera/messages/types.hpp>
 #include <tessera/msg/camera.capnp.h>
 #include <tessera/msg/landmark.capnp.h>
+#include <tessera/messages/types.hpp>
 #include <tessera/runtime/actor.hpp>
 
 #include <cstdint>

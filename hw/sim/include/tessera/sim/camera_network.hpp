@@ -10,8 +10,10 @@
 //
 // The floor -> pixel map of such a camera is the homography H = K R_cw [e1, e2, -C] (C = camera
 // centre, z = 0 on the floor): [u v 1]^T ~ H [x y 1]^T with x, y in metres in the world ("map")
-// frame. H is scaled so H(2,2) = 1; for the allowed tilts (|roll|, |pitch| < 0.5 rad) the third
-// component of H [x y 1]^T is then positive exactly for points in front of the camera.
+// frame. H is scaled so that the site (the floor point below the camera, always in front of it
+// for the allowed tilts |roll|, |pitch| < 0.5 rad) maps with third component 1; the third
+// component of H [x y 1]^T is then positive exactly for points in front of the camera. For an
+// untilted camera that makes H(2,2) = 1 and the last row (0, 0, 1).
 //
 // Footprint: the floor region whose projection lies in the image ([0, W) x [0, H) pixels) is the
 // camera's footprint, a convex quadrilateral (the image corners mapped back through H^-1).
@@ -39,12 +41,12 @@ namespace tessera::sim {
 
 /// What every camera of a network shares: mounting height, optics and noise.
 struct CameraIntrinsics {
-  double ceiling_height = 3.0;    ///< camera centre above the marker plane [m]
-  double focal_px = 320;          ///< focal length [px]
-  int width_px = 640;             ///< image size [px]
+  double ceiling_height = 3.0;  ///< camera centre above the marker plane [m]
+  double focal_px = 320;        ///< focal length [px]
+  int width_px = 640;           ///< image size [px]
   int height_px = 480;
-  double pixel_noise = 1.0;       ///< std of the reported pixel, per axis [px]
-  double miss_probability = 0.05; ///< chance a marker in view is not detected in a frame
+  double pixel_noise = 1.0;        ///< std of the reported pixel, per axis [px]
+  double miss_probability = 0.05;  ///< chance a marker in view is not detected in a frame
   /// Throws std::invalid_argument naming the first bad field.
   void validate() const;
 };
@@ -58,7 +60,7 @@ class EnvironmentCamera {
   int id() const { return site_.id; }
   const CameraSite& site() const { return site_; }
   const CameraIntrinsics& intrinsics() const { return intrinsics_; }
-  /// Floor (x, y) [m] -> pixel (u, v), scaled so H(2,2) = 1.
+  /// Floor (x, y) [m] -> pixel (u, v), scaled so the site maps with third component 1.
   const Eigen::Matrix3d& homography() const { return h_; }
 
   /// Pixel of a floor point, or nullopt when the point is behind the camera (never for points

@@ -25,11 +25,11 @@
 namespace tessera::sim {
 
 struct CarLikeConfig {
-  double wheelbase = 1.0;                           ///< L [m]
-  double max_steer = 0.5235987755982988;            ///< |gamma| limit [rad] (30 deg)
-  double steer_rate = 0.6283185307179586;           ///< |d gamma / dt| limit [rad/s] (0.2 pi)
-  double sigma_speed = 0.3;                         ///< reported speed noise std [m/s]
-  double sigma_steer = 0.05235987755982988;         ///< reported steering noise std [rad] (3 deg)
+  double wheelbase = 1.0;                    ///< L [m]
+  double max_steer = 0.5235987755982988;     ///< |gamma| limit [rad] (30 deg)
+  double steer_rate = 0.6283185307179586;    ///< |d gamma / dt| limit [rad/s] (0.2 pi)
+  double sigma_speed = 0.3;                  ///< reported speed noise std [m/s]
+  double sigma_steer = 0.05235987755982988;  ///< reported steering noise std [rad] (3 deg)
   /// Throws std::invalid_argument naming the first bad field.
   void validate() const;
 };

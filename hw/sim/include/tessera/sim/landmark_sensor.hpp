@@ -22,14 +22,14 @@
 namespace tessera::sim {
 
 struct LandmarkSensorConfig {
-  double fov = 3.141592653589793;       ///< full field of view [rad], centred ahead, in (0, 2 pi]
-  double max_range = 30;                ///< [m]
-  double min_range = 0;                 ///< [m]
-  double range_noise = 0.1;             ///< std [m]
+  double fov = 3.141592653589793;  ///< full field of view [rad], centred ahead, in (0, 2 pi]
+  double max_range = 30;           ///< [m]
+  double min_range = 0;            ///< [m]
+  double range_noise = 0.1;        ///< std [m]
   double bearing_noise = 0.017453292519943295;  ///< std [rad] (1 deg)
-  bool with_ids = true;                 ///< report landmark ids (known data association)
-  bool occlusion = false;               ///< walls of the World hide landmarks
-  Pose mount;                           ///< sensor pose in base_link
+  bool with_ids = true;                         ///< report landmark ids (known data association)
+  bool occlusion = false;                       ///< walls of the World hide landmarks
+  Pose mount;                                   ///< sensor pose in base_link
   /// Throws std::invalid_argument naming the first bad field.
   void validate() const;
 };

@@ -19,8 +19,8 @@
 // ConfigError from the constructor.
 #pragma once
 
-#include <tessera/messages/types.hpp>
 #include <tessera/msg/landmark.capnp.h>
+#include <tessera/messages/types.hpp>
 #include <tessera/runtime/actor.hpp>
 #include <tessera/runtime/options.hpp>
 #include <tessera/sim/car_like.hpp>

@@ -6,22 +6,12 @@
 //   scan          msg::LaserScan        frame "laser"; mount pose in the message
 //   odom          msg::Odometry         frame "odom", child "base_link"; noisy dead reckoning
 //   ground_truth  msg::GroundTruthPose  frame "map", child "base_link"; the true pose
-// and, with `cameras: true` (the environment camera network of SPEC.md section A, see
-// camera_network.hpp; sites from the world or `camera_sites`):
-//   camera_events      msg::CameraEvent      the marker entered / left a camera's footprint
-//   camera_detections  msg::MarkerDetection  one per camera whose footprint holds the marker,
-//                                            every camera frame; detected = false when missed
-//
-// Files (in the run's output folder, written at start, when named): `walls_file` lists the true
-// wall faces (wallSegments(), "x0 y0 x1 y1" per line), `cameras_file` the true cameras (site,
-// image size and floor -> pixel homography per line), so maps and calibrations can be scored.
 //
 // Timing: one timer at step_hz integrates the robot on simulated time. At step k (time
 // k / step_hz, k = 0 being the start pose) odometry is published when k is a multiple of
 // step_hz / odom_hz and a scan when k is a multiple of step_hz / scan_hz; integer step counting
-// keeps the rates exact; camera frames likewise at camera_hz. Whenever any of them is published,
-// ground_truth is published first with the same stamp, so a known-pose consumer can pair every
-// scan or detection with its true pose exactly. Camera events precede that frame's detections.
+// keeps the rates exact. Whenever either is published, ground_truth is published first with the
+// same stamp, so a known-pose consumer can pair every scan with its true pose exactly.
 //
 // Frames: map = world frame of the World (origin at its lower-left corner); odom coincides with
 // map at the start pose. Option errors throw ConfigError from the constructor.
@@ -29,9 +19,7 @@
 
 #include <tessera/messages/types.hpp>
 #include <tessera/runtime/actor.hpp>
-#include <tessera/msg/camera.capnp.h>
 #include <tessera/runtime/options.hpp>
-#include <tessera/sim/camera_network.hpp>
 #include <tessera/sim/ray_caster.hpp>
 #include <tessera/sim/robot.hpp>
 #include <tessera/sim/world.hpp>
@@ -65,19 +53,6 @@ struct SimulatorOptions {
   double laser_dropout = 0;
   std::vector<double> laser_mount = {0, 0, 0};
   std::uint64_t seed = 1;
-  bool cameras = false;
-  int camera_hz = 10;
-  std::vector<std::array<double, 2>> camera_sites;
-  double camera_ceiling_height = 3.0;
-  double camera_focal_px = 320;
-  int camera_image_width = 640;
-  int camera_image_height = 480;
-  double camera_pixel_noise = 1.0;
-  double camera_miss_prob = 0.05;
-  std::vector<double> camera_marker = {0, 0};
-  std::string walls_file;
-  double walls_min_length = 0.3;
-  std::string cameras_file;
 
   template <class V>
   void visit(V& v) {
@@ -106,28 +81,6 @@ struct SimulatorOptions {
     v("laser_dropout", laser_dropout, "probability a beam returns nothing (+inf)");
     v("laser_mount", laser_mount, "laser pose in base_link [x m, y m, theta rad]");
     v("seed", seed, "random seed; equal seeds give identical runs");
-    v("cameras", cameras,
-      "simulate the ceiling camera network: publish camera_events and camera_detections");
-    v("camera_hz", camera_hz, "camera frame rate [Hz]; must divide step_hz");
-    v("camera_sites", camera_sites,
-      "camera floor points [[x, y], ...] [m] (untilted, image u along +x); empty = the world's "
-      "own sites (builtin:camera_floor has 7)");
-    v("camera_ceiling_height", camera_ceiling_height,
-      "camera centre above the marker plane [m]");
-    v("camera_focal_px", camera_focal_px, "focal length [px]");
-    v("camera_image_width", camera_image_width, "image width [px]");
-    v("camera_image_height", camera_image_height, "image height [px]");
-    v("camera_pixel_noise", camera_pixel_noise, "std of the reported marker pixel per axis [px]");
-    v("camera_miss_prob", camera_miss_prob,
-      "probability that a marker in view is not detected in a frame");
-    v("camera_marker", camera_marker, "marker position in base_link [x m, y m]");
-    v("walls_file", walls_file,
-      "write the true wall faces ('x0 y0 x1 y1' per line) to this file in the output folder; "
-      "empty = none");
-    v("walls_min_length", walls_min_length, "wall faces shorter than this [m] are not listed");
-    v("cameras_file", cameras_file,
-      "write the true cameras (site and floor->pixel homography) to this file in the output "
-      "folder; needs cameras: true; empty = none");
   }
 };
 
@@ -142,24 +95,18 @@ class SimulatorActor final : public Actor {
   void configure(ActorContext& ctx) override;
   /// route_length_m, sim_time_s, scans_published, odom_published, distance_travelled_m,
   /// odom_drift_m / odom_heading_drift_rad (final odometry minus truth), route_completed (0/1),
-  /// wall_contacts (steps whose true position was inside a wall); with cameras also
-  /// camera_frames, camera_detections, camera_misses, camera_events.
+  /// wall_contacts (steps whose true position was inside a wall).
   void summarize(Summary& out) const override;
-  /// Writes walls_file / cameras_file when named; throws std::runtime_error naming the file.
-  void start() override;
 
   const World& world() const { return world_; }
   /// The route being driven (given, or the world's default), one lap.
   const Route& route() const { return route_; }
-  /// The camera network (nullptr unless `cameras: true`).
-  const CameraNetwork* cameraNetwork() const { return cameras_ ? &*cameras_ : nullptr; }
 
  private:
   void tick();
   void publishGroundTruth(Nanos stamp);
   void publishOdometry(Nanos stamp);
   void publishScan(Nanos stamp);
-  void publishCameras(Nanos stamp);
 
   SimulatorOptions options_;
   World world_;
@@ -168,20 +115,15 @@ class SimulatorActor final : public Actor {
   std::optional<RouteFollower> follower_;
   std::optional<DiffDriveRobot> robot_;
   std::mt19937_64 laser_rng_;
-  std::optional<CameraNetwork> cameras_;
-  std::mt19937_64 camera_rng_;
-  Eigen::Vector2d marker_ = Eigen::Vector2d::Zero();
 
   ActorContext* ctx_ = nullptr;
   Publisher<msg::LaserScan> scan_pub_;
   Publisher<msg::Odometry> odom_pub_;
   Publisher<msg::GroundTruthPose> gt_pub_;
-  Publisher<msg::MarkerDetection> detection_pub_;
-  Publisher<msg::CameraEvent> event_pub_;
 
   Nanos period_ = 0;
   double dt_ = 0;
-  std::uint64_t odom_every_ = 1, scan_every_ = 1, camera_every_ = 1;
+  std::uint64_t odom_every_ = 1, scan_every_ = 1;
   std::uint64_t step_ = 0;
   bool finished_ = false;
 
@@ -190,7 +132,6 @@ class SimulatorActor final : public Actor {
   std::uint64_t odom_steps_ = 0;
 
   std::int64_t scans_published_ = 0, odom_published_ = 0, wall_contacts_ = 0;
-  std::int64_t camera_frames_ = 0, camera_detections_ = 0, camera_misses_ = 0, camera_events_ = 0;
 };
 
 }  // namespace tessera::sim
