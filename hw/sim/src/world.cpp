@@ -209,11 +209,14 @@ World World::builtinOffice() {
 }
 
 std::vector<std::string> World::builtinNames() {
-  return {"office"};
+  return {"office", "camera_floor", "room", "landmarks"};
 }
 
 World World::builtin(std::string_view name) {
   if (name == "office") return builtinOffice();
+  if (name == "camera_floor") return builtinCameraFloor();
+  if (name == "room") return builtinRoom();
+  if (name == "landmarks") return builtinLandmarks();
   std::string known;
   for (const auto& n : builtinNames()) known += (known.empty() ? "" : ", ") + n;
   throw std::runtime_error("unknown built-in world '" + std::string(name) + "' (known: " + known +

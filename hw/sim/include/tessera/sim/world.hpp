@@ -9,6 +9,10 @@
 // A world may carry a default route (waypoints in metres, in free space) that the simulator
 // drives when the profile gives none. The built-in office has one; image worlds do not.
 //
+// A world may also carry scenario data its built-in scenario needs: ceiling camera sites (the
+// seed 000 camera floor), point landmarks (the seed 004 landmark world). wallSegments() derives
+// the true straight wall faces from the bitmap (to score line maps against, seed 001 room).
+//
 // Ownership: a World is a value (copyable); it owns its cells and route.
 #pragma once
 
@@ -22,6 +26,27 @@
 namespace tessera::sim {
 
 using Route = std::vector<Eigen::Vector2d>;
+
+/// Where a ceiling camera hangs: the floor point below its centre [m], the direction of its
+/// image u axis [rad] and small tilts [rad] (see camera_network.hpp).
+struct CameraSite {
+  int id = 0;
+  Eigen::Vector2d position = Eigen::Vector2d::Zero();
+  double yaw = 0, roll = 0, pitch = 0;
+};
+
+/// A point landmark with its true identity and position [m] in the world frame.
+struct PointLandmark {
+  int id = 0;
+  Eigen::Vector2d position = Eigen::Vector2d::Zero();
+};
+
+/// A straight wall face from a to b [m]; free space lies on its left (a -> b counter-clockwise
+/// around the wall).
+struct WallSegment {
+  Eigen::Vector2d a = Eigen::Vector2d::Zero(), b = Eigen::Vector2d::Zero();
+  double length() const { return (b - a).norm(); }
+};
 
 class World {
  public:
@@ -37,7 +62,19 @@ class World {
   /// core cut by a cross corridor (two loops), doors, pillars and furniture, with a ~200 m
   /// default route that visits three rooms and returns to its start.
   static World builtinOffice();
-  /// A built-in world by name ("office"); throws std::runtime_error listing the known names.
+  /// Seed 000: an 85 m x 63 m office floor at 0.05 m/cell: rooms along the outside, a ring
+  /// corridor and a cross of corridors (four loops), rooms in the four blocks, columns at wall
+  /// junctions, 7 ceiling camera sites over corridor crossings, and a ~1.5 km default route
+  /// (corridor loops, with a small calibration loop under each camera at its first visit).
+  static World builtinCameraFloor();
+  /// Seed 001: a 10 m x 8 m structured room (0.2 m walls, a partition, two pillars, a cabinet
+  /// and a wall jog; only axis-aligned straight walls: 24 faces, 23 of them at least 0.3 m long)
+  /// with a ~15 m loop route.
+  static World builtinRoom();
+  /// Seed 004: a 100 m x 90 m open area (no walls, 0.5 m/cell) with 27 point landmarks along a
+  /// loop of 14 waypoints (the default route).
+  static World builtinLandmarks();
+  /// A built-in world by name ("office", "camera_floor", "room", "landmarks"); throws std::runtime_error listing the known names.
   static World builtin(std::string_view name);
   static std::vector<std::string> builtinNames();
   /// A closed room: a width_m x height_m map (rounded to whole cells) whose outermost
@@ -82,6 +119,13 @@ class World {
   const std::string& name() const { return name_; }
   void setName(std::string name) { name_ = std::move(name); }
 
+  /// Ceiling camera sites (empty unless the scenario has a camera network).
+  const std::vector<CameraSite>& cameraSites() const { return camera_sites_; }
+  void setCameraSites(std::vector<CameraSite> sites) { camera_sites_ = std::move(sites); }
+  /// Point landmarks (empty unless the scenario has them).
+  const std::vector<PointLandmark>& landmarks() const { return landmarks_; }
+  void setLandmarks(std::vector<PointLandmark> landmarks) { landmarks_ = std::move(landmarks); }
+
   friend bool operator==(const World& a, const World& b) {
     return a.width_ == b.width_ && a.height_ == b.height_ && a.resolution_ == b.resolution_ &&
            a.cells_ == b.cells_;
@@ -93,7 +137,15 @@ class World {
   std::vector<std::uint8_t> cells_;  // row-major from row 0 (lowest y); 1 = wall
   Route default_route_;
   std::string name_;
+  std::vector<CameraSite> camera_sites_;
+  std::vector<PointLandmark> landmarks_;
 };
+
+/// The wall faces of the bitmap: every boundary between a wall cell and a free cell inside the
+/// map, merged into maximal straight runs (axis-aligned, as the cells are), free space on the
+/// left of a -> b. Runs shorter than min_length [m] (the stair steps of round shapes) are dropped.
+/// For worlds drawn from axis-aligned rectangles this is exactly the list of straight walls.
+std::vector<WallSegment> wallSegments(const World& world, double min_length = 0.0);
 
 /// Total polyline length of a route [m].
 double routeLength(const Route& route);

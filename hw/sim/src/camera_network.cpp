@@ -1,0 +1,142 @@
+#include <tessera/sim/camera_network.hpp>
+
+#include <Eigen/Geometry>
+#include <Eigen/LU>
+
+#include <cmath>
+#include <set>
+#include <sstream>
+#include <stdexcept>
+
+namespace tessera::sim {
+
+namespace {
+
+constexpr double kMaxTilt = 0.5;  // [rad]; beyond this the camera could see the horizon
+
+void requireFinitePositive(double v, const char* name) {
+  if (!(v > 0) || !std::isfinite(v)) {
+    std::ostringstream s;
+    s << "camera: " << name << " must be a positive number, got " << v;
+    throw std::invalid_argument(s.str());
+  }
+}
+
+}  // namespace
+
+void CameraIntrinsics::validate() const {
+  requireFinitePositive(ceiling_height, "ceiling_height");
+  requireFinitePositive(focal_px, "focal_px");
+  if (width_px < 1 || height_px < 1)
+    throw std::invalid_argument("camera: image size must be positive, got " +
+                                std::to_string(width_px) + " x " + std::to_string(height_px));
+  if (!(pixel_noise >= 0) || !std::isfinite(pixel_noise)) {
+    std::ostringstream s;
+    s << "camera: pixel_noise must be >= 0, got " << pixel_noise;
+    throw std::invalid_argument(s.str());
+  }
+  if (!(miss_probability >= 0 && miss_probability <= 1)) {
+    std::ostringstream s;
+    s << "camera: miss_probability must be in [0, 1], got " << miss_probability;
+    throw std::invalid_argument(s.str());
+  }
+}
+
+EnvironmentCamera::EnvironmentCamera(const CameraSite& site, const CameraIntrinsics& intrinsics)
+    : site_(site), intrinsics_(intrinsics) {
+  intrinsics_.validate();
+  for (double t : {site.roll, site.pitch})
+    if (!(std::abs(t) < kMaxTilt)) {
+      std::ostringstream s;
+      s << "camera " << site.id << ": tilt must be below " << kMaxTilt << " rad, got " << t;
+      throw std::invalid_argument(s.str());
+    }
+  if (!site.position.allFinite() || !std::isfinite(site.yaw))
+    throw std::invalid_argument("camera " + std::to_string(site.id) + ": position is not finite");
+
+  // Camera axes in the world for an untilted camera: x (image u) along the yaw, z (optical axis)
+  // straight down, y (image v) = z cross x, to the right of u seen from above.
+  const double c = std::cos(site.yaw), s = std::sin(site.yaw);
+  Eigen::Matrix3d r_wc0;
+  r_wc0.col(0) << c, s, 0;
+  r_wc0.col(1) << s, -c, 0;
+  r_wc0.col(2) << 0, 0, -1;
+  const Eigen::Matrix3d r_wc = r_wc0 * Eigen::AngleAxisd(site.roll, Eigen::Vector3d::UnitX()) *
+                               Eigen::AngleAxisd(site.pitch, Eigen::Vector3d::UnitY());
+  Eigen::Matrix3d k = Eigen::Matrix3d::Identity();
+  k(0, 0) = k(1, 1) = intrinsics_.focal_px;
+  k(0, 2) = 0.5 * intrinsics_.width_px;
+  k(1, 2) = 0.5 * intrinsics_.height_px;
+  // Floor point (x, y, 0) minus the camera centre (px, py, h) is M [x y 1]^T.
+  Eigen::Matrix3d m;
+  m << 1, 0, -site.position.x(), 0, 1, -site.position.y(), 0, 0, -intrinsics_.ceiling_height;
+  h_ = k * r_wc.transpose() * m;
+  // The floor point below the camera is always in front of it (tilt < kMaxTilt): scaling by its
+  // depth keeps "third component > 0" meaning "in front" everywhere.
+  h_ /= (h_ * site.position.homogeneous()).z();
+  h_inv_ = h_.inverse();
+}
+
+std::optional<Eigen::Vector2d> EnvironmentCamera::project(const Eigen::Vector2d& floor) const {
+  const Eigen::Vector3d q = h_ * floor.homogeneous();
+  if (!(q.z() > 0)) return std::nullopt;
+  return q.hnormalized();
+}
+
+Eigen::Vector2d EnvironmentCamera::floorPoint(const Eigen::Vector2d& pixel) const {
+  return (h_inv_ * pixel.homogeneous()).hnormalized();
+}
+
+bool EnvironmentCamera::inView(const Eigen::Vector2d& floor) const {
+  const auto px = project(floor);
+  return px && px->x() >= 0 && px->y() >= 0 && px->x() < intrinsics_.width_px &&
+         px->y() < intrinsics_.height_px;
+}
+
+std::array<Eigen::Vector2d, 4> EnvironmentCamera::footprint() const {
+  const double w = intrinsics_.width_px, h = intrinsics_.height_px;
+  return {floorPoint({0, 0}), floorPoint({w, 0}), floorPoint({w, h}), floorPoint({0, h})};
+}
+
+CameraNetwork::CameraNetwork(const std::vector<CameraSite>& sites,
+                             const CameraIntrinsics& intrinsics) {
+  std::set<int> ids;
+  for (const CameraSite& s : sites) {
+    if (!ids.insert(s.id).second)
+      throw std::invalid_argument("camera network: duplicate camera id " + std::to_string(s.id));
+    cameras_.emplace_back(s, intrinsics);
+  }
+  inside_.assign(cameras_.size(), false);
+}
+
+void CameraNetwork::reset() {
+  inside_.assign(cameras_.size(), false);
+}
+
+CameraNetwork::Frame CameraNetwork::observe(const Eigen::Vector2d& marker, std::mt19937_64& rng) {
+  Frame frame;
+  std::vector<bool> now(cameras_.size(), false);
+  for (std::size_t i = 0; i < cameras_.size(); ++i) now[i] = cameras_[i].inView(marker);
+  for (std::size_t i = 0; i < cameras_.size(); ++i)
+    if (inside_[i] && !now[i]) frame.transitions.push_back({cameras_[i].id(), false});
+  for (std::size_t i = 0; i < cameras_.size(); ++i)
+    if (!inside_[i] && now[i]) frame.transitions.push_back({cameras_[i].id(), true});
+  inside_ = now;
+
+  std::uniform_real_distribution<double> uniform(0.0, 1.0);
+  std::normal_distribution<double> normal(0.0, 1.0);
+  for (std::size_t i = 0; i < cameras_.size(); ++i) {
+    if (!now[i]) continue;
+    const EnvironmentCamera& cam = cameras_[i];
+    MarkerReport r;
+    r.camera_id = cam.id();
+    r.true_pixel = *cam.project(marker);  // in view implies in front
+    const double u = uniform(rng), nu = normal(rng), nv = normal(rng);
+    r.detected = u >= cam.intrinsics().miss_probability;
+    if (r.detected) r.pixel = r.true_pixel + cam.intrinsics().pixel_noise * Eigen::Vector2d(nu, nv);
+    frame.reports.push_back(r);
+  }
+  return frame;
+}
+
+}  // namespace tessera::sim
