@@ -107,7 +107,7 @@ bool CarmenPlayer::readNext() {
       wanted = l->message == laser_;
     else
       wanted = odometry_ == "odom";
-    if (!wanted || since_first < options_.start_time) {
+    if (!wanted || (options_.start_time > 0 && since_first < options_.start_time)) {
       ++ignored_;
       continue;
     }

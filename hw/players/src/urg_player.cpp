@@ -81,7 +81,7 @@ bool UrgPlayer::readNext() {
     if (!first_record_) first_record_ = stamp;
     const double since_first = nanosToSeconds(stamp - *first_record_);
     if (options_.end_time > 0 && since_first > options_.end_time) return false;
-    if (since_first < options_.start_time) continue;
+    if (options_.start_time > 0 && since_first < options_.start_time) continue;
     next_ = Pending{std::move(scan), stamp};
     return true;
   }
