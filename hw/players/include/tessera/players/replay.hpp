@@ -14,6 +14,7 @@
 
 #include <cmath>
 #include <cstdint>
+#include <numbers>
 #include <optional>
 
 namespace tessera::players {
@@ -58,7 +59,7 @@ struct Pose2d {
 inline Pose2d compose(const Pose2d& a, const Pose2d& b) {
   const double c = std::cos(a.theta), s = std::sin(a.theta);
   return {a.x + c * b.x - s * b.y, a.y + s * b.x + c * b.y,
-          std::remainder(a.theta + b.theta, 2 * M_PI)};
+          std::remainder(a.theta + b.theta, 2 * std::numbers::pi)};
 }
 
 inline Pose2d inverse(const Pose2d& p) {
