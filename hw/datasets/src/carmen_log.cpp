@@ -1,5 +1,6 @@
 #include <tessera/datasets/carmen_log.hpp>
 
+#include <algorithm>
 #include <cmath>
 #include <limits>
 #include <numbers>
@@ -214,7 +215,13 @@ bool CarmenReader::next(CarmenRecord& record) {
                  name == "RAWLASER4") {
         record = parseNewLaser(f, std::string(name), false, options_);
       } else if (name == "ODOM") {
-        record = parseOdom(f, options_);
+        const CarmenOdometry odom = parseOdom(f, options_);
+        if (options_.skip_zero_time_odom && std::abs(odom.timestamp) < 1e-6 &&
+            latest_time_ >= 1.0) {
+          report_.skip(reader_, "ODOM stamped 0 (GFS pose echo)");
+          continue;
+        }
+        record = odom;
       } else if (isMessageName(name)) {
         report_.skip(reader_, std::string(name));
         continue;
@@ -227,6 +234,8 @@ bool CarmenReader::next(CarmenRecord& record) {
       report_.skip(reader_, isMessageName(name) ? "malformed " + std::string(name) : "garbage");
       continue;
     }
+    latest_time_ =
+        std::max(latest_time_, std::visit([](const auto& r) { return r.timestamp; }, record));
     ++report_.records;
     return true;
   }

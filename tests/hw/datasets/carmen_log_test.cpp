@@ -119,11 +119,16 @@ TEST_CASE("CARMEN reader reads the GMapping-corrected Intel log and counts skipp
   TESSERA_SHARED_DATA(path, "intel-lab-carmen-gfs/intel-corrected.log.gz");
   const CarmenLog log = readCarmenLog(path);
   CHECK(countLasers(log, "FLASER") == 910);
-  CHECK(countOdom(log) == 14541);
-  CHECK(log.records.size() == 910 + 14541);
-  CHECK(log.report.skipped == 912);
+  // 14541 ODOM lines, of which 863 are GMapping's time-0 echoes of the corrected laser pose.
+  CHECK(countOdom(log) == 14541 - 863);
+  CHECK(log.records.size() == 910 + 14541 - 863);
+  CHECK(log.report.skipped == 912 + 863);
   CHECK(log.report.skipped_by_reason.at("NEFF") == 910);
   CHECK(log.report.skipped_by_reason.at("PARAM") == 2);
+  CHECK(log.report.skipped_by_reason.at("ODOM stamped 0 (GFS pose echo)") == 863);
+  CarmenOptions keep;
+  keep.skip_zero_time_odom = false;
+  CHECK(countOdom(readCarmenLog(path, keep)) == 14541);
   CHECK(log.report.lines == 910 + 14541 + 912 + 2);  // + 2 comment lines
   CHECK(countNoReturn(log) == 4172);
   for (const auto& r : log.records)
@@ -131,8 +136,9 @@ TEST_CASE("CARMEN reader reads the GMapping-corrected Intel log and counts skipp
 
   // With ODOM lines present, the odometry comes from them, not from the corrected laser poses.
   const auto odom = carmenOdometry(log);
-  CHECK(odom.size() == 14541);
+  CHECK(odom.size() == 14541 - 863);
   CHECK(odom.front().timestamp == Approx(0.000246));
+  for (const auto& o : odom) REQUIRE(o.timestamp > 1e-4);
 }
 
 TEST_CASE("CARMEN streaming reader reports progress and matches the bulk reader",
@@ -249,6 +255,18 @@ TEST_CASE("CARMEN ROBOTLASER1, RAWLASER, RLASER and ODOM fields land where they 
   CHECK(odom.rv == -0.1);
   CHECK(odom.accel == 0.05);
   CHECK(odom.timestamp == 1004.25);
+}
+
+TEST_CASE("CARMEN time-0 ODOM echoes of GFS logs are skipped, a log starting at 0 is not",
+          "[datasets][carmen]") {
+  const std::string text = "ODOM 0 0 0 0 0 0 0 h 0\nODOM 1 0 0 0 0 0 2.5 h 2.5\n" +
+                           flaserOfSize(2) + "ODOM 1 2 0.5 0 0 0 0 pippo 0\n" +
+                           "ODOM 1 2 0.5 0 0 0 1.08499e-42 pippo 1.08499e-42\n" +
+                           "ODOM 1.1 0 0 0 0 0 101 h 101\n";
+  const CarmenLog log = parseCarmenLog("a.log", text);
+  CHECK(countOdom(log) == 3);
+  CHECK(log.report.skipped_by_reason.at("ODOM stamped 0 (GFS pose echo)") == 2);
+  CHECK(std::get<CarmenOdometry>(log.records.at(0)).timestamp == 0);
 }
 
 TEST_CASE("CARMEN unknown messages, comments and blanks are skipped and counted by name",

@@ -126,9 +126,12 @@ class Mutator {
       case 4:  // delete a token
         s.erase(b, e - b);
         return s;
-      case 5:  // duplicate a token
-        s.insert(e, " " + s.substr(b, e - b));
+      case 5: {  // duplicate a token
+        std::string copy(1, ' ');
+        copy.append(s, b, e - b);
+        s.insert(e, copy);
         return s;
+      }
       case 6: {  // swap with another token
         const auto [b2, e2] = toks[index(toks.size())];
         if (b2 == b) return s;

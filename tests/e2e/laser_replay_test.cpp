@@ -1,0 +1,88 @@
+// End to end: apps/profiles/carmen_replay.yaml and urg_replay.yaml on the real logs in
+// ../shared/data (player -> grid mapper + trajectory writer -> files), read back what they wrote.
+#include <tessera/common/map_io.hpp>
+#include <tessera/common/trajectory_io.hpp>
+#include <tessera/runtime/profile.hpp>
+
+#include <filesystem>
+
+#include "../shared_data.hpp"
+
+using namespace tessera;
+namespace fs = std::filesystem;
+using Catch::Matchers::Contains;
+
+namespace {
+
+RunReport runProfile(const std::string& name, const std::vector<std::string>& sets,
+                     const fs::path& out) {
+  auto profile =
+      loadProfile(std::string(TESSERA_SOURCE_DIR) + "/apps/profiles/" + name + ".yaml", sets);
+  RuntimeOptions options;
+  options.show_progress = false;
+  options.output_dir = out.string();
+  options.threads = 2;
+  auto runtime = buildRuntime(profile, options);
+  return runtime->run();
+}
+
+const Summary& summaryOf(const RunReport& r, const std::string& actor) {
+  for (const auto& a : r.actors)
+    if (a.name == actor) return a.summary;
+  FAIL("no actor " << actor);
+  throw std::logic_error("unreachable");
+}
+
+}  // namespace
+
+TEST_CASE("carmen_replay maps intel.clf with its raw odometry", "[e2e][players]") {
+  TESSERA_SHARED_DATA(log, "intel-lab-mrpt/intel.clf.gz");
+  const fs::path out = tessera::test::scratchDir("carmen_replay");
+  const RunReport report = runProfile("carmen_replay", {"player.path=" + log.string()}, out);
+  CHECK(report.stop_reason == "all inputs finished");
+  for (const char* f : {"map.pgm", "map.yaml", "map.png", "odometry.tum"}) {
+    INFO(f);
+    CHECK(fs::exists(out / f));
+  }
+  const auto odom = common::readTum(out / "odometry.tum");
+  REQUIRE(odom.size() == 2726);
+  CHECK(odom.front().stamp_ns == 976052856'338882000);  // the log's absolute time
+  CHECK(odom.back().stamp_ns == 976055550'147778000);
+  CHECK(odom.back().planar().x == Approx(-50.795746));
+  const Summary& player = summaryOf(report, "player");
+  CHECK(std::get<std::int64_t>(player.at("scans_published")) == 2726);
+  CHECK(std::get<std::int64_t>(player.at("lines_skipped")) == 0);
+  const Summary& mapper = summaryOf(report, "mapper");
+  CHECK(std::get<std::int64_t>(mapper.at("scans_inserted")) == 2726);
+  const auto map = common::loadMap(out / "map.yaml");
+  CHECK(map.width > 500);
+}
+
+TEST_CASE("urg_replay maps MinesParisTech exp2 with wheel odometry", "[e2e][players]") {
+  TESSERA_SHARED_DATA(log, "mines-paristech-urg04lx-odometry/exp2.dat.gz");
+  const fs::path out = tessera::test::scratchDir("urg_replay");
+  const RunReport report = runProfile("urg_replay", {"player.path=" + log.string()}, out);
+  CHECK(report.stop_reason == "all inputs finished");
+  for (const char* f : {"map.pgm", "map.yaml", "map.png", "odometry.tum"}) {
+    INFO(f);
+    CHECK(fs::exists(out / f));
+  }
+  const auto odom = common::readTum(out / "odometry.tum");
+  REQUIRE(odom.size() == 641);
+  CHECK(odom.front().stamp_ns == 361'431'443'000);
+  const Summary& player = summaryOf(report, "player");
+  CHECK(std::get<std::int64_t>(player.at("scans_published")) == 641);
+  CHECK(std::get<std::int64_t>(summaryOf(report, "mapper").at("scans_inserted")) == 641);
+}
+
+TEST_CASE("replay profiles refuse to start without a log path", "[e2e][players]") {
+  for (const char* name : {"carmen_replay", "urg_replay"}) {
+    INFO(name);
+    try {
+      runProfile(name, {}, tessera::test::scratchDir("replay_nopath"));
+      FAIL("ran without a path");
+    } catch (const ConfigError& e) {
+      CHECK_THAT(e.what(), Contains("option 'path': is required"));
+    }
+  }
+}
