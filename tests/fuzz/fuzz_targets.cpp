@@ -6,6 +6,7 @@
 #include <tessera/datasets/relations.hpp>
 #include <tessera/datasets/rgbd_sequence.hpp>
 #include <tessera/datasets/text_reader.hpp>
+#include <tessera/datasets/urg_log.hpp>
 
 #include <iostream>
 
@@ -19,7 +20,13 @@ TextReader reader(const char* name, const std::string& text) {
   return TextReader::fromString(name, text);
 }
 
-void carmen(const std::string& text) { (void)datasets::parseCarmenLog("fuzz.clf", text); }
+void carmen(const std::string& text) {
+  (void)datasets::parseCarmenLog("fuzz.clf", text);
+}
+
+void urg(const std::string& text) {
+  (void)datasets::parseUrgLog("exp2.dat", text);
+}
 
 void poseGraph(const std::string& text) {
   auto r = reader("fuzz.g2o", text);
@@ -65,40 +72,76 @@ void sevenScenes(const std::string& text) {
   (void)datasets::parseSevenScenesIntrinsics(b);
 }
 
+// Two scans: timestamp, telemetry, encoder counts, more telemetry, 682 ranges in mm.
+std::string urgSeed() {
+  std::string text;
+  for (int scan = 0; scan < 2; ++scan) {
+    text.append(std::to_string(1000000 + scan * 100000));
+    text.append(" 0 ").append(std::to_string(scan * 40));
+    text.append(" ").append(std::to_string(scan * 42));
+    for (int i = 4; i < 24; ++i) text.append(" 0");
+    for (int i = 0; i < 682; ++i)
+      text.append(" ").append(std::to_string(i < 40 || i > 640 ? 0 : 1500 + i));
+    text.append("\n");
+  }
+  return text;
+}
+
 }  // namespace
 
 const std::vector<Target>& targets() {
   static const std::vector<Target> all = {
-      {"carmen", "CARMEN laser logs (FLASER, ODOM, ROBOTLASER1, ...)", carmen,
+      {"carmen",
+       "CARMEN laser logs (FLASER, ODOM, ROBOTLASER1, ...)",
+       carmen,
        "PARAM robot_frontlaser_offset 0.0 nohost 0\n"
        "ODOM 0 0 0 0 0 0 0.000246 pippo 0.000246\n"
        "FLASER 4 1.0 2.5 81.83 0.7 0.1 0.2 0.3 0.1 0.2 0.3 1.5 pippo 1.5\n"
        "ROBOTLASER1 0 -1.5708 3.1416 1.5708 81.9 0.01 0 3 1 2 3 0 0.1 0 0 0.1 0 0 0 0 0.5 0.5 "
        "0 2.0 host 2.0\n",
-       {"intel-lab-mrpt/intel.clf.gz", "intel-lab-carmen-gfs/intel-corrected.log.gz"}},
-      {"posegraph", "g2o and TORO pose graphs, 2D and 3D", poseGraph,
+       {"intel-lab-mrpt/intel.clf.gz", "intel-lab-carmen-gfs/intel-corrected.log.gz"},
+       40},
+      {"urg",
+       "MinesParisTech URG-04LX logs (encoders + ranges in mm)",
+       urg,
+       urgSeed(),
+       {"mines-paristech-urg04lx-odometry/exp2.dat.gz"},
+       10},
+      {"posegraph",
+       "g2o and TORO pose graphs, 2D and 3D",
+       poseGraph,
        "VERTEX_SE2 0 0 0 0\nVERTEX_SE2 1 1 0 0.1\n"
        "EDGE_SE2 0 1 1 0 0.1 500 0 0 500 0 5000\n",
        {"posegraph-g2o/intel.g2o", "posegraph-toro/INTEL_P_toro.graph",
         "posegraph-g2o/manhattan.g2o", "posegraph-g2o/sphere2500.g2o"}},
-      {"relations", "Kuemmerle et al. relations files", relations,
+      {"relations",
+       "Kuemmerle et al. relations files",
+       relations,
        "976052857.34 976052858.34 0.5 0.01 0 0 0 0.02\n",
        {"intel-lab-mrpt/intel.relations"}},
-      {"victoria", "Victoria Park (GTSAM text)", victoria,
+      {"victoria",
+       "Victoria Park (GTSAM text)",
+       victoria,
        "ODOMETRY 0 1 0.1 0 0.01 0.0001 0 0 4e-06 0 4e-06\n"
        "LANDMARK 1 2 11.5 -3.2 0.4 0 0.4\n"
        "ODOMETRY 1 3 0.1 0 0.01 0.0001 0 0 4e-06 0 4e-06\n",
        {"victoria-park-gtsam/victoria_park.txt"}},
-      {"mrclam", "UTIAS MRCLAM measurement and odometry files", mrclam,
+      {"mrclam",
+       "UTIAS MRCLAM measurement and odometry files",
+       mrclam,
        "# Time [s]  Subject #  range [m]  bearing [rad]\n"
        "1248272272.841 63 3.1 0.5\n1248272273.1 14 2.0 -0.2\n",
        {"utias-mrclam-dataset1/Robot1_Measurement.dat.gz",
         "utias-mrclam-dataset1/Robot1_Odometry.dat.gz"}},
-      {"tum", "TUM RGB-D rgb/depth/groundtruth/associations lists", tumLists,
+      {"tum",
+       "TUM RGB-D rgb/depth/groundtruth/associations lists",
+       tumLists,
        "# timestamp filename\n1305031102.175304 rgb/1305031102.175304.png\n",
        {"tum-rgbd-fr1-desk-9frames/rgb.txt", "tum-rgbd-fr1-desk-9frames/groundtruth.txt",
         "tum-rgbd-fr1-desk-9frames/associations.txt"}},
-      {"7scenes", "7-Scenes pose and intrinsics files", sevenScenes,
+      {"7scenes",
+       "7-Scenes pose and intrinsics files",
+       sevenScenes,
        "1 0 0 0.1\n0 1 0 0.2\n0 0 1 0.3\n0 0 0 1\n",
        {"7scenes-redkitchen-rgbd/frame-000000.pose.txt",
         "7scenes-redkitchen-rgbd/camera-intrinsics.txt"}},

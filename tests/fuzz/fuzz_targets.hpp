@@ -19,8 +19,11 @@ struct Target {
   const char* description;
   // Parses `text` as the file `name`; throws DatasetError on bad input (anything else is a bug).
   void (*parse)(const std::string& text);
-  const char* builtin_seed;                     // a small valid example of the format
+  std::string builtin_seed;                    // a small valid example of the format
   std::vector<std::string> shared_data_seeds;  // relative to ../shared/data
+  // Lines taken from the start of each seed file: fewer for formats with very long lines, so
+  // a mutated input stays small and the fuzzer fast.
+  std::size_t seed_lines = 300;
 };
 
 const std::vector<Target>& targets();

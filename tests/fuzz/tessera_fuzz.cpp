@@ -67,7 +67,7 @@ int main(int argc, char** argv) {
   std::vector<std::string> files;
   double seconds = 10;
   std::uint64_t seed = 1;
-  std::size_t max_lines = 300;
+  std::size_t max_lines = 0;
   bool list = false;
   app.add_option("target", name, "parser to fuzz, or 'all'");
   app.add_option("files", files,
@@ -75,7 +75,8 @@ int main(int argc, char** argv) {
                  "example)");
   app.add_option("--seconds", seconds, "how long to fuzz each target");
   app.add_option("--seed", seed, "random seed of the mutations");
-  app.add_option("--max-lines", max_lines, "lines taken from the start of each seed file");
+  app.add_option("--max-lines", max_lines,
+                 "lines taken from the start of each seed file (default: per target)");
   app.add_flag("--list", list, "list the targets");
   CLI11_PARSE(app, argc, argv);
 
@@ -97,14 +98,15 @@ int main(int argc, char** argv) {
   for (const Target* t : chosen) {
     std::vector<std::string> seeds;
     std::string origin;
+    const std::size_t lines = max_lines > 0 ? max_lines : t->seed_lines;
     try {
       if (!files.empty()) {
-        for (const auto& f : files) seeds.push_back(head(f, max_lines));
+        for (const auto& f : files) seeds.push_back(head(f, lines));
         origin = "given files";
       } else {
         for (const auto& rel : t->shared_data_seeds) {
           const fs::path p = fs::path(TESSERA_SHARED_DATA_DIR) / rel;
-          if (fs::exists(p)) seeds.push_back(head(p, max_lines));
+          if (fs::exists(p)) seeds.push_back(head(p, lines));
         }
         origin = seeds.empty() ? "built-in example (../shared/data absent)" : "../shared/data";
       }
