@@ -12,13 +12,18 @@
 
 namespace tessera::test {
 
-inline std::filesystem::path sharedDataDir() { return TESSERA_SHARED_DATA_DIR; }
+inline std::filesystem::path sharedDataDir() {
+  return TESSERA_SHARED_DATA_DIR;
+}
 
-inline std::filesystem::path sourceDir() { return TESSERA_SOURCE_DIR; }
+inline std::filesystem::path sourceDir() {
+  return TESSERA_SOURCE_DIR;
+}
 
 // A fresh empty directory under the system temp dir for one test's outputs.
 inline std::filesystem::path scratchDir(const std::string& name) {
-  const auto dir = std::filesystem::temp_directory_path() / ("tessera_test_" + name + "_" + std::to_string(::getpid()));
+  const auto dir = std::filesystem::temp_directory_path() /
+                   ("tessera_test_" + name + "_" + std::to_string(::getpid()));
   std::filesystem::remove_all(dir);
   std::filesystem::create_directories(dir);
   return dir;
@@ -27,10 +32,10 @@ inline std::filesystem::path scratchDir(const std::string& name) {
 }  // namespace tessera::test
 
 // Declares `const std::filesystem::path var` = ../shared/data/relative, or skips the test case.
-#define TESSERA_SHARED_DATA(var, relative)                                                      \
-  const std::filesystem::path var = ::tessera::test::sharedDataDir() / (relative);              \
-  if (!std::filesystem::exists(var)) {                                                         \
+#define TESSERA_SHARED_DATA(var, relative)                                                    \
+  const std::filesystem::path var = ::tessera::test::sharedDataDir() / (relative);            \
+  if (!std::filesystem::exists(var)) {                                                        \
     WARN("SKIPPED: dataset " << var.string() << " is absent (tests read the public datasets " \
-                             << "at ../shared/data beside the repo)");                          \
-    return;                                                                                     \
+                             << "at ../shared/data beside the repo)");                        \
+    return;                                                                                   \
   }

@@ -7,8 +7,8 @@
 #include <cstdlib>
 #include <cstring>
 #include <mutex>
-#include <vector>
 #include <sstream>
+#include <vector>
 
 namespace tessera {
 

@@ -567,9 +567,11 @@ void Runtime::Impl::stopActors() {
       cells[i]->actor->stop();
     } catch (const std::exception& e) {
       // One actor failing to flush must not stop the others from writing their outputs.
-      std::fprintf(stderr, "error: actor '%s' failed in stop(): %s\n", cells[i]->name.c_str(), e.what());
+      std::fprintf(stderr, "error: actor '%s' failed in stop(): %s\n", cells[i]->name.c_str(),
+                   e.what());
       std::lock_guard lock(stop_reason_mutex);
-      stop_reason += (stop_reason.empty() ? "" : "; ") + ("actor '" + cells[i]->name + "' failed in stop(): " + e.what());
+      stop_reason += (stop_reason.empty() ? "" : "; ") +
+                     ("actor '" + cells[i]->name + "' failed in stop(): " + e.what());
     }
   }
   if (options.manual) {

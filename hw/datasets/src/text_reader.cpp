@@ -82,7 +82,9 @@ TextReader::~TextReader() = default;
 TextReader::TextReader(TextReader&&) noexcept = default;
 TextReader& TextReader::operator=(TextReader&&) noexcept = default;
 
-bool TextReader::compressed() const { return source_->is_gzip; }
+bool TextReader::compressed() const {
+  return source_->is_gzip;
+}
 
 double TextReader::progress() const {
   if (source_->file_size == 0) return 0;
@@ -123,9 +125,9 @@ bool TextReader::next(std::string& line) {
     const void* nl = std::memchr(start, '\n', avail);
     const std::size_t take = nl ? static_cast<const char*>(nl) - start : avail;
     if (line.size() + take > max_line_bytes)
-      throw DatasetError(path_, line_ + 1,
-                         "line longer than " + std::to_string(max_line_bytes) +
-                             " bytes; is this a text dataset?");
+      throw DatasetError(
+          path_, line_ + 1,
+          "line longer than " + std::to_string(max_line_bytes) + " bytes; is this a text dataset?");
     line.append(start, take);
     any = true;
     s.begin += take;
@@ -171,7 +173,9 @@ Fields::Fields(std::filesystem::path file, std::size_t line_number, std::string_
   }
 }
 
-void Fields::fail(const std::string& message) const { throw DatasetError(file_, line_, message); }
+void Fields::fail(const std::string& message) const {
+  throw DatasetError(file_, line_, message);
+}
 
 void Fields::requireAtLeast(std::size_t n, std::string_view what) const {
   if (tokens_.size() < n)
@@ -187,7 +191,8 @@ void Fields::requireExactly(std::size_t n, std::string_view what) const {
 
 double Fields::real(std::size_t i, std::string_view label, bool allow_non_finite) const {
   const std::string where = "field " + std::to_string(i + 1) + " (" + std::string(label) + ")";
-  if (i >= tokens_.size()) fail(where + ": missing (line has " + std::to_string(size()) + " fields)");
+  if (i >= tokens_.size())
+    fail(where + ": missing (line has " + std::to_string(size()) + " fields)");
   std::string_view t = tokens_[i];
   if (!t.empty() && t.front() == '+') t.remove_prefix(1);
   double value = 0;
@@ -203,7 +208,8 @@ double Fields::real(std::size_t i, std::string_view label, bool allow_non_finite
 
 std::int64_t Fields::integer(std::size_t i, std::string_view label) const {
   const std::string where = "field " + std::to_string(i + 1) + " (" + std::string(label) + ")";
-  if (i >= tokens_.size()) fail(where + ": missing (line has " + std::to_string(size()) + " fields)");
+  if (i >= tokens_.size())
+    fail(where + ": missing (line has " + std::to_string(size()) + " fields)");
   std::string_view t = tokens_[i];
   if (!t.empty() && t.front() == '+') t.remove_prefix(1);
   std::int64_t value = 0;
@@ -232,7 +238,8 @@ void ParseReport::skip(const std::filesystem::path& file, std::size_t line,
                        const std::string& reason) {
   ++skipped;
   ++skipped_by_reason[reason];
-  if (first_skips.size() < max_examples) first_skips.push_back(location(file, line) + ": " + reason);
+  if (first_skips.size() < max_examples)
+    first_skips.push_back(location(file, line) + ": " + reason);
 }
 
 std::string ParseReport::describe() const {

@@ -569,7 +569,6 @@ TEST_CASE("7-Scenes depth 65535 loads as no reading; TUM keeps 16-bit values as 
 
 namespace {
 
-
 // Runs f; only success or DatasetError are acceptable outcomes.
 template <typename F>
 void succeedsOrDatasetError(F&& f, const std::string& what, std::size_t& failures,

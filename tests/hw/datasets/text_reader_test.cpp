@@ -33,9 +33,7 @@ std::vector<std::string> allLines(TextReader& reader) {
 TEST_CASE("TextReader reads plain and gzip files to the same lines", "[datasets]") {
   const auto dir = tessera::test::scratchDir("text_reader");
   const std::string text = "first line\r\nsecond\n\nlast without newline";
-  {
-    std::ofstream(dir / "plain.txt") << text;
-  }
+  { std::ofstream(dir / "plain.txt") << text; }
   writeGzip(dir / "packed.log", text);  // the name says nothing: the content does
   TextReader plain(dir / "plain.txt");
   TextReader packed(dir / "packed.log");

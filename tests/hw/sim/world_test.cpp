@@ -143,7 +143,8 @@ TEST_CASE("World: the built-in office", "[sim][world]") {
   CHECK(World::builtin("office") == w);
 }
 
-TEST_CASE("World: the default route of the office is a clear closed loop of 150-250 m", "[sim][world]") {
+TEST_CASE("World: the default route of the office is a clear closed loop of 150-250 m",
+          "[sim][world]") {
   const World w = World::builtinOffice();
   const Route& route = w.defaultRoute();
   REQUIRE(route.size() >= 10);

@@ -74,7 +74,8 @@ class World {
   /// Seed 004: a 100 m x 90 m open area (no walls, 0.5 m/cell) with 27 point landmarks along a
   /// loop of 14 waypoints (the default route).
   static World builtinLandmarks();
-  /// A built-in world by name ("office", "camera_floor", "room", "landmarks"); throws std::runtime_error listing the known names.
+  /// A built-in world by name ("office", "camera_floor", "room", "landmarks"); throws
+  /// std::runtime_error listing the known names.
   static World builtin(std::string_view name);
   static std::vector<std::string> builtinNames();
   /// A closed room: a width_m x height_m map (rounded to whole cells) whose outermost
