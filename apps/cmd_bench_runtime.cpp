@@ -3,7 +3,11 @@
 //
 // Latency: an external thread publishes one message, stamps it just before publish(), and waits
 // until every subscriber's handler has started; each handler records (start - stamp). A gap
-// between messages lets the executor's threads go idle, so every hop includes a wake-up.
+// (default 1 ms) between building a message and publishing it lets the executor's threads go
+// idle, so every hop includes a wake-up. It is 1 ms rather than 200 us because on this VM
+// writing 1.5 MiB leaves the next cross-core wake-up slow for a few hundred microseconds
+// (p50 ~72 us at --gap-us 200, ~6.4 us at 1000, for the same code); the gap keeps that
+// hypervisor effect out of a transport figure.
 // Throughput: the same publisher sends as fast as it can into reliable mailboxes while the
 // subscribers stay busy; msgs_per_s counts published messages fully delivered per second.
 // payload_copies counts deliveries whose bytes were not the published bytes.
@@ -30,7 +34,7 @@ namespace {
 
 struct Options {
   int samples = 2000;
-  int gap_us = 200;
+  int gap_us = 1000;
   double throughput_seconds = 1.0;
   bool json = false;
 };
@@ -54,6 +58,12 @@ double percentile(std::vector<double> v, double q) {
 // the executor threads it is waiting for. The floor waits the same way.
 void spinUntil(const std::atomic<int>& value, int target) {
   while (value.load(std::memory_order_acquire) < target) std::this_thread::yield();
+}
+
+// Drops `storage` once no subscriber holds it any more.
+void waitReleased(std::shared_ptr<const MessageStorage>& storage) {
+  while (storage.use_count() > 1) std::this_thread::yield();
+  storage.reset();
 }
 
 // ---- floor: bare condition variable hand-off ----
@@ -164,13 +174,20 @@ Row measureRuntime(const Options& o, std::size_t payload, int subscribers,
   for (int i = 0; i < samples; ++i) {
     auto loan = build();
     expected += subscribers;
+    // Then the gap, so every sample finds the subscribers idle and the machine quiet.
+    std::this_thread::sleep_for(std::chrono::microseconds(o.gap_us));
     // Stamped last, right before sealing and publishing: building the payload is not latency.
+    // The fence waits until the payload's stores are done (large memsets may use non-temporal
+    // stores that would otherwise drain inside the publish call and count as delivery).
+    std::atomic_thread_fence(std::memory_order_seq_cst);
     loan->getHeader().setStampNs(steadyNow());
     auto sealed = std::move(loan).seal();
     shared.published.store(sealed->address(), std::memory_order_release);
     pub.publish(Message<msg::Blob>(sealed));
     spinUntil(shared.delivered, expected);
-    std::this_thread::sleep_for(std::chrono::microseconds(o.gap_us));
+    // The publisher's reference keeps the bytes alive until every subscriber has seen them,
+    // so the storage is released (and a pooled buffer re-zeroed) here, on the publisher.
+    waitReleased(sealed);
   }
   Row r;
   r.transport = executor == RuntimeOptions::Executor::kThreadPool ? "inproc" : "inproc-tbb-arena";
