@@ -28,6 +28,11 @@ TEST_CASE("rgbd_replay writes the ground truth of the TUM sequence", "[e2e][rgbd
   REQUIRE(truth.size() == 9);
   CHECK(truth.front().stamp_ns == 0);
   CHECK(truth.back().stamp_ns == std::llround((1305031453.627706 - 1305031453.359684) * 1e9));
-  // TUM fr1/desk starts about 1.3 m from the mocap origin.
+  // TUM fr1/desk starts about 1.3 m from the mocap origin, with the camera about 1.5 m up: the
+  // file holds the full 3D pose, not a planar projection.
   CHECK(truth.front().position.head<2>().norm() > 0.5);
+  CHECK(truth.front().position.z() > 1.0);
+  CHECK(std::abs(truth.front().orientation.norm() - 1.0) < 1e-9);
+  const Eigen::Vector3d up = truth.front().orientation * Eigen::Vector3d::UnitZ();
+  CHECK(std::abs(up.z()) < 0.99);  // the camera looks down at the desk: not a yaw-only rotation
 }

@@ -2,6 +2,7 @@
 
 #include "pose_source.hpp"
 
+#include <tessera/msg/image.capnp.h>
 #include <tessera/common/map_io.hpp>
 #include <tessera/messages/views.hpp>
 #include <tessera/runtime/options.hpp>
@@ -104,9 +105,16 @@ TESSERA_REGISTER_ACTOR("map_writer", MapWriterActor, MapWriterOptions,
 
 // ---- trajectory_writer ----
 
+namespace {
+// 3D poses (RGB-D ground truth) are written as they are; every other type goes through the
+// planar pose subscriptions shared with the mapper.
+constexpr const char* kPose3dMessage = "ground_truth_3d";
+}  // namespace
+
 TrajectoryWriterActor::TrajectoryWriterActor(TrajectoryWriterOptions options)
     : options_(std::move(options)) {
-  (void)detail::parsePoseMessage(options_.message, "trajectory_writer", "message");
+  if (options_.message != kPose3dMessage)
+    (void)detail::parsePoseMessage(options_.message, "trajectory_writer", "message");
   if (options_.file.empty()) throw ConfigError("trajectory_writer: file must not be empty");
 }
 
@@ -114,6 +122,21 @@ TrajectoryWriterActor::~TrajectoryWriterActor() = default;
 
 void TrajectoryWriterActor::configure(ActorContext& ctx) {
   ctx_ = &ctx;
+  if (options_.message == kPose3dMessage) {
+    ctx.subscribe<msg::GroundTruthPose3D>(
+        "poses", MailboxPolicy::reliable(), [this](const Message<msg::GroundTruthPose3D>& m) {
+          if (!writer_) return;
+          const auto p = m->getPose();
+          common::TumPose pose;
+          pose.stamp_ns = m->getHeader().getStampNs();
+          pose.position = {p.getX(), p.getY(), p.getZ()};
+          pose.orientation =
+              Eigen::Quaterniond(p.getQw(), p.getQx(), p.getQy(), p.getQz()).normalized();
+          writer_->write(pose);
+          if (++poses_written_ % 256 == 0) writer_->flush();
+        });
+    return;
+  }
   detail::subscribePoses(ctx, "poses", MailboxPolicy::reliable(),
                          detail::parsePoseMessage(options_.message, "trajectory_writer", "message"),
                          [this](Nanos stamp, const common::Pose2& pose) {

@@ -55,7 +55,9 @@ struct TrajectoryWriterOptions {
   template <class V>
   void visit(V& v) {
     v("file", file, "TUM file to write, relative to the output folder");
-    v("message", message, "message type on 'poses': ground_truth | odometry | pose_stamped");
+    v("message", message,
+      "message type on 'poses': ground_truth | odometry | pose_stamped (planar) | "
+      "ground_truth_3d (GroundTruthPose3D, written in full 3D)");
   }
 };
 
