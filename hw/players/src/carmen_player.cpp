@@ -111,7 +111,7 @@ bool CarmenPlayer::readNext() {
       ++ignored_;
       continue;
     }
-    next_ = Pending{std::move(record), *stamp};
+    replay_.next = Pending{std::move(record), *stamp};
     return true;
   }
   return false;
@@ -120,26 +120,19 @@ bool CarmenPlayer::readNext() {
 void CarmenPlayer::step() {
   if (done_) return;
   try {
-    if (!next_ && !readNext()) return finish("");
-    if (!timeline_.started()) timeline_.start(next_->stamp, ctx_->now());
-    // Publish everything that is due (equal stamps, or time running backwards), then wait.
-    while (next_ && timeline_.due(next_->stamp) <= ctx_->now()) {
-      if (next_->stamp < last_published_) ++reversals_;
-      publish(*next_);
-      last_published_ = std::max(last_published_, next_->stamp);
-      next_.reset();
-      if (options_.max_scans > 0 && scans_ >= options_.max_scans) return finish("");
-      if (!readNext()) return finish("");
-    }
+    const auto next_step = replay_.advance(
+        ctx_->now(), [this] { return readNext(); }, [this](const Pending& p) { publish(p); },
+        [this] { return options_.max_scans > 0 && scans_ >= options_.max_scans; });
+    if (!next_step) return finish("");
     ctx_->reportProgress(reader_->progress());
-    ctx_->callAt(timeline_.due(next_->stamp), [this] { step(); });
+    ctx_->callAt(*next_step, [this] { step(); });
   } catch (const std::exception& e) {
     finish(e.what());
   }
 }
 
 void CarmenPlayer::publish(const Pending& p) {
-  const Nanos stamp = timeline_.stamp(p.stamp, options_.relative_stamps);
+  const Nanos stamp = replay_.timeline.stamp(p.stamp, options_.relative_stamps);
   if (!first_stamp_) first_stamp_ = stamp;
   last_stamp_ = stamp;
   auto publishOdom = [&](const datasets::CarmenPose& pose, const BodyVelocity* twist) {
@@ -210,7 +203,7 @@ void CarmenPlayer::finish(const std::string& error) {
   error_ = error;
   if (reader_) final_report_ = reader_->report();
   reader_.reset();  // closes the file
-  next_.reset();
+  replay_.next.reset();
   if (!error.empty()) ctx_->requestStop("carmen_player: " + error);
   ctx_->reportProgress(1.0);
   ctx_->finished();
@@ -228,7 +221,7 @@ void CarmenPlayer::summarize(Summary& out) const {
   out["odom_published"] = odom_;
   out["reference_published"] = reference_;
   out["records_ignored"] = ignored_;
-  out["time_reversals"] = reversals_;
+  out["time_reversals"] = replay_.reversals;
   out["first_stamp_s"] = first_stamp_ ? nanosToSeconds(*first_stamp_) : 0.0;
   out["last_stamp_s"] = last_stamp_ ? nanosToSeconds(*last_stamp_) : 0.0;
   out["laser"] = laser_;

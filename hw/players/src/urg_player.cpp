@@ -82,7 +82,7 @@ bool UrgPlayer::readNext() {
     const double since_first = nanosToSeconds(stamp - *first_record_);
     if (options_.end_time > 0 && since_first > options_.end_time) return false;
     if (options_.start_time > 0 && since_first < options_.start_time) continue;
-    next_ = Pending{std::move(scan), stamp};
+    replay_.next = Pending{std::move(scan), stamp};
     return true;
   }
   return false;
@@ -91,18 +91,12 @@ bool UrgPlayer::readNext() {
 void UrgPlayer::step() {
   if (done_) return;
   try {
-    if (!next_ && !readNext()) return finish("");
-    if (!timeline_.started()) timeline_.start(next_->stamp, ctx_->now());
-    while (next_ && timeline_.due(next_->stamp) <= ctx_->now()) {
-      if (next_->stamp < last_published_) ++reversals_;
-      publish(*next_);
-      last_published_ = std::max(last_published_, next_->stamp);
-      next_.reset();
-      if (options_.max_scans > 0 && scans_ >= options_.max_scans) return finish("");
-      if (!readNext()) return finish("");
-    }
+    const auto next_step = replay_.advance(
+        ctx_->now(), [this] { return readNext(); }, [this](const Pending& p) { publish(p); },
+        [this] { return options_.max_scans > 0 && scans_ >= options_.max_scans; });
+    if (!next_step) return finish("");
     ctx_->reportProgress(reader_->progress());
-    ctx_->callAt(timeline_.due(next_->stamp), [this] { step(); });
+    ctx_->callAt(*next_step, [this] { step(); });
   } catch (const std::exception& e) {
     finish(e.what());
   }
@@ -111,7 +105,7 @@ void UrgPlayer::step() {
 // The pose published with a scan is the one integrated up to that scan's line (readNext ran
 // the integration when it read the line), so publish() must run before the next readNext().
 void UrgPlayer::publish(const Pending& p) {
-  const Nanos stamp = timeline_.stamp(p.stamp, options_.relative_stamps);
+  const Nanos stamp = replay_.timeline.stamp(p.stamp, options_.relative_stamps);
   if (!first_stamp_) first_stamp_ = stamp;
   last_stamp_ = stamp;
   {
@@ -152,7 +146,7 @@ void UrgPlayer::finish(const std::string& error) {
   error_ = error;
   if (reader_) final_report_ = reader_->report();
   reader_.reset();
-  next_.reset();
+  replay_.next.reset();
   if (!error.empty()) ctx_->requestStop("urg_player: " + error);
   ctx_->reportProgress(1.0);
   ctx_->finished();
@@ -165,7 +159,7 @@ void UrgPlayer::summarize(Summary& out) const {
   out["scans_published"] = scans_;
   out["odom_published"] = odom_;
   out["distance_m"] = distance_;
-  out["time_reversals"] = reversals_;
+  out["time_reversals"] = replay_.reversals;
   out["first_stamp_s"] = first_stamp_ ? nanosToSeconds(*first_stamp_) : 0.0;
   out["last_stamp_s"] = last_stamp_ ? nanosToSeconds(*last_stamp_) : 0.0;
   out["error"] = error_;

@@ -113,15 +113,13 @@ class CarmenPlayer final : public Actor {
   Publisher<msg::Odometry> odom_pub_;
   Publisher<msg::GroundTruthPose> gt_pub_;
 
-  ReplayTimeline timeline_;
-  std::optional<Pending> next_;
+  ReplayState<Pending> replay_;
   std::optional<Nanos> first_record_;  // dataset time of the first record read
-  Nanos last_published_ = 0;
   std::optional<Pose2d> last_odom_pose_;
   Nanos last_odom_stamp_ = 0;
   bool done_ = false;
 
-  std::int64_t scans_ = 0, odom_ = 0, reference_ = 0, ignored_ = 0, reversals_ = 0;
+  std::int64_t scans_ = 0, odom_ = 0, reference_ = 0, ignored_ = 0;
   std::optional<Nanos> first_stamp_, last_stamp_;
   std::string error_;
   datasets::ParseReport final_report_;

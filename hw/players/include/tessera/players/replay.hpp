@@ -12,6 +12,7 @@
 
 #include <tessera/runtime/clock.hpp>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdint>
 #include <numbers>
@@ -50,6 +51,33 @@ class ReplayTimeline {
  private:
   Nanos dataset0_ = 0, runtime0_ = 0;
   bool started_ = false;
+};
+
+// Where a player is in its input: the record read but not yet published, and counters.
+template <class Pending>  // Pending has a `Nanos stamp` (dataset time)
+struct ReplayState {
+  ReplayTimeline timeline;
+  std::optional<Pending> next;
+  Nanos last_published = 0;
+  std::int64_t reversals = 0;  // records stamped before one already published
+
+  // One scheduling step: publishes every record due at runtime time `now` (equal stamps, or
+  // time running backwards, go out together), refilling `next` with read() (returns false at
+  // the end of the input). Returns the runtime time of the next step, or nullopt when the
+  // input is exhausted or limit() (checked after each record) says to stop.
+  template <class Read, class Publish, class Limit>
+  std::optional<Nanos> advance(Nanos now, Read&& read, Publish&& publish, Limit&& limit) {
+    if (!next && !read()) return std::nullopt;
+    if (!timeline.started()) timeline.start(next->stamp, now);
+    while (next && timeline.due(next->stamp) <= now) {
+      if (next->stamp < last_published) ++reversals;
+      publish(*next);
+      last_published = std::max(last_published, next->stamp);
+      next.reset();
+      if (limit() || !read()) return std::nullopt;
+    }
+    return timeline.due(next->stamp);
+  }
 };
 
 struct Pose2d {

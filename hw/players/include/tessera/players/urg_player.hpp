@@ -95,10 +95,8 @@ class UrgPlayer final : public Actor {
   Publisher<msg::LaserScan> scan_pub_;
   Publisher<msg::Odometry> odom_pub_;
 
-  ReplayTimeline timeline_;
-  std::optional<Pending> next_;
+  ReplayState<Pending> replay_;
   std::optional<Nanos> first_record_;
-  Nanos last_published_ = 0;
   // Odometry integrates over every line read, published or not, so start_time keeps the frame.
   std::optional<datasets::UrgScan> last_ticks_;
   datasets::PlanarPose pose_;
@@ -107,7 +105,7 @@ class UrgPlayer final : public Actor {
   double distance_ = 0;
   bool done_ = false;
 
-  std::int64_t scans_ = 0, odom_ = 0, reversals_ = 0;
+  std::int64_t scans_ = 0, odom_ = 0;
   std::optional<Nanos> first_stamp_, last_stamp_;
   std::string error_;
   datasets::ParseReport final_report_;
