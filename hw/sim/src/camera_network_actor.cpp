@@ -27,10 +27,8 @@ std::string str(const T& v) {
 }
 
 std::vector<CameraSite> worldSites(const CameraNetworkOptions& o) {
-  constexpr std::string_view kBuiltin = "builtin:";
   try {
-    const World w = o.world.starts_with(kBuiltin) ? World::builtin(o.world.substr(kBuiltin.size()))
-                                                  : World::fromImage(o.world, o.world_resolution);
+    const World w = World::fromSpec(o.world, o.world_resolution);
     if (w.cameraSites().empty())
       fail("camera_sites", "world '" + w.name() + "' has no cameras; give camera_sites");
     return w.cameraSites();

@@ -23,10 +23,8 @@ std::string str(const T& v) {
 }
 
 World loadWorld(const SimulatorOptions& o) {
-  constexpr std::string_view kBuiltin = "builtin:";
   try {
-    if (o.world.starts_with(kBuiltin)) return World::builtin(o.world.substr(kBuiltin.size()));
-    return World::fromImage(o.world, o.world_resolution);
+    return World::fromSpec(o.world, o.world_resolution);
   } catch (const std::invalid_argument& e) {
     fail("world_resolution", e.what());
   } catch (const std::exception& e) {

@@ -223,6 +223,12 @@ World World::builtin(std::string_view name) {
                            ")");
 }
 
+World World::fromSpec(const std::string& spec, double resolution) {
+  constexpr std::string_view kBuiltin = "builtin:";
+  if (spec.starts_with(kBuiltin)) return builtin(std::string_view(spec).substr(kBuiltin.size()));
+  return fromImage(spec, resolution);
+}
+
 void World::setWall(int col, int row, bool is_wall) {
   if (!inside(col, row)) return;
   cells_[static_cast<std::size_t>(row) * width_ + col] = is_wall ? 1 : 0;

@@ -270,3 +270,12 @@ TEST_CASE("World: checkRoute names the bad waypoint or leg", "[sim][world]") {
   CHECK_THROWS_AS(tessera::sim::checkRoute(office, {{20, 7.5}, {21, 7.5}, {21, 3}}, true),
                   std::invalid_argument);
 }
+
+TEST_CASE("World::fromSpec reads a world option: builtin names or image paths", "[sim][world]") {
+  const World room = World::fromSpec("builtin:room", 0.05);
+  CHECK(room.width() == World::builtin("room").width());
+  CHECK(room.name() == World::builtin("room").name());
+  CHECK_THROWS_WITH(World::fromSpec("builtin:nowhere", 0.05),
+                    Catch::Contains("unknown built-in world 'nowhere'"));
+  CHECK_THROWS_AS(World::fromSpec("/no/such/map.pgm", 0.05), std::runtime_error);
+}

@@ -77,6 +77,10 @@ class World {
   /// A built-in world by name ("office", "camera_floor", "room", "landmarks"); throws
   /// std::runtime_error listing the known names.
   static World builtin(std::string_view name);
+  /// The value of a `world` option: "builtin:NAME" or the path of a PGM/PNG image read at
+  /// `resolution` m/pixel. Throws std::invalid_argument for a bad resolution, std::runtime_error
+  /// for an unknown name or an unreadable image.
+  static World fromSpec(const std::string& spec, double resolution);
   static std::vector<std::string> builtinNames();
   /// A closed room: a width_m x height_m map (rounded to whole cells) whose outermost
   /// `wall_cells` rings of cells are walls. Handy for tests with analytic distances.
