@@ -2,6 +2,7 @@
 
 #include <capnp/dynamic.h>
 #include <kj/exception.h>
+#include <tbb/scalable_allocator.h>
 
 #include <array>
 #include <cstdlib>
@@ -81,6 +82,11 @@ class SegmentPool {
 };
 
 }  // namespace
+
+std::shared_ptr<BuilderStorage> makeBuilderStorage(std::size_t size_hint_bytes) {
+  return std::allocate_shared<BuilderStorage>(tbb::scalable_allocator<BuilderStorage>(),
+                                              size_hint_bytes);
+}
 
 BuilderStorage::BuilderStorage(std::size_t size_hint_bytes) {
   std::size_t hint_words = (size_hint_bytes + sizeof(capnp::word) - 1) / sizeof(capnp::word) + 16;

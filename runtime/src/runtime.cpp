@@ -255,12 +255,14 @@ std::size_t Runtime::Impl::drainLocked(Cell& cell, std::size_t budget) {
       } catch (...) {
         detail::t_running.pop_back();
         // The rest of the batch is dropped with the exception; keep the idle count right.
-        for (std::size_t k = i; k < n; ++k) releaseWork();
+        releaseWork(n);
         throw;
       }
       batch[i].message.reset();
-      releaseWork();
     }
+    // Once per batch: the count is shared with every publisher, so per-item updates would
+    // bounce its cache line between cores.
+    releaseWork(n);
     done += n;
   }
   detail::t_running.pop_back();
@@ -302,8 +304,9 @@ void Runtime::Impl::dispatch(Cell& cell, Item& item) {
   cell.handler_time.add(steadyNow() - t0);
 }
 
-void Runtime::Impl::releaseWork() {
-  if (pending.fetch_sub(1) == 1) {
+void Runtime::Impl::releaseWork(std::size_t n) {
+  const auto k = static_cast<std::int64_t>(n);
+  if (pending.fetch_sub(k) == k) {
     std::lock_guard lock(idle_mutex);
     idle_cv.notify_all();
   }

@@ -176,7 +176,7 @@ struct Runtime::Impl {
   /// Runs up to `budget` items of `cell`; caller holds cell.strand.
   std::size_t drainLocked(detail::Cell& cell, std::size_t budget);
   void dispatch(detail::Cell& cell, detail::Item& item);
-  void releaseWork();
+  void releaseWork(std::size_t n);
   void waitIdle();
   bool stepOne();
   std::vector<std::uint32_t> stopOrder() const;

@@ -87,6 +87,10 @@ class BuilderStorage final : public MessageStorage {
   std::optional<capnp::MallocMessageBuilder> builder_;  // in place: no second allocation
   kj::ArrayPtr<const kj::ArrayPtr<const capnp::word>> segments_;
 };
+
+/// Allocates a BuilderStorage. Messages are usually freed on another thread than the one that
+/// built them; a scalable allocator keeps that cross-thread free off a shared malloc arena lock.
+std::shared_ptr<BuilderStorage> makeBuilderStorage(std::size_t size_hint_bytes);
 }  // namespace detail
 
 /// A read view of one message of type T. Copyable, cheap, thread-safe to read.
@@ -118,7 +122,7 @@ class Loan {
 
   /// size_hint_bytes: expected encoded size; large arrays fit in one segment when it is right.
   explicit Loan(std::size_t size_hint_bytes = 0)
-      : storage_(std::make_shared<detail::BuilderStorage>(size_hint_bytes)),
+      : storage_(detail::makeBuilderStorage(size_hint_bytes)),
         root_(storage_->builder().template initRoot<T>()) {}
 
   Builder& operator*() { return root_; }
