@@ -239,13 +239,21 @@ std::size_t Runtime::Impl::drainLocked(Cell& cell, std::size_t budget) {
     bool wake_publishers = false;
     {
       std::lock_guard lock(cell.mutex);
+      // A publisher blocked on a full reliable mailbox is woken once its mailbox is half
+      // empty (or the inbox is), not after every batch: each wake-up is a futex call on both
+      // sides, and waking per batch made a fast publisher and its consumer ping-pong.
+      bool half_empty = false;
       while (n < kBatch && done + n < budget && !cell.queue.empty()) {
         Item& item = batch[n++];
         item = std::move(cell.queue.front());
         cell.queue.pop_front();
-        if (item.slot >= 0) --cell.slots[static_cast<std::size_t>(item.slot)].queued;
+        if (item.slot >= 0) {
+          auto& slot = cell.slots[static_cast<std::size_t>(item.slot)];
+          --slot.queued;
+          half_empty = half_empty || slot.queued <= slot.policy.capacity / 2;
+        }
       }
-      wake_publishers = cell.waiting_publishers > 0;
+      wake_publishers = cell.waiting_publishers > 0 && (half_empty || cell.queue.empty());
     }
     if (n == 0) break;
     if (wake_publishers) cell.space.notify_all();
