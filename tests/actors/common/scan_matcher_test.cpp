@@ -1,0 +1,544 @@
+// Tests for the laser scan matcher: beam preparation, the score / likelihood model, hill
+// climbing, the match covariance and the improved-proposal fit. Worlds are sets of line
+// segments ray-cast exactly here, so the map is the only discretised thing.
+#include <tessera/common/occupancy_grid.hpp>
+#include <tessera/common/pose2.hpp>
+#include <tessera/common/scan_matcher.hpp>
+
+#include <catch2/catch.hpp>
+
+#include <Eigen/Dense>
+
+#include <cmath>
+#include <limits>
+#include <numbers>
+#include <random>
+#include <stdexcept>
+#include <utility>
+#include <vector>
+
+using tessera::common::angleDiff;
+using tessera::common::MatchResult;
+using tessera::common::OccupancyGrid;
+using tessera::common::Pose2;
+using tessera::common::ProposalFit;
+using tessera::common::RangeScan;
+using tessera::common::ScanMatcher;
+using tessera::common::ScanMatcherOptions;
+using tessera::common::ScanPoints;
+
+namespace {
+constexpr double kPi = std::numbers::pi;
+constexpr double kDeg = kPi / 180.0;
+constexpr float kInf = std::numeric_limits<float>::infinity();
+constexpr float kNaN = std::numeric_limits<float>::quiet_NaN();
+
+struct Segment {
+  Eigen::Vector2d a, b;
+};
+using World = std::vector<Segment>;
+
+/// Distance along the ray to the nearest segment, +inf when none is hit.
+double castRay(const World& world, const Eigen::Vector2d& o, double angle) {
+  const Eigen::Vector2d d(std::cos(angle), std::sin(angle));
+  double best = std::numeric_limits<double>::infinity();
+  for (const Segment& s : world) {
+    const Eigen::Vector2d e = s.b - s.a;
+    const double den = d.x() * e.y() - d.y() * e.x();
+    if (std::abs(den) < 1e-12) continue;
+    const Eigen::Vector2d w = s.a - o;
+    const double t = (w.x() * e.y() - w.y() * e.x()) / den;
+    const double u = (w.x() * d.y() - w.y() * d.x()) / den;
+    if (t > 0 && u >= 0 && u <= 1) best = std::min(best, t);
+  }
+  return best;
+}
+
+struct Laser {
+  double angle_min = -135 * kDeg;
+  double angle_increment = 0.75 * kDeg;
+  int beams = 361;
+  double range_min = 0.1, range_max = 30.0;
+  Pose2 mount{0.15, 0.05, 0.1};  // laser in base frame
+
+  RangeScan view(const std::vector<float>& ranges) const {
+    return {ranges, angle_min, angle_increment, range_min, range_max};
+  }
+};
+
+std::vector<float> simulate(const World& world, const Laser& laser, const Pose2& base,
+                            std::mt19937_64& rng, double noise = 0.01) {
+  std::normal_distribution<double> n(0.0, noise);
+  const Pose2 sensor = base * laser.mount;
+  std::vector<float> ranges(static_cast<std::size_t>(laser.beams));
+  for (int k = 0; k < laser.beams; ++k) {
+    const double r = castRay(world, sensor.translation(),
+                             sensor.theta + laser.angle_min + k * laser.angle_increment);
+    ranges[static_cast<std::size_t>(k)] =
+        r < laser.range_max ? static_cast<float>(r + n(rng)) : kInf;
+  }
+  return ranges;
+}
+
+void addPolygon(World& w, const std::vector<Eigen::Vector2d>& v) {
+  for (std::size_t i = 0; i < v.size(); ++i) w.push_back({v[i], v[(i + 1) % v.size()]});
+}
+
+std::vector<Eigen::Vector2d> box(const Pose2& centre, double sx, double sy) {
+  std::vector<Eigen::Vector2d> v;
+  for (const auto& c : {Eigen::Vector2d(-sx, -sy), Eigen::Vector2d(sx, -sy),
+                        Eigen::Vector2d(sx, sy), Eigen::Vector2d(-sx, sy)})
+    v.push_back(centre * (0.5 * c));
+  return v;
+}
+
+// The room, in its own frame, placed in the map by kRoomPose so no wall is axis-aligned.
+const Pose2 kRoomPose(1.3, -0.7, 0.3);
+
+World room() {
+  World w;
+  std::vector<Eigen::Vector2d> outline = {{0, 0}, {10, 0}, {10, 7}, {6, 8}, {0, 8}};
+  for (auto& p : outline) p = kRoomPose * p;
+  addPolygon(w, outline);
+  for (const auto& b : {box({3, 3, 0.5}, 1.0, 0.6), box({6, 5.5, 0.2}, 0.4, 0.4),
+                        box({8.2, 2.0, -0.3}, 0.8, 1.2), box({2.0, 6.5, 0.0}, 1.5, 0.3)}) {
+    std::vector<Eigen::Vector2d> v = b;
+    for (auto& p : v) p = kRoomPose * p;
+    addPolygon(w, v);
+  }
+  return w;
+}
+
+std::vector<Pose2> roomMappingPoses() {
+  std::vector<Pose2> poses;
+  for (const Pose2& p :
+       {Pose2(1.5, 4.5, 0.0), Pose2(4.5, 4.5, 1.0), Pose2(5.0, 2.0, 2.0), Pose2(7.0, 4.0, -1.0),
+        Pose2(5.0, 7.0, 3.0), Pose2(1.5, 1.5, 0.5), Pose2(8.5, 6.0, -2.5), Pose2(3.5, 5.5, -0.7)})
+    poses.push_back(kRoomPose * p);
+  return poses;
+}
+
+OccupancyGrid mapOf(const World& world, const Laser& laser, const std::vector<Pose2>& poses,
+                    std::uint64_t seed = 1) {
+  OccupancyGrid grid;
+  std::mt19937_64 rng(seed);
+  for (const Pose2& p : poses) {
+    const std::vector<float> r = simulate(world, laser, p, rng);
+    grid.insertScan(laser.view(r), p * laser.mount);
+  }
+  return grid;
+}
+
+/// A world, the laser that sees it and a map built from its scans at known poses.
+struct Scene {
+  World world;
+  Laser laser;
+  OccupancyGrid grid;
+
+  Scene(World w, const std::vector<Pose2>& mapping_poses)
+      : world(std::move(w)), grid(mapOf(world, laser, mapping_poses)) {}
+  /// The points of a fresh noisy scan taken at `truth`.
+  ScanPoints scan(const ScanMatcher& m, const Pose2& truth, std::mt19937_64& rng) const {
+    return m.prepare(laser.view(simulate(world, laser, truth, rng)), laser.mount);
+  }
+};
+
+Scene roomScene() {
+  return Scene(room(), roomMappingPoses());
+}
+
+double translationError(const Pose2& a, const Pose2& b) {
+  return (a.translation() - b.translation()).norm();
+}
+
+/// A dense grid of explicitly set cells, to check the matcher against a Grid other than
+/// OccupancyGrid and to build exact cell patterns.
+class FakeGrid {
+ public:
+  explicit FakeGrid(double res) : res_(res), cells_(kSide * kSide, 0.0f) {}
+  double resolution() const { return res_; }
+  Eigen::Vector2i worldToCell(const Eigen::Vector2d& p) const {
+    return {static_cast<int>(std::floor(p.x() / res_)), static_cast<int>(std::floor(p.y() / res_))};
+  }
+  Eigen::Vector2d cellCenter(const Eigen::Vector2i& c) const {
+    return (c.cast<double>() + Eigen::Vector2d(0.5, 0.5)) * res_;
+  }
+  float logOdds(const Eigen::Vector2i& c) const {
+    if (c.x() < 0 || c.y() < 0 || c.x() >= kSide || c.y() >= kSide) return 0.0f;
+    return cells_[static_cast<std::size_t>(c.y() * kSide + c.x())];
+  }
+  void set(int x, int y, float v) { cells_[static_cast<std::size_t>(y * kSide + x)] = v; }
+
+ private:
+  static constexpr int kSide = 64;
+  double res_;
+  std::vector<float> cells_;
+};
+
+ScanPoints onePoint(const Eigen::Vector2f& origin, const Eigen::Vector2f& end) {
+  ScanPoints p;
+  p.origin = origin;
+  p.endpoints = {end};
+  p.beams_total = 1;
+  return p;
+}
+}  // namespace
+
+TEST_CASE("ScanMatcher rejects invalid options", "[scan_matcher]") {
+  auto with = [](auto edit) {
+    ScanMatcherOptions o;
+    edit(o);
+    return o;
+  };
+  CHECK_NOTHROW(ScanMatcher(ScanMatcherOptions{}));
+  CHECK_THROWS_AS(ScanMatcher(with([](auto& o) { o.beam_step = 0; })), std::invalid_argument);
+  CHECK_THROWS_AS(ScanMatcher(with([](auto& o) { o.kernel_radius = -1; })), std::invalid_argument);
+  CHECK_THROWS_AS(ScanMatcher(with([](auto& o) { o.sigma = 0.0; })), std::invalid_argument);
+  CHECK_THROWS_AS(ScanMatcher(with([](auto& o) { o.likelihood_sigma = kNaN; })),
+                  std::invalid_argument);
+  CHECK_THROWS_AS(ScanMatcher(with([](auto& o) { o.likelihood_gain = -1.0; })),
+                  std::invalid_argument);
+  CHECK_THROWS_AS(ScanMatcher(with([](auto& o) { o.linear_step = 0.0; })), std::invalid_argument);
+  CHECK_THROWS_AS(ScanMatcher(with([](auto& o) { o.max_iterations = 0; })), std::invalid_argument);
+  CHECK_THROWS_AS(ScanMatcher(with([](auto& o) { o.min_score_fraction = 1.5; })),
+                  std::invalid_argument);
+  CHECK_THROWS_AS(ScanMatcher(with([](auto& o) { o.proposal_steps = 0; })), std::invalid_argument);
+  CHECK_THROWS_AS(ScanMatcher(with([](auto& o) { o.free_check_offset = kNaN; })),
+                  std::invalid_argument);
+}
+
+TEST_CASE("prepare keeps valid beams as base-frame endpoints", "[scan_matcher]") {
+  ScanMatcherOptions o;
+  o.max_range = 5.0;
+  const ScanMatcher matcher(o);
+  // Beams at -90, 0, 90, 180 deg ... then invalid ones.
+  const std::vector<float> ranges = {2.0f, 1.0f, 3.0f, 4.0f, kNaN, 0.05f, kInf, 10.0f, 6.0f, 0.0f};
+  const RangeScan scan{ranges, -kPi / 2, kPi / 2, 0.1, 8.0};
+  const Pose2 mount(0.2, -0.1, kPi / 2);
+  const ScanPoints p = matcher.prepare(scan, mount);
+  CHECK(p.beams_total == ranges.size());
+  CHECK(p.origin.isApprox(Eigen::Vector2f(0.2f, -0.1f)));
+  REQUIRE(p.size() == 4);  // NaN, < range_min, no return, >= range_max, > max_range, 0 dropped
+  // Laser beam at -90 deg, 2 m: laser (0, -2) -> base: rotate by 90 deg -> (2, 0) + mount.
+  CHECK(p.endpoints[0].x() == Approx(2.2f));
+  CHECK(p.endpoints[0].y() == Approx(-0.1f).margin(1e-6));
+  CHECK(p.endpoints[1].x() == Approx(0.2f).margin(1e-6));
+  CHECK(p.endpoints[1].y() == Approx(0.9f));
+  CHECK(p.endpoints[3].x() == Approx(0.2f).margin(1e-6));
+  CHECK(p.endpoints[3].y() == Approx(-4.1f));
+
+  ScanMatcherOptions every_other = o;
+  every_other.beam_step = 2;
+  const ScanPoints q = ScanMatcher(every_other).prepare(scan, mount);
+  REQUIRE(q.size() == 2);
+  CHECK(q.endpoints[0].isApprox(p.endpoints[0]));
+  CHECK(q.endpoints[1].isApprox(p.endpoints[2]));
+}
+
+TEST_CASE("degenerate scans give no points and a failed match without crashing", "[scan_matcher]") {
+  const Scene scene = roomScene();
+  const Laser& laser = scene.laser;
+  const OccupancyGrid& grid = scene.grid;
+  const ScanMatcher matcher;
+  const Pose2 pose = roomMappingPoses()[0];
+
+  const std::vector<float> nans(361, kNaN), far(361, 30.0f), none;
+  for (const std::vector<float>* r : {&nans, &far, &none}) {
+    const ScanPoints p = matcher.prepare(laser.view(*r), laser.mount);
+    CHECK(p.empty());
+    CHECK(p.beams_total == r->size());
+    CHECK(matcher.score(grid, p, pose) == 0.0);
+    CHECK(matcher.logLikelihood(grid, p, pose) == 0.0);
+    const MatchResult m = matcher.match(grid, p, pose);
+    CHECK_FALSE(m.success);
+    CHECK(m.pose.vector() == pose.vector());
+    CHECK(m.covariance.allFinite());
+    const ProposalFit f = matcher.fitProposal(grid, p, pose, pose, Eigen::Matrix3d::Identity());
+    CHECK(std::isfinite(f.log_eta));
+    CHECK(f.mean.isFinite());
+  }
+  // Unusable scan geometry.
+  std::mt19937_64 rng(3);
+  const std::vector<float> ok = simulate(scene.world, laser, pose, rng);
+  RangeScan bad = laser.view(ok);
+  bad.angle_increment = kNaN;
+  CHECK(matcher.prepare(bad, laser.mount).empty());
+  CHECK(matcher.prepare(laser.view(ok), Pose2(kNaN, 0, 0)).empty());
+  // Non-finite initial pose: failed match, no exception.
+  const ScanPoints p = matcher.prepare(laser.view(ok), laser.mount);
+  CHECK_FALSE(matcher.match(grid, p, Pose2(kNaN, 0, 0)).success);
+}
+
+TEST_CASE("score is continuous in translation and zero beyond the kernel", "[scan_matcher]") {
+  FakeGrid grid(0.05);
+  grid.set(20, 20, 2.0f);  // one obstacle cell, centre (1.025, 1.025)
+  const ScanMatcher matcher;
+  // One beam from the far left, endpoint swept across three cells in 0.1 mm steps: the window
+  // around the endpoint jumps by a cell at each boundary, the clamped score must not.
+  const ScanPoints beam = onePoint({-5.0f, 1.025f}, {0.0f, 0.0f});
+  double previous = matcher.score(grid, beam, Pose2(0.95, 1.03, 0.0));
+  double peak = previous, max_jump = 0.0;
+  for (int i = 1; i <= 1500; ++i) {
+    const double s = matcher.score(grid, beam, Pose2(0.95 + i * 1e-4, 1.03, 0.0));
+    max_jump = std::max(max_jump, std::abs(s - previous));
+    peak = std::max(peak, s);
+    previous = s;
+  }
+  CHECK(peak > 0.99);
+  CHECK(max_jump < 0.005);
+  // Outside R = 1.5 cells: nothing matched, score 0, the fixed likelihood penalty.
+  int matched = -1;
+  CHECK(matcher.score(grid, beam, Pose2(1.025 + 0.076, 1.025, 0.0)) == 0.0);
+  const double ll = matcher.logLikelihood(grid, beam, Pose2(1.025 + 0.08, 1.025, 0.0), &matched);
+  CHECK(matched == 0);
+  CHECK(ll == Approx(-0.075 * 0.075 / (2 * 0.075 * 0.075) / 3.0).epsilon(1e-5));
+  CHECK(matcher.logLikelihood(grid, beam, Pose2(1.025, 1.025, 0.0), &matched) ==
+        Approx(0.0).margin(1e-9));
+  CHECK(matched == 1);
+}
+
+TEST_CASE("free check rejects obstacles seen through an occupied cell", "[scan_matcher]") {
+  FakeGrid grid(0.05);
+  for (int x = 10; x <= 12; ++x)  // a wall three cells thick: x in [0.5, 0.65)
+    for (int y = 0; y < 40; ++y) grid.set(x, y, 2.0f);
+  const Pose2 at(0.0, 0.0, 0.0);
+  const ScanMatcher with_check;
+  ScanMatcherOptions o;
+  o.free_check_offset = -1.0;
+  const ScanMatcher without_check(o);
+  // Endpoint inside the wall near the centre of its last column, beam coming from the left:
+  // the only nearby occupied cells have occupied cells in front of them along the beam.
+  const ScanPoints from_left = onePoint({0.0f, 1.025f}, {0.624f, 1.025f});
+  CHECK(without_check.score(grid, from_left, at) > 0.9);
+  CHECK(with_check.score(grid, from_left, at) == 0.0);
+  // The same endpoint reached from the right sees the wall face first: it matches.
+  const ScanPoints from_right = onePoint({2.0f, 1.025f}, {0.624f, 1.025f});
+  CHECK(with_check.score(grid, from_right, at) > 0.9);
+}
+
+TEST_CASE("score and likelihood are highest at the true pose", "[scan_matcher]") {
+  const Scene scene = roomScene();
+  const OccupancyGrid& grid = scene.grid;
+  const ScanMatcher matcher;
+  std::mt19937_64 rng(7);
+  const Pose2 truth = kRoomPose * Pose2(4.0, 3.8, 0.4);
+  const ScanPoints p = scene.scan(matcher, truth, rng);
+  REQUIRE(p.size() > 300);
+  const double at_truth = matcher.score(grid, p, truth);
+  const double ll_truth = matcher.logLikelihood(grid, p, truth);
+  CHECK(at_truth > 0.5 * static_cast<double>(p.size()));
+  for (const Pose2& d : {Pose2(0.03, 0, 0), Pose2(0, -0.03, 0), Pose2(0, 0, 1 * kDeg),
+                         Pose2(0.1, 0.1, 0), Pose2(-0.2, 0.05, 3 * kDeg)}) {
+    const Pose2 off(truth.x + d.x, truth.y + d.y, truth.theta + d.theta);
+    CHECK(matcher.score(grid, p, off) < at_truth);
+    CHECK(matcher.logLikelihood(grid, p, off) < ll_truth);
+  }
+}
+
+TEST_CASE("match recovers offset poses in a structured room", "[scan_matcher]") {
+  const Scene scene = roomScene();
+  const OccupancyGrid& grid = scene.grid;
+  std::mt19937_64 rng(11);
+  const std::vector<Pose2> truths = {kRoomPose * Pose2(4.0, 3.8, 0.4),
+                                     kRoomPose * Pose2(6.5, 3.5, -2.0),
+                                     kRoomPose * Pose2(2.5, 5.0, 1.5)};
+
+  SECTION("odometry-sized offsets with default options") {
+    const ScanMatcher matcher;
+    for (const Pose2& truth : truths) {
+      const ScanPoints p = scene.scan(matcher, truth, rng);
+      for (const Pose2& d : {Pose2(0.05, -0.04, 2 * kDeg), Pose2(-0.06, 0.03, -3 * kDeg),
+                             Pose2(0.0, 0.07, 1 * kDeg)}) {
+        const Pose2 initial(truth.x + d.x, truth.y + d.y, truth.theta + d.theta);
+        const MatchResult m = matcher.match(grid, p, initial);
+        CHECK(m.success);
+        CHECK(translationError(m.pose, truth) < 0.015);
+        CHECK(std::abs(angleDiff(m.pose.theta, truth.theta)) < 0.5 * kDeg);
+        CHECK(m.score > matcher.score(grid, p, initial));
+        CHECK(m.evaluations <= 200);
+      }
+    }
+  }
+
+  SECTION("larger offsets with a wider kernel") {
+    ScanMatcherOptions o;
+    o.kernel_radius = 6;
+    o.sigma = 0.1;
+    o.max_iterations = 400;
+    const ScanMatcher matcher(o);
+    for (const Pose2& truth : truths) {
+      const ScanPoints p = scene.scan(matcher, truth, rng);
+      for (const Pose2& d :
+           {Pose2(0.15, -0.1, 4 * kDeg), Pose2(-0.2, 0.0, -5 * kDeg), Pose2(0.1, 0.15, 3 * kDeg)}) {
+        const Pose2 initial(truth.x + d.x, truth.y + d.y, truth.theta + d.theta);
+        const MatchResult m = matcher.match(grid, p, initial);
+        CHECK(m.success);
+        CHECK(translationError(m.pose, truth) < 0.02);
+        CHECK(std::abs(angleDiff(m.pose.theta, truth.theta)) < 0.5 * kDeg);
+      }
+    }
+  }
+}
+
+TEST_CASE("match works on any grid type with the same interface", "[scan_matcher]") {
+  FakeGrid grid(0.05);
+  for (int i = 5; i < 60; ++i) {  // an L of walls: x = 0.25..0.3 and y = 0.25..0.3
+    grid.set(5, i, 2.0f);
+    grid.set(i, 5, 2.0f);
+  }
+  // Points on both walls, on cell centres, seen from (1.5, 1.5).
+  ScanPoints p;
+  p.origin = Eigen::Vector2f::Zero();
+  for (int i = 0; i < 40; ++i) {
+    p.endpoints.emplace_back(0.275f - 1.5f, 0.425f + 0.05f * static_cast<float>(i) - 1.5f);
+    p.endpoints.emplace_back(0.425f + 0.05f * static_cast<float>(i) - 1.5f, 0.275f - 1.5f);
+  }
+  p.beams_total = p.endpoints.size();
+  const ScanMatcher matcher;
+  const MatchResult m = matcher.match(grid, p, Pose2(1.53, 1.47, 0.01));
+  CHECK(m.success);
+  CHECK(translationError(m.pose, Pose2(1.5, 1.5, 0.0)) < 0.005);
+  CHECK(std::abs(m.pose.theta) < 0.2 * kDeg);
+}
+
+TEST_CASE("match fails on an empty grid", "[scan_matcher]") {
+  const Scene scene = roomScene();
+  const OccupancyGrid empty;
+  const ScanMatcher matcher;
+  std::mt19937_64 rng(5);
+  const ScanPoints p = scene.scan(matcher, roomMappingPoses()[1], rng);
+  REQUIRE_FALSE(p.empty());
+  const MatchResult m = matcher.match(empty, p, roomMappingPoses()[1]);
+  CHECK_FALSE(m.success);
+  CHECK(m.score == 0.0);
+  CHECK(m.matched_beams == 0);
+  CHECK(m.log_likelihood < 0.0);
+}
+
+TEST_CASE("match covariance is large along a featureless corridor", "[scan_matcher]") {
+  // A 2 m wide corridor, 100 m long (ends out of range), along a direction 0.4 rad off the
+  // grid axes so its walls are staircases of cells.
+  const double axis_angle = 0.4;
+  const Pose2 frame(0.0, 0.0, axis_angle);
+  const World corridor = {{frame * Eigen::Vector2d(-50, -1), frame * Eigen::Vector2d(50, -1)},
+                          {frame * Eigen::Vector2d(-50, 1), frame * Eigen::Vector2d(50, 1)}};
+  std::vector<Pose2> poses;
+  for (double x = -4.0; x <= 4.0; x += 1.0) poses.push_back(frame * Pose2(x, 0.1 * x / 4, 0.05));
+  const Scene scene(corridor, poses);
+  const ScanMatcher matcher;
+  std::mt19937_64 rng(9);
+  const Pose2 truth = frame * Pose2(0.5, -0.2, -0.1);
+  const ScanPoints p = scene.scan(matcher, truth, rng);
+  const MatchResult m = matcher.match(scene.grid, p, frame * Pose2(0.5, -0.15, -0.1 + 2 * kDeg));
+  CHECK(m.success);
+  // Across the corridor and in heading the scan pins the pose down.
+  const Eigen::Vector2d along(std::cos(axis_angle), std::sin(axis_angle));
+  const Eigen::Vector2d across(-along.y(), along.x());
+  CHECK(std::abs((m.pose.translation() - truth.translation()).dot(across)) < 0.015);
+  CHECK(std::abs(angleDiff(m.pose.theta, truth.theta)) < 0.5 * kDeg);
+  // Along the axis only the cell-centre texture constrains the fit (see MatchResult).
+  const Eigen::Matrix2d cxy = m.covariance.topLeftCorner<2, 2>();
+  const double var_along = along.dot(cxy * along), var_across = across.dot(cxy * across);
+  CHECK(var_along > 20.0 * var_across);
+  CHECK(std::sqrt(var_along) > 0.05);
+  CHECK(std::sqrt(var_across) < 0.02);
+  const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eig(m.covariance);
+  CHECK(eig.eigenvalues().minCoeff() > 0.0);
+
+  // In the structured room the same covariance is small in every direction.
+  const Scene room_scene = roomScene();
+  const Pose2 room_truth = kRoomPose * Pose2(4.0, 3.8, 0.4);
+  const ScanPoints q = room_scene.scan(matcher, room_truth, rng);
+  const MatchResult mr = matcher.match(room_scene.grid, q, room_truth);
+  const Eigen::Matrix2d rc = mr.covariance.topLeftCorner<2, 2>();
+  const double largest = 0.5 * (rc(0, 0) + rc(1, 1)) +
+                         std::hypot(0.5 * (rc(0, 0) - rc(1, 1)), rc(0, 1));  // 2x2 eigenvalue
+  CHECK(std::sqrt(largest) < 0.025);
+}
+
+TEST_CASE("fitProposal balances the scan likelihood against the motion prior", "[scan_matcher]") {
+  const Scene scene = roomScene();
+  const OccupancyGrid& grid = scene.grid;
+  const ScanMatcher matcher;
+  std::mt19937_64 rng(13);
+  const Pose2 truth = kRoomPose * Pose2(4.0, 3.8, 0.4);
+  const ScanPoints p = scene.scan(matcher, truth, rng);
+  const MatchResult m = matcher.match(grid, p, Pose2(truth.x + 0.04, truth.y, truth.theta));
+  REQUIRE(m.success);
+  const Pose2 mode = m.pose;
+
+  SECTION("a broad prior leaves the mean at the mode") {
+    const Eigen::Matrix3d broad = Eigen::Vector3d(1.0, 1.0, 0.5).asDiagonal();
+    const ProposalFit f =
+        matcher.fitProposal(grid, p, mode, Pose2(mode.x + 0.1, mode.y, mode.theta), broad);
+    CHECK(f.samples == 27);
+    CHECK(translationError(f.mean, mode) < 0.005);
+    CHECK(std::abs(angleDiff(f.mean.theta, mode.theta)) < 0.002);
+    CHECK(std::isfinite(f.log_eta));
+    const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eig(f.covariance);
+    CHECK(eig.eigenvalues().minCoeff() > 0.0);
+    CHECK(f.covariance(0, 0) < 0.02 * 0.02);
+  }
+
+  SECTION("a tight prior pulls the mean toward the prior") {
+    const Eigen::Matrix3d tight = Eigen::Vector3d(1e-4, 1e-4, 1e-5).asDiagonal();
+    const Pose2 prior(mode.x + 0.02, mode.y - 0.02, mode.theta + 0.01);
+    const ProposalFit f = matcher.fitProposal(grid, p, mode, prior, tight);
+    CHECK(f.mean.x - mode.x > 0.005);
+    CHECK(f.mean.y - mode.y < -0.005);
+    CHECK(angleDiff(f.mean.theta, mode.theta) > 0.002);
+    CHECK(translationError(f.mean, prior) < translationError(mode, prior));
+  }
+
+  SECTION("log_eta is the log of the summed sample weights") {
+    const Eigen::Matrix3d cov = Eigen::Vector3d(0.01, 0.02, 0.005).asDiagonal();
+    const Pose2 prior(mode.x - 0.03, mode.y + 0.01, mode.theta - 0.02);
+    const ProposalFit f = matcher.fitProposal(grid, p, mode, prior, cov);
+    double sum = 0.0;
+    const Eigen::Matrix3d info = cov.inverse();
+    for (int i = -1; i <= 1; ++i)
+      for (int j = -1; j <= 1; ++j)
+        for (int k = -1; k <= 1; ++k) {
+          const Pose2 x(mode.x + 0.02 * i, mode.y + 0.02 * j, mode.theta + 0.01 * k);
+          const Eigen::Vector3d d(x.x - prior.x, x.y - prior.y, angleDiff(x.theta, prior.theta));
+          const double prior_density = std::exp(-0.5 * d.dot(info * d)) /
+                                       std::sqrt(std::pow(2 * kPi, 3) * cov.determinant());
+          // Scale the likelihood by a constant to stay in double range; log_eta shifts by it.
+          sum += std::exp(matcher.logLikelihood(grid, p, x) - m.log_likelihood) * prior_density;
+        }
+    CHECK(f.log_eta == Approx(m.log_likelihood + std::log(sum)).epsilon(1e-9));
+  }
+
+  SECTION("angles wrap across pi") {
+    const Pose2 near_pi(mode.x, mode.y, kPi - 0.004);
+    const Pose2 prior(mode.x, mode.y, -kPi + 0.004);  // 0.008 rad away across the cut
+    const Eigen::Matrix3d tight = Eigen::Vector3d(1e-4, 1e-4, 1e-6).asDiagonal();
+    const ProposalFit f = matcher.fitProposal(grid, p, near_pi, prior, tight);
+    CHECK(std::abs(angleDiff(f.mean.theta, prior.theta)) < 0.006);
+    CHECK(f.covariance(2, 2) < 0.01 * 0.01);
+  }
+
+  SECTION("very bad poses keep log_eta finite and low") {
+    const Eigen::Matrix3d tight = Eigen::Vector3d(1e-6, 1e-6, 1e-8).asDiagonal();
+    const ProposalFit good = matcher.fitProposal(grid, p, mode, mode, tight);
+    const Pose2 far(mode.x + 40.0, mode.y - 25.0, mode.theta + 2.0);
+    const ProposalFit bad = matcher.fitProposal(grid, p, far, mode, tight);
+    CHECK(std::isfinite(bad.log_eta));
+    CHECK(bad.log_eta < good.log_eta - 1e6);
+    CHECK(bad.mean.isFinite());
+    CHECK(bad.covariance.allFinite());
+    // A zero motion covariance (robot standing still) is still a valid prior.
+    const ProposalFit still = matcher.fitProposal(grid, p, mode, mode, Eigen::Matrix3d::Zero());
+    CHECK(std::isfinite(still.log_eta));
+    CHECK(translationError(still.mean, mode) < 1e-3);
+  }
+
+  SECTION("invalid priors are rejected") {
+    Eigen::Matrix3d negative = Eigen::Matrix3d::Identity();
+    negative(1, 1) = -1.0;
+    CHECK_THROWS_AS(matcher.fitProposal(grid, p, mode, mode, negative), std::invalid_argument);
+    CHECK_THROWS_AS(
+        matcher.fitProposal(grid, p, mode, Pose2(kNaN, 0, 0), Eigen::Matrix3d::Identity()),
+        std::invalid_argument);
+  }
+}
