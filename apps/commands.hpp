@@ -17,6 +17,8 @@ void addActorsCommand(CLI::App& app, int& result);
 void addEvalCommand(CLI::App& app, int& result);
 /// Adds `tessera bench runtime`.
 void addBenchRuntimeCommand(CLI::App& bench, int& result);
+/// Adds `tessera bench rbpf` (laser SLAM accuracy, CPU and memory on a CARMEN log).
+void addBenchRbpfCommand(CLI::App& bench, int& result);
 
 /// Folders searched for profile names: the source tree's apps/profiles and ./apps/profiles.
 std::vector<std::string> profileSearchDirs();

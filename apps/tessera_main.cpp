@@ -15,6 +15,7 @@ int main(int argc, char** argv) {
   auto* bench = app.add_subcommand("bench", "benchmarks that print their figures and the machine");
   bench->require_subcommand(1);
   tessera::app::addBenchRuntimeCommand(*bench, result);
+  tessera::app::addBenchRbpfCommand(*bench, result);
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {

@@ -35,7 +35,9 @@ GridMapperCoreOptions checkedCore(const GridMapperOptions& o) {
 }  // namespace
 
 GridMapperActor::GridMapperActor(GridMapperOptions options)
-    : options_(std::move(options)), mapper_(checkedCore(options_)) {}
+    : options_(std::move(options)),
+      mapper_(checkedCore(options_)),
+      poses_(static_cast<std::size_t>(options_.pose_history), options_.max_pose_gap_s) {}
 
 void GridMapperActor::configure(ActorContext& ctx) {
   ctx.subscribe<msg::LaserScan>(
@@ -68,53 +70,27 @@ void GridMapperActor::onScan(const Message<msg::LaserScan>& scan) {
 }
 
 void GridMapperActor::onPose(Nanos stamp, const common::Pose2& pose) {
-  if (!pose.isFinite()) {
+  if (!poses_.add(stamp, pose)) {
     ++poses_invalid_;
     return;
   }
-  // Poses normally arrive in order: append; otherwise insert in place (or replace a duplicate).
-  auto it = std::lower_bound(poses_.begin(), poses_.end(), stamp,
-                             [](const StampedPose& p, Nanos t) { return p.stamp < t; });
-  if (it != poses_.end() && it->stamp == stamp) {
-    it->pose = pose;
-  } else {
-    poses_.insert(it, {stamp, pose});
-  }
-  while (poses_.size() > static_cast<std::size_t>(options_.pose_history)) poses_.pop_front();
-
   while (!waiting_.empty() && tryInsert(waiting_.front())) waiting_.pop_front();
-}
-
-GridMapperActor::Pairing GridMapperActor::poseAt(Nanos stamp, common::Pose2& out) const {
-  if (poses_.empty() || stamp > poses_.back().stamp) return Pairing::kWait;
-  auto next = std::lower_bound(poses_.begin(), poses_.end(), stamp,
-                               [](const StampedPose& p, Nanos t) { return p.stamp < t; });
-  if (next->stamp == stamp) {
-    out = next->pose;
-    return Pairing::kExact;
-  }
-  if (next == poses_.begin()) return Pairing::kDrop;  // older than anything remembered
-  const auto prev = std::prev(next);
-  const Nanos gap = next->stamp - prev->stamp;
-  if (nanosToSeconds(gap) > options_.max_pose_gap_s) return Pairing::kDrop;
-  const double t = static_cast<double>(stamp - prev->stamp) / static_cast<double>(gap);
-  out = common::interpolate(prev->pose, next->pose, t);
-  return Pairing::kInterpolated;
 }
 
 bool GridMapperActor::tryInsert(const Message<msg::LaserScan>& scan) {
   const Nanos stamp = scan->getHeader().getStampNs();
   common::Pose2 robot;
-  switch (poseAt(stamp, robot)) {
-    case Pairing::kWait:
+  switch (poses_.at(stamp, robot)) {
+    case common::PoseHistory::Lookup::kWait:
       return false;
-    case Pairing::kDrop:
+    case common::PoseHistory::Lookup::kTooOld:
+    case common::PoseHistory::Lookup::kGap:
       ++scans_dropped_no_pose_;
       return true;
-    case Pairing::kExact:
+    case common::PoseHistory::Lookup::kExact:
       ++scans_exact_;
       break;
-    case Pairing::kInterpolated:
+    case common::PoseHistory::Lookup::kInterpolated:
       ++scans_interpolated_;
       break;
   }

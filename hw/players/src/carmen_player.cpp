@@ -41,6 +41,33 @@ void prescan(const std::filesystem::path& path, std::string& first_laser, bool& 
   }
 }
 
+// `index seconds [flag]` per line, indices 0, 1, 2, ... in order, times strictly increasing.
+std::vector<Nanos> readScanTimes(const std::string& path) {
+  std::vector<Nanos> out;
+  try {
+    datasets::TextReader reader(path);
+    std::string line;
+    while (reader.next(line)) {
+      const datasets::Fields f(reader, line);
+      if (f.empty() || f[0].front() == '#') continue;
+      if (f.size() < 2 || f.size() > 3)
+        reader.fail("expected `index seconds [flag]`, got " + std::to_string(f.size()) +
+                    " fields");
+      if (f.integer(0, "index") != static_cast<std::int64_t>(out.size()))
+        reader.fail("index " + std::string(f[0]) + " out of order, expected " +
+                    std::to_string(out.size()));
+      const auto stamp = datasetSecondsToNanos(f.real(1, "seconds"));
+      if (!stamp || (!out.empty() && *stamp <= out.back()))
+        reader.fail("time " + std::string(f[1]) + " is not after the previous one");
+      out.push_back(*stamp);
+    }
+  } catch (const datasets::DatasetError& e) {
+    fail("scan_times", e.what());
+  }
+  if (out.empty()) fail("scan_times", "'" + path + "' holds no times");
+  return out;
+}
+
 double recordTime(const datasets::CarmenRecord& r) {
   return std::visit([](const auto& x) { return x.timestamp; }, r);
 }
@@ -70,6 +97,7 @@ CarmenPlayer::CarmenPlayer(CarmenPlayerOptions options) : options_(std::move(opt
   if (o.odometry != "auto" && o.odometry != "odom" && o.odometry != "laser" && o.odometry != "none")
     fail("odometry", "expected auto, odom, laser or none, got '" + o.odometry + "'");
   mount_ = {o.laser_mount[0], o.laser_mount[1], o.laser_mount[2]};
+  if (!o.scan_times.empty()) scan_times_ = readScanTimes(o.scan_times);
 
   parse_options_.flaser_max_range = o.max_range;
   parse_options_.skip_malformed = o.skip_malformed;
@@ -103,15 +131,25 @@ bool CarmenPlayer::readNext() {
     const double since_first = nanosToSeconds(*stamp - *first_record_);
     if (options_.end_time > 0 && since_first > options_.end_time) return false;
     bool wanted = false;
-    if (const auto* l = std::get_if<datasets::CarmenLaser>(&record))
+    Nanos publish_stamp = *stamp;
+    if (const auto* l = std::get_if<datasets::CarmenLaser>(&record)) {
       wanted = l->message == laser_;
-    else
+      if (wanted && !scan_times_.empty()) {
+        if (laser_lines_ >= scan_times_.size())
+          throw datasets::DatasetError(options_.scan_times, 0,
+                                       "has " + std::to_string(scan_times_.size()) +
+                                           " times but the log has more " + laser_ + " lines");
+        publish_stamp = scan_times_[laser_lines_];
+      }
+      if (wanted) ++laser_lines_;
+    } else {
       wanted = odometry_ == "odom";
+    }
     if (!wanted || (options_.start_time > 0 && since_first < options_.start_time)) {
       ++ignored_;
       continue;
     }
-    replay_.next = Pending{std::move(record), *stamp};
+    replay_.next = Pending{std::move(record), publish_stamp};
     return true;
   }
   return false;

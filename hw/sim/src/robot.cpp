@@ -40,8 +40,9 @@ Eigen::Vector2d Odometry::integrate(double distance, double rotation, std::mt199
   // Both normals are always drawn, so the random stream does not depend on the motion.
   std::normal_distribution<double> normal(0.0, 1.0);
   const double zd = normal(rng), zt = normal(rng);
-  const double d = distance + sd[0] * zd;
-  const double t = rotation + sd[1] * zt;
+  const double d = distance * (1.0 + noise_.bias_d) + sd[0] * zd;
+  const double t =
+      rotation * (1.0 + noise_.bias_theta) + noise_.drift_theta * std::abs(distance) + sd[1] * zt;
 
   // Covariance propagation through moveBy(): Jacobians w.r.t. the pose and the increments.
   const double mid = pose_.theta + t / 2, c = std::cos(mid), s = std::sin(mid);

@@ -70,6 +70,11 @@ SimulatorActor::SimulatorActor(SimulatorOptions options)
     fail("sigma_d", "must be >= 0, got " + str(o.sigma_d));
   if (!(o.sigma_theta >= 0) || !std::isfinite(o.sigma_theta))
     fail("sigma_theta", "must be >= 0, got " + str(o.sigma_theta));
+  for (const auto& [key, value] : {std::pair<const char*, double>{"odom_bias_d", o.odom_bias_d},
+                                   {"odom_bias_theta", o.odom_bias_theta},
+                                   {"odom_drift_theta", o.odom_drift_theta}})
+    if (!std::isfinite(value) || std::abs(value) >= 0.5)
+      fail(key, "must be finite and within (-0.5, 0.5), got " + str(value));
   if (!(o.v_max > 0) || !std::isfinite(o.v_max))
     fail("v_max", "must be positive, got " + str(o.v_max));
   if (!(o.w_max > 0) || !std::isfinite(o.w_max))
@@ -127,7 +132,7 @@ SimulatorActor::SimulatorActor(SimulatorOptions options)
   } catch (const std::invalid_argument& e) {
     fail("route", e.what());  // speeds and laps were checked above
   }
-  robot_.emplace(follower_->startPose(), OdometryNoise{o.sigma_d, o.sigma_theta}, o.seed);
+  robot_.emplace(follower_->startPose(), OdometryNoise{o.sigma_d, o.sigma_theta, 1e-5, 1e-5, o.odom_bias_d, o.odom_bias_theta, o.odom_drift_theta}, o.seed);
 }
 
 void SimulatorActor::configure(ActorContext& ctx) {

@@ -222,3 +222,39 @@ TEST_CASE("carmen_player replays the GMapping-corrected log with ODOM and refere
   CHECK(summaryInt(h.actor(), "time_reversals") > 0);
   CHECK(summaryString(h.actor(), "error").empty());
 }
+
+TEST_CASE("carmen_player stamps scans from a scan_times file when the log repeats stamps",
+          "[players][carmen]") {
+  const auto path =
+      writeLog("dup.log", flaser(1000.0, 0.0) + flaser(1000.0, 1.0) + flaser(1000.0, 2.0));
+  const auto times = writeLog("times.txt", "0 1000.0 1\n1 1000.25 0\n2 1000.5 0\n");
+  CarmenPlayerOptions o = optionsFor(path);
+  o.scan_times = times.string();
+  ActorHarness h(std::make_unique<CarmenPlayer>(o));
+  h.advance(kNanosPerSecond);
+  const auto scans = h.published<msg::LaserScan>("scan");
+  const auto odom = h.published<msg::Odometry>("odom");
+  REQUIRE(scans.size() == 3);
+  REQUIRE(odom.size() == 3);
+  for (std::size_t i = 0; i < 3; ++i) {
+    const Nanos expected = 1000 * kNanosPerSecond + static_cast<Nanos>(i) * kNanosPerSecond / 4;
+    CHECK(scans[i]->getHeader().getStampNs() == expected);
+    CHECK(odom[i]->getHeader().getStampNs() == expected);
+  }
+
+  // Fewer times than laser lines: the run stops naming the times file.
+  const auto short_times = writeLog("short.txt", "0 1000.0 1\n1 1000.25 0\n");
+  o.scan_times = short_times.string();
+  ActorHarness h2(std::make_unique<CarmenPlayer>(o));
+  h2.advance(kNanosPerSecond);
+  CHECK(h2.publishedCount("scan") == 2);
+  CHECK_THAT(summaryString(h2.actor(), "error"), Contains("short.txt") && Contains("more"));
+
+  // Out of order or malformed: refused at configuration with the option's name.
+  o.scan_times = writeLog("bad.txt", "0 1000.0 1\n1 999.0 0\n").string();
+  CHECK_THAT(configErrorOf(o), Contains("scan_times") && Contains("bad.txt:2"));
+  o.scan_times = writeLog("garbage.txt", "0 1000.0 1\nzero x\n").string();
+  CHECK_THAT(configErrorOf(o), Contains("scan_times") && Contains("garbage.txt:2"));
+  o.scan_times = writeLog("empty.txt", "# nothing\n").string();
+  CHECK_THAT(configErrorOf(o), Contains("holds no times"));
+}

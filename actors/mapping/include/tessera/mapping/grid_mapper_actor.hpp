@@ -13,6 +13,7 @@
 // The laser's pose is robot pose ⊕ the scan's mount fields.
 #pragma once
 
+#include <tessera/common/pose_history.hpp>
 #include <tessera/mapping/grid_mapper.hpp>
 #include <tessera/messages/types.hpp>
 #include <tessera/runtime/actor.hpp>
@@ -63,16 +64,8 @@ class GridMapperActor final : public Actor {
   const GridMapper& mapper() const { return mapper_; }
 
  private:
-  struct StampedPose {
-    Nanos stamp;
-    common::Pose2 pose;
-  };
-  enum class Pairing { kWait, kDrop, kExact, kInterpolated };
-
   void onScan(const Message<msg::LaserScan>& scan);
   void onPose(Nanos stamp, const common::Pose2& pose);
-  /// Pose at `stamp` from the history, or why there is none.
-  Pairing poseAt(Nanos stamp, common::Pose2& out) const;
   /// Inserts the scan if its pose is known; returns false when it must keep waiting.
   bool tryInsert(const Message<msg::LaserScan>& scan);
   void publishMap();
@@ -80,7 +73,7 @@ class GridMapperActor final : public Actor {
   GridMapperOptions options_;
   GridMapper mapper_;
   Publisher<msg::OccupancyGrid> map_pub_;
-  std::deque<StampedPose> poses_;                // sorted by stamp
+  common::PoseHistory poses_;
   std::deque<Message<msg::LaserScan>> waiting_;  // scans newer than every pose, oldest first
   Nanos last_scan_stamp_ = 0;
   bool dirty_ = false;  // inserted since the last publish

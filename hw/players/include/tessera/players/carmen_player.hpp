@@ -49,6 +49,7 @@ struct CarmenPlayerOptions {
   std::int64_t max_scans = 0;
   bool relative_stamps = false;
   bool skip_malformed = false;
+  std::string scan_times;
 
   template <class V>
   void visit(V& v) {
@@ -73,6 +74,10 @@ struct CarmenPlayerOptions {
       "stamp messages with runtime time (0 at the first record) instead of the log's time");
     v("skip_malformed", skip_malformed,
       "skip and count malformed lines instead of stopping the run");
+    v("scan_times", scan_times,
+      "file of per-scan times `index seconds [flag]`, one line per laser line of the log in "
+      "order, replacing the laser lines' own stamps (e.g. intel-lab-mrpt/frame_times.txt, "
+      "whose log repeats stamps); empty = the log's stamps");
   }
 };
 
@@ -106,6 +111,8 @@ class CarmenPlayer final : public Actor {
   datasets::CarmenOptions parse_options_;
   std::string laser_, odometry_;
   Pose2d mount_;
+  std::vector<Nanos> scan_times_;  // from options_.scan_times, one per laser line
+  std::size_t laser_lines_ = 0;    // laser lines of the chosen type read so far
 
   ActorContext* ctx_ = nullptr;
   std::unique_ptr<datasets::CarmenReader> reader_;

@@ -45,6 +45,12 @@ struct OdometryNoise {
   /// noise). A step without motion gets no noise: a robot at rest does not drift.
   double floor_d = 1e-5;      ///< [m]
   double floor_theta = 1e-5;  ///< [rad]
+  /// Systematic errors (a wrong wheel radius, unequal wheels): the random terms above average
+  /// out over many small steps, these do not, so dead reckoning drifts by metres over a long
+  /// route as real odometry does.
+  double bias_d = 0.0;      ///< relative distance error: integrated distance × (1 + bias_d)
+  double bias_theta = 0.0;  ///< relative rotation error: integrated rotation × (1 + bias_theta)
+  double drift_theta = 0.0; ///< [rad/m] heading drift per metre travelled
 };
 
 /// Dead reckoning from noisy wheel increments, with its growing covariance.

@@ -45,6 +45,9 @@ struct SimulatorOptions {
   double w_max = 1.0;
   double sigma_d = 0.05;
   double sigma_theta = 0.05;
+  double odom_bias_d = 0.0;
+  double odom_bias_theta = 0.0;
+  double odom_drift_theta = 0.0;
   double laser_fov_deg = 180;
   int laser_beams = 181;
   double laser_max_range = 30;
@@ -73,6 +76,12 @@ struct SimulatorOptions {
     v("sigma_d", sigma_d, "odometry distance noise: std per step = sigma_d * |step distance|");
     v("sigma_theta", sigma_theta,
       "odometry rotation noise: std per step = sigma_theta * |step rotation|");
+    v("odom_bias_d", odom_bias_d,
+      "systematic odometry distance error: reported distance = true * (1 + odom_bias_d)");
+    v("odom_bias_theta", odom_bias_theta,
+      "systematic odometry rotation error: reported rotation = true * (1 + odom_bias_theta)");
+    v("odom_drift_theta", odom_drift_theta,
+      "systematic odometry heading drift per metre travelled [rad/m]");
     v("laser_fov_deg", laser_fov_deg, "laser field of view [deg], centred ahead, in (0, 360]");
     v("laser_beams", laser_beams, "beams per scan, first and last on the edges of the view");
     v("laser_max_range", laser_max_range, "[m] nothing farther is seen (+inf)");

@@ -1,0 +1,47 @@
+// MapAssembler: draws submaps (occupancy grids, each in its own frame) into one global grid at
+// their global poses. When the graph optimiser moves a submap, only its pose changes; the next
+// assemble() redraws from the submaps' own cells.
+//
+// Combination: every global cell samples each submap at the cell's centre (nearest submap cell)
+// and sums the log-odds of the known values, as if the submaps were independent evidence, then
+// turns the sum back into a ROS int8 value. Unknown everywhere stays unknown (-1).
+// Frames: submap grids in their submap frame (OccupancyMap.origin there), global poses = submap
+// origin in the map frame; metres, radians. Plain C++, not thread-safe.
+#pragma once
+
+#include <tessera/common/occupancy_map.hpp>
+#include <tessera/common/pose2.hpp>
+
+#include <cstddef>
+#include <map>
+
+namespace tessera::laser_slam {
+
+class MapAssembler {
+ public:
+  /// resolution [m/cell] of the assembled map; 0 = the finest submap resolution.
+  explicit MapAssembler(double resolution = 0.0);
+
+  /// Adds or replaces submap `id` (its cells and their frame).
+  void setSubmap(int id, common::OccupancyMap grid);
+  /// Places submap `id` (pose of its origin in the map frame). Submaps without a pose are not
+  /// drawn.
+  void setPose(int id, const common::Pose2& global_pose);
+  bool hasPose(int id) const;
+  common::Pose2 pose(int id) const;
+  std::size_t size() const { return submaps_.size(); }
+
+  /// The global map covering every placed submap (empty when none).
+  common::OccupancyMap assemble() const;
+
+ private:
+  struct Entry {
+    common::OccupancyMap grid;
+    common::Pose2 pose;
+    bool placed = false;
+  };
+  double resolution_;
+  std::map<int, Entry> submaps_;
+};
+
+}  // namespace tessera::laser_slam

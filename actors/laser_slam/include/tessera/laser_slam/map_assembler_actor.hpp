@@ -1,0 +1,66 @@
+// map_assembler actor: the global occupancy grid drawn from all submaps (MapAssembler).
+//
+// Subscribes:
+//   submaps      msg::Submap            reliable   finished submaps (grid in the submap frame)
+//   constraints  msg::SubmapConstraint  reliable   hand-over constraints place each new submap
+//                                                  relative to the previous one (chained)
+// Publishes:
+//   map          msg::OccupancyGrid     every publish_period_s when a submap arrived, and in
+//                                       stop() (the final map)
+// A submap's global pose: chained from its hand-over constraint when its predecessor is placed,
+// otherwise the globalPose its message carries. (The graph optimiser issue adds optimised poses.)
+#pragma once
+
+#include <tessera/laser_slam/map_assembler.hpp>
+#include <tessera/messages/types.hpp>
+#include <tessera/msg/submap.capnp.h>
+#include <tessera/runtime/actor.hpp>
+
+#include <cstdint>
+#include <map>
+#include <string>
+
+namespace tessera::laser_slam {
+
+struct MapAssemblerOptions {
+  double resolution = 0.0;
+  double publish_period_s = 0.0;
+  std::string frame_id = "map";
+
+  template <class V>
+  void visit(V& v) {
+    v("resolution", resolution, "cell size of the global map [m]; 0 = the submaps'");
+    v("publish_period_s", publish_period_s,
+      "publish the map this often [s of runtime time] when it changed; 0: only at stop");
+    v("frame_id", frame_id, "frame of the published map");
+  }
+};
+
+class MapAssemblerActor final : public Actor {
+ public:
+  /// Throws ConfigError on invalid options.
+  explicit MapAssemblerActor(MapAssemblerOptions options);
+  void configure(ActorContext& ctx) override;
+  void stop() override;
+  void summarize(Summary& out) const override;
+
+  const MapAssembler& assembler() const { return assembler_; }
+
+ private:
+  void onSubmap(const Message<msg::Submap>& m);
+  void onConstraint(const Message<msg::SubmapConstraint>& m);
+  void placeChained();
+  void publishMap();
+
+  MapAssemblerOptions options_;
+  MapAssembler assembler_;
+  Publisher<msg::OccupancyGrid> map_pub_;
+  std::map<int, common::Pose2> message_pose_;   // globalPose carried by each submap message
+  std::map<int, std::pair<int, common::Pose2>> handover_;  // to-id -> (from-id, relative)
+  Nanos last_stamp_ = 0;
+  bool dirty_ = false;
+  std::uint64_t submaps_ = 0, constraints_ = 0, maps_published_ = 0, submaps_rejected_ = 0;
+  int map_width_ = 0, map_height_ = 0;
+};
+
+}  // namespace tessera::laser_slam

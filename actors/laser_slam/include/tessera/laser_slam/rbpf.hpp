@@ -1,0 +1,208 @@
+// Rbpf: the local level of the two-level laser SLAM (SPEC §A): a Rao-Blackwellised particle
+// filter that builds one occupancy-grid submap at a time from laser scans and wheel odometry,
+// in the style of Grisetti et al. 2007 (GMapping).
+//
+// Per filter update, for every particle (in parallel, TBB):
+//   1. predict: prior mean = particle pose ⊕ odometry increment, prior covariance from the
+//      motion-noise model (srr, srt, str, stt as in GMapping);
+//   2. scan-match the new scan against the particle's own map from the prior mean;
+//   3. improved proposal: fit a Gaussian to p(z|m,x)·p(x|x',u) sampled around the matched mode,
+//      draw the new pose from it, and multiply the weight by its normaliser η;
+//      when matching fails (too few beams agree) the pose is drawn from the motion model and the
+//      weight multiplied by the scan likelihood at it;
+//   4. resample (systematic) when N_eff = 1/Σw² < resample_threshold·N;
+//   5. insert the scan into each particle's map. Particles copied by resampling share map tiles
+//      (copy-on-write TiledGrid): identical copies insert once and share the result, so memory
+//      grows with the explored area, not with particles × area.
+// Updates are gated on travelled distance / rotation / time, as in GMapping; scans in between
+// only move the online estimate by odometry.
+//
+// Submaps: startSubmap() closes the current submap and opens a new one whose origin is the
+// robot's pose at that moment (x axis = heading). The robot pose in the old submap (best
+// particle) and the weighted particle spread around it form the inter-submap constraint; in
+// the new submap every particle starts at the origin with zero uncertainty and one shared map.
+//
+// Frames and units: the odometry pose is base_link in odom; particle poses are base_link in the
+// current submap frame; metres, radians, seconds. Plain C++: no runtime or message types.
+// Not thread-safe: one caller at a time (the filter parallelises internally).
+#pragma once
+
+#include <tessera/common/occupancy_grid.hpp>
+#include <tessera/common/pose2.hpp>
+#include <tessera/common/scan_matcher.hpp>
+#include <tessera/common/tiled_grid.hpp>
+
+#include <Eigen/Core>
+
+#include <cstdint>
+#include <memory>
+#include <optional>
+#include <vector>
+
+namespace tessera::laser_slam {
+
+/// Odometry noise model (GMapping's): standard deviations of the increment, per unit of motion.
+struct MotionNoise {
+  double srr = 0.1;  ///< [m/m] translation error per metre travelled
+  double srt = 0.2;  ///< [rad/m] rotation error per metre travelled
+  double str = 0.1;  ///< [m/rad] translation error per radian turned
+  double stt = 0.2;  ///< [rad/rad] rotation error per radian turned
+};
+
+struct RbpfOptions {
+  int particles = 30;
+  double resample_threshold = 0.5;  ///< resample when N_eff < this · particles (0..1]
+  double linear_update = 1.0;       ///< [m] travel that triggers a filter update
+  double angular_update = 0.5;      ///< [rad] rotation that triggers a filter update
+  double temporal_update = 0.0;     ///< [s] time that triggers an update; 0 disables
+  MotionNoise motion;
+  common::TiledGridOptions grid;
+  common::ScanInsertOptions insert;
+  common::ScanMatcherOptions matcher;
+  std::uint64_t seed = 1;  ///< results are reproducible for a seed, whatever the thread count
+  bool parallel = true;    ///< particles on TBB worker threads (false: one thread)
+  /// Draw each particle's pose from the fitted proposal (Grisetti et al. 2007); false keeps the
+  /// proposal's mean (GMapping's shortcut: less diversity, less jitter).
+  bool sample_proposal = true;
+};
+
+/// A pose with its uncertainty, e.g. an inter-submap constraint.
+struct PoseWithCovariance {
+  common::Pose2 pose;
+  Eigen::Matrix3d covariance = Eigen::Matrix3d::Zero();  ///< over (x, y, theta)
+};
+
+/// A submap closed by startSubmap(): the best particle's map and the hand-over constraint.
+struct FinishedSubmap {
+  int id = 0;
+  common::TiledGrid grid;              ///< in the submap's own frame (origin = its first pose)
+  PoseWithCovariance next_in_this;     ///< the next submap's origin expressed in this submap
+  std::uint64_t scans_inserted = 0;
+  double travelled_m = 0.0;
+};
+
+/// What one addScan() did.
+struct RbpfStep {
+  bool updated = false;       ///< the filter ran (gate passed, scan usable)
+  bool resampled = false;
+  bool matched = false;       ///< at least one particle's scan match succeeded
+  bool scan_unusable = false; ///< no valid beam (NaN, empty, all no-return): odometry only
+  double neff = 0.0;          ///< N_eff before resampling (valid when updated)
+};
+
+struct RbpfStats {
+  std::uint64_t scans = 0;             ///< addScan() calls
+  std::uint64_t updates = 0;           ///< filter updates (including the first scan)
+  std::uint64_t resamples = 0;
+  std::uint64_t match_failures = 0;    ///< particle updates that fell back to the motion model
+  std::uint64_t particle_updates = 0;
+  std::uint64_t unusable_scans = 0;
+  std::uint64_t invalid_odometry = 0;  ///< non-finite odometry poses ignored
+};
+
+/// Systematic (low-variance) resampling: n = weights.size() draws at u0 + k/n, k = 0..n-1, on
+/// the cumulative normalised weights; u0 in [0, 1/n). Returns the index drawn for each slot.
+/// Every index i is drawn floor(n·w_i) or ceil(n·w_i) times. Weights need not sum to 1.
+std::vector<std::size_t> systematicResample(const std::vector<double>& weights, double u0);
+
+class Rbpf {
+ public:
+  /// Throws std::invalid_argument naming the offending option.
+  explicit Rbpf(RbpfOptions options);
+
+  /// Feeds one scan with the robot's odometry pose at the scan's time (odom frame) and the
+  /// laser mounting (laser in base_link). Never throws on bad data: NaN/empty scans and
+  /// non-finite odometry are counted and leave the filter as it was.
+  RbpfStep addScan(double stamp_s, const common::RangeScan& scan, const common::Pose2& mount,
+                   const common::Pose2& odometry);
+
+  /// True once the first usable scan has been inserted.
+  bool initialized() const { return initialized_; }
+  /// Online estimate of base_link in the current submap at the last scan: the best particle's
+  /// pose at the last update composed with the odometry travelled since.
+  common::Pose2 pose() const;
+  /// Best particle's pose and the weighted spread of all particles around it, at the last
+  /// update (in the current submap).
+  PoseWithCovariance poseWithCovariance() const;
+  /// Closes the current submap at the last scan and starts the next one there. The last scan
+  /// (if usable) is inserted into the new submap so consecutive submaps overlap.
+  /// Precondition: initialized().
+  FinishedSubmap startSubmap();
+  /// The current submap as startSubmap() would close it now, without closing it (e.g. the last
+  /// submap at the end of a run). Precondition: initialized().
+  FinishedSubmap currentSubmap() const;
+
+  int submapId() const { return submap_id_; }
+  /// Current best map (best particle), in the current submap frame.
+  const common::TiledGrid& bestMap() const;
+  /// Scans inserted into the current submap; metres travelled in it (odometry).
+  std::uint64_t submapScans() const { return submap_scans_; }
+  double submapTravelled() const { return submap_travelled_; }
+
+  /// Best particle's poses at its filter updates in the current submap (trajectory tree walk).
+  struct StampedPose {
+    double stamp_s;
+    common::Pose2 pose;
+  };
+  std::vector<StampedPose> bestTrajectory() const;
+
+  const RbpfStats& stats() const { return stats_; }
+  const RbpfOptions& options() const { return options_; }
+  int particleCount() const { return static_cast<int>(particles_.size()); }
+  /// Normalised weights (sum 1), for tests and diagnostics.
+  std::vector<double> weights() const;
+  /// Distinct map objects the particles hold (copies made by resampling share one until they
+  /// diverge), for tests and diagnostics.
+  int distinctMaps() const;
+
+ private:
+  struct TrajectoryNode {
+    double stamp_s;
+    common::Pose2 pose;
+    std::shared_ptr<const TrajectoryNode> parent;
+  };
+  struct Particle {
+    common::Pose2 pose;
+    double log_weight = 0.0;  ///< normalised after each update (log Σw = 0)
+    double log_score = 0.0;   ///< accumulated log weight increments: picks the best particle
+    std::shared_ptr<common::TiledGrid> map;  ///< replaced, never written, when shared
+    std::shared_ptr<const TrajectoryNode> node;
+  };
+
+  void initialize(double stamp_s, const common::RangeScan& scan, const common::Pose2& mount,
+                  const common::Pose2& odometry);
+  /// Returns how many particles fell back to the motion model.
+  std::size_t updateParticles(const common::ScanPoints& points, const common::Pose2& odom_delta);
+  double normalizeWeights();
+  void resample();
+  void insertScan(double stamp_s, const common::RangeScan& scan, const common::Pose2& mount);
+  Eigen::Matrix3d motionCovariance(const common::Pose2& delta) const;
+  int bestIndex() const;
+
+  RbpfOptions options_;
+  common::ScanMatcher matcher_;
+  std::vector<Particle> particles_;
+  bool initialized_ = false;
+  int submap_id_ = 0;
+  std::uint64_t submap_scans_ = 0;
+  double submap_travelled_ = 0.0;
+
+  common::Pose2 last_odometry_;         // at the last scan
+  common::Pose2 update_odometry_;       // at the last filter update
+  double update_stamp_s_ = 0.0;
+  double travelled_since_update_ = 0.0;
+  double turned_since_update_ = 0.0;
+  int best_ = 0;                        // best particle at the last update
+  std::uint64_t update_index_ = 0;      // seeds the per-particle random streams
+
+  // The last usable scan, kept so startSubmap() can seed the next submap with it.
+  std::vector<float> last_ranges_;
+  common::RangeScan last_scan_;  // views last_ranges_
+  common::Pose2 last_mount_;
+  bool last_scan_usable_ = false;  // the most recent scan was usable and is kept above
+  double last_stamp_s_ = 0.0;
+
+  RbpfStats stats_;
+};
+
+}  // namespace tessera::laser_slam

@@ -1,0 +1,158 @@
+// rbpf_submap_builder actor: local laser SLAM (SPEC §A). Feeds laser scans with the odometry
+// pose at each scan's stamp into an Rbpf (rbpf.hpp) and cuts the map into submaps.
+//
+// Subscribes (local names; remap in the profile):
+//   scan           msg::LaserScan    keep_latest(scan_queue)   sweeps with their laser mounting
+//   odom           msg::Odometry     keep_latest(odom_queue)   base_link in odom
+//   camera_events  msg::CameraEvent  reliable                  only with camera_trigger: entering
+//                                                              a camera other than the last one
+//                                                              starts a new submap
+// Publishes:
+//   pose         msg::PoseStamped       every scan: base_link in map (best particle at updates,
+//                                       odometry since in between), covariance = particle spread
+//   map_to_odom  msg::PoseStamped       every scan: the correction map ⊕ odom⁻¹
+//   submaps      msg::Submap            reliable consumers: each finished submap, and the last
+//                                       one (finished) in stop()
+//   constraints  msg::SubmapConstraint  at each hand-over: the new submap's origin in the old one
+//
+// The map frame is the first submap's frame; later submaps are placed by chaining hand-over
+// constraints (the graph optimiser moves them later). Scans wait (bounded) for an odometry pose
+// at or after their stamp and are paired by interpolation; unpairable scans are counted.
+#pragma once
+
+#include <tessera/common/pose_history.hpp>
+#include <tessera/laser_slam/rbpf.hpp>
+#include <tessera/messages/types.hpp>
+#include <tessera/msg/camera.capnp.h>
+#include <tessera/msg/submap.capnp.h>
+#include <tessera/runtime/actor.hpp>
+
+#include <cstdint>
+#include <deque>
+#include <string>
+
+namespace tessera::laser_slam {
+
+struct SubmapBuilderOptions {
+  // Filter (see RbpfOptions).
+  int particles = 30;
+  double resample_threshold = 0.5;
+  double linear_update = 1.0;
+  double angular_update = 0.5;
+  double temporal_update = 0.0;
+  double srr = 0.1, srt = 0.2, str = 0.1, stt = 0.2;
+  std::uint64_t seed = 1;
+  bool parallel = true;
+  bool sample_proposal = true;
+  // Grid.
+  double resolution = 0.05;
+  double l_occ = 0.85, l_free = -0.4, l_min = -2.0, l_max = 3.5;
+  double max_range = 30.0;
+  double max_free_range = 10.0;
+  // Scan matcher (see ScanMatcherOptions).
+  int match_beam_step = 1;
+  int match_kernel_radius = 1;
+  double match_sigma = 0.05;
+  double match_likelihood_sigma = 0.075;
+  double match_likelihood_gain = 3.0;
+  double match_linear_step = 0.05;
+  double match_angular_step = 0.05;
+  int match_refinements = 5;
+  // Submaps.
+  double submap_distance = 0.0;  // [m] travelled; 0 = never
+  int submap_scans = 0;          // inserted scans; 0 = never
+  bool camera_trigger = false;
+  // Plumbing.
+  std::string frame_id = "map";
+  int scan_queue = 8;
+  int odom_queue = 64;
+  int scan_buffer = 16;
+  int pose_history = 512;
+  double max_pose_gap_s = 1.0;
+
+  template <class V>
+  void visit(V& v) {
+    v("particles", particles, "particles per submap");
+    v("resample_threshold", resample_threshold,
+      "resample when N_eff < this fraction of the particle count (0..1]");
+    v("linear_update", linear_update, "filter update after this much travel [m]");
+    v("angular_update", angular_update, "filter update after this much rotation [rad]");
+    v("temporal_update", temporal_update, "filter update after this much time [s]; 0 disables");
+    v("srr", srr, "odometry noise: translation per metre travelled [m/m]");
+    v("srt", srt, "odometry noise: rotation per metre travelled [rad/m]");
+    v("str", str, "odometry noise: translation per radian turned [m/rad]");
+    v("stt", stt, "odometry noise: rotation per radian turned [rad/rad]");
+    v("seed", seed, "random seed (runs are reproducible for a seed)");
+    v("parallel", parallel, "update particles on TBB worker threads");
+    v("sample_proposal", sample_proposal,
+      "draw poses from the fitted proposal (true) or keep its mean (false)");
+    v("resolution", resolution, "submap cell size [m]");
+    v("l_occ", l_occ, "log-odds added at a beam endpoint (> 0)");
+    v("l_free", l_free, "log-odds added along a beam (< 0)");
+    v("l_min", l_min, "lower log-odds clamp (< 0)");
+    v("l_max", l_max, "upper log-odds clamp (> 0)");
+    v("max_range", max_range, "returns beyond this [m] are used neither for matching nor as obstacles");
+    v("max_free_range", max_free_range, "no-return beams clear free space this far [m]; 0 disables");
+    v("match_beam_step", match_beam_step, "scan matching uses every n-th valid beam");
+    v("match_kernel_radius", match_kernel_radius, "cells searched around each beam endpoint");
+    v("match_sigma", match_sigma, "score kernel width [m]");
+    v("match_likelihood_sigma", match_likelihood_sigma, "likelihood kernel width [m]");
+    v("match_likelihood_gain", match_likelihood_gain,
+      "log-likelihood divided by this (flattens overconfident weights)");
+    v("match_linear_step", match_linear_step, "initial hill-climbing step [m]");
+    v("match_angular_step", match_angular_step, "initial hill-climbing step [rad]");
+    v("match_refinements", match_refinements, "hill-climbing step halvings");
+    v("submap_distance", submap_distance, "start a new submap after this travel [m]; 0 = never");
+    v("submap_scans", submap_scans, "start a new submap after this many inserted scans; 0 = never");
+    v("camera_trigger", camera_trigger,
+      "subscribe to camera_events: entering a new camera's view starts a new submap");
+    v("frame_id", frame_id, "global frame of the published poses");
+    v("scan_queue", scan_queue, "scan mailbox size (keep-latest)");
+    v("odom_queue", odom_queue, "odometry mailbox size (keep-latest)");
+    v("scan_buffer", scan_buffer, "scans kept waiting for odometry with a later stamp");
+    v("pose_history", pose_history, "odometry poses remembered for pairing");
+    v("max_pose_gap_s", max_pose_gap_s, "do not interpolate odometry over gaps longer than this [s]");
+  }
+
+  /// The filter options these parameters describe.
+  RbpfOptions rbpf() const;
+};
+
+class SubmapBuilderActor final : public Actor {
+ public:
+  /// Throws ConfigError on invalid options.
+  explicit SubmapBuilderActor(SubmapBuilderOptions options);
+
+  void configure(ActorContext& ctx) override;
+  void stop() override;
+  void summarize(Summary& out) const override;
+
+  const Rbpf& filter() const { return rbpf_; }
+
+ private:
+  void onScan(const Message<msg::LaserScan>& scan);
+  void onOdometry(Nanos stamp, const common::Pose2& pose);
+  void onCameraEvent(const Message<msg::CameraEvent>& event);
+  /// Runs the scan through the filter if its odometry is known; false = keep waiting.
+  bool tryProcess(const Message<msg::LaserScan>& scan);
+  void publishPose(Nanos stamp, const common::Pose2& odometry);
+  void handOver(Nanos stamp);
+  void publishSubmap(const FinishedSubmap& submap, Nanos stamp);
+
+  SubmapBuilderOptions options_;
+  Rbpf rbpf_;
+  common::PoseHistory odometry_;
+  std::deque<Message<msg::LaserScan>> waiting_;
+  Publisher<msg::PoseStamped> pose_pub_, correction_pub_;
+  Publisher<msg::Submap> submap_pub_;
+  Publisher<msg::SubmapConstraint> constraint_pub_;
+
+  common::Pose2 submap_origin_;  // current submap's origin in the map frame
+  Nanos last_stamp_ = 0;
+  int last_camera_ = -1;
+  bool handover_requested_ = false;
+  std::uint64_t scans_read_ = 0, scans_unpaired_ = 0, odometry_invalid_ = 0;
+  std::uint64_t submaps_published_ = 0, camera_handovers_ = 0;
+};
+
+}  // namespace tessera::laser_slam

@@ -1,0 +1,395 @@
+#include <tessera/laser_slam/rbpf.hpp>
+
+#include <tbb/parallel_for.h>
+
+#include <Eigen/Cholesky>
+
+#include <algorithm>
+#include <atomic>
+#include <cmath>
+#include <limits>
+#include <map>
+#include <random>
+#include <stdexcept>
+#include <string>
+
+namespace tessera::laser_slam {
+namespace {
+
+using common::Pose2;
+
+void require(bool ok, const std::string& what) {
+  if (!ok) throw std::invalid_argument("rbpf: " + what);
+}
+
+// SplitMix64 finaliser: decorrelates the per-particle random streams derived from one seed.
+std::uint64_t mix(std::uint64_t x) {
+  x += 0x9e3779b97f4a7c15ULL;
+  x = (x ^ (x >> 30)) * 0xbf58476d1ce4e5b9ULL;
+  x = (x ^ (x >> 27)) * 0x94d049bb133111ebULL;
+  return x ^ (x >> 31);
+}
+
+std::mt19937_64 streamFor(std::uint64_t seed, std::uint64_t update, std::uint64_t particle) {
+  return std::mt19937_64(mix(seed ^ mix(update * 0x100000001b3ULL + particle)));
+}
+
+Pose2 sampleGaussian(const Pose2& mean, const Eigen::Matrix3d& cov, std::mt19937_64& rng) {
+  Eigen::LLT<Eigen::Matrix3d> llt(cov);
+  Eigen::Matrix3d l;
+  if (llt.info() == Eigen::Success) {
+    l = llt.matrixL();
+  } else {
+    // Not positive definite (degenerate fit): fall back to the per-axis spread.
+    l = cov.diagonal().cwiseMax(0.0).cwiseSqrt().asDiagonal();
+  }
+  std::normal_distribution<double> n01;
+  const Eigen::Vector3d z(n01(rng), n01(rng), n01(rng));
+  const Eigen::Vector3d d = l * z;
+  return {mean.x + d.x(), mean.y + d.y(), mean.theta + d.z()};
+}
+
+}  // namespace
+
+std::vector<std::size_t> systematicResample(const std::vector<double>& weights, double u0) {
+  const std::size_t n = weights.size();
+  std::vector<std::size_t> out;
+  out.reserve(n);
+  double total = 0.0;
+  for (double w : weights) total += w;
+  if (n == 0 || !(total > 0) || !std::isfinite(total)) {
+    for (std::size_t k = 0; k < n; ++k) out.push_back(k);  // nothing to prefer: keep all
+    return out;
+  }
+  const double step = total / static_cast<double>(n);
+  double u = u0 * total;
+  double cumulative = weights[0];
+  std::size_t i = 0;
+  for (std::size_t k = 0; k < n; ++k, u += step) {
+    while (cumulative < u && i + 1 < n) cumulative += weights[++i];
+    out.push_back(i);
+  }
+  return out;
+}
+
+Rbpf::Rbpf(RbpfOptions options) : options_(std::move(options)), matcher_(options_.matcher) {
+  const auto& o = options_;
+  require(o.particles >= 1 && o.particles <= 100000,
+          "particles must be in [1, 100000] (got " + std::to_string(o.particles) + ")");
+  require(o.resample_threshold > 0 && o.resample_threshold <= 1,
+          "resample_threshold must be in (0, 1] (got " + std::to_string(o.resample_threshold) +
+              ")");
+  require(std::isfinite(o.linear_update) && o.linear_update >= 0,
+          "linear_update must be >= 0 [m]");
+  require(std::isfinite(o.angular_update) && o.angular_update >= 0,
+          "angular_update must be >= 0 [rad]");
+  require(std::isfinite(o.temporal_update) && o.temporal_update >= 0,
+          "temporal_update must be >= 0 [s] (0 disables)");
+  const auto& m = o.motion;
+  for (double v : {m.srr, m.srt, m.str, m.stt})
+    require(std::isfinite(v) && v >= 0, "motion noise srr/srt/str/stt must be >= 0");
+  // The grid validates its own options; fail here, at configuration, not at the first scan.
+  common::TiledGrid probe(o.grid);
+}
+
+Eigen::Matrix3d Rbpf::motionCovariance(const Pose2& delta) const {
+  const auto& m = options_.motion;
+  const double trans = std::hypot(delta.x, delta.y);
+  const double rot = std::abs(delta.theta);
+  // A small floor keeps the prior proper when the robot barely moved (time-triggered updates).
+  const double sx = m.srr * std::abs(delta.x) + m.str * rot + 1e-3;
+  const double sy = m.srr * std::abs(delta.y) + m.str * rot + 1e-3;
+  const double st = m.stt * rot + m.srt * trans + 1e-3;
+  return Eigen::Vector3d(sx * sx, sy * sy, st * st).asDiagonal();
+}
+
+RbpfStep Rbpf::addScan(double stamp_s, const common::RangeScan& scan, const Pose2& mount,
+                       const Pose2& odometry) {
+  RbpfStep step;
+  ++stats_.scans;
+  if (!odometry.isFinite() || !mount.isFinite() || !std::isfinite(stamp_s)) {
+    ++stats_.invalid_odometry;
+    return step;
+  }
+  const common::ScanPoints points = matcher_.prepare(scan, mount);
+  const bool usable = !points.endpoints.empty();
+  if (usable) {
+    last_ranges_.assign(scan.ranges.begin(), scan.ranges.end());
+    last_scan_ = scan;
+    last_scan_.ranges = last_ranges_;
+    last_mount_ = mount;
+  } else {
+    ++stats_.unusable_scans;
+    step.scan_unusable = true;
+  }
+  last_scan_usable_ = usable;
+
+  if (!initialized_) {
+    last_odometry_ = odometry;
+    last_stamp_s_ = stamp_s;
+    if (!usable) return step;
+    initialize(stamp_s, scan, mount, odometry);
+    step.updated = true;
+    step.neff = particleCount();
+    return step;
+  }
+
+  const Pose2 moved = common::between(last_odometry_, odometry);
+  const double dist = std::hypot(moved.x, moved.y);
+  travelled_since_update_ += dist;
+  turned_since_update_ += std::abs(moved.theta);
+  submap_travelled_ += dist;
+  last_odometry_ = odometry;
+  last_stamp_s_ = stamp_s;
+  if (!usable) return step;  // keeps the gate armed for the next usable scan
+
+  const bool gate = travelled_since_update_ >= options_.linear_update ||
+                    turned_since_update_ >= options_.angular_update ||
+                    (options_.temporal_update > 0 &&
+                     stamp_s - update_stamp_s_ >= options_.temporal_update);
+  if (!gate) return step;
+
+  ++update_index_;
+  const std::size_t failures = updateParticles(points, common::between(update_odometry_, odometry));
+  step.updated = true;
+  step.matched = failures < particles_.size();
+  step.neff = normalizeWeights();
+  if (step.neff < options_.resample_threshold * particleCount()) {
+    resample();
+    step.resampled = true;
+    ++stats_.resamples;
+  }
+  insertScan(stamp_s, scan, mount);
+  for (auto& p : particles_) p.node = std::make_shared<TrajectoryNode>(
+                                 TrajectoryNode{stamp_s, p.pose, std::move(p.node)});
+  best_ = bestIndex();
+  update_odometry_ = odometry;
+  update_stamp_s_ = stamp_s;
+  travelled_since_update_ = 0.0;
+  turned_since_update_ = 0.0;
+  ++stats_.updates;
+  return step;
+}
+
+void Rbpf::initialize(double stamp_s, const common::RangeScan& scan, const Pose2& mount,
+                      const Pose2& odometry) {
+  auto map = std::make_shared<common::TiledGrid>(options_.grid);
+  map->insertScan(scan, mount, options_.insert);  // robot at the submap origin
+  auto node = std::make_shared<const TrajectoryNode>(TrajectoryNode{stamp_s, Pose2{}, nullptr});
+  const double uniform = -std::log(static_cast<double>(options_.particles));
+  particles_.assign(static_cast<std::size_t>(options_.particles),
+                    Particle{Pose2{}, uniform, 0.0, map, node});
+  initialized_ = true;
+  best_ = 0;
+  update_odometry_ = odometry;
+  update_stamp_s_ = stamp_s;
+  travelled_since_update_ = 0.0;
+  turned_since_update_ = 0.0;
+  submap_scans_ = 1;
+  ++stats_.updates;
+}
+
+std::size_t Rbpf::updateParticles(const common::ScanPoints& points, const Pose2& odom_delta) {
+  const Eigen::Matrix3d local_cov = motionCovariance(odom_delta);
+  std::atomic<std::uint64_t> failures{0};
+  const auto update = [&](std::size_t i) {
+    Particle& p = particles_[i];
+    std::mt19937_64 rng = streamFor(options_.seed, update_index_, i);
+    const Pose2 prior = p.pose * odom_delta;
+    // The odometry noise is stated in the robot frame at the previous pose.
+    Eigen::Matrix3d r = Eigen::Matrix3d::Identity();
+    r.topLeftCorner<2, 2>() = p.pose.rotation();
+    const Eigen::Matrix3d prior_cov = r * local_cov * r.transpose();
+
+    const common::MatchResult match = matcher_.match(*p.map, points, prior);
+    const Pose2 mode = match.success ? match.pose : prior;
+    const common::ProposalFit fit = matcher_.fitProposal(*p.map, points, mode, prior, prior_cov);
+    if (match.success) {
+      p.pose = options_.sample_proposal ? sampleGaussian(fit.mean, fit.covariance, rng) : fit.mean;
+    } else {
+      failures.fetch_add(1, std::memory_order_relaxed);
+      p.pose = sampleGaussian(prior, prior_cov, rng);
+    }
+    const double inc = std::isfinite(fit.log_eta) ? fit.log_eta : -1e6;
+    p.log_weight += inc;
+    p.log_score += inc;
+  };
+  if (options_.parallel) {
+    tbb::parallel_for(std::size_t{0}, particles_.size(), update);
+  } else {
+    for (std::size_t i = 0; i < particles_.size(); ++i) update(i);
+  }
+  stats_.particle_updates += particles_.size();
+  stats_.match_failures += failures.load();
+  return failures.load();
+}
+
+double Rbpf::normalizeWeights() {
+  double max_lw = -std::numeric_limits<double>::infinity();
+  for (const auto& p : particles_) max_lw = std::max(max_lw, p.log_weight);
+  double sum = 0.0;
+  for (const auto& p : particles_) sum += std::exp(p.log_weight - max_lw);
+  const double log_norm = max_lw + std::log(sum);
+  double sum_sq = 0.0;
+  for (auto& p : particles_) {
+    p.log_weight -= log_norm;
+    const double w = std::exp(p.log_weight);
+    sum_sq += w * w;
+  }
+  return sum_sq > 0 ? 1.0 / sum_sq : 0.0;
+}
+
+void Rbpf::resample() {
+  const std::size_t n = particles_.size();
+  std::mt19937_64 rng = streamFor(options_.seed, update_index_, n);
+  const double u0 = std::uniform_real_distribution<double>(0.0, 1.0 / static_cast<double>(n))(rng);
+  const std::vector<std::size_t> drawn = systematicResample(weights(), u0);
+  std::vector<Particle> next;
+  next.reserve(n);
+  for (std::size_t i : drawn) next.push_back(particles_[i]);  // shares map and trajectory
+  const double uniform = -std::log(static_cast<double>(n));
+  for (auto& p : next) p.log_weight = uniform;
+  particles_ = std::move(next);
+}
+
+void Rbpf::insertScan(double /*stamp_s*/, const common::RangeScan& scan, const Pose2& mount) {
+  // Particles that hold the same map at the same pose (copies from resampling) insert once and
+  // keep sharing; a map also held at another pose is copied first (tiles shared, copy on write).
+  struct Group {
+    std::shared_ptr<common::TiledGrid> map;
+    Pose2 pose;
+    std::vector<std::size_t> members;
+  };
+  std::vector<Group> groups;
+  std::map<const common::TiledGrid*, int> groups_per_map;
+  for (std::size_t i = 0; i < particles_.size(); ++i) {
+    const Particle& p = particles_[i];
+    auto it = std::find_if(groups.begin(), groups.end(), [&](const Group& g) {
+      return g.map == p.map && g.pose.x == p.pose.x && g.pose.y == p.pose.y &&
+             g.pose.theta == p.pose.theta;
+    });
+    if (it == groups.end()) {
+      groups.push_back({p.map, p.pose, {i}});
+      ++groups_per_map[p.map.get()];
+    } else {
+      it->members.push_back(i);
+    }
+  }
+  for (auto& g : groups) {
+    // The first group of a map keeps it when no other group needs it unchanged.
+    int& holders = groups_per_map[g.map.get()];
+    if (holders > 1) {
+      g.map = std::make_shared<common::TiledGrid>(*g.map);
+      --holders;
+    }
+  }
+  const auto insert = [&](std::size_t k) {
+    Group& g = groups[k];
+    g.map->insertScan(scan, g.pose * mount, options_.insert);
+  };
+  if (options_.parallel) {
+    tbb::parallel_for(std::size_t{0}, groups.size(), insert);
+  } else {
+    for (std::size_t k = 0; k < groups.size(); ++k) insert(k);
+  }
+  for (auto& g : groups)
+    for (std::size_t i : g.members) particles_[i].map = g.map;
+  ++submap_scans_;
+}
+
+int Rbpf::bestIndex() const {
+  int best = 0;
+  for (int i = 1; i < particleCount(); ++i)
+    if (particles_[static_cast<std::size_t>(i)].log_score >
+        particles_[static_cast<std::size_t>(best)].log_score)
+      best = i;
+  return best;
+}
+
+Pose2 Rbpf::pose() const {
+  if (!initialized_) return {};
+  return particles_[static_cast<std::size_t>(best_)].pose *
+         common::between(update_odometry_, last_odometry_);
+}
+
+PoseWithCovariance Rbpf::poseWithCovariance() const {
+  PoseWithCovariance out;
+  if (!initialized_) return out;
+  out.pose = particles_[static_cast<std::size_t>(best_)].pose;
+  for (const auto& p : particles_) {
+    const double w = std::exp(p.log_weight);
+    const Eigen::Vector3d d(p.pose.x - out.pose.x, p.pose.y - out.pose.y,
+                            common::angleDiff(p.pose.theta, out.pose.theta));
+    out.covariance += w * d * d.transpose();
+  }
+  return out;
+}
+
+FinishedSubmap Rbpf::currentSubmap() const {
+  if (!initialized_) throw std::logic_error("rbpf: no submap before the first usable scan");
+  FinishedSubmap done;
+  done.id = submap_id_;
+  done.grid = *particles_[static_cast<std::size_t>(best_)].map;  // shares tiles
+  const Pose2 since_update = common::between(update_odometry_, last_odometry_);
+  done.next_in_this = poseWithCovariance();
+  done.next_in_this.pose = pose();
+  // Odometry since the last update adds its own uncertainty to the particle spread.
+  Eigen::Matrix3d r = Eigen::Matrix3d::Identity();
+  r.topLeftCorner<2, 2>() = particles_[static_cast<std::size_t>(best_)].pose.rotation();
+  done.next_in_this.covariance += r * motionCovariance(since_update) * r.transpose();
+  done.scans_inserted = submap_scans_;
+  done.travelled_m = submap_travelled_;
+  return done;
+}
+
+FinishedSubmap Rbpf::startSubmap() {
+  FinishedSubmap done = currentSubmap();
+  ++submap_id_;
+  submap_scans_ = 0;
+  submap_travelled_ = 0.0;
+  auto map = std::make_shared<common::TiledGrid>(options_.grid);
+  if (last_scan_usable_) {
+    map->insertScan(last_scan_, last_mount_, options_.insert);
+    submap_scans_ = 1;
+  }
+  auto node =
+      std::make_shared<const TrajectoryNode>(TrajectoryNode{last_stamp_s_, Pose2{}, nullptr});
+  const double uniform = -std::log(static_cast<double>(particles_.size()));
+  for (auto& p : particles_) p = Particle{Pose2{}, uniform, 0.0, map, node};
+  best_ = 0;
+  update_odometry_ = last_odometry_;
+  update_stamp_s_ = last_stamp_s_;
+  travelled_since_update_ = 0.0;
+  turned_since_update_ = 0.0;
+  return done;
+}
+
+const common::TiledGrid& Rbpf::bestMap() const {
+  if (!initialized_) throw std::logic_error("rbpf: no map before the first usable scan");
+  return *particles_[static_cast<std::size_t>(best_)].map;
+}
+
+std::vector<Rbpf::StampedPose> Rbpf::bestTrajectory() const {
+  std::vector<StampedPose> out;
+  if (!initialized_) return out;
+  for (auto n = particles_[static_cast<std::size_t>(best_)].node; n; n = n->parent)
+    out.push_back({n->stamp_s, n->pose});
+  std::reverse(out.begin(), out.end());
+  return out;
+}
+
+std::vector<double> Rbpf::weights() const {
+  std::vector<double> w;
+  w.reserve(particles_.size());
+  for (const auto& p : particles_) w.push_back(std::exp(p.log_weight));
+  return w;
+}
+
+int Rbpf::distinctMaps() const {
+  std::vector<const common::TiledGrid*> maps;
+  for (const auto& p : particles_) maps.push_back(p.map.get());
+  std::sort(maps.begin(), maps.end());
+  return static_cast<int>(std::unique(maps.begin(), maps.end()) - maps.begin());
+}
+
+}  // namespace tessera::laser_slam

@@ -1,0 +1,241 @@
+#include <tessera/laser_slam/submap_builder_actor.hpp>
+
+#include <tessera/messages/views.hpp>
+#include <tessera/runtime/options.hpp>
+#include <tessera/runtime/registry.hpp>
+
+#include <cmath>
+#include <stdexcept>
+#include <string>
+
+namespace tessera::laser_slam {
+namespace {
+
+Rbpf checkedFilter(const SubmapBuilderOptions& o) {
+  const auto fail = [](const std::string& what) {
+    throw ConfigError("rbpf_submap_builder: " + what);
+  };
+  if (!(std::isfinite(o.submap_distance) && o.submap_distance >= 0))
+    fail("submap_distance must be >= 0 [m] (0 = never)");
+  if (o.submap_scans < 0) fail("submap_scans must be >= 0 (0 = never)");
+  if (o.scan_queue < 1 || o.odom_queue < 1 || o.scan_buffer < 1 || o.pose_history < 2)
+    fail("scan_queue, odom_queue, scan_buffer must be >= 1 and pose_history >= 2");
+  if (!(std::isfinite(o.max_pose_gap_s) && o.max_pose_gap_s > 0))
+    fail("max_pose_gap_s must be > 0");
+  if (o.frame_id.empty()) fail("frame_id must not be empty");
+  try {
+    return Rbpf(o.rbpf());  // the core owns the rules for its options
+  } catch (const std::invalid_argument& e) {
+    fail(e.what());
+  }
+  throw std::logic_error("unreachable");
+}
+
+Eigen::Matrix3d rotateCovariance(const Eigen::Matrix3d& c, const common::Pose2& frame) {
+  Eigen::Matrix3d r = Eigen::Matrix3d::Identity();
+  r.topLeftCorner<2, 2>() = frame.rotation();
+  return r * c * r.transpose();
+}
+
+PoseXYT xyt(const common::Pose2& p) {
+  return {p.x, p.y, p.theta};
+}
+
+}  // namespace
+
+RbpfOptions SubmapBuilderOptions::rbpf() const {
+  RbpfOptions o;
+  o.particles = particles;
+  o.resample_threshold = resample_threshold;
+  o.linear_update = linear_update;
+  o.angular_update = angular_update;
+  o.temporal_update = temporal_update;
+  o.motion = {srr, srt, str, stt};
+  o.seed = seed;
+  o.parallel = parallel;
+  o.sample_proposal = sample_proposal;
+  o.grid.resolution = resolution;
+  o.grid.log_odds = {static_cast<float>(l_occ), static_cast<float>(l_free),
+                     static_cast<float>(l_min), static_cast<float>(l_max)};
+  o.insert.max_range = max_range;
+  o.insert.max_free_range = max_free_range;
+  o.matcher.max_range = max_range;
+  o.matcher.beam_step = match_beam_step;
+  o.matcher.kernel_radius = match_kernel_radius;
+  o.matcher.sigma = match_sigma;
+  o.matcher.likelihood_sigma = match_likelihood_sigma;
+  o.matcher.likelihood_gain = match_likelihood_gain;
+  o.matcher.linear_step = match_linear_step;
+  o.matcher.angular_step = match_angular_step;
+  o.matcher.refinements = match_refinements;
+  return o;
+}
+
+SubmapBuilderActor::SubmapBuilderActor(SubmapBuilderOptions options)
+    : options_(std::move(options)),
+      rbpf_(checkedFilter(options_)),
+      odometry_(static_cast<std::size_t>(options_.pose_history), options_.max_pose_gap_s) {}
+
+void SubmapBuilderActor::configure(ActorContext& ctx) {
+  ctx.subscribe<msg::LaserScan>(
+      "scan", MailboxPolicy::keepLatest(static_cast<std::size_t>(options_.scan_queue)),
+      [this](const Message<msg::LaserScan>& m) { onScan(m); });
+  ctx.subscribe<msg::Odometry>(
+      "odom", MailboxPolicy::keepLatest(static_cast<std::size_t>(options_.odom_queue)),
+      [this](const Message<msg::Odometry>& m) {
+        const auto p = m->getPose();
+        onOdometry(m->getHeader().getStampNs(), {p.getX(), p.getY(), p.getTheta()});
+      });
+  if (options_.camera_trigger) {
+    ctx.subscribe<msg::CameraEvent>("camera_events", MailboxPolicy::reliable(),
+                                    [this](const Message<msg::CameraEvent>& m) { onCameraEvent(m); });
+  }
+  pose_pub_ = ctx.advertise<msg::PoseStamped>("pose");
+  correction_pub_ = ctx.advertise<msg::PoseStamped>("map_to_odom");
+  submap_pub_ = ctx.advertise<msg::Submap>("submaps");
+  constraint_pub_ = ctx.advertise<msg::SubmapConstraint>("constraints");
+}
+
+void SubmapBuilderActor::onScan(const Message<msg::LaserScan>& scan) {
+  ++scans_read_;
+  // Scans queued behind this one keep their order: only try it now if none is waiting.
+  if (waiting_.empty() && tryProcess(scan)) return;
+  if (waiting_.size() >= static_cast<std::size_t>(options_.scan_buffer)) {
+    waiting_.pop_front();
+    ++scans_unpaired_;
+  }
+  waiting_.push_back(scan);
+}
+
+void SubmapBuilderActor::onOdometry(Nanos stamp, const common::Pose2& pose) {
+  if (!odometry_.add(stamp, pose)) {
+    ++odometry_invalid_;
+    return;
+  }
+  while (!waiting_.empty() && tryProcess(waiting_.front())) waiting_.pop_front();
+}
+
+void SubmapBuilderActor::onCameraEvent(const Message<msg::CameraEvent>& event) {
+  if (!event->getEntered()) return;
+  const int camera = event->getCameraId();
+  if (camera == last_camera_) return;  // back in the view it just left: same submap
+  last_camera_ = camera;
+  handover_requested_ = true;
+}
+
+bool SubmapBuilderActor::tryProcess(const Message<msg::LaserScan>& scan) {
+  const Nanos stamp = scan->getHeader().getStampNs();
+  common::Pose2 odom;
+  switch (odometry_.at(stamp, odom)) {
+    case common::PoseHistory::Lookup::kWait:
+      return false;
+    case common::PoseHistory::Lookup::kTooOld:
+    case common::PoseHistory::Lookup::kGap:
+      ++scans_unpaired_;
+      return true;
+    case common::PoseHistory::Lookup::kExact:
+    case common::PoseHistory::Lookup::kInterpolated:
+      break;
+  }
+  const common::RangeScan ranges{view<float>(scan->getRanges()), scan->getAngleMin(),
+                                 scan->getAngleIncrement(), scan->getRangeMin(),
+                                 scan->getRangeMax()};
+  const common::Pose2 mount(scan->getMountX(), scan->getMountY(), scan->getMountTheta());
+  const RbpfStep step = rbpf_.addScan(nanosToSeconds(stamp), ranges, mount, odom);
+  last_stamp_ = stamp;
+  if (!rbpf_.initialized()) return true;  // nothing to publish before the first usable scan
+
+  const bool by_distance =
+      options_.submap_distance > 0 && rbpf_.submapTravelled() >= options_.submap_distance;
+  const bool by_scans = options_.submap_scans > 0 &&
+                        rbpf_.submapScans() >= static_cast<std::uint64_t>(options_.submap_scans);
+  if (handover_requested_ || (step.updated && (by_distance || by_scans))) {
+    if (handover_requested_) ++camera_handovers_;
+    handover_requested_ = false;
+    handOver(stamp);
+  }
+  publishPose(stamp, odom);
+  return true;
+}
+
+void SubmapBuilderActor::publishPose(Nanos stamp, const common::Pose2& odometry) {
+  const common::Pose2 global = submap_origin_ * rbpf_.pose();
+  const Eigen::Matrix3d cov =
+      rotateCovariance(rbpf_.poseWithCovariance().covariance, submap_origin_);
+  {
+    auto loan = pose_pub_.loan();
+    setHeader(loan->initHeader(), stamp, options_.frame_id, pose_pub_.nextSeq());
+    writePose(loan->initPose(), xyt(global), &cov);
+    pose_pub_.publish(std::move(loan));
+  }
+  {
+    auto loan = correction_pub_.loan();
+    setHeader(loan->initHeader(), stamp, options_.frame_id, correction_pub_.nextSeq());
+    writePose(loan->initPose(), xyt(global * odometry.inverse()));
+    correction_pub_.publish(std::move(loan));
+  }
+}
+
+void SubmapBuilderActor::handOver(Nanos stamp) {
+  const FinishedSubmap done = rbpf_.startSubmap();
+  publishSubmap(done, stamp);
+  auto loan = constraint_pub_.loan();
+  setHeader(loan->initHeader(), stamp, options_.frame_id, constraint_pub_.nextSeq());
+  loan->setFromId(static_cast<std::uint32_t>(done.id));
+  loan->setToId(static_cast<std::uint32_t>(done.id + 1));
+  writePose(loan->initRelative(), xyt(done.next_in_this.pose), &done.next_in_this.covariance);
+  loan->setKind(msg::SubmapConstraint::Kind::HAND_OVER);
+  constraint_pub_.publish(std::move(loan));
+  submap_origin_ = submap_origin_ * done.next_in_this.pose;
+}
+
+void SubmapBuilderActor::publishSubmap(const FinishedSubmap& submap, Nanos stamp) {
+  const common::OccupancyMap map = submap.grid.toOccupancyMap();
+  const std::size_t cells = map.cells.size();
+  auto loan = submap_pub_.loan(cells + 1024);
+  setHeader(loan->initHeader(), stamp, options_.frame_id, submap_pub_.nextSeq());
+  loan->setId(static_cast<std::uint32_t>(submap.id));
+  auto grid = loan->initGrid();
+  setHeader(grid.initHeader(), stamp, "submap_" + std::to_string(submap.id), 0);
+  grid.setResolution(static_cast<float>(map.resolution));
+  grid.setWidth(static_cast<std::uint32_t>(map.width));
+  grid.setHeight(static_cast<std::uint32_t>(map.height));
+  writePose(grid.initOrigin(), xyt(map.origin));
+  auto out = mutableViewInt8(grid.initCells(static_cast<unsigned>(cells)));
+  std::copy(map.cells.begin(), map.cells.end(), out.begin());
+  writePose(loan->initGlobalPose(), xyt(submap_origin_));
+  loan->setScans(static_cast<std::uint32_t>(submap.scans_inserted));
+  loan->setTravelledM(submap.travelled_m);
+  loan->setFinished(true);
+  submap_pub_.publish(std::move(loan));
+  ++submaps_published_;
+}
+
+void SubmapBuilderActor::stop() {
+  // Upstream has stopped: no odometry will come for scans still waiting.
+  scans_unpaired_ += waiting_.size();
+  waiting_.clear();
+  if (rbpf_.initialized()) publishSubmap(rbpf_.currentSubmap(), last_stamp_);
+}
+
+void SubmapBuilderActor::summarize(Summary& out) const {
+  const auto& s = rbpf_.stats();
+  const auto i64 = [](std::uint64_t v) { return static_cast<std::int64_t>(v); };
+  out["scans_read"] = i64(scans_read_);
+  out["scans_processed"] = i64(s.updates);
+  out["particles"] = static_cast<std::int64_t>(rbpf_.particleCount());
+  out["resamples"] = i64(s.resamples);
+  out["match_failures"] = i64(s.match_failures);
+  out["particle_updates"] = i64(s.particle_updates);
+  out["submaps"] = i64(submaps_published_);
+  out["scans_unpaired"] = i64(scans_unpaired_);
+  out["scans_unusable"] = i64(s.unusable_scans);
+  if (camera_handovers_ > 0) out["camera_handovers"] = i64(camera_handovers_);
+  if (odometry_invalid_ + s.invalid_odometry > 0)
+    out["odometry_invalid"] = i64(odometry_invalid_ + s.invalid_odometry);
+}
+
+TESSERA_REGISTER_ACTOR("rbpf_submap_builder", SubmapBuilderActor, SubmapBuilderOptions,
+                       "local laser SLAM: RBPF occupancy-grid submaps from scans and odometry");
+
+}  // namespace tessera::laser_slam

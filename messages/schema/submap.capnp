@@ -1,0 +1,32 @@
+# Two-level laser SLAM messages (SPEC §A): finished local maps and the constraints between them.
+# Evolve by Cap'n Proto rules: add fields, never renumber.
+@0x801dd893863307a2;
+
+using Cxx = import "/capnp/c++.capnp";
+$Cxx.namespace("tessera::msg");
+
+using Common = import "common.capnp";
+using Map = import "map.capnp";
+
+struct Submap {
+  header @0 :Common.Header;     # stamp of the last scan in it; frameId = map
+  id @1 :UInt32;                # 0, 1, 2, ... in creation order
+  grid @2 :Map.OccupancyGrid;   # in the submap's own frame (origin = robot pose at its start)
+  globalPose @3 :Common.Pose2D; # submap origin in the map frame, from chained constraints
+  scans @4 :UInt32;             # scans inserted
+  travelledM @5 :Float64;       # [m] odometry path length inside the submap
+  finished @6 :Bool;            # false: a snapshot of the submap still being built
+}
+
+struct SubmapConstraint {
+  header @0 :Common.Header;     # stamp of the measurement
+  fromId @1 :UInt32;            # submap i
+  toId @2 :UInt32;              # submap j
+  # Pose of submap j's origin in submap i's frame, with covariance (x, y, theta) in frame i.
+  relative @3 :Common.Pose2D;
+  kind @4 :Kind;
+  enum Kind {
+    handOver @0;                # the robot's pose in i when j started (SPEC §A)
+    revisit @1;                 # a relocalisation in an existing submap (camera, loop closure)
+  }
+}

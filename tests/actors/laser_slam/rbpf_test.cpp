@@ -1,0 +1,207 @@
+// Tests for the RBPF core (actors/laser_slam/rbpf.hpp): resampling, tracking a simulated robot
+// whose odometry drifts, copy-on-write map sharing, submap hand-over, and bad input.
+#include <tessera/laser_slam/rbpf.hpp>
+
+#include <catch2/catch.hpp>
+
+#include <cmath>
+#include <limits>
+#include <numeric>
+#include <vector>
+
+#include "sim_scans.hpp"
+
+using namespace tessera;
+using common::Pose2;
+using laser_slam::Rbpf;
+using laser_slam::RbpfOptions;
+
+namespace {
+
+RbpfOptions fastOptions(int particles) {
+  RbpfOptions o;
+  o.particles = particles;
+  o.linear_update = 0.3;
+  o.angular_update = 0.3;
+  return o;
+}
+
+double translationError(const Pose2& a, const Pose2& b) {
+  return std::hypot(a.x - b.x, a.y - b.y);
+}
+
+}  // namespace
+
+TEST_CASE("systematic resampling draws each particle in proportion to its weight",
+          "[rbpf]") {
+  const std::vector<double> w{0.05, 0.15, 0.3, 0.0, 0.5};
+  for (double u0 : {0.0, 0.013, 0.0999}) {
+    std::vector<double> weights(100);
+    for (std::size_t i = 0; i < weights.size(); ++i) weights[i] = w[i % w.size()];
+    const auto drawn = laser_slam::systematicResample(weights, u0);
+    REQUIRE(drawn.size() == weights.size());
+    std::vector<int> count(weights.size(), 0);
+    for (std::size_t i : drawn) ++count[i];
+    const double total = std::accumulate(weights.begin(), weights.end(), 0.0);
+    for (std::size_t i = 0; i < weights.size(); ++i) {
+      const double expected = weights.size() * weights[i] / total;
+      INFO("u0 " << u0 << " particle " << i);
+      CHECK(count[i] >= std::floor(expected) - 1e-9);
+      CHECK(count[i] <= std::ceil(expected) + 1e-9);
+    }
+  }
+  // A toy posterior: 1000 particles on a line, weights from a Gaussian likelihood. After
+  // resampling, the particle mean and spread match the weighted ones.
+  std::vector<double> x(1000), lw(1000);
+  std::mt19937_64 rng(3);
+  std::normal_distribution<double> prior(0.0, 1.0);
+  for (std::size_t i = 0; i < x.size(); ++i) {
+    x[i] = prior(rng);
+    lw[i] = std::exp(-0.5 * (x[i] - 0.8) * (x[i] - 0.8) / 0.25);
+  }
+  double wsum = 0, wmean = 0;
+  for (std::size_t i = 0; i < x.size(); ++i) wsum += lw[i], wmean += lw[i] * x[i];
+  wmean /= wsum;
+  double mean = 0;
+  for (std::size_t i : laser_slam::systematicResample(lw, 0.0005)) mean += x[i];
+  mean /= static_cast<double>(x.size());
+  CHECK(mean == Approx(wmean).margin(0.01));
+  CHECK(wmean == Approx(0.64).margin(0.1));  // the analytic posterior mean, 0.8·1/(1+0.25)
+}
+
+TEST_CASE("rbpf tracks a simulated robot whose odometry drifts", "[rbpf]") {
+  const auto sim = test::simulateRoomLoop();
+  Rbpf rbpf(fastOptions(10));
+  const Pose2 start = sim.scans.front().truth;
+  double worst = 0, odom_final = 0;
+  for (const auto& s : sim.scans) {
+    rbpf.addScan(s.stamp_s, sim.range(s), Pose2{}, s.odometry);
+    const Pose2 truth = common::between(start, s.truth);
+    worst = std::max(worst, translationError(rbpf.pose(), truth));
+    odom_final = translationError(common::between(sim.scans.front().odometry, s.odometry), truth);
+  }
+  INFO("scans " << sim.scans.size() << ", updates " << rbpf.stats().updates << ", worst error "
+                << worst << " m, odometry final error " << odom_final << " m");
+  CHECK(odom_final > 0.5);  // the test is only meaningful when odometry alone is far off
+  CHECK(worst < 0.12);
+  CHECK(rbpf.stats().updates > 50);
+  CHECK(rbpf.stats().match_failures < rbpf.stats().particle_updates / 10);
+  const auto trajectory = rbpf.bestTrajectory();
+  CHECK(trajectory.size() == rbpf.stats().updates);
+}
+
+TEST_CASE("particles copied by resampling share their map tiles", "[rbpf]") {
+  const auto sim = test::simulateRoomLoop();
+  RbpfOptions o = fastOptions(20);
+  o.sample_proposal = false;  // identical particles stay identical: nothing may be copied
+  o.motion = {0, 0, 0, 0};
+  Rbpf rbpf(o);
+  const auto before = common::TiledGrid::counters();
+  rbpf.addScan(0.0, sim.range(sim.scans[0]), Pose2{}, sim.scans[0].odometry);
+  const auto after_first = common::TiledGrid::counters();
+  CHECK(rbpf.distinctMaps() == 1);
+  CHECK(after_first.tiles_cloned == before.tiles_cloned);
+  const std::uint64_t tiles_one_map = after_first.tiles_allocated - before.tiles_allocated;
+  CHECK(tiles_one_map == rbpf.bestMap().tileCount());
+  for (std::size_t k = 1; k < 40; ++k)
+    rbpf.addScan(sim.scans[k].stamp_s, sim.range(sim.scans[k]), Pose2{}, sim.scans[k].odometry);
+  REQUIRE(rbpf.stats().updates > 3);
+  CHECK(rbpf.distinctMaps() == 1);
+  CHECK(common::TiledGrid::counters().tiles_cloned == before.tiles_cloned);
+
+  // With sampling the particles diverge; each clones only the tiles its scans touch.
+  RbpfOptions diverse = fastOptions(20);
+  Rbpf rbpf2(diverse);
+  const auto start = common::TiledGrid::counters();
+  for (std::size_t k = 0; k < 40; ++k)
+    rbpf2.addScan(sim.scans[k].stamp_s, sim.range(sim.scans[k]), Pose2{}, sim.scans[k].odometry);
+  const auto end = common::TiledGrid::counters();
+  const std::uint64_t tiles = end.tiles_allocated + end.tiles_cloned - start.tiles_allocated -
+                              start.tiles_cloned;
+  const std::uint64_t map_tiles = rbpf2.bestMap().tileCount();
+  INFO("tiles created " << tiles << ", one map " << map_tiles << ", updates "
+                        << rbpf2.stats().updates);
+  CHECK(rbpf2.distinctMaps() > 1);
+  // Deep copies at every update would create particles × updates × map tiles.
+  CHECK(tiles < 20 * rbpf2.stats().updates * map_tiles / 2);
+}
+
+TEST_CASE("a submap hand-over publishes the robot pose in the old submap", "[rbpf]") {
+  const auto sim = test::simulateRoomLoop();
+  Rbpf rbpf(fastOptions(8));
+  CHECK_THROWS_AS(rbpf.startSubmap(), std::logic_error);
+  for (std::size_t k = 0; k < 60; ++k)
+    rbpf.addScan(sim.scans[k].stamp_s, sim.range(sim.scans[k]), Pose2{}, sim.scans[k].odometry);
+  const Pose2 in_old = rbpf.pose();
+  const std::uint64_t scans_in_old = rbpf.submapScans();
+  const auto done = rbpf.startSubmap();
+  CHECK(done.id == 0);
+  CHECK(rbpf.submapId() == 1);
+  CHECK(done.next_in_this.pose.x == Approx(in_old.x));
+  CHECK(done.next_in_this.pose.y == Approx(in_old.y));
+  CHECK(done.next_in_this.pose.theta == Approx(in_old.theta));
+  CHECK(done.scans_inserted == scans_in_old);
+  CHECK(done.grid.knownCount() > 1000);
+  for (int i = 0; i < 3; ++i) CHECK(done.next_in_this.covariance(i, i) > 0);
+  // The new submap starts at the robot with zero uncertainty and already holds the last scan.
+  CHECK(rbpf.pose().x == 0.0);
+  CHECK(rbpf.pose().theta == 0.0);
+  CHECK(rbpf.poseWithCovariance().covariance.norm() == 0.0);
+  CHECK(rbpf.submapScans() == 1);
+  CHECK(rbpf.bestMap().knownCount() > 100);
+  // Tracking continues in the new submap: chaining the constraint gives the true pose.
+  const Pose2 start = sim.scans.front().truth;
+  for (std::size_t k = 60; k < 120; ++k)
+    rbpf.addScan(sim.scans[k].stamp_s, sim.range(sim.scans[k]), Pose2{}, sim.scans[k].odometry);
+  const Pose2 chained = done.next_in_this.pose * rbpf.pose();
+  CHECK(translationError(chained, common::between(start, sim.scans[119].truth)) < 0.1);
+}
+
+TEST_CASE("rbpf ignores empty, NaN and all-max-range scans and bad odometry", "[rbpf]") {
+  const auto sim = test::simulateRoomLoop();
+  Rbpf rbpf(fastOptions(5));
+  const float nan = std::numeric_limits<float>::quiet_NaN();
+  const float inf = std::numeric_limits<float>::infinity();
+  const std::vector<float> nans(181, nan), maxed(181, inf), empty;
+  const auto scanOf = [&](const std::vector<float>& r) {
+    return common::RangeScan{r, sim.laser.angle_min, sim.laser.angle_increment,
+                             sim.laser.range_min, sim.laser.range_max};
+  };
+  // Before the first usable scan: nothing starts.
+  CHECK(rbpf.addScan(0.0, scanOf(nans), Pose2{}, Pose2{}).scan_unusable);
+  CHECK_FALSE(rbpf.initialized());
+  rbpf.addScan(0.0, sim.range(sim.scans[0]), Pose2{}, sim.scans[0].odometry);
+  REQUIRE(rbpf.initialized());
+  for (std::size_t k = 1; k < 20; ++k)
+    rbpf.addScan(sim.scans[k].stamp_s, sim.range(sim.scans[k]), Pose2{}, sim.scans[k].odometry);
+  const Pose2 before = rbpf.pose();
+  const auto known = rbpf.bestMap().knownCount();
+  const Pose2 odom = sim.scans[19].odometry;
+  for (const auto* r : {&nans, &maxed, &empty}) {
+    const auto step = rbpf.addScan(10.0, scanOf(*r), Pose2{}, odom);
+    CHECK(step.scan_unusable);
+    CHECK_FALSE(step.updated);
+  }
+  const double bad = std::numeric_limits<double>::quiet_NaN();
+  CHECK_FALSE(rbpf.addScan(11.0, sim.range(sim.scans[20]), Pose2{}, Pose2(bad, 0, 0)).updated);
+  CHECK(rbpf.stats().unusable_scans == 4);
+  CHECK(rbpf.stats().invalid_odometry == 1);
+  CHECK(rbpf.pose().x == before.x);
+  CHECK(rbpf.pose().y == before.y);
+  CHECK(rbpf.bestMap().knownCount() == known);
+}
+
+TEST_CASE("rbpf rejects invalid options with the option name", "[rbpf]") {
+  RbpfOptions o;
+  o.particles = 0;
+  CHECK_THROWS_WITH(Rbpf(o), Catch::Contains("particles"));
+  o = {};
+  o.resample_threshold = 1.5;
+  CHECK_THROWS_WITH(Rbpf(o), Catch::Contains("resample_threshold"));
+  o = {};
+  o.motion.srr = -1;
+  CHECK_THROWS_WITH(Rbpf(o), Catch::Contains("srr"));
+  o = {};
+  o.grid.resolution = 0;
+  CHECK_THROWS(Rbpf(o));
+}

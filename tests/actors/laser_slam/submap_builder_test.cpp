@@ -1,0 +1,269 @@
+// Tests for the rbpf_submap_builder and map_assembler actors (through the mock-mailbox harness)
+// and the MapAssembler core.
+#include <tessera/laser_slam/map_assembler.hpp>
+#include <tessera/laser_slam/map_assembler_actor.hpp>
+#include <tessera/laser_slam/submap_builder_actor.hpp>
+#include <tessera/messages/types.hpp>
+#include <tessera/messages/views.hpp>
+#include <tessera/runtime/harness.hpp>
+#include <tessera/runtime/options.hpp>
+
+#include <catch2/catch.hpp>
+
+#include <cmath>
+#include <limits>
+#include <numbers>
+
+#include "sim_scans.hpp"
+
+using namespace tessera;
+using common::Pose2;
+using laser_slam::MapAssembler;
+using laser_slam::SubmapBuilderActor;
+using laser_slam::SubmapBuilderOptions;
+
+namespace {
+
+Nanos stampOf(double s) {
+  return static_cast<Nanos>(std::llround(s * 1e9));
+}
+
+void pushOdometry(ActorHarness& h, Nanos stamp, const Pose2& p) {
+  h.push<msg::Odometry>("odom", [&](auto& b) {
+    setHeader(b.initHeader(), stamp, "odom", 0);
+    b.setChildFrameId("base_link");
+    writePose(b.initPose(), PoseXYT{p.x, p.y, p.theta});
+  });
+}
+
+void pushScan(ActorHarness& h, Nanos stamp, const test::SimScans& sim,
+              const std::vector<float>& ranges) {
+  h.push<msg::LaserScan>("scan", [&](auto& b) {
+    setHeader(b.initHeader(), stamp, "laser", 0);
+    b.setAngleMin(static_cast<float>(sim.laser.angle_min));
+    b.setAngleIncrement(static_cast<float>(sim.laser.angle_increment));
+    b.setRangeMin(static_cast<float>(sim.laser.range_min));
+    b.setRangeMax(static_cast<float>(sim.laser.range_max));
+    auto r = b.initRanges(static_cast<unsigned>(ranges.size()));
+    for (unsigned i = 0; i < ranges.size(); ++i) r.set(i, ranges[i]);
+  });
+}
+
+SubmapBuilderOptions fastOptions() {
+  SubmapBuilderOptions o;
+  o.particles = 8;
+  o.linear_update = 0.3;
+  o.angular_update = 0.3;
+  return o;
+}
+
+Pose2 poseOf(msg::Pose2D::Reader p) {
+  return {p.getX(), p.getY(), p.getTheta()};
+}
+
+}  // namespace
+
+TEST_CASE("submap builder publishes a pose per scan, hand-over constraints and submaps",
+          "[rbpf][submap_builder]") {
+  const auto sim = test::simulateRoomLoop();
+  SubmapBuilderOptions o = fastOptions();
+  o.submap_scans = 25;
+  ActorHarness h(std::make_unique<SubmapBuilderActor>(o));
+  const std::size_t n = 160;
+  for (std::size_t k = 0; k < n; ++k) {
+    const Nanos t = stampOf(sim.scans[k].stamp_s);
+    pushOdometry(h, t, sim.scans[k].odometry);
+    pushScan(h, t, sim, sim.scans[k].ranges);
+    h.runUntilIdle();
+  }
+  h.stop();
+  const auto poses = h.published<msg::PoseStamped>("pose");
+  REQUIRE(poses.size() == n);
+  CHECK(h.publishedCount("map_to_odom") == n);
+  const auto constraints = h.published<msg::SubmapConstraint>("constraints");
+  const auto submaps = h.published<msg::Submap>("submaps");
+  REQUIRE(constraints.size() >= 2);
+  CHECK(submaps.size() == constraints.size() + 1);  // the last one comes at stop
+  for (std::size_t i = 0; i < submaps.size(); ++i) {
+    CHECK(submaps[i]->getId() == i);
+    CHECK(submaps[i]->getFinished());
+    CHECK(submaps[i]->getGrid().getWidth() > 10);
+  }
+  // Chained hand-overs are the published global submap poses.
+  Pose2 chained;
+  for (std::size_t i = 0; i < constraints.size(); ++i) {
+    CHECK(constraints[i]->getFromId() == i);
+    CHECK(constraints[i]->getToId() == i + 1);
+    CHECK(constraints[i]->getKind() == msg::SubmapConstraint::Kind::HAND_OVER);
+    CHECK(constraints[i]->getRelative().getCovariance().size() == 9);
+    chained = chained * poseOf(constraints[i]->getRelative());
+    const Pose2 global = poseOf(submaps[i + 1]->getGlobalPose());
+    CHECK(global.x == Approx(chained.x).margin(1e-9));
+    CHECK(global.y == Approx(chained.y).margin(1e-9));
+  }
+  // The online estimate follows the truth (map frame = the first pose).
+  const Pose2 truth = common::between(sim.scans.front().truth, sim.scans[n - 1].truth);
+  const Pose2 last = poseOf(poses.back()->getPose());
+  CHECK(std::hypot(last.x - truth.x, last.y - truth.y) < 0.15);
+  // map_to_odom ⊕ odometry = the published pose.
+  const auto corr = h.published<msg::PoseStamped>("map_to_odom").back();
+  const Pose2 odom_in_map = poseOf(corr->getPose()) * sim.scans[n - 1].odometry;
+  CHECK(odom_in_map.x == Approx(last.x).margin(1e-6));
+  CHECK(odom_in_map.y == Approx(last.y).margin(1e-6));
+}
+
+TEST_CASE("submap builder waits for odometry and counts scans it cannot pair",
+          "[rbpf][submap_builder]") {
+  const auto sim = test::simulateRoomLoop();
+  ActorHarness h(std::make_unique<SubmapBuilderActor>(fastOptions()));
+  // Scan first, odometry after it: the scan waits, then is processed.
+  pushScan(h, stampOf(1.0), sim, sim.scans[0].ranges);
+  h.runUntilIdle();
+  CHECK(h.publishedCount("pose") == 0);
+  pushOdometry(h, stampOf(0.5), sim.scans[0].odometry);
+  pushOdometry(h, stampOf(1.5), sim.scans[0].odometry);
+  h.runUntilIdle();
+  CHECK(h.publishedCount("pose") == 1);
+  // A scan older than every odometry pose is dropped and counted; one never paired at stop too.
+  pushScan(h, stampOf(0.1), sim, sim.scans[1].ranges);
+  pushScan(h, stampOf(9.0), sim, sim.scans[1].ranges);
+  h.runUntilIdle();
+  h.stop();
+  Summary s;
+  h.actor().summarize(s);
+  CHECK(std::get<std::int64_t>(s.at("scans_read")) == 3);
+  CHECK(std::get<std::int64_t>(s.at("scans_unpaired")) == 2);
+  CHECK(std::get<std::int64_t>(s.at("scans_processed")) == 1);
+  CHECK(h.publishedCount("submaps") == 1);
+}
+
+TEST_CASE("submap builder survives NaN, empty and all-max-range scans",
+          "[rbpf][submap_builder]") {
+  const auto sim = test::simulateRoomLoop();
+  ActorHarness h(std::make_unique<SubmapBuilderActor>(fastOptions()));
+  const std::vector<float> nans(181, std::numeric_limits<float>::quiet_NaN());
+  const std::vector<float> maxed(181, std::numeric_limits<float>::infinity());
+  const std::vector<float> empty;
+  int k = 0;
+  for (const auto* r : {&nans, &empty, &maxed, &sim.scans[0].ranges, &nans, &maxed}) {
+    const Nanos t = stampOf(++k);
+    pushOdometry(h, t, sim.scans[0].odometry);
+    pushScan(h, t, sim, *r);
+    h.runUntilIdle();
+  }
+  h.stop();
+  Summary s;
+  h.actor().summarize(s);
+  CHECK(std::get<std::int64_t>(s.at("scans_unusable")) == 5);
+  CHECK(std::get<std::int64_t>(s.at("scans_read")) == 6);
+  CHECK(h.publishedCount("pose") == 3);  // from the first usable scan on
+  CHECK(h.publishedCount("submaps") == 1);
+}
+
+TEST_CASE("submap builder starts a new submap when the robot enters another camera",
+          "[rbpf][submap_builder]") {
+  const auto sim = test::simulateRoomLoop();
+  SubmapBuilderOptions o = fastOptions();
+  o.camera_trigger = true;
+  ActorHarness h(std::make_unique<SubmapBuilderActor>(o));
+  const auto event = [&](int camera, bool entered) {
+    h.push<msg::CameraEvent>("camera_events", [&](auto& b) {
+      setHeader(b.initHeader(), 0, "camera", 0);
+      b.setCameraId(camera);
+      b.setEntered(entered);
+    });
+  };
+  for (std::size_t k = 0; k < 30; ++k) {
+    if (k == 10) event(3, true);
+    if (k == 15) event(3, false);
+    if (k == 18) event(3, true);  // back in the same view: no new submap
+    if (k == 22) event(5, true);
+    const Nanos t = stampOf(sim.scans[k].stamp_s);
+    pushOdometry(h, t, sim.scans[k].odometry);
+    pushScan(h, t, sim, sim.scans[k].ranges);
+    h.runUntilIdle();
+  }
+  h.stop();
+  CHECK(h.publishedCount("constraints") == 2);
+  CHECK(h.publishedCount("submaps") == 3);
+}
+
+TEST_CASE("submap builder rejects bad options naming the key", "[rbpf][submap_builder]") {
+  SubmapBuilderOptions o;
+  o.particles = 0;
+  CHECK_THROWS_WITH(SubmapBuilderActor(o), Catch::Contains("particles"));
+  o = {};
+  o.submap_distance = -1;
+  CHECK_THROWS_WITH(SubmapBuilderActor(o), Catch::Contains("submap_distance"));
+}
+
+TEST_CASE("map assembler draws submaps at their global poses", "[map_assembler]") {
+  // Submap: 20 x 10 free cells at 0.1 m with one occupied cell at (15, 5) = (1.55, 0.55) m.
+  common::OccupancyMap grid;
+  grid.resolution = 0.1;
+  grid.width = 20;
+  grid.height = 10;
+  grid.cells.assign(200, 0);
+  grid.at(15, 5) = 100;
+  MapAssembler assembler;
+  CHECK(assembler.assemble().empty());
+  assembler.setSubmap(0, grid);
+  assembler.setSubmap(1, grid);
+  CHECK(assembler.assemble().empty());  // nothing placed yet
+  assembler.setPose(0, Pose2{});
+  assembler.setPose(1, Pose2(5.0, 0.0, std::numbers::pi / 2));
+  const auto map = assembler.assemble();
+  REQUIRE_FALSE(map.empty());
+  CHECK(map.resolution == Approx(0.1));
+  const auto valueAt = [&](double x, double y) {
+    const auto c = map.cellOf({x, y});
+    REQUIRE(map.contains(c.x(), c.y()));
+    return map.at(c.x(), c.y());
+  };
+  CHECK(valueAt(1.55, 0.55) > 90);
+  CHECK(valueAt(0.55, 0.55) < 10);
+  // Submap 1 is turned by 90 degrees: its obstacle lands at (5 - 0.55, 1.55).
+  CHECK(valueAt(5.0 - 0.55, 1.55) > 90);
+  CHECK(valueAt(5.0 - 0.55, 0.55) < 10);
+  CHECK(valueAt(3.0, 0.5) == -1);  // between the two: never seen
+  common::OccupancyMap bad = grid;
+  bad.cells.pop_back();
+  CHECK_THROWS_WITH(assembler.setSubmap(2, bad), Catch::Contains("submap 2"));
+}
+
+TEST_CASE("map assembler actor chains hand-over constraints", "[map_assembler]") {
+  ActorHarness h(std::make_unique<laser_slam::MapAssemblerActor>(laser_slam::MapAssemblerOptions{}));
+  const auto submap = [&](int id, const Pose2& carried) {
+    h.push<msg::Submap>("submaps", [&](auto& b) {
+      setHeader(b.initHeader(), id, "map", 0);
+      b.setId(static_cast<std::uint32_t>(id));
+      auto g = b.initGrid();
+      g.setResolution(0.1f);
+      g.setWidth(4);
+      g.setHeight(4);
+      writePose(g.initOrigin(), PoseXYT{0, 0, 0});
+      auto cells = mutableViewInt8(g.initCells(16));
+      std::fill(cells.begin(), cells.end(), std::int8_t{0});
+      cells[5] = 100;
+      writePose(b.initGlobalPose(), PoseXYT{carried.x, carried.y, carried.theta});
+      b.setFinished(true);
+    });
+  };
+  submap(0, Pose2{});
+  h.push<msg::SubmapConstraint>("constraints", [&](auto& b) {
+    b.setFromId(0);
+    b.setToId(1);
+    writePose(b.initRelative(), PoseXYT{2.0, 1.0, 0.0});
+    b.setKind(msg::SubmapConstraint::Kind::HAND_OVER);
+  });
+  submap(1, Pose2(9.0, 9.0, 0.0));  // the chained pose wins over what the message carries
+  h.runUntilIdle();
+  auto& actor = static_cast<laser_slam::MapAssemblerActor&>(h.actor());
+  CHECK(actor.assembler().pose(1).x == Approx(2.0));
+  CHECK(actor.assembler().pose(1).y == Approx(1.0));
+  h.stop();
+  const auto maps = h.published<msg::OccupancyGrid>("map");
+  REQUIRE(maps.size() == 1);
+  CHECK(maps[0]->getWidth() == 24);  // 0..2.4 m at 0.1 m
+  CHECK(maps[0]->getHeight() == 14);
+}

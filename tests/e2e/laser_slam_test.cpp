@@ -1,0 +1,102 @@
+// End to end: apps/profiles/carmen_rbpf.yaml on a prefix of the real Intel log and
+// apps/profiles/sim_slam.yaml on a shortened simulated route (player/simulator -> RBPF submap
+// builder -> map assembler + writers -> files), read back what they wrote. Full-log figures come
+// from the benchmark (README), not from here.
+#include <tessera/common/map_io.hpp>
+#include <tessera/common/trajectory_io.hpp>
+#include <tessera/common/trajectory_metrics.hpp>
+#include <tessera/datasets/relations.hpp>
+#include <tessera/runtime/profile.hpp>
+
+#include <filesystem>
+
+#include "../shared_data.hpp"
+
+using namespace tessera;
+namespace fs = std::filesystem;
+
+namespace {
+
+RunReport runProfile(const std::string& name, const std::vector<std::string>& sets,
+                     const fs::path& out) {
+  auto profile =
+      loadProfile(std::string(TESSERA_SOURCE_DIR) + "/apps/profiles/" + name + ".yaml", sets);
+  RuntimeOptions options;
+  options.show_progress = false;
+  options.output_dir = out.string();
+  options.threads = 2;
+  auto runtime = buildRuntime(profile, options);
+  return runtime->run();
+}
+
+std::int64_t intOf(const RunReport& r, const std::string& actor, const std::string& key) {
+  for (const auto& a : r.actors)
+    if (a.name == actor) return std::get<std::int64_t>(a.summary.at(key));
+  FAIL("no actor " << actor);
+  return 0;
+}
+
+common::RelationsResult relationsError(const fs::path& tum, const fs::path& relations_path) {
+  const auto file = datasets::readRelations(relations_path);
+  std::vector<common::PoseRelation> relations;
+  for (const auto& r : file.relations)
+    relations.push_back({r.t1_ns, r.t2_ns, common::Pose2(r.dx, r.dy, r.yaw)});
+  return common::computeRelationsError(common::readTum(tum), relations);
+}
+
+}  // namespace
+
+TEST_CASE("carmen_rbpf maps the first 500 scans of intel.clf better than odometry",
+          "[e2e][rbpf][data]") {
+  TESSERA_SHARED_DATA(log, "intel-lab-mrpt/intel.clf.gz");
+  TESSERA_SHARED_DATA(times, "intel-lab-mrpt/frame_times.txt");
+  TESSERA_SHARED_DATA(relations, "intel-lab-mrpt/intel.relations");
+  const fs::path out = test::scratchDir("carmen_rbpf");
+  const RunReport report =
+      runProfile("carmen_rbpf",
+                 {"player.path=" + log.string(), "player.scan_times=" + times.string(),
+                  "player.max_scans=500", "particles=5"},
+                 out);
+  CHECK(report.stop_reason == "all inputs finished");
+  for (const char* f : {"map.pgm", "map.yaml", "map.png", "trajectory.tum", "odometry.tum"}) {
+    INFO(f);
+    CHECK(fs::exists(out / f));
+  }
+  CHECK(intOf(report, "slam", "scans_read") == 500);
+  CHECK(intOf(report, "slam", "scans_unpaired") == 0);
+  CHECK(intOf(report, "slam", "particles") == 5);
+  const auto processed = intOf(report, "slam", "scans_processed");
+  CHECK(processed > 100);
+  CHECK(processed < 400);  // the 1 m / 0.5 rad gates skip most scans
+  // The online estimate: one pose per input scan.
+  CHECK(common::readTum(out / "trajectory.tum").size() == 500);
+  const auto slam = relationsError(out / "trajectory.tum", relations);
+  const auto odom = relationsError(out / "odometry.tum", relations);
+  INFO("slam " << slam.matched << " relations: " << slam.translation.mean << " m, "
+               << slam.rotation_deg.mean << " deg; odometry " << odom.translation.mean << " m, "
+               << odom.rotation_deg.mean << " deg");
+  REQUIRE(slam.matched > 300);
+  CHECK(slam.translation.mean < 0.5 * odom.translation.mean);
+  CHECK(slam.rotation_deg.mean < 0.5 * odom.rotation_deg.mean);
+  CHECK(slam.translation.mean < 0.2);
+  const auto map = common::loadMap(out / "map.yaml");
+  CHECK(map.width > 200);
+}
+
+TEST_CASE("sim_slam keeps the simulated robot on its true path while odometry drifts",
+          "[e2e][rbpf]") {
+  const fs::path out = test::scratchDir("sim_slam");
+  // A part of the office route keeps the test short; the full route is the benchmark.
+  const RunReport report = runProfile("sim_slam", {"max_duration_s=120"}, out);
+  const auto estimate = common::readTum(out / "trajectory.tum");
+  const auto truth = common::readTum(out / "ground_truth.tum");
+  const auto odometry = common::readTum(out / "odometry.tum");
+  REQUIRE(estimate.size() > 500);
+  const auto slam = common::computeAte(estimate, truth);
+  const auto odom = common::computeAte(odometry, truth);
+  INFO("ATE slam " << slam.translation.rmse << " m, odometry " << odom.translation.rmse << " m");
+  CHECK(slam.translation.rmse < 0.1);
+  CHECK(odom.translation.rmse > 2 * slam.translation.rmse);
+  CHECK(intOf(report, "slam", "submaps") == 1);
+  CHECK(fs::exists(out / "map.png"));
+}
