@@ -83,7 +83,7 @@ class TiledGrid {
     return t != nullptr && t->cells[cellInTile(c)] != kUnknown;
   }
   /// Log-odds of c; 0 (S_init) for unknown cells and cells outside the grid. The scan
-  /// matcher's hot path: one table lookup and one index, no branches beyond the bounds checks.
+  /// matcher's hot path: a bounds check, one table lookup and one index, all inline.
   float logOdds(const Eigen::Vector2i& c) const {
     const Tile* t = tileAt(c);
     if (t == nullptr) return 0.0f;
