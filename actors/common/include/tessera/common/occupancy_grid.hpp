@@ -148,24 +148,13 @@ class OccupancyGrid {
   std::size_t indexOf(const Eigen::Vector2i& c) const;
   /// Grows storage (in chunks, up to the per-axis limit) so that `need` fits where possible.
   void growToInclude(const CellBox& need, const Eigen::Vector2i& anchor);
-  /// Applies `delta` to cell c once per scan; false when c is outside the storage.
-  bool touch(const Eigen::Vector2i& c, float delta);
 
   Options options_;
   CellBox allocated_;
   CellBox known_bounds_;
   std::size_t known_count_ = 0;
   std::vector<float> log_odds_;
-  // Per cell, the number of the last scan that updated it; 0 = never (unknown). Serves both as
-  // the "known" flag and as the once-per-scan guard without clearing anything between scans.
-  std::vector<std::uint32_t> stamp_;
-  std::uint32_t scan_stamp_ = 0;
-
-  struct Beam {
-    Eigen::Vector2d end;  // grid units (cells), not metres
-    bool hit;
-  };
-  std::vector<Beam> beams_;  // scratch reused across scans: no allocation on the hot path
+  std::vector<std::uint8_t> known_;  // per cell: updated at least once
 };
 
 }  // namespace tessera::common

@@ -1,0 +1,170 @@
+// TiledGrid: a copy-on-write, tiled log-odds occupancy grid for particle filters
+// (Rao-Blackwellised SLAM: every particle owns a map and resampling copies particles).
+//
+// Same model, frame, units and cell convention as OccupancyGrid (occupancy_grid.hpp): absolute
+// cell indices, cell (i, j) covers [i·res, (i+1)·res) × [j·res, (j+1)·res) in metres, and
+// insertScan() produces the same cells (both grids share one ray rasteriser), up to fixed-point
+// quantisation of the log-odds.
+//
+// Storage: cells live in 32×32-cell tiles of int16 fixed-point log-odds (round(L·1024), clamped
+// to the model's bounds; INT16_MIN = unknown), 2 KiB of cells per tile. A dense table over the
+// box of tiles seen so far points at the tiles; absent tiles are unknown and cost one pointer.
+// Tiles are reference counted and shared: copying a grid copies only the table and bumps the
+// counts, so N particles that resample from one cost ~1× the map, not N×. A write to a shared
+// tile first clones it (copy-on-write); a write to an absent tile allocates it; reads never
+// allocate. Memory therefore grows with the explored area plus what each particle has changed.
+// The table grows by whole tiles with a margin, up to max_side_cells per axis (rounded down to
+// whole tiles, at least one); updates beyond it are dropped and counted (clipped_cells).
+//
+// Thread safety: distinct TiledGrid objects may be written concurrently from different threads
+// even when they share tiles (e.g. particles updated in parallel with TBB after resampling):
+// reference counts are atomic and a tile referenced by more than one grid is never written in
+// place. One object must not be written by two threads at once, nor copied while written;
+// const methods may run concurrently on one object. Scan rasterisation uses per-thread scratch.
+#pragma once
+
+#include <tessera/common/occupancy_grid.hpp>
+#include <tessera/common/occupancy_map.hpp>
+#include <tessera/common/pose2.hpp>
+
+#include <Eigen/Core>
+
+#include <atomic>
+#include <cstddef>
+#include <cstdint>
+#include <limits>
+#include <span>
+#include <vector>
+
+namespace tessera::common {
+
+struct TiledGridOptions {
+  double resolution = 0.05;  ///< [m/cell]
+  /// Log-odds model; bounds must lie within ±31.99 and increments be ≥ 1/1024 in magnitude
+  /// (the fixed-point range and step).
+  LogOddsModel log_odds;
+  /// Per-axis limit of the tile table [cells], rounded down to whole tiles (at least one);
+  /// updates beyond it are dropped and counted in ScanInsertResult::clipped_cells.
+  int max_side_cells = 16384;
+};
+
+class TiledGrid {
+ public:
+  using Options = TiledGridOptions;
+  static constexpr int kTileBits = 5;  ///< 32×32 cells per tile
+  static constexpr int kTileSide = 1 << kTileBits;
+  static constexpr int kTileCells = kTileSide * kTileSide;
+  /// Fixed-point scale of the stored log-odds: one unit is 1/1024 of a log-odds.
+  static constexpr float kLogOddsScale = 1024.0f;
+
+  /// Throws std::invalid_argument for a non-positive resolution or limit, inconsistent
+  /// log-odds signs (as OccupancyGrid), or a model outside the fixed-point range.
+  explicit TiledGrid(Options options = {});
+  ~TiledGrid();
+  /// O(table size): shares every tile, copies no cells.
+  TiledGrid(const TiledGrid& other);
+  TiledGrid& operator=(const TiledGrid& other);
+  /// The moved-from grid is left empty (no tiles, nothing known).
+  TiledGrid(TiledGrid&& other) noexcept;
+  TiledGrid& operator=(TiledGrid&& other) noexcept;
+
+  const Options& options() const { return options_; }
+  double resolution() const { return options_.resolution; }
+
+  /// The cell containing map-frame point p.
+  Eigen::Vector2i worldToCell(const Eigen::Vector2d& p) const;
+  /// Centre of cell c [m].
+  Eigen::Vector2d cellCenter(const Eigen::Vector2i& c) const;
+  /// Lower-left (outer) corner of cell c [m].
+  Eigen::Vector2d cellCorner(const Eigen::Vector2i& c) const;
+
+  bool isKnown(const Eigen::Vector2i& c) const {
+    const Tile* t = tileAt(c);
+    return t != nullptr && t->cells[cellInTile(c)] != kUnknown;
+  }
+  /// Log-odds of c; 0 (S_init) for unknown cells and cells outside the grid. The scan
+  /// matcher's hot path: a bounds check, one table lookup and one index, all inline.
+  float logOdds(const Eigen::Vector2i& c) const {
+    const Tile* t = tileAt(c);
+    if (t == nullptr) return 0.0f;
+    const std::int16_t v = t->cells[cellInTile(c)];
+    return v == kUnknown ? 0.0f : static_cast<float>(v) * (1.0f / kLogOddsScale);
+  }
+  /// Occupancy probability of c; 0.5 when unknown.
+  double probability(const Eigen::Vector2i& c) const;
+
+  /// Smallest box holding every cell updated at least once (empty before the first update).
+  const CellBox& knownBounds() const { return known_bounds_; }
+  /// Number of cells updated at least once.
+  std::size_t knownCount() const { return known_count_; }
+
+  /// Integrates one scan taken from `sensor_pose`; same semantics and cells as
+  /// OccupancyGrid::insertScan (once per scan per cell, a hit wins over a miss, no-return
+  /// beams clear up to max_free_range). Never throws on bad data: NaN/negative ranges, an
+  /// empty scan or a non-finite pose are counted and leave the grid untouched.
+  ScanInsertResult insertScan(const RangeScan& scan, const Pose2& sensor_pose,
+                              const ScanInsertOptions& insert_options = {});
+
+  /// Writes ROS int8 cells for `box` into `out` (box.width()·box.height() values, row-major,
+  /// row 0 = box.min.y); unknown cells are −1. Throws std::invalid_argument on a size mismatch.
+  void exportInt8(const CellBox& box, std::span<std::int8_t> out) const;
+  /// The grid as a ROS-convention map cropped to `box` (default: the known cells).
+  OccupancyMap toOccupancyMap() const { return toOccupancyMap(known_bounds_); }
+  OccupancyMap toOccupancyMap(const CellBox& box) const;
+
+  /// Tiles referenced by this grid.
+  std::size_t tileCount() const;
+  /// Tiles referenced only by this grid (what it alone keeps alive).
+  std::size_t uniqueTileCount() const;
+  /// Bytes of cell storage this grid references: its tiles (shared or not) plus its table.
+  std::size_t memoryBytes() const;
+  /// Bytes of one tile (cells and reference count).
+  static std::size_t tileBytes() { return sizeof(Tile); }
+
+  /// Process-wide totals since start (relaxed atomics), for tests and benchmarks.
+  struct Counters {
+    std::uint64_t tiles_allocated = 0;  ///< absent tiles created by a write
+    std::uint64_t tiles_cloned = 0;     ///< shared tiles copied by a write
+  };
+  static Counters counters();
+
+ private:
+  static constexpr std::int16_t kUnknown = std::numeric_limits<std::int16_t>::min();
+
+  struct Tile {
+    std::int16_t cells[kTileCells];
+    std::atomic<std::uint32_t> refs{1};
+  };
+
+  static int cellInTile(const Eigen::Vector2i& c) {
+    return ((c.y() & (kTileSide - 1)) << kTileBits) | (c.x() & (kTileSide - 1));
+  }
+  /// Table slot of the tile holding c, or −1 outside the table.
+  long slotOf(const Eigen::Vector2i& c) const {
+    // Unsigned compare folds the < 0 and ≥ size checks into one.
+    const auto tx = static_cast<unsigned>((c.x() >> kTileBits) - tiles_.min.x());
+    const auto ty = static_cast<unsigned>((c.y() >> kTileBits) - tiles_.min.y());
+    if (tx >= tiles_w_ || ty >= tiles_h_) return -1;
+    return static_cast<long>(ty) * tiles_w_ + tx;
+  }
+  const Tile* tileAt(const Eigen::Vector2i& c) const {
+    const long s = slotOf(c);
+    return s < 0 ? nullptr : table_[static_cast<std::size_t>(s)];
+  }
+  /// The tile at `slot`, allocated if absent and cloned if shared, so it can be written.
+  Tile* writableTile(std::size_t slot);
+  /// Grows the table so the tiles of `need` fit where the limit allows.
+  void growToInclude(const CellBox& need, const Eigen::Vector2i& anchor);
+  void releaseAll() noexcept;
+
+  Options options_;
+  // Fixed-point model: increments and clamp bounds in 1/kLogOddsScale units.
+  std::int32_t q_hit_ = 0, q_miss_ = 0, q_min_ = 0, q_max_ = 0;
+  CellBox known_bounds_;
+  std::size_t known_count_ = 0;
+  CellBox tiles_;  // box of tile indices the table covers (tile (u, v) holds cells 32u.., 32v..)
+  unsigned tiles_w_ = 0, tiles_h_ = 0;
+  std::vector<Tile*> table_;  // row-major over tiles_; nullptr = absent (all unknown)
+};
+
+}  // namespace tessera::common
