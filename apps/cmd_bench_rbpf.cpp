@@ -68,8 +68,9 @@ int runChild(const std::vector<std::string>& args, const fs::path& log_path) {
 
 void addBenchRbpfCommand(CLI::App& bench, int& result) {
   auto* cmd = bench.add_subcommand(
-      "rbpf", "RBPF laser SLAM on a CARMEN log: CPU, wall, peak RSS and relations error per "
-              "particle count (each run in its own process)");
+      "rbpf",
+      "RBPF laser SLAM on a CARMEN log: CPU, wall, peak RSS and relations error per "
+      "particle count (each run in its own process)");
   auto o = std::make_shared<Options>();
   cmd->add_option("--profile", o->profile, "profile to run")->capture_default_str();
   cmd->add_option("--log", o->log, "CARMEN log")->capture_default_str();
@@ -81,8 +82,7 @@ void addBenchRbpfCommand(CLI::App& bench, int& result) {
       ->delimiter(',')
       ->capture_default_str();
   cmd->add_option("--set", o->sets, "extra KEY=VALUE profile overrides for every run");
-  cmd->add_option("--out", o->out, "output folder (one sub-folder per run)")
-      ->capture_default_str();
+  cmd->add_option("--out", o->out, "output folder (one sub-folder per run)")->capture_default_str();
   cmd->add_flag("--json", o->json, "print exactly one JSON object on stdout");
   cmd->callback([o, &result] {
     requireFile(o->log, "--log");
@@ -99,8 +99,14 @@ void addBenchRbpfCommand(CLI::App& bench, int& result) {
     for (int n : o->particles) {
       const fs::path dir = fs::path(o->out) / ("particles_" + std::to_string(n));
       fs::create_directories(dir);
-      std::vector<std::string> args{"tessera", "run", o->profile, "--out", dir.string(),
-                                    "--set", "player.path=" + o->log, "--set",
+      std::vector<std::string> args{"tessera",
+                                    "run",
+                                    o->profile,
+                                    "--out",
+                                    dir.string(),
+                                    "--set",
+                                    "player.path=" + o->log,
+                                    "--set",
                                     "particles=" + std::to_string(n)};
       if (!o->scan_times.empty()) {
         args.push_back("--set");
@@ -149,20 +155,19 @@ void addBenchRbpfCommand(CLI::App& bench, int& result) {
               << "relations error of the online trajectory (" << o->relations << ")\n\n"
               << std::right << std::setw(9) << "particles" << std::setw(8) << "updates"
               << std::setw(9) << "CPU s" << std::setw(9) << "wall s" << std::setw(10) << "RSS MB"
-              << std::setw(22) << "trans m (mean±std)" << std::setw(10) << "rot deg"
-              << std::setw(9) << "matched\n";
+              << std::setw(22) << "trans m (mean±std)" << std::setw(10) << "rot deg" << std::setw(9)
+              << "matched\n";
     std::cout << std::fixed;
     for (const auto& r : runs) {
       std::ostringstream trans;
       trans << std::fixed << std::setprecision(3) << r["trans_mean_m"].get<double>() << " ± "
             << r["trans_std_m"].get<double>();
       std::cout << std::setw(9) << r["particles"].get<int>() << std::setw(8)
-                << r["scans_processed"].get<std::int64_t>() << std::setprecision(1)
-                << std::setw(9) << r["cpu_s"].get<double>() << std::setw(9)
-                << r["wall_s"].get<double>() << std::setw(10) << r["peak_rss_mb"].get<double>()
-                << std::setw(22) << trans.str() << std::setprecision(2) << std::setw(10)
-                << r["rot_mean_deg"].get<double>() << std::setw(9)
-                << r["relations_matched"].get<std::size_t>() << "\n";
+                << r["scans_processed"].get<std::int64_t>() << std::setprecision(1) << std::setw(9)
+                << r["cpu_s"].get<double>() << std::setw(9) << r["wall_s"].get<double>()
+                << std::setw(10) << r["peak_rss_mb"].get<double>() << std::setw(22) << trans.str()
+                << std::setprecision(2) << std::setw(10) << r["rot_mean_deg"].get<double>()
+                << std::setw(9) << r["relations_matched"].get<std::size_t>() << "\n";
     }
     result = 0;
   });

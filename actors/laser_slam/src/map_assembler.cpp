@@ -57,9 +57,9 @@ common::OccupancyMap MapAssembler::assemble() const {
     drawn.push_back(&e);
     if (resolution_ == 0) res = res == 0 ? e.grid.resolution : std::min(res, e.grid.resolution);
     const common::Pose2 to_map = e.pose * e.grid.origin;
-    for (const auto& corner : {Eigen::Vector2d(0, 0), Eigen::Vector2d(e.grid.width, 0),
-                               Eigen::Vector2d(0, e.grid.height),
-                               Eigen::Vector2d(e.grid.width, e.grid.height)}) {
+    for (const auto& corner :
+         {Eigen::Vector2d(0, 0), Eigen::Vector2d(e.grid.width, 0),
+          Eigen::Vector2d(0, e.grid.height), Eigen::Vector2d(e.grid.width, e.grid.height)}) {
       const Eigen::Vector2d p = to_map * (corner * e.grid.resolution);
       lo = lo.cwiseMin(p);
       hi = hi.cwiseMax(p);
@@ -82,16 +82,17 @@ common::OccupancyMap MapAssembler::assemble() const {
     Eigen::Vector2d a(std::numeric_limits<double>::infinity(),
                       std::numeric_limits<double>::infinity());
     Eigen::Vector2d b = -a;
-    for (const auto& c : {Eigen::Vector2d(0, 0), Eigen::Vector2d(e->grid.width, 0),
-                          Eigen::Vector2d(0, e->grid.height),
-                          Eigen::Vector2d(e->grid.width, e->grid.height)}) {
+    for (const auto& c :
+         {Eigen::Vector2d(0, 0), Eigen::Vector2d(e->grid.width, 0),
+          Eigen::Vector2d(0, e->grid.height), Eigen::Vector2d(e->grid.width, e->grid.height)}) {
       const Eigen::Vector2d p = to_map * (c * e->grid.resolution);
       a = a.cwiseMin(p);
       b = b.cwiseMax(p);
     }
     const int c0 = std::max(0, static_cast<int>(std::floor((a.x() - corner.x()) / res)));
     const int r0 = std::max(0, static_cast<int>(std::floor((a.y() - corner.y()) / res)));
-    const int c1 = std::min(out.width - 1, static_cast<int>(std::floor((b.x() - corner.x()) / res)));
+    const int c1 =
+        std::min(out.width - 1, static_cast<int>(std::floor((b.x() - corner.x()) / res)));
     const int r1 =
         std::min(out.height - 1, static_cast<int>(std::floor((b.y() - corner.y()) / res)));
     const double inv = 1.0 / e->grid.resolution;

@@ -79,7 +79,7 @@ void MapAssemblerActor::onConstraint(const Message<msg::SubmapConstraint>& m) {
   ++constraints_;
   if (m->getKind() != msg::SubmapConstraint::Kind::HAND_OVER) return;
   handover_[static_cast<int>(m->getToId())] = {static_cast<int>(m->getFromId()),
-                                                toPose2(m->getRelative())};
+                                               toPose2(m->getRelative())};
   placeChained();
   dirty_ = true;
 }

@@ -76,11 +76,10 @@ Rbpf::Rbpf(RbpfOptions options) : options_(std::move(options)), matcher_(options
   const auto& o = options_;
   require(o.particles >= 1 && o.particles <= 100000,
           "particles must be in [1, 100000] (got " + std::to_string(o.particles) + ")");
-  require(o.resample_threshold > 0 && o.resample_threshold <= 1,
-          "resample_threshold must be in (0, 1] (got " + std::to_string(o.resample_threshold) +
-              ")");
-  require(std::isfinite(o.linear_update) && o.linear_update >= 0,
-          "linear_update must be >= 0 [m]");
+  require(
+      o.resample_threshold > 0 && o.resample_threshold <= 1,
+      "resample_threshold must be in (0, 1] (got " + std::to_string(o.resample_threshold) + ")");
+  require(std::isfinite(o.linear_update) && o.linear_update >= 0, "linear_update must be >= 0 [m]");
   require(std::isfinite(o.angular_update) && o.angular_update >= 0,
           "angular_update must be >= 0 [rad]");
   require(std::isfinite(o.temporal_update) && o.temporal_update >= 0,
@@ -143,10 +142,10 @@ RbpfStep Rbpf::addScan(double stamp_s, const common::RangeScan& scan, const Pose
   last_stamp_s_ = stamp_s;
   if (!usable) return step;  // keeps the gate armed for the next usable scan
 
-  const bool gate = travelled_since_update_ >= options_.linear_update ||
-                    turned_since_update_ >= options_.angular_update ||
-                    (options_.temporal_update > 0 &&
-                     stamp_s - update_stamp_s_ >= options_.temporal_update);
+  const bool gate =
+      travelled_since_update_ >= options_.linear_update ||
+      turned_since_update_ >= options_.angular_update ||
+      (options_.temporal_update > 0 && stamp_s - update_stamp_s_ >= options_.temporal_update);
   if (!gate) return step;
 
   ++update_index_;
@@ -160,8 +159,8 @@ RbpfStep Rbpf::addScan(double stamp_s, const common::RangeScan& scan, const Pose
     ++stats_.resamples;
   }
   insertScan(stamp_s, scan, mount);
-  for (auto& p : particles_) p.node = std::make_shared<TrajectoryNode>(
-                                 TrajectoryNode{stamp_s, p.pose, std::move(p.node)});
+  for (auto& p : particles_)
+    p.node = std::make_shared<TrajectoryNode>(TrajectoryNode{stamp_s, p.pose, std::move(p.node)});
   best_ = bestIndex();
   update_odometry_ = odometry;
   update_stamp_s_ = stamp_s;

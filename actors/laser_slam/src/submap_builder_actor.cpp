@@ -87,8 +87,9 @@ void SubmapBuilderActor::configure(ActorContext& ctx) {
         onOdometry(m->getHeader().getStampNs(), {p.getX(), p.getY(), p.getTheta()});
       });
   if (options_.camera_trigger) {
-    ctx.subscribe<msg::CameraEvent>("camera_events", MailboxPolicy::reliable(),
-                                    [this](const Message<msg::CameraEvent>& m) { onCameraEvent(m); });
+    ctx.subscribe<msg::CameraEvent>(
+        "camera_events", MailboxPolicy::reliable(),
+        [this](const Message<msg::CameraEvent>& m) { onCameraEvent(m); });
   }
   pose_pub_ = ctx.advertise<msg::PoseStamped>("pose");
   correction_pub_ = ctx.advertise<msg::PoseStamped>("map_to_odom");

@@ -51,8 +51,7 @@ std::vector<Nanos> readScanTimes(const std::string& path) {
       const datasets::Fields f(reader, line);
       if (f.empty() || f[0].front() == '#') continue;
       if (f.size() < 2 || f.size() > 3)
-        reader.fail("expected `index seconds [flag]`, got " + std::to_string(f.size()) +
-                    " fields");
+        reader.fail("expected `index seconds [flag]`, got " + std::to_string(f.size()) + " fields");
       if (f.integer(0, "index") != static_cast<std::int64_t>(out.size()))
         reader.fail("index " + std::string(f[0]) + " out of order, expected " +
                     std::to_string(out.size()));

@@ -132,7 +132,10 @@ SimulatorActor::SimulatorActor(SimulatorOptions options)
   } catch (const std::invalid_argument& e) {
     fail("route", e.what());  // speeds and laps were checked above
   }
-  robot_.emplace(follower_->startPose(), OdometryNoise{o.sigma_d, o.sigma_theta, 1e-5, 1e-5, o.odom_bias_d, o.odom_bias_theta, o.odom_drift_theta}, o.seed);
+  robot_.emplace(follower_->startPose(),
+                 OdometryNoise{o.sigma_d, o.sigma_theta, 1e-5, 1e-5, o.odom_bias_d,
+                               o.odom_bias_theta, o.odom_drift_theta},
+                 o.seed);
 }
 
 void SimulatorActor::configure(ActorContext& ctx) {

@@ -32,10 +32,9 @@ double translationError(const Pose2& a, const Pose2& b) {
 
 }  // namespace
 
-TEST_CASE("systematic resampling draws each particle in proportion to its weight",
-          "[rbpf]") {
+TEST_CASE("systematic resampling draws each particle in proportion to its weight", "[rbpf]") {
   const std::vector<double> w{0.05, 0.15, 0.3, 0.0, 0.5};
-  for (double u0 : {0.0, 0.013, 0.0999}) {
+  for (double u0 : {0.0, 0.0042, 0.0099}) {  // in [0, 1/n)
     std::vector<double> weights(100);
     for (std::size_t i = 0; i < weights.size(); ++i) weights[i] = w[i % w.size()];
     const auto drawn = laser_slam::systematicResample(weights, u0);
@@ -65,8 +64,8 @@ TEST_CASE("systematic resampling draws each particle in proportion to its weight
   double mean = 0;
   for (std::size_t i : laser_slam::systematicResample(lw, 0.0005)) mean += x[i];
   mean /= static_cast<double>(x.size());
-  CHECK(mean == Approx(wmean).margin(0.01));
-  CHECK(wmean == Approx(0.64).margin(0.1));  // the analytic posterior mean, 0.8·1/(1+0.25)
+  CHECK(mean == Approx(wmean).margin(0.03));  // ~2 sigma of the resampling noise
+  CHECK(wmean == Approx(0.64).margin(0.1));   // the analytic posterior mean, 0.8·1/(1+0.25)
 }
 
 TEST_CASE("rbpf tracks a simulated robot whose odometry drifts", "[rbpf]") {
@@ -116,8 +115,8 @@ TEST_CASE("particles copied by resampling share their map tiles", "[rbpf]") {
   for (std::size_t k = 0; k < 40; ++k)
     rbpf2.addScan(sim.scans[k].stamp_s, sim.range(sim.scans[k]), Pose2{}, sim.scans[k].odometry);
   const auto end = common::TiledGrid::counters();
-  const std::uint64_t tiles = end.tiles_allocated + end.tiles_cloned - start.tiles_allocated -
-                              start.tiles_cloned;
+  const std::uint64_t tiles =
+      end.tiles_allocated + end.tiles_cloned - start.tiles_allocated - start.tiles_cloned;
   const std::uint64_t map_tiles = rbpf2.bestMap().tileCount();
   INFO("tiles created " << tiles << ", one map " << map_tiles << ", updates "
                         << rbpf2.stats().updates);
@@ -164,8 +163,8 @@ TEST_CASE("rbpf ignores empty, NaN and all-max-range scans and bad odometry", "[
   const float inf = std::numeric_limits<float>::infinity();
   const std::vector<float> nans(181, nan), maxed(181, inf), empty;
   const auto scanOf = [&](const std::vector<float>& r) {
-    return common::RangeScan{r, sim.laser.angle_min, sim.laser.angle_increment,
-                             sim.laser.range_min, sim.laser.range_max};
+    return common::RangeScan{r, sim.laser.angle_min, sim.laser.angle_increment, sim.laser.range_min,
+                             sim.laser.range_max};
   };
   // Before the first usable scan: nothing starts.
   CHECK(rbpf.addScan(0.0, scanOf(nans), Pose2{}, Pose2{}).scan_unusable);

@@ -41,7 +41,8 @@ inline SimScans simulateRoomLoop(int laps = 1, std::uint64_t seed = 7) {
   std::mt19937_64 rng(seed);
 
   const auto& route = world.defaultRoute();
-  common::Pose2 truth(route[0], std::atan2(route[1].y() - route[0].y(), route[1].x() - route[0].x()));
+  common::Pose2 truth(route[0],
+                      std::atan2(route[1].y() - route[0].y(), route[1].x() - route[0].x()));
   common::Pose2 odom = truth;
   double t = 0;
   const auto emit = [&] {

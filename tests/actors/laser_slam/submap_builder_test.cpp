@@ -137,8 +137,7 @@ TEST_CASE("submap builder waits for odometry and counts scans it cannot pair",
   CHECK(h.publishedCount("submaps") == 1);
 }
 
-TEST_CASE("submap builder survives NaN, empty and all-max-range scans",
-          "[rbpf][submap_builder]") {
+TEST_CASE("submap builder survives NaN, empty and all-max-range scans", "[rbpf][submap_builder]") {
   const auto sim = test::simulateRoomLoop();
   ActorHarness h(std::make_unique<SubmapBuilderActor>(fastOptions()));
   const std::vector<float> nans(181, std::numeric_limits<float>::quiet_NaN());
@@ -232,7 +231,8 @@ TEST_CASE("map assembler draws submaps at their global poses", "[map_assembler]"
 }
 
 TEST_CASE("map assembler actor chains hand-over constraints", "[map_assembler]") {
-  ActorHarness h(std::make_unique<laser_slam::MapAssemblerActor>(laser_slam::MapAssemblerOptions{}));
+  ActorHarness h(
+      std::make_unique<laser_slam::MapAssemblerActor>(laser_slam::MapAssemblerOptions{}));
   const auto submap = [&](int id, const Pose2& carried) {
     h.push<msg::Submap>("submaps", [&](auto& b) {
       setHeader(b.initHeader(), id, "map", 0);

@@ -11,9 +11,9 @@
 // otherwise the globalPose its message carries. (The graph optimiser issue adds optimised poses.)
 #pragma once
 
+#include <tessera/msg/submap.capnp.h>
 #include <tessera/laser_slam/map_assembler.hpp>
 #include <tessera/messages/types.hpp>
-#include <tessera/msg/submap.capnp.h>
 #include <tessera/runtime/actor.hpp>
 
 #include <cstdint>
@@ -55,7 +55,7 @@ class MapAssemblerActor final : public Actor {
   MapAssemblerOptions options_;
   MapAssembler assembler_;
   Publisher<msg::OccupancyGrid> map_pub_;
-  std::map<int, common::Pose2> message_pose_;   // globalPose carried by each submap message
+  std::map<int, common::Pose2> message_pose_;  // globalPose carried by each submap message
   std::map<int, std::pair<int, common::Pose2>> handover_;  // to-id -> (from-id, relative)
   Nanos last_stamp_ = 0;
   bool dirty_ = false;

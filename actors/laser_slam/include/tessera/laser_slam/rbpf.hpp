@@ -75,26 +75,26 @@ struct PoseWithCovariance {
 /// A submap closed by startSubmap(): the best particle's map and the hand-over constraint.
 struct FinishedSubmap {
   int id = 0;
-  common::TiledGrid grid;              ///< in the submap's own frame (origin = its first pose)
-  PoseWithCovariance next_in_this;     ///< the next submap's origin expressed in this submap
+  common::TiledGrid grid;           ///< in the submap's own frame (origin = its first pose)
+  PoseWithCovariance next_in_this;  ///< the next submap's origin expressed in this submap
   std::uint64_t scans_inserted = 0;
   double travelled_m = 0.0;
 };
 
 /// What one addScan() did.
 struct RbpfStep {
-  bool updated = false;       ///< the filter ran (gate passed, scan usable)
+  bool updated = false;  ///< the filter ran (gate passed, scan usable)
   bool resampled = false;
-  bool matched = false;       ///< at least one particle's scan match succeeded
-  bool scan_unusable = false; ///< no valid beam (NaN, empty, all no-return): odometry only
-  double neff = 0.0;          ///< N_eff before resampling (valid when updated)
+  bool matched = false;        ///< at least one particle's scan match succeeded
+  bool scan_unusable = false;  ///< no valid beam (NaN, empty, all no-return): odometry only
+  double neff = 0.0;           ///< N_eff before resampling (valid when updated)
 };
 
 struct RbpfStats {
-  std::uint64_t scans = 0;             ///< addScan() calls
-  std::uint64_t updates = 0;           ///< filter updates (including the first scan)
+  std::uint64_t scans = 0;    ///< addScan() calls
+  std::uint64_t updates = 0;  ///< filter updates (including the first scan)
   std::uint64_t resamples = 0;
-  std::uint64_t match_failures = 0;    ///< particle updates that fell back to the motion model
+  std::uint64_t match_failures = 0;  ///< particle updates that fell back to the motion model
   std::uint64_t particle_updates = 0;
   std::uint64_t unusable_scans = 0;
   std::uint64_t invalid_odometry = 0;  ///< non-finite odometry poses ignored
@@ -187,13 +187,13 @@ class Rbpf {
   std::uint64_t submap_scans_ = 0;
   double submap_travelled_ = 0.0;
 
-  common::Pose2 last_odometry_;         // at the last scan
-  common::Pose2 update_odometry_;       // at the last filter update
+  common::Pose2 last_odometry_;    // at the last scan
+  common::Pose2 update_odometry_;  // at the last filter update
   double update_stamp_s_ = 0.0;
   double travelled_since_update_ = 0.0;
   double turned_since_update_ = 0.0;
-  int best_ = 0;                        // best particle at the last update
-  std::uint64_t update_index_ = 0;      // seeds the per-particle random streams
+  int best_ = 0;                    // best particle at the last update
+  std::uint64_t update_index_ = 0;  // seeds the per-particle random streams
 
   // The last usable scan, kept so startSubmap() can seed the next submap with it.
   std::vector<float> last_ranges_;

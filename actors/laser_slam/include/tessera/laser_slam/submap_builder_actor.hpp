@@ -20,11 +20,11 @@
 // at or after their stamp and are paired by interpolation; unpairable scans are counted.
 #pragma once
 
+#include <tessera/msg/camera.capnp.h>
+#include <tessera/msg/submap.capnp.h>
 #include <tessera/common/pose_history.hpp>
 #include <tessera/laser_slam/rbpf.hpp>
 #include <tessera/messages/types.hpp>
-#include <tessera/msg/camera.capnp.h>
-#include <tessera/msg/submap.capnp.h>
 #include <tessera/runtime/actor.hpp>
 
 #include <cstdint>
@@ -91,8 +91,10 @@ struct SubmapBuilderOptions {
     v("l_free", l_free, "log-odds added along a beam (< 0)");
     v("l_min", l_min, "lower log-odds clamp (< 0)");
     v("l_max", l_max, "upper log-odds clamp (> 0)");
-    v("max_range", max_range, "returns beyond this [m] are used neither for matching nor as obstacles");
-    v("max_free_range", max_free_range, "no-return beams clear free space this far [m]; 0 disables");
+    v("max_range", max_range,
+      "returns beyond this [m] are used neither for matching nor as obstacles");
+    v("max_free_range", max_free_range,
+      "no-return beams clear free space this far [m]; 0 disables");
     v("match_beam_step", match_beam_step, "scan matching uses every n-th valid beam");
     v("match_kernel_radius", match_kernel_radius, "cells searched around each beam endpoint");
     v("match_sigma", match_sigma, "score kernel width [m]");
@@ -111,7 +113,8 @@ struct SubmapBuilderOptions {
     v("odom_queue", odom_queue, "odometry mailbox size (keep-latest)");
     v("scan_buffer", scan_buffer, "scans kept waiting for odometry with a later stamp");
     v("pose_history", pose_history, "odometry poses remembered for pairing");
-    v("max_pose_gap_s", max_pose_gap_s, "do not interpolate odometry over gaps longer than this [s]");
+    v("max_pose_gap_s", max_pose_gap_s,
+      "do not interpolate odometry over gaps longer than this [s]");
   }
 
   /// The filter options these parameters describe.

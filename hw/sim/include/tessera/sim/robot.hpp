@@ -48,9 +48,9 @@ struct OdometryNoise {
   /// Systematic errors (a wrong wheel radius, unequal wheels): the random terms above average
   /// out over many small steps, these do not, so dead reckoning drifts by metres over a long
   /// route as real odometry does.
-  double bias_d = 0.0;      ///< relative distance error: integrated distance × (1 + bias_d)
-  double bias_theta = 0.0;  ///< relative rotation error: integrated rotation × (1 + bias_theta)
-  double drift_theta = 0.0; ///< [rad/m] heading drift per metre travelled
+  double bias_d = 0.0;       ///< relative distance error: integrated distance × (1 + bias_d)
+  double bias_theta = 0.0;   ///< relative rotation error: integrated rotation × (1 + bias_theta)
+  double drift_theta = 0.0;  ///< [rad/m] heading drift per metre travelled
 };
 
 /// Dead reckoning from noisy wheel increments, with its growing covariance.
