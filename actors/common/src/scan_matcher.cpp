@@ -53,6 +53,13 @@ ScanMatcher::ScanMatcher(ScanMatcherOptions o) : options_(o) {
   check(positive(o.covariance_linear), "covariance_linear must be > 0 m");
   check(positive(o.covariance_angular), "covariance_angular must be > 0 rad");
   check(o.covariance_steps >= 1 && o.covariance_steps <= 10, "covariance_steps must be in [1, 10]");
+  const int r = o.kernel_radius;
+  for (int dy = -r; dy <= r; ++dy)
+    for (int dx = -r; dx <= r; ++dx)
+      kernel_.push_back({dx, dy, std::sqrt(static_cast<float>(dx * dx + dy * dy))});
+  std::stable_sort(
+      kernel_.begin(), kernel_.end(),
+      [](const KernelOffset& a, const KernelOffset& b) { return a.distance < b.distance; });
 }
 
 ScanPoints ScanMatcher::prepare(const RangeScan& scan, const Pose2& mount) const {

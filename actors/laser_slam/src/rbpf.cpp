@@ -79,6 +79,8 @@ Rbpf::Rbpf(RbpfOptions options) : options_(std::move(options)), matcher_(options
   require(
       o.resample_threshold > 0 && o.resample_threshold <= 1,
       "resample_threshold must be in (0, 1] (got " + std::to_string(o.resample_threshold) + ")");
+  require(std::isfinite(o.weight_divisor) && o.weight_divisor >= 0,
+          "weight_divisor must be >= 0 (0 = the particle count)");
   require(std::isfinite(o.linear_update) && o.linear_update >= 0, "linear_update must be >= 0 [m]");
   require(std::isfinite(o.angular_update) && o.angular_update >= 0,
           "angular_update must be >= 0 [rad]");
@@ -89,6 +91,15 @@ Rbpf::Rbpf(RbpfOptions options) : options_(std::move(options)), matcher_(options
     require(std::isfinite(v) && v >= 0, "motion noise srr/srt/str/stt must be >= 0");
   // The grid validates its own options; fail here, at configuration, not at the first scan.
   common::TiledGrid probe(o.grid);
+  require(o.coarse_kernel_radius >= 0, "coarse_kernel_radius must be >= 0 (0 disables)");
+  require(o.coarse_beam_step >= 1, "coarse_beam_step must be >= 1");
+  if (o.coarse_kernel_radius > 0) {
+    common::ScanMatcherOptions coarse = o.matcher;
+    coarse.kernel_radius = o.coarse_kernel_radius;
+    coarse.beam_step = o.matcher.beam_step * o.coarse_beam_step;
+    coarse.refinements = 2;  // only to get into the fine stage's basin
+    coarse_matcher_.emplace(coarse);
+  }
 }
 
 Eigen::Matrix3d Rbpf::motionCovariance(const Pose2& delta) const {
@@ -96,9 +107,9 @@ Eigen::Matrix3d Rbpf::motionCovariance(const Pose2& delta) const {
   const double trans = std::hypot(delta.x, delta.y);
   const double rot = std::abs(delta.theta);
   // A small floor keeps the prior proper when the robot barely moved (time-triggered updates).
-  const double sx = m.srr * std::abs(delta.x) + m.str * rot + 1e-3;
-  const double sy = m.srr * std::abs(delta.y) + m.str * rot + 1e-3;
-  const double st = m.stt * rot + m.srt * trans + 1e-3;
+  const double sx = m.srr * std::abs(delta.x) + m.srt * rot + 1e-3;
+  const double sy = m.srr * std::abs(delta.y) + m.srt * rot + 1e-3;
+  const double st = m.stt * rot + m.str * trans + 1e-3;
   return Eigen::Vector3d(sx * sx, sy * sy, st * st).asDiagonal();
 }
 
@@ -111,6 +122,8 @@ RbpfStep Rbpf::addScan(double stamp_s, const common::RangeScan& scan, const Pose
     return step;
   }
   const common::ScanPoints points = matcher_.prepare(scan, mount);
+  const common::ScanPoints coarse_points =
+      coarse_matcher_ ? coarse_matcher_->prepare(scan, mount) : common::ScanPoints{};
   const bool usable = !points.endpoints.empty();
   if (usable) {
     last_ranges_.assign(scan.ranges.begin(), scan.ranges.end());
@@ -149,7 +162,8 @@ RbpfStep Rbpf::addScan(double stamp_s, const common::RangeScan& scan, const Pose
   if (!gate) return step;
 
   ++update_index_;
-  const std::size_t failures = updateParticles(points, common::between(update_odometry_, odometry));
+  const std::size_t failures =
+      updateParticles(points, coarse_points, common::between(update_odometry_, odometry));
   step.updated = true;
   step.matched = failures < particles_.size();
   step.neff = normalizeWeights();
@@ -188,8 +202,12 @@ void Rbpf::initialize(double stamp_s, const common::RangeScan& scan, const Pose2
   ++stats_.updates;
 }
 
-std::size_t Rbpf::updateParticles(const common::ScanPoints& points, const Pose2& odom_delta) {
+std::size_t Rbpf::updateParticles(const common::ScanPoints& points,
+                                  const common::ScanPoints& coarse_points,
+                                  const Pose2& odom_delta) {
   const Eigen::Matrix3d local_cov = motionCovariance(odom_delta);
+  const double divisor = options_.weight_divisor > 0 ? options_.weight_divisor
+                                                     : static_cast<double>(particles_.size());
   std::atomic<std::uint64_t> failures{0};
   const auto update = [&](std::size_t i) {
     Particle& p = particles_[i];
@@ -200,16 +218,29 @@ std::size_t Rbpf::updateParticles(const common::ScanPoints& points, const Pose2&
     r.topLeftCorner<2, 2>() = p.pose.rotation();
     const Eigen::Matrix3d prior_cov = r * local_cov * r.transpose();
 
-    const common::MatchResult match = matcher_.match(*p.map, points, prior);
-    const Pose2 mode = match.success ? match.pose : prior;
+    // Each particle starts its search from its own draw of the odometry prior (as GMapping
+    // does): copies made by resampling then settle in different local optima, which keeps the
+    // diversity that lets the filter close loops. The weight still uses the prior's density.
+    Pose2 start = options_.sample_match_start ? sampleGaussian(prior, prior_cov, rng) : prior;
+    bool matched = false;
+    if (coarse_matcher_) {
+      const common::MatchResult coarse = coarse_matcher_->match(*p.map, coarse_points, prior);
+      if (coarse.success) start = coarse.pose;
+      matched = coarse.success;
+    }
+    const common::MatchResult match = matcher_.match(*p.map, points, start);
+    matched = matched || match.success;
+    // The fine stage refines the coarse pose; when it cannot (too few beams within its narrow
+    // kernel), the coarse pose is still better than the odometry prior.
+    const Pose2 mode = match.success ? match.pose : start;
     const common::ProposalFit fit = matcher_.fitProposal(*p.map, points, mode, prior, prior_cov);
-    if (match.success) {
+    if (matched) {
       p.pose = options_.sample_proposal ? sampleGaussian(fit.mean, fit.covariance, rng) : fit.mean;
     } else {
       failures.fetch_add(1, std::memory_order_relaxed);
       p.pose = sampleGaussian(prior, prior_cov, rng);
     }
-    const double inc = std::isfinite(fit.log_eta) ? fit.log_eta : -1e6;
+    const double inc = (std::isfinite(fit.log_eta) ? fit.log_eta : -1e6) / divisor;
     p.log_weight += inc;
     p.log_score += inc;
   };

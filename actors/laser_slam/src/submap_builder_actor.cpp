@@ -47,6 +47,7 @@ RbpfOptions SubmapBuilderOptions::rbpf() const {
   RbpfOptions o;
   o.particles = particles;
   o.resample_threshold = resample_threshold;
+  o.weight_divisor = weight_divisor;
   o.linear_update = linear_update;
   o.angular_update = angular_update;
   o.temporal_update = temporal_update;
@@ -54,6 +55,7 @@ RbpfOptions SubmapBuilderOptions::rbpf() const {
   o.seed = seed;
   o.parallel = parallel;
   o.sample_proposal = sample_proposal;
+  o.sample_match_start = sample_match_start;
   o.grid.resolution = resolution;
   o.grid.log_odds = {static_cast<float>(l_occ), static_cast<float>(l_free),
                      static_cast<float>(l_min), static_cast<float>(l_max)};
@@ -62,12 +64,16 @@ RbpfOptions SubmapBuilderOptions::rbpf() const {
   o.matcher.max_range = max_range;
   o.matcher.beam_step = match_beam_step;
   o.matcher.kernel_radius = match_kernel_radius;
+  o.coarse_kernel_radius = coarse_kernel_radius;
+  o.coarse_beam_step = coarse_beam_step;
   o.matcher.sigma = match_sigma;
   o.matcher.likelihood_sigma = match_likelihood_sigma;
   o.matcher.likelihood_gain = match_likelihood_gain;
   o.matcher.linear_step = match_linear_step;
   o.matcher.angular_step = match_angular_step;
   o.matcher.refinements = match_refinements;
+  o.matcher.min_score_fraction = match_min_fraction;
+  o.matcher.compute_covariance = false;  // the filter fits its own proposal covariance
   return o;
 }
 

@@ -215,6 +215,14 @@ class ScanMatcher {
                                           const Pose2& centre, const detail::SampleGrid& g) const;
 
   ScanMatcherOptions options_;
+  // The (2r+1)² kernel offsets, nearest to the centre cell first: the search stops as soon as
+  // no remaining offset can beat the best distance found, which for a beam on a wall is after a
+  // handful of cells instead of all of them.
+  struct KernelOffset {
+    int dx, dy;
+    float distance;  // |offset| [cells]
+  };
+  std::vector<KernelOffset> kernel_;
 };
 
 // ---- template definitions ----
@@ -271,20 +279,17 @@ ScanMatcher::Eval ScanMatcher::evaluate(const Grid& grid, const ScanPoints& poin
       return grid.logOdds(cand) > threshold &&
              !(check_back && grid.logOdds(Eigen::Vector2i(cand + back)) > threshold);
     };
-    // The endpoint's own cell first: at a good pose it is usually the answer, and its distance
-    // then prunes the rest of the window without touching the grid.
+    // Nearest offsets first (the endpoint's own cell leads): at a good pose the first few
+    // cells hold the answer, and the lower bound then ends the walk without touching the rest.
     float best = big_r2;
-    if (const float d2 = ux * ux + uy * uy; d2 < best && candidate(0, 0)) best = d2;
-    for (int dy = -r; dy <= r; ++dy) {
-      const float ry = uy - static_cast<float>(dy) * resf;
-      const float ry2 = ry * ry;
-      if (ry2 >= best) continue;
-      for (int dx = -r; dx <= r; ++dx) {
-        const float rx = ux - static_cast<float>(dx) * resf;
-        const float d2 = rx * rx + ry2;
-        if (d2 >= best || (dx == 0 && dy == 0)) continue;
-        if (candidate(dx, dy)) best = d2;
-      }
+    const float u_norm = std::sqrt(ux * ux + uy * uy);
+    for (const KernelOffset& k : kernel_) {
+      const float lower = k.distance * resf - u_norm;
+      if (lower > 0.0f && lower * lower >= best) break;
+      const float rx = ux - static_cast<float>(k.dx) * resf;
+      const float ry = uy - static_cast<float>(k.dy) * resf;
+      const float d2 = rx * rx + ry * ry;
+      if (d2 < best && candidate(k.dx, k.dy)) best = d2;
     }
     if (best < big_r2) ++out.matched;
     d2_sum += best;

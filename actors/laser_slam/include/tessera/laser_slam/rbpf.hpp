@@ -41,29 +41,42 @@
 
 namespace tessera::laser_slam {
 
-/// Odometry noise model (GMapping's): standard deviations of the increment, per unit of motion.
+/// Odometry noise model, with GMapping's names and defaults: standard deviations of an
+/// increment per unit of motion (s<error><cause>: r = translation, t = rotation).
 struct MotionNoise {
   double srr = 0.1;  ///< [m/m] translation error per metre travelled
-  double srt = 0.2;  ///< [rad/m] rotation error per metre travelled
-  double str = 0.1;  ///< [m/rad] translation error per radian turned
+  double srt = 0.2;  ///< [m/rad] translation error per radian turned
+  double str = 0.1;  ///< [rad/m] rotation error per metre travelled
   double stt = 0.2;  ///< [rad/rad] rotation error per radian turned
 };
 
 struct RbpfOptions {
   int particles = 30;
   double resample_threshold = 0.5;  ///< resample when N_eff < this · particles (0..1]
-  double linear_update = 1.0;       ///< [m] travel that triggers a filter update
-  double angular_update = 0.5;      ///< [rad] rotation that triggers a filter update
-  double temporal_update = 0.0;     ///< [s] time that triggers an update; 0 disables
+  /// Log-weight increments are divided by this before they enter the weights (0 = the particle
+  /// count, as GMapping does). Beams are not independent, so the raw scan likelihood is far too
+  /// peaked: without it one particle takes all the weight at every update and the filter loses
+  /// the diversity it needs to close loops.
+  double weight_divisor = 0.0;
+  double linear_update = 1.0;    ///< [m] travel that triggers a filter update
+  double angular_update = 0.5;   ///< [rad] rotation that triggers a filter update
+  double temporal_update = 0.0;  ///< [s] time that triggers an update; 0 disables
   MotionNoise motion;
   common::TiledGridOptions grid;
   common::ScanInsertOptions insert;
-  common::ScanMatcherOptions matcher;
+  common::ScanMatcherOptions matcher;  ///< fine matching, proposal and weights
+  /// Coarse first stage: a wider kernel on fewer beams widens the basin of attraction cheaply
+  /// (odometry after a 1 m gate can be off by more than the fine kernel reaches); the fine
+  /// stage starts where it ends. coarse_kernel_radius 0 disables the stage.
+  int coarse_kernel_radius = 4;
+  int coarse_beam_step = 4;
   std::uint64_t seed = 1;  ///< results are reproducible for a seed, whatever the thread count
   bool parallel = true;    ///< particles on TBB worker threads (false: one thread)
   /// Draw each particle's pose from the fitted proposal (Grisetti et al. 2007); false keeps the
   /// proposal's mean (GMapping's shortcut: less diversity, less jitter).
   bool sample_proposal = true;
+  /// Start each particle's scan match from a draw of the odometry prior instead of its mean.
+  bool sample_match_start = false;
 };
 
 /// A pose with its uncertainty, e.g. an inter-submap constraint.
@@ -172,7 +185,9 @@ class Rbpf {
   void initialize(double stamp_s, const common::RangeScan& scan, const common::Pose2& mount,
                   const common::Pose2& odometry);
   /// Returns how many particles fell back to the motion model.
-  std::size_t updateParticles(const common::ScanPoints& points, const common::Pose2& odom_delta);
+  std::size_t updateParticles(const common::ScanPoints& points,
+                              const common::ScanPoints& coarse_points,
+                              const common::Pose2& odom_delta);
   double normalizeWeights();
   void resample();
   void insertScan(double stamp_s, const common::RangeScan& scan, const common::Pose2& mount);
@@ -181,6 +196,7 @@ class Rbpf {
 
   RbpfOptions options_;
   common::ScanMatcher matcher_;
+  std::optional<common::ScanMatcher> coarse_matcher_;
   std::vector<Particle> particles_;
   bool initialized_ = false;
   int submap_id_ = 0;

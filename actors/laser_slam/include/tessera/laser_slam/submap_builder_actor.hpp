@@ -37,6 +37,7 @@ struct SubmapBuilderOptions {
   // Filter (see RbpfOptions).
   int particles = 30;
   double resample_threshold = 0.5;
+  double weight_divisor = 0.0;
   double linear_update = 1.0;
   double angular_update = 0.5;
   double temporal_update = 0.0;
@@ -44,20 +45,26 @@ struct SubmapBuilderOptions {
   std::uint64_t seed = 1;
   bool parallel = true;
   bool sample_proposal = true;
+  bool sample_match_start = false;
   // Grid.
   double resolution = 0.05;
-  double l_occ = 0.85, l_free = -0.4, l_min = -2.0, l_max = 3.5;
+  // A weaker miss than the known-pose mapper's: a wall cell crossed by grazing beams keeps its
+  // evidence, so scan matching still finds it (GMapping counts a cell hit by 10 % of its beams).
+  double l_occ = 0.85, l_free = -0.2, l_min = -2.0, l_max = 3.5;
   double max_range = 30.0;
   double max_free_range = 10.0;
   // Scan matcher (see ScanMatcherOptions).
   int match_beam_step = 1;
   int match_kernel_radius = 1;
+  int coarse_kernel_radius = 4;
+  int coarse_beam_step = 4;
   double match_sigma = 0.05;
   double match_likelihood_sigma = 0.075;
   double match_likelihood_gain = 3.0;
   double match_linear_step = 0.05;
   double match_angular_step = 0.05;
   int match_refinements = 5;
+  double match_min_fraction = 0.1;
   // Submaps.
   double submap_distance = 0.0;  // [m] travelled; 0 = never
   int submap_scans = 0;          // inserted scans; 0 = never
@@ -75,17 +82,21 @@ struct SubmapBuilderOptions {
     v("particles", particles, "particles per submap");
     v("resample_threshold", resample_threshold,
       "resample when N_eff < this fraction of the particle count (0..1]");
+    v("weight_divisor", weight_divisor,
+      "log-weight increments are divided by this (0 = the particle count, as GMapping)");
     v("linear_update", linear_update, "filter update after this much travel [m]");
     v("angular_update", angular_update, "filter update after this much rotation [rad]");
     v("temporal_update", temporal_update, "filter update after this much time [s]; 0 disables");
     v("srr", srr, "odometry noise: translation per metre travelled [m/m]");
-    v("srt", srt, "odometry noise: rotation per metre travelled [rad/m]");
-    v("str", str, "odometry noise: translation per radian turned [m/rad]");
+    v("srt", srt, "odometry noise: translation per radian turned [m/rad]");
+    v("str", str, "odometry noise: rotation per metre travelled [rad/m]");
     v("stt", stt, "odometry noise: rotation per radian turned [rad/rad]");
     v("seed", seed, "random seed (runs are reproducible for a seed)");
     v("parallel", parallel, "update particles on TBB worker threads");
     v("sample_proposal", sample_proposal,
       "draw poses from the fitted proposal (true) or keep its mean (false)");
+    v("sample_match_start", sample_match_start,
+      "start each particle's scan match from its own draw of the odometry prior");
     v("resolution", resolution, "submap cell size [m]");
     v("l_occ", l_occ, "log-odds added at a beam endpoint (> 0)");
     v("l_free", l_free, "log-odds added along a beam (< 0)");
@@ -97,6 +108,9 @@ struct SubmapBuilderOptions {
       "no-return beams clear free space this far [m]; 0 disables");
     v("match_beam_step", match_beam_step, "scan matching uses every n-th valid beam");
     v("match_kernel_radius", match_kernel_radius, "cells searched around each beam endpoint");
+    v("coarse_kernel_radius", coarse_kernel_radius,
+      "coarse matching stage: cells searched around each endpoint (wider basin); 0 disables");
+    v("coarse_beam_step", coarse_beam_step, "coarse matching stage uses every n-th beam");
     v("match_sigma", match_sigma, "score kernel width [m]");
     v("match_likelihood_sigma", match_likelihood_sigma, "likelihood kernel width [m]");
     v("match_likelihood_gain", match_likelihood_gain,
@@ -104,6 +118,9 @@ struct SubmapBuilderOptions {
     v("match_linear_step", match_linear_step, "initial hill-climbing step [m]");
     v("match_angular_step", match_angular_step, "initial hill-climbing step [rad]");
     v("match_refinements", match_refinements, "hill-climbing step halvings");
+    v("match_min_fraction", match_min_fraction,
+      "a match succeeds when at least this fraction of the beams lands near an obstacle; "
+      "otherwise the particle follows odometry");
     v("submap_distance", submap_distance, "start a new submap after this travel [m]; 0 = never");
     v("submap_scans", submap_scans, "start a new submap after this many inserted scans; 0 = never");
     v("camera_trigger", camera_trigger,
