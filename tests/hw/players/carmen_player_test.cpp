@@ -225,9 +225,15 @@ TEST_CASE("carmen_player replays the GMapping-corrected log with ODOM and refere
 
 TEST_CASE("carmen_player stamps scans from a scan_times file when the log repeats stamps",
           "[players][carmen]") {
+  // All files in one folder: writeLog() starts a fresh folder each time.
+  const fs::path dir = tessera::test::scratchDir("carmen_scan_times");
+  const auto write = [&](const std::string& name, const std::string& text) {
+    std::ofstream(dir / name) << text;
+    return dir / name;
+  };
   const auto path =
-      writeLog("dup.log", flaser(1000.0, 0.0) + flaser(1000.0, 1.0) + flaser(1000.0, 2.0));
-  const auto times = writeLog("times.txt", "0 1000.0 1\n1 1000.25 0\n2 1000.5 0\n");
+      write("dup.log", flaser(1000.0, 0.0) + flaser(1000.0, 1.0) + flaser(1000.0, 2.0));
+  const auto times = write("times.txt", "0 1000.0 1\n1 1000.25 0\n2 1000.5 0\n");
   CarmenPlayerOptions o = optionsFor(path);
   o.scan_times = times.string();
   ActorHarness h(std::make_unique<CarmenPlayer>(o));
@@ -243,7 +249,7 @@ TEST_CASE("carmen_player stamps scans from a scan_times file when the log repeat
   }
 
   // Fewer times than laser lines: the run stops naming the times file.
-  const auto short_times = writeLog("short.txt", "0 1000.0 1\n1 1000.25 0\n");
+  const auto short_times = write("short.txt", "0 1000.0 1\n1 1000.25 0\n");
   o.scan_times = short_times.string();
   ActorHarness h2(std::make_unique<CarmenPlayer>(o));
   h2.advance(kNanosPerSecond);
@@ -251,10 +257,10 @@ TEST_CASE("carmen_player stamps scans from a scan_times file when the log repeat
   CHECK_THAT(summaryString(h2.actor(), "error"), Contains("short.txt") && Contains("more"));
 
   // Out of order or malformed: refused at configuration with the option's name.
-  o.scan_times = writeLog("bad.txt", "0 1000.0 1\n1 999.0 0\n").string();
+  o.scan_times = write("bad.txt", "0 1000.0 1\n1 999.0 0\n").string();
   CHECK_THAT(configErrorOf(o), Contains("scan_times") && Contains("bad.txt:2"));
-  o.scan_times = writeLog("garbage.txt", "0 1000.0 1\nzero x\n").string();
+  o.scan_times = write("garbage.txt", "0 1000.0 1\nzero x\n").string();
   CHECK_THAT(configErrorOf(o), Contains("scan_times") && Contains("garbage.txt:2"));
-  o.scan_times = writeLog("empty.txt", "# nothing\n").string();
+  o.scan_times = write("empty.txt", "# nothing\n").string();
   CHECK_THAT(configErrorOf(o), Contains("holds no times"));
 }
