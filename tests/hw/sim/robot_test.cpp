@@ -255,3 +255,23 @@ TEST_CASE("RouteFollower: the office route is driven without touching walls",
     min_clear = std::min(min_clear, office.clearance(r.trajectory[i].xy(), 1.0));
   CHECK(min_clear > 0.25);
 }
+
+TEST_CASE("Odometry: systematic biases make dead reckoning drift", "[sim][robot]") {
+  std::mt19937_64 rng(5);
+  OdometryNoise noise{0.0, 0.0};
+  noise.bias_d = 0.1;         // wheels report 10 % too much distance
+  noise.drift_theta = 0.01;   // and turn 0.01 rad per metre
+  Odometry odo({0, 0, 0}, noise);
+  for (int i = 0; i < 1000; ++i) odo.integrate(0.01, 0.0, rng);  // 10 m straight
+  const double path = 10.0 * 1.1;
+  CHECK(odo.pose().theta == Approx(0.01 * 10.0).margin(1e-9));
+  // Driving an arc of length 11 m that turns by 0.1 rad.
+  CHECK(std::hypot(odo.pose().x, odo.pose().y) == Approx(path).epsilon(0.01));
+  CHECK(odo.pose().y > 0.3);
+  noise.bias_theta = 0.05;
+  noise.bias_d = 0.0;
+  noise.drift_theta = 0.0;
+  Odometry turn({0, 0, 0}, noise);
+  for (int i = 0; i < 100; ++i) turn.integrate(0.0, 0.01, rng);  // 1 rad in place
+  CHECK(turn.pose().theta == Approx(1.05).margin(1e-9));
+}

@@ -320,7 +320,7 @@ TEST_CASE("SimulatorActor: options from YAML and the registry", "[sim][actor][op
   const auto* entry = ActorRegistry::instance().find("simulator");
   REQUIRE(entry != nullptr);
   const auto rows = entry->options();
-  CHECK(rows.size() == 19);
+  CHECK(rows.size() == 22);
   for (const auto& row : rows) CHECK_FALSE(row[2].empty());  // every key documented
   auto actor = ActorRegistry::instance().create(
       "simulator", Params(YAML::Load("{route: [[7.5, 7.5], [12, 7.5]]}"), "test"));
