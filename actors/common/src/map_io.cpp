@@ -1,9 +1,7 @@
-// The only file of actors/common that includes OpenCV (PNG output, non-PGM map images).
 #include <tessera/common/map_io.hpp>
+#include <tessera/io/image_file.hpp>
 
 #include <yaml-cpp/yaml.h>
-#include <opencv2/core.hpp>
-#include <opencv2/imgcodecs.hpp>
 
 #include <algorithm>
 #include <array>
@@ -21,8 +19,6 @@ namespace fs = std::filesystem;
 namespace {
 
 constexpr std::uint8_t kOccupiedPixel = 0, kFreePixel = 254, kUnknownPixel = 205;
-// Refuse absurd headers before allocating (2^28 pixels = 256 MB, ~13 km square at 5 cm).
-constexpr long long kMaxPixels = 1LL << 28;
 
 /// 12 significant digits: sub-nanometre for map sizes, and free of binary noise such as
 /// 3 * 0.05 = 0.15000000000000002 that would otherwise show in every origin.
@@ -41,82 +37,14 @@ fs::path withSuffix(const fs::path& base, const char* suffix) {
   throw MapIoError(file.string() + ": " + what);
 }
 
-std::string readWholeFile(const fs::path& path) {
-  std::ifstream in(path, std::ios::binary);
-  if (!in) fail(path, "cannot open for reading");
-  std::string data((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
-  if (in.bad()) fail(path, "read error");
-  return data;
-}
-
-/// Tokenizer for the PGM header: whitespace-separated tokens, '#' comments to end of line.
-class PgmHeader {
- public:
-  PgmHeader(const std::string& data, const fs::path& path) : data_(data), path_(path) {}
-
-  std::string token(const char* what) {
-    skipSpaceAndComments();
-    const std::size_t start = pos_;
-    while (pos_ < data_.size() && !std::isspace(static_cast<unsigned char>(data_[pos_])) &&
-           data_[pos_] != '#')
-      ++pos_;
-    if (start == pos_)
-      fail(path_, std::string("bad PGM header: expected ") + what + ", found end of file");
-    return data_.substr(start, pos_ - start);
-  }
-
-  long long positive(const char* what) {
-    const std::string t = token(what);
-    long long v = 0;
-    const auto [ptr, ec] = std::from_chars(t.data(), t.data() + t.size(), v);
-    if (ec != std::errc() || ptr != t.data() + t.size() || v <= 0)
-      fail(path_, std::string("bad PGM header: expected ") + what +
-                      " (a positive integer), found '" + t + "'");
-    return v;
-  }
-
-  /// After maxval exactly one whitespace byte separates the header from binary pixels.
-  std::size_t binaryStart() {
-    if (pos_ >= data_.size() || !std::isspace(static_cast<unsigned char>(data_[pos_])))
-      fail(path_, "bad PGM header: expected one whitespace byte after maxval");
-    return pos_ + 1;
-  }
-  std::size_t position() const { return pos_; }
-
- private:
-  void skipSpaceAndComments() {
-    while (pos_ < data_.size()) {
-      if (std::isspace(static_cast<unsigned char>(data_[pos_]))) {
-        ++pos_;
-      } else if (data_[pos_] == '#') {
-        while (pos_ < data_.size() && data_[pos_] != '\n') ++pos_;
-      } else {
-        break;
-      }
-    }
-  }
-  const std::string& data_;
-  const fs::path& path_;
-  std::size_t pos_ = 0;
-};
-
-GrayImage readWithOpenCv(const fs::path& path) {
-  cv::Mat m;
+/// The shared image-file code reports ImageFileError; map IO reports MapIoError.
+template <typename F>
+auto mapIo(F&& f) {
   try {
-    m = cv::imread(path.string(), cv::IMREAD_GRAYSCALE);
-  } catch (const cv::Exception& e) {
-    fail(path, std::string("cannot read image: ") + e.what());
+    return f();
+  } catch (const io::ImageFileError& e) {
+    throw MapIoError(e.what());
   }
-  if (m.empty()) fail(path, "cannot read image (missing file or unsupported format)");
-  if (m.depth() != CV_8U) fail(path, "expected an 8-bit image");
-  GrayImage img;
-  img.width = m.cols;
-  img.height = m.rows;
-  img.pixels.resize(static_cast<std::size_t>(m.cols) * m.rows);
-  for (int r = 0; r < m.rows; ++r)
-    std::copy_n(m.ptr<std::uint8_t>(r), m.cols,
-                img.pixels.begin() + static_cast<std::ptrdiff_t>(r) * m.cols);
-  return img;
 }
 
 // ---- YAML field access with errors that name the file, line and key ----
@@ -147,61 +75,14 @@ double finiteNumber(const YAML::Node& n, const char* key, const fs::path& path) 
 // ---------------------------------------------------------------------------------------------
 
 void writePgm(const GrayImage& image, const fs::path& path) {
-  if (image.pixels.size() != static_cast<std::size_t>(image.width) * image.height)
-    fail(path, "image holds " + std::to_string(image.pixels.size()) + " pixels, expected " +
-                   std::to_string(static_cast<std::size_t>(image.width) * image.height));
-  std::ofstream out(path, std::ios::binary | std::ios::trunc);
-  if (!out) fail(path, "cannot open for writing");
-  out << "P5\n# tessera occupancy map\n" << image.width << ' ' << image.height << "\n255\n";
-  out.write(reinterpret_cast<const char*>(image.pixels.data()),
-            static_cast<std::streamsize>(image.pixels.size()));
-  out.close();
-  if (!out) fail(path, "write failed");
+  mapIo([&] {
+    io::writePgmFile(image, path);
+    return 0;
+  });
 }
 
 GrayImage readPgm(const fs::path& path) {
-  const std::string data = readWholeFile(path);
-  PgmHeader header(data, path);
-  const std::string magic = header.token("magic 'P5' or 'P2'");
-  if (magic != "P5" && magic != "P2")
-    fail(path, "bad PGM header: expected magic 'P5' or 'P2', found '" + magic.substr(0, 16) + "'");
-  const long long width = header.positive("width");
-  const long long height = header.positive("height");
-  const long long maxval = header.positive("maxval");
-  if (maxval > 255)
-    fail(path,
-         "maxval " + std::to_string(maxval) + " (16-bit PGM) is not supported; expected 1..255");
-  if (width * height > kMaxPixels)
-    fail(path, "image of " + std::to_string(width) + "x" + std::to_string(height) +
-                   " pixels is larger than supported");
-  GrayImage img;
-  img.width = static_cast<int>(width);
-  img.height = static_cast<int>(height);
-  const std::size_t n = static_cast<std::size_t>(width * height);
-  img.pixels.resize(n);
-  if (magic == "P5") {
-    const std::size_t start = header.binaryStart();
-    const std::size_t available = data.size() - std::min(start, data.size());
-    if (available < n)
-      fail(path, "truncated pixel data: expected " + std::to_string(n) + " bytes for " +
-                     std::to_string(width) + "x" + std::to_string(height) + ", found " +
-                     std::to_string(available));
-    std::copy_n(reinterpret_cast<const std::uint8_t*>(data.data() + start), n, img.pixels.begin());
-  } else {
-    for (std::size_t i = 0; i < n; ++i) {
-      const std::string t = header.token("a pixel value");
-      int v = 0;
-      const auto [ptr, ec] = std::from_chars(t.data(), t.data() + t.size(), v);
-      if (ec != std::errc() || ptr != t.data() + t.size() || v < 0 || v > maxval)
-        fail(path, "bad pixel " + std::to_string(i) + ": expected 0.." + std::to_string(maxval) +
-                       ", found '" + t + "'");
-      img.pixels[i] = static_cast<std::uint8_t>(v);
-    }
-  }
-  for (std::size_t i = 0; i < n && maxval != 255; ++i)
-    img.pixels[i] = static_cast<std::uint8_t>(std::min<long long>(
-        255, (static_cast<long long>(img.pixels[i]) * 255 + maxval / 2) / maxval));
-  return img;
+  return mapIo([&] { return io::readPgmFile(path); });
 }
 
 GrayImage renderTrinary(const OccupancyMap& map, const MapSaveOptions& options) {
@@ -257,14 +138,10 @@ SavedMap saveMap(const OccupancyMap& map, const fs::path& base, const MapSaveOpt
 
   if (options.write_png) {
     saved.png = withSuffix(base, ".png");
-    const cv::Mat m(img.height, img.width, CV_8UC1, const_cast<std::uint8_t*>(img.pixels.data()));
-    bool ok = false;
-    try {
-      ok = cv::imwrite(saved.png.string(), m);
-    } catch (const cv::Exception& e) {
-      fail(saved.png, std::string("PNG write failed: ") + e.what());
-    }
-    if (!ok) fail(saved.png, "PNG write failed");
+    mapIo([&] {
+      io::writePngGray8(img, saved.png);
+      return 0;
+    });
   }
   return saved;
 }
@@ -318,7 +195,8 @@ OccupancyMap loadMap(const fs::path& yaml_path) {
   std::string ext = image_path.extension().string();
   std::transform(ext.begin(), ext.end(), ext.begin(),
                  [](unsigned char c) { return std::tolower(c); });
-  const GrayImage img = ext == ".pgm" ? readPgm(image_path) : readWithOpenCv(image_path);
+  const GrayImage img =
+      ext == ".pgm" ? readPgm(image_path) : mapIo([&] { return io::readGray8(image_path); });
 
   OccupancyMap map;
   map.resolution = resolution;

@@ -1,7 +1,6 @@
 #include <tessera/datasets/rgbd_sequence.hpp>
 
-#include <opencv2/core.hpp>
-#include <opencv2/imgcodecs.hpp>
+#include <tessera/io/image_file.hpp>
 
 #include <Eigen/SVD>
 
@@ -588,30 +587,26 @@ void checkComplete(const fs::path& path, const std::vector<unsigned char>& b) {
   }
 }
 
-cv::Mat decode(const fs::path& path, int flags) {
+template <typename Decode>
+auto decode(const fs::path& path, Decode&& how) {
   const std::vector<unsigned char> bytes = readBytes(path);
   checkComplete(path, bytes);
-  cv::Mat image;
   try {
-    image = cv::imdecode(cv::Mat(1, static_cast<int>(bytes.size()), CV_8UC1,
-                                 const_cast<unsigned char*>(bytes.data())),
-                         flags);
-  } catch (const cv::Exception& e) {
-    throw DatasetError(path, 0, std::string("cannot decode image: ") + e.what());
+    return how(std::span<const std::uint8_t>(bytes.data(), bytes.size()), path.string());
+  } catch (const io::ImageFileError& e) {
+    // The message starts with the file; DatasetError adds it again.
+    std::string what = e.what();
+    if (const std::string prefix = path.string() + ": "; what.rfind(prefix, 0) == 0)
+      what.erase(0, prefix.size());
+    throw DatasetError(path, 0, what);
   }
-  if (image.empty()) throw DatasetError(path, 0, "cannot decode image (corrupt or unknown format)");
-  return image;
 }
 
-std::string describe(const cv::Mat& m) {
-  static const char* depths[] = {"8U", "8S", "16U", "16S", "32S", "32F", "64F", "16F"};
-  return std::to_string(m.channels()) + "-channel " + depths[m.depth() & 7];
-}
-
-void checkSize(const fs::path& path, const cv::Mat& m, const CameraIntrinsics& k) {
-  if (m.cols != k.width || m.rows != k.height)
+template <typename Image>
+void checkSize(const fs::path& path, const Image& m, const CameraIntrinsics& k) {
+  if (m.width != k.width || m.height != k.height)
     throw DatasetError(path, 0,
-                       "image is " + std::to_string(m.cols) + "x" + std::to_string(m.rows) +
+                       "image is " + std::to_string(m.width) + "x" + std::to_string(m.height) +
                            ", the camera intrinsics are for " + std::to_string(k.width) + "x" +
                            std::to_string(k.height));
 }
@@ -630,32 +625,13 @@ RgbdImages loadRgbdImages(const RgbdSequence& sequence, std::size_t i) {
   out.height = k.height;
   out.depth_scale = sequence.depth_scale;
 
-  const cv::Mat bgr = decode(frame.color_path, cv::IMREAD_COLOR);
-  if (bgr.type() != CV_8UC3)
-    throw DatasetError(frame.color_path, 0,
-                       "expected an 8-bit colour image, decoded " + describe(bgr));
-  checkSize(frame.color_path, bgr, k);
-  out.color.resize(static_cast<std::size_t>(k.width) * static_cast<std::size_t>(k.height) * 3);
-  for (int r = 0; r < bgr.rows; ++r) {  // OpenCV decodes to B, G, R; we hand out R, G, B
-    const std::uint8_t* src = bgr.ptr<std::uint8_t>(r);
-    std::uint8_t* dst = out.color.data() + static_cast<std::size_t>(r) * k.width * 3;
-    for (int c = 0; c < bgr.cols; ++c, src += 3, dst += 3) {
-      dst[0] = src[2];
-      dst[1] = src[1];
-      dst[2] = src[0];
-    }
-  }
+  io::Rgb8 rgb = decode(frame.color_path, io::decodeRgb8);
+  checkSize(frame.color_path, rgb, k);
+  out.color = std::move(rgb.pixels);
 
-  const cv::Mat depth = decode(frame.depth_path, cv::IMREAD_UNCHANGED);
-  if (depth.type() != CV_16UC1)
-    throw DatasetError(frame.depth_path, 0,
-                       "expected a single-channel 16-bit depth image, decoded " + describe(depth));
+  io::Gray16 depth = decode(frame.depth_path, io::decodeGray16);
   checkSize(frame.depth_path, depth, k);
-  out.depth.resize(static_cast<std::size_t>(k.width) * static_cast<std::size_t>(k.height));
-  for (int r = 0; r < depth.rows; ++r) {
-    const auto* row = depth.ptr<std::uint16_t>(r);
-    std::copy(row, row + depth.cols, out.depth.data() + static_cast<std::size_t>(r) * k.width);
-  }
+  out.depth = std::move(depth.pixels);
   if (sequence.layout == RgbdLayout::kSevenScenes) {
     for (auto& d : out.depth)
       if (d == 65535) d = 0;  // 7-Scenes marks invalid depth with 65535

@@ -1,7 +1,6 @@
 #include <tessera/sim/world.hpp>
 
-#include <opencv2/core.hpp>
-#include <opencv2/imgcodecs.hpp>
+#include <tessera/io/image_file.hpp>
 
 #include <algorithm>
 #include <cmath>
@@ -64,39 +63,42 @@ World World::fromImage(const std::string& path, double resolution) {
     throw std::runtime_error("world image '" + path + "': is a directory, not an image file");
   if (std::filesystem::file_size(path, ec) == 0)
     throw std::runtime_error("world image '" + path + "': file is empty");
-  cv::Mat img;
+  io::Gray8 img;
   try {
-    img = cv::imread(path, cv::IMREAD_GRAYSCALE);
-  } catch (const cv::Exception& e) {
-    throw std::runtime_error("world image '" + path + "': cannot decode: " + e.what());
-  }
-  if (img.empty())
+    img = io::readGray8(path);
+  } catch (const io::ImageFileError& e) {
     throw std::runtime_error("world image '" + path +
-                             "': not a readable image (expected PGM or PNG)");
-  World w(img.cols, img.rows, resolution);
-  for (int r = 0; r < img.rows; ++r) {
-    const auto* px = img.ptr<std::uint8_t>(r);
-    const int row = img.rows - 1 - r;  // image row 0 is the top, world row 0 the bottom
-    for (int c = 0; c < img.cols; ++c) w.setWall(c, row, px[c] < 128);
+                             "': not a readable image (expected PGM or PNG): " + e.what());
+  }
+  World w(img.width, img.height, resolution);
+  for (int r = 0; r < img.height; ++r) {
+    const auto* px = img.pixels.data() + static_cast<std::size_t>(r) * img.width;
+    const int row = img.height - 1 - r;  // image row 0 is the top, world row 0 the bottom
+    for (int c = 0; c < img.width; ++c) w.setWall(c, row, px[c] < 128);
   }
   w.setName(path);
   return w;
 }
 
 void World::saveImage(const std::string& path) const {
-  cv::Mat img(height_, width_, CV_8UC1);
+  io::Gray8 img;
+  img.width = width_;
+  img.height = height_;
+  img.pixels.resize(static_cast<std::size_t>(width_) * height_);
   for (int r = 0; r < height_; ++r) {
-    auto* px = img.ptr<std::uint8_t>(r);
+    auto* px = img.pixels.data() + static_cast<std::size_t>(r) * width_;
     const int row = height_ - 1 - r;
     for (int c = 0; c < width_; ++c) px[c] = wall(c, row) ? 0 : 255;
   }
-  bool ok = false;
+  const std::string ext = std::filesystem::path(path).extension().string();
   try {
-    ok = cv::imwrite(path, img);
-  } catch (const cv::Exception& e) {
-    throw std::runtime_error("cannot write world image '" + path + "': " + e.what());
+    if (ext == ".pgm" || ext == ".PGM")
+      io::writePgmFile(img, path);
+    else
+      io::writePngGray8(img, path);
+  } catch (const io::ImageFileError& e) {
+    throw std::runtime_error(std::string("cannot write world image: ") + e.what());
   }
-  if (!ok) throw std::runtime_error("cannot write world image '" + path + "'");
 }
 
 World World::box(double width_m, double height_m, double resolution, int wall_cells) {

@@ -259,8 +259,8 @@ TEST_CASE("RouteFollower: the office route is driven without touching walls",
 TEST_CASE("Odometry: systematic biases make dead reckoning drift", "[sim][robot]") {
   std::mt19937_64 rng(5);
   OdometryNoise noise{0.0, 0.0};
-  noise.bias_d = 0.1;         // wheels report 10 % too much distance
-  noise.drift_theta = 0.01;   // and turn 0.01 rad per metre
+  noise.bias_d = 0.1;        // wheels report 10 % too much distance
+  noise.drift_theta = 0.01;  // and turn 0.01 rad per metre
   Odometry odo({0, 0, 0}, noise);
   for (int i = 0; i < 1000; ++i) odo.integrate(0.01, 0.0, rng);  // 10 m straight
   const double path = 10.0 * 1.1;

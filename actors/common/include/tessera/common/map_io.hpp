@@ -13,6 +13,7 @@
 #pragma once
 
 #include <tessera/common/occupancy_map.hpp>
+#include <tessera/io/image_file.hpp>
 
 #include <cstdint>
 #include <filesystem>
@@ -26,12 +27,8 @@ class MapIoError : public std::runtime_error {
   using std::runtime_error::runtime_error;
 };
 
-/// An 8-bit grey image, row 0 at the top.
-struct GrayImage {
-  int width = 0;
-  int height = 0;
-  std::vector<std::uint8_t> pixels;  ///< width*height, row-major
-};
+/// An 8-bit grey image, row 0 at the top (pixels: width*height, row-major).
+using GrayImage = io::Gray8;
 
 struct MapSaveOptions {
   double occupied_thresh = 0.65;  ///< cells with p > this are drawn black
