@@ -208,7 +208,7 @@ std::size_t Rbpf::updateParticles(const common::ScanPoints& points,
   const Eigen::Matrix3d local_cov = motionCovariance(odom_delta);
   const double divisor = options_.weight_divisor > 0 ? options_.weight_divisor
                                                      : static_cast<double>(particles_.size());
-  std::atomic<std::uint64_t> failures{0};
+  std::atomic<std::uint64_t> failures{0}, coarse_evals{0}, fine_evals{0};
   const auto update = [&](std::size_t i) {
     Particle& p = particles_[i];
     std::mt19937_64 rng = streamFor(options_.seed, update_index_, i);
@@ -225,10 +225,13 @@ std::size_t Rbpf::updateParticles(const common::ScanPoints& points,
     bool matched = false;
     if (coarse_matcher_) {
       const common::MatchResult coarse = coarse_matcher_->match(*p.map, coarse_points, prior);
+      coarse_evals.fetch_add(static_cast<std::uint64_t>(coarse.evaluations),
+                             std::memory_order_relaxed);
       if (coarse.success) start = coarse.pose;
       matched = coarse.success;
     }
     const common::MatchResult match = matcher_.match(*p.map, points, start);
+    fine_evals.fetch_add(static_cast<std::uint64_t>(match.evaluations), std::memory_order_relaxed);
     matched = matched || match.success;
     // The fine stage refines the coarse pose; when it cannot (too few beams within its narrow
     // kernel), the coarse pose is still better than the odometry prior.
@@ -251,6 +254,8 @@ std::size_t Rbpf::updateParticles(const common::ScanPoints& points,
   }
   stats_.particle_updates += particles_.size();
   stats_.match_failures += failures.load();
+  stats_.coarse_evaluations += coarse_evals.load();
+  stats_.fine_evaluations += fine_evals.load();
   return failures.load();
 }
 

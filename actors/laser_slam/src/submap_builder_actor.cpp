@@ -234,6 +234,8 @@ void SubmapBuilderActor::summarize(Summary& out) const {
   out["resamples"] = i64(s.resamples);
   out["match_failures"] = i64(s.match_failures);
   out["particle_updates"] = i64(s.particle_updates);
+  out["coarse_evaluations"] = i64(s.coarse_evaluations);
+  out["fine_evaluations"] = i64(s.fine_evaluations);
   out["submaps"] = i64(submaps_published_);
   out["scans_unpaired"] = i64(scans_unpaired_);
   out["scans_unusable"] = i64(s.unusable_scans);

@@ -109,6 +109,8 @@ struct RbpfStats {
   std::uint64_t resamples = 0;
   std::uint64_t match_failures = 0;  ///< particle updates that fell back to the motion model
   std::uint64_t particle_updates = 0;
+  std::uint64_t coarse_evaluations = 0;  ///< scan scores computed by the coarse stage
+  std::uint64_t fine_evaluations = 0;    ///< by the fine stage
   std::uint64_t unusable_scans = 0;
   std::uint64_t invalid_odometry = 0;  ///< non-finite odometry poses ignored
 };
