@@ -7,38 +7,17 @@
 #include <filesystem>
 
 #include "../shared_data.hpp"
+#include "run_profile.hpp"
 
 using namespace tessera;
 namespace fs = std::filesystem;
 using Catch::Matchers::Contains;
-
-namespace {
-
-RunReport runProfile(const std::string& name, const std::vector<std::string>& sets,
-                     const fs::path& out) {
-  auto profile =
-      loadProfile(std::string(TESSERA_SOURCE_DIR) + "/apps/profiles/" + name + ".yaml", sets);
-  RuntimeOptions options;
-  options.show_progress = false;
-  options.output_dir = out.string();
-  options.threads = 2;
-  auto runtime = buildRuntime(profile, options);
-  return runtime->run();
-}
-
-const Summary& summaryOf(const RunReport& r, const std::string& actor) {
-  for (const auto& a : r.actors)
-    if (a.name == actor) return a.summary;
-  FAIL("no actor " << actor);
-  throw std::logic_error("unreachable");
-}
-
-}  // namespace
+using test::summaryOf;
 
 TEST_CASE("carmen_replay maps intel.clf with its raw odometry", "[e2e][players]") {
   TESSERA_SHARED_DATA(log, "intel-lab-mrpt/intel.clf.gz");
   const fs::path out = tessera::test::scratchDir("carmen_replay");
-  const RunReport report = runProfile("carmen_replay", {"player.path=" + log.string()}, out);
+  const RunReport report = test::runProfile("carmen_replay", out, {"player.path=" + log.string()});
   CHECK(report.stop_reason == "all inputs finished");
   for (const char* f : {"map.pgm", "map.yaml", "map.png", "odometry.tum"}) {
     INFO(f);
@@ -61,7 +40,7 @@ TEST_CASE("carmen_replay maps intel.clf with its raw odometry", "[e2e][players]"
 TEST_CASE("urg_replay maps MinesParisTech exp2 with wheel odometry", "[e2e][players]") {
   TESSERA_SHARED_DATA(log, "mines-paristech-urg04lx-odometry/exp2.dat.gz");
   const fs::path out = tessera::test::scratchDir("urg_replay");
-  const RunReport report = runProfile("urg_replay", {"player.path=" + log.string()}, out);
+  const RunReport report = test::runProfile("urg_replay", out, {"player.path=" + log.string()});
   CHECK(report.stop_reason == "all inputs finished");
   for (const char* f : {"map.pgm", "map.yaml", "map.png", "odometry.tum"}) {
     INFO(f);
@@ -79,7 +58,7 @@ TEST_CASE("replay profiles refuse to start without a log path", "[e2e][players]"
   for (const char* name : {"carmen_replay", "urg_replay"}) {
     INFO(name);
     try {
-      runProfile(name, {}, tessera::test::scratchDir("replay_nopath"));
+      test::runProfile(name, tessera::test::scratchDir("replay_nopath"));
       FAIL("ran without a path");
     } catch (const ConfigError& e) {
       CHECK_THAT(e.what(), Contains("option 'path': is required"));

@@ -11,30 +11,12 @@
 #include <filesystem>
 
 #include "../shared_data.hpp"
+#include "run_profile.hpp"
 
 using namespace tessera;
 namespace fs = std::filesystem;
 
 namespace {
-
-RunReport runProfile(const std::string& name, const std::vector<std::string>& sets,
-                     const fs::path& out) {
-  auto profile =
-      loadProfile(std::string(TESSERA_SOURCE_DIR) + "/apps/profiles/" + name + ".yaml", sets);
-  RuntimeOptions options;
-  options.show_progress = false;
-  options.output_dir = out.string();
-  options.threads = 2;
-  auto runtime = buildRuntime(profile, options);
-  return runtime->run();
-}
-
-std::int64_t intOf(const RunReport& r, const std::string& actor, const std::string& key) {
-  for (const auto& a : r.actors)
-    if (a.name == actor) return std::get<std::int64_t>(a.summary.at(key));
-  FAIL("no actor " << actor);
-  return 0;
-}
 
 common::RelationsResult relationsError(const fs::path& tum, const fs::path& relations_path) {
   const auto file = datasets::readRelations(relations_path);
@@ -53,19 +35,18 @@ TEST_CASE("carmen_rbpf maps the first 500 scans of intel.clf better than odometr
   TESSERA_SHARED_DATA(relations, "intel-lab-mrpt/intel.relations");
   const fs::path out = test::scratchDir("carmen_rbpf");
   const RunReport report =
-      runProfile("carmen_rbpf",
-                 {"player.path=" + log.string(), "player.scan_times=" + times.string(),
-                  "player.max_scans=500", "particles=5"},
-                 out);
+      test::runProfile("carmen_rbpf", out,
+                       {"player.path=" + log.string(), "player.scan_times=" + times.string(),
+                        "player.max_scans=500", "particles=5"});
   CHECK(report.stop_reason == "all inputs finished");
   for (const char* f : {"map.pgm", "map.yaml", "map.png", "trajectory.tum", "odometry.tum"}) {
     INFO(f);
     CHECK(fs::exists(out / f));
   }
-  CHECK(intOf(report, "slam", "scans_read") == 500);
-  CHECK(intOf(report, "slam", "scans_unpaired") == 0);
-  CHECK(intOf(report, "slam", "particles") == 5);
-  const auto processed = intOf(report, "slam", "scans_processed");
+  CHECK(test::summaryInt(report, "slam", "scans_read") == 500);
+  CHECK(test::summaryInt(report, "slam", "scans_unpaired") == 0);
+  CHECK(test::summaryInt(report, "slam", "particles") == 5);
+  const auto processed = test::summaryInt(report, "slam", "scans_processed");
   CHECK(processed > 100);
   CHECK(processed < 400);  // the 1 m / 0.5 rad gates skip most scans
   // The online estimate: one pose per input scan.
@@ -87,7 +68,7 @@ TEST_CASE("sim_slam keeps the simulated robot on its true path while odometry dr
           "[e2e][rbpf]") {
   const fs::path out = test::scratchDir("sim_slam");
   // A part of the office route keeps the test short; the full route is the benchmark.
-  const RunReport report = runProfile("sim_slam", {"max_duration_s=120"}, out);
+  const RunReport report = test::runProfile("sim_slam", out, {"max_duration_s=120"});
   const auto estimate = common::readTum(out / "trajectory.tum");
   const auto truth = common::readTum(out / "ground_truth.tum");
   const auto odometry = common::readTum(out / "odometry.tum");
@@ -97,6 +78,6 @@ TEST_CASE("sim_slam keeps the simulated robot on its true path while odometry dr
   INFO("ATE slam " << slam.translation.rmse << " m, odometry " << odom.translation.rmse << " m");
   CHECK(slam.translation.rmse < 0.1);
   CHECK(odom.translation.rmse > 2 * slam.translation.rmse);
-  CHECK(intOf(report, "slam", "submaps") == 1);
+  CHECK(test::summaryInt(report, "slam", "submaps") == 1);
   CHECK(fs::exists(out / "map.png"));
 }

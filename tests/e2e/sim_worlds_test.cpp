@@ -7,6 +7,7 @@
 #include <catch2/catch.hpp>
 
 #include "../shared_data.hpp"
+#include "run_profile.hpp"
 
 #include <cmath>
 #include <filesystem>
@@ -16,20 +17,10 @@
 #include <vector>
 
 using namespace tessera;
+using test::runProfile;
 namespace fs = std::filesystem;
 
 namespace {
-
-RunReport runProfile(const std::string& name, const fs::path& out,
-                     const std::vector<std::string>& overrides = {}) {
-  auto profile =
-      loadProfile(std::string(TESSERA_SOURCE_DIR) + "/apps/profiles/" + name + ".yaml", overrides);
-  RuntimeOptions options;
-  options.show_progress = false;
-  options.output_dir = out.string();
-  auto runtime = buildRuntime(profile, options);
-  return runtime->run();
-}
 
 // Data lines (not '#' comments, not the CSV header) of a text file, split on spaces or commas.
 std::vector<std::vector<double>> rows(const fs::path& path, bool csv_header) {
