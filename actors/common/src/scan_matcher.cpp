@@ -56,10 +56,17 @@ ScanMatcher::ScanMatcher(ScanMatcherOptions o) : options_(o) {
   const int r = o.kernel_radius;
   for (int dy = -r; dy <= r; ++dy)
     for (int dx = -r; dx <= r; ++dx)
-      kernel_.push_back({dx, dy, std::sqrt(static_cast<float>(dx * dx + dy * dy))});
+      kernel_.push_back({dx, dy, std::sqrt(static_cast<float>(dx * dx + dy * dy)), 0.0f});
   std::stable_sort(
       kernel_.begin(), kernel_.end(),
       [](const KernelOffset& a, const KernelOffset& b) { return a.distance < b.distance; });
+  float floor = std::numeric_limits<float>::infinity();
+  for (auto k = kernel_.rbegin(); k != kernel_.rend(); ++k) {
+    const float bx = std::max(std::abs(static_cast<float>(k->dx)) - 0.5f, 0.0f);
+    const float by = std::max(std::abs(static_cast<float>(k->dy)) - 0.5f, 0.0f);
+    floor = std::min(floor, std::sqrt(bx * bx + by * by));
+    k->square_floor = floor;
+  }
 }
 
 ScanPoints ScanMatcher::prepare(const RangeScan& scan, const Pose2& mount) const {

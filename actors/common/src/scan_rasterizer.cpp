@@ -124,6 +124,7 @@ ScanInsertResult ScanRasterizer::classify(const RangeScan& scan, const Pose2& se
   ScanInsertResult result;
   beams_.clear();
   updates_.clear();
+  hit_points_.clear();
   need_ = CellBox{};
   const double res = resolution;
   const Eigen::Vector2d origin = sensor_pose.translation() / res;  // in cell units
@@ -179,8 +180,10 @@ ScanInsertResult ScanRasterizer::classify(const RangeScan& scan, const Pose2& se
   return result;
 }
 
-void ScanRasterizer::collect(const CellBox& storage, ScanInsertResult& result) {
+void ScanRasterizer::collect(const CellBox& storage, ScanInsertResult& result,
+                             bool with_hit_points) {
   updates_.clear();
+  hit_points_.clear();
   // Every visited cell lies in need_ (a ray stays within the box of its end cells), so one bit
   // per cell of the part of need_ the grid stores is enough to see each cell once. Unlike a
   // per-grid stamp it costs nothing per particle and is bounded by the scan's reach.
@@ -207,6 +210,15 @@ void ScanRasterizer::collect(const CellBox& storage, ScanInsertResult& result) {
   // beams do not erase thin walls.
   for (const Beam& b : beams_)
     if (b.hit) visit(floorCell(b.end), true);
+  if (with_hit_points) {
+    for (const Beam& b : beams_) {
+      if (!b.hit) continue;
+      const Eigen::Vector2i cell = floorCell(b.end);
+      if (!window.contains(cell)) continue;  // already counted as clipped above
+      const Eigen::Vector2d offset = b.end - cell.cast<double>() - Eigen::Vector2d(0.5, 0.5);
+      hit_points_.push_back({cell, offset.cast<float>()});
+    }
+  }
   // Free space along every beam, up to the endpoint cell (excluded for hits).
   for (const Beam& b : beams_)
     traverse(origin_, b.end, /*include_end=*/!b.hit,

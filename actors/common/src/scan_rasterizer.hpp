@@ -32,6 +32,13 @@ struct CellUpdate {
   bool hit = false;
 };
 
+/// One beam endpoint inside the storage, for grids that keep per-cell hit positions. Unlike
+/// updates(), every hit beam gives one, even when several end in the same cell.
+struct HitPoint {
+  Eigen::Vector2i cell;
+  Eigen::Vector2f offset;  ///< endpoint − cell centre [cells], each coordinate in [−½, ½)
+};
+
 /// Use: classify() → the grid grows its storage towards need() → collect(storage) → apply
 /// updates(). Splitting at the growth step lets clipped cells be counted per visit, exactly
 /// like a grid touching cells one by one, and bounds the dedupe bitmap by the storage.
@@ -51,8 +58,12 @@ class ScanRasterizer {
 
   /// Pass 2: walks every beam; visits outside `storage` are added to result.clipped_cells, the
   /// rest become updates(): each cell once, endpoint (hit) cells first, then in ray order.
-  void collect(const CellBox& storage, ScanInsertResult& result);
+  /// With `with_hit_points`, also fills hitPoints() (left empty otherwise, so grids that do not
+  /// need them pay nothing).
+  void collect(const CellBox& storage, ScanInsertResult& result, bool with_hit_points = false);
   std::span<const CellUpdate> updates() const { return updates_; }
+  /// The exact endpoints of the hit beams that collect() kept, in beam order.
+  std::span<const HitPoint> hitPoints() const { return hit_points_; }
 
   /// The calling thread's instance.
   static ScanRasterizer& forThisThread();
@@ -68,6 +79,7 @@ class ScanRasterizer {
   CellBox need_;
   std::vector<std::uint64_t> seen_;  // one bit per cell of the collect() window
   std::vector<CellUpdate> updates_;
+  std::vector<HitPoint> hit_points_;
 };
 
 /// The storage box a grid grows `current` to so that `need` fits: aligned to `chunk` per axis

@@ -102,10 +102,18 @@ TiledGrid& TiledGrid::operator=(TiledGrid&& other) noexcept {
   return *this;
 }
 
+void TiledGrid::releaseTile(Tile* t) noexcept {
+  // acq_rel: the last owner must see every other owner's reads done before it deletes.
+  if (t->refs.fetch_sub(1, std::memory_order_acq_rel) != 1) return;
+  if (options_.track_hit_points)
+    delete static_cast<TrackedTile*>(t);
+  else
+    delete t;
+}
+
 void TiledGrid::releaseAll() noexcept {
   for (Tile*& t : table_) {
-    // acq_rel: the last owner must see every other owner's reads done before it deletes.
-    if (t != nullptr && t->refs.fetch_sub(1, std::memory_order_acq_rel) == 1) delete t;
+    if (t != nullptr) releaseTile(t);
     t = nullptr;
   }
   table_.clear();
@@ -129,17 +137,26 @@ double TiledGrid::probability(const Eigen::Vector2i& c) const {
 
 TiledGrid::Tile* TiledGrid::writableTile(std::size_t slot) {
   Tile*& t = table_[slot];
+  const bool tracked = options_.track_hit_points;
   if (t == nullptr) {
-    t = new Tile;
+    t = tracked ? new TrackedTile : new Tile;  // TrackedTile's hits start at zero (no hits)
     std::fill(std::begin(t->cells), std::end(t->cells), kUnknown);
     g_tiles_allocated.fetch_add(1, std::memory_order_relaxed);
   } else if (t->refs.load(std::memory_order_acquire) != 1) {
     // Shared: clone, then drop our reference. Acquire pairs with the release in another
     // grid's drop, so when the count reads 1 that grid's reads of the tile are finished and
     // writing in place is safe.
-    Tile* copy = new Tile;
+    Tile* copy;
+    if (tracked) {
+      auto* tracked_copy = new TrackedTile;
+      const auto* source = static_cast<const TrackedTile*>(t);
+      std::copy(std::begin(source->hits), std::end(source->hits), std::begin(tracked_copy->hits));
+      copy = tracked_copy;
+    } else {
+      copy = new Tile;
+    }
     std::copy(std::begin(t->cells), std::end(t->cells), std::begin(copy->cells));
-    if (t->refs.fetch_sub(1, std::memory_order_acq_rel) == 1) delete t;
+    releaseTile(t);
     t = copy;
     g_tiles_cloned.fetch_add(1, std::memory_order_relaxed);
   }
@@ -184,7 +201,7 @@ ScanInsertResult TiledGrid::insertScan(const RangeScan& scan, const Pose2& senso
   growToInclude(rasterizer.need(), rasterizer.originCell());
   rasterizer.collect(
       {tiles_.min * kTileSide, tiles_.max * kTileSide + Eigen::Vector2i::Constant(kTileSide - 1)},
-      result);
+      result, options_.track_hit_points);
 
   // Updates come in ray order, so runs of cells share a tile: look it up once per run.
   long current_slot = -1;
@@ -204,7 +221,38 @@ ScanInsertResult TiledGrid::insertScan(const RangeScan& scan, const Pose2& senso
     }
     v = static_cast<std::int16_t>(std::clamp(old + (u.hit ? q_hit_ : q_miss_), q_min_, q_max_));
   }
+  if (options_.track_hit_points) updateHitPoints(rasterizer);
   return result;
+}
+
+void TiledGrid::updateHitPoints(const detail::ScanRasterizer& rasterizer) {
+  long current_slot = -1;
+  TrackedTile* tile = nullptr;
+  for (const detail::HitPoint& h : rasterizer.hitPoints()) {
+    // Hit cells were just written above, so their tiles are already this grid's own.
+    const long slot = slotOf(h.cell);
+    if (slot != current_slot) {
+      tile = static_cast<TrackedTile*>(writableTile(static_cast<std::size_t>(slot)));
+      current_slot = slot;
+    }
+    HitCell& cell = tile->hits[cellInTile(h.cell)];
+    if (cell.count < std::numeric_limits<std::uint8_t>::max()) ++cell.count;
+    const float weight = 1.0f / static_cast<float>(std::min<int>(cell.count, kHitWindow));
+    // Past the window a rounded 1/32 step is zero for targets within 16 storage steps, which
+    // would freeze the mean up to 1/16 cell away from a steady wall; a minimum step of one
+    // lets it settle within one storage step instead. Inside the window plain rounding keeps
+    // the mean an average.
+    const bool settling = cell.count > kHitWindow;
+    auto blend = [weight, settling](std::int8_t mean, float target) {
+      const float diff = target * kHitScale - static_cast<float>(mean);
+      long step = std::lround(diff * weight);
+      if (step == 0 && settling && std::abs(diff) >= 1.0f) step = diff > 0.0f ? 1 : -1;
+      // The int8 range covers [−½, ½) cell; an endpoint at the upper edge rounds to 128.
+      return static_cast<std::int8_t>(std::clamp(mean + step, -128L, 127L));
+    };
+    cell.dx = blend(cell.dx, h.offset.x());
+    cell.dy = blend(cell.dy, h.offset.y());
+  }
 }
 
 void TiledGrid::exportInt8(const CellBox& box, std::span<std::int8_t> out) const {
@@ -227,7 +275,7 @@ std::size_t TiledGrid::uniqueTileCount() const {
 }
 
 std::size_t TiledGrid::memoryBytes() const {
-  return tileCount() * sizeof(Tile) + table_.size() * sizeof(Tile*);
+  return tileCount() * tileBytes(options_.track_hit_points) + table_.size() * sizeof(Tile*);
 }
 
 TiledGrid::Counters TiledGrid::counters() {

@@ -1,9 +1,10 @@
 // Tests for the laser scan matcher: beam preparation, the score / likelihood model, hill
-// climbing, the match covariance and the improved-proposal fit. Worlds are sets of line
-// segments ray-cast exactly here, so the map is the only discretised thing.
+// climbing, the match covariance, the improved-proposal fit and matching to per-cell hit points.
+// Worlds are sets of line segments ray-cast exactly here, so the map is the only discretised thing.
 #include <tessera/common/occupancy_grid.hpp>
 #include <tessera/common/pose2.hpp>
 #include <tessera/common/scan_matcher.hpp>
+#include <tessera/common/tiled_grid.hpp>
 
 #include <catch2/catch.hpp>
 
@@ -11,6 +12,7 @@
 
 #include <cmath>
 #include <limits>
+#include <map>
 #include <numbers>
 #include <random>
 #include <stdexcept>
@@ -26,6 +28,7 @@ using tessera::common::RangeScan;
 using tessera::common::ScanMatcher;
 using tessera::common::ScanMatcherOptions;
 using tessera::common::ScanPoints;
+using tessera::common::TiledGrid;
 
 namespace {
 constexpr double kPi = std::numbers::pi;
@@ -118,9 +121,9 @@ std::vector<Pose2> roomMappingPoses() {
   return poses;
 }
 
-OccupancyGrid mapOf(const World& world, const Laser& laser, const std::vector<Pose2>& poses,
-                    std::uint64_t seed = 1) {
-  OccupancyGrid grid;
+template <class Grid = OccupancyGrid>
+Grid mapOf(const World& world, const Laser& laser, const std::vector<Pose2>& poses,
+           std::uint64_t seed = 1, Grid grid = Grid()) {
   std::mt19937_64 rng(seed);
   for (const Pose2& p : poses) {
     const std::vector<float> r = simulate(world, laser, p, rng);
@@ -540,5 +543,166 @@ TEST_CASE("fitProposal balances the scan likelihood against the motion prior", "
     CHECK_THROWS_AS(
         matcher.fitProposal(grid, p, mode, Pose2(kNaN, 0, 0), Eigen::Matrix3d::Identity()),
         std::invalid_argument);
+  }
+}
+
+// ---- hit points ----
+
+namespace {
+/// FakeGrid plus per-cell hit points and a switch, like a TiledGrid with track_hit_points.
+class FakeHitGrid : public FakeGrid {
+ public:
+  FakeHitGrid(double res, bool tracks) : FakeGrid(res), tracks_(tracks) {}
+  bool tracksHitPoints() const { return tracks_; }
+  Eigen::Vector2d hitPoint(const Eigen::Vector2i& c) const {
+    const auto it = hits_.find({c.x(), c.y()});
+    return tracks_ && it != hits_.end() ? it->second : cellCenter(c);
+  }
+  void setHit(int x, int y, const Eigen::Vector2d& p) { hits_[{x, y}] = p; }
+
+ private:
+  bool tracks_;
+  std::map<std::pair<int, int>, Eigen::Vector2d> hits_;
+};
+
+/// Walls that do not sit on cell boundaries: an axis-aligned room with walls at odd
+/// millimetres and two boxes, so cell centres are off the walls by up to half a cell.
+World offsetRoom() {
+  World w;
+  addPolygon(w, {{-3.033, -2.511}, {2.017, -2.511}, {2.017, 1.529}, {-3.033, 1.529}});
+  addPolygon(w, box({0.513, -0.987, 0.0}, 0.61, 0.43));
+  addPolygon(w, box({-1.71, 0.62, 0.7}, 0.5, 0.8));
+  return w;
+}
+
+/// Mean translation and heading error of match() over a set of truths and initial offsets.
+struct MatchErrors {
+  double translation = 0, heading = 0;
+  int failures = 0;
+};
+
+template <class Grid>
+MatchErrors matchErrors(const Grid& grid, const World& world, const Laser& laser,
+                        const std::vector<Pose2>& truths) {
+  const ScanMatcher matcher;
+  std::mt19937_64 rng(17);  // the same scans for every grid
+  MatchErrors e;
+  int n = 0;
+  for (const Pose2& truth : truths) {
+    const ScanPoints p =
+        matcher.prepare(laser.view(simulate(world, laser, truth, rng)), laser.mount);
+    for (const Pose2& d : {Pose2(0.05, -0.04, 2 * kDeg), Pose2(-0.06, 0.03, -3 * kDeg),
+                           Pose2(0.0, 0.07, 1 * kDeg), Pose2(0.03, 0.03, 0.0)}) {
+      const MatchResult m =
+          matcher.match(grid, p, Pose2(truth.x + d.x, truth.y + d.y, truth.theta + d.theta));
+      e.failures += !m.success;
+      e.translation += translationError(m.pose, truth);
+      e.heading += std::abs(angleDiff(m.pose.theta, truth.theta));
+      ++n;
+    }
+  }
+  e.translation /= n;
+  e.heading /= n;
+  return e;
+}
+}  // namespace
+
+TEST_CASE("score measures distances to hit points when the grid tracks them", "[scan_matcher]") {
+  // Random occupied cells with random hit points; the matcher's d must be the exact distance
+  // to the nearest candidate hit point in the window (clamped to R), whatever order the
+  // kernel walk and its early stop visit cells in.
+  const double res = 0.05;
+  FakeHitGrid tracked(res, true), untracked(res, false);
+  std::mt19937_64 rng(23);
+  std::uniform_int_distribution<int> cell(10, 30);
+  std::uniform_real_distribution<double> inside(-0.499, 0.499), unit(0.0, 1.0);
+  std::vector<std::pair<int, int>> occupied;
+  for (int k = 0; k < 120; ++k) {
+    const int x = cell(rng), y = cell(rng);
+    const Eigen::Vector2d hp =
+        tracked.cellCenter({x, y}) + res * Eigen::Vector2d(inside(rng), inside(rng));
+    for (FakeHitGrid* g : {&tracked, &untracked}) {
+      g->set(x, y, 1.0f);
+      g->setHit(x, y, hp);
+    }
+    occupied.push_back({x, y});
+  }
+  ScanPoints p;
+  for (int k = 0; k < 400; ++k)
+    p.endpoints.emplace_back(static_cast<float>((12 + 17 * unit(rng)) * res),
+                             static_cast<float>((12 + 17 * unit(rng)) * res));
+  p.beams_total = p.endpoints.size();
+
+  for (int radius : {0, 1, 2, 4}) {
+    ScanMatcherOptions o;
+    o.kernel_radius = radius;
+    o.free_check_offset = -1.0;  // every occupied cell is a candidate
+    const ScanMatcher matcher(o);
+    const double big_r = (radius + 0.5) * res;
+    double expected_tracked = 0.0, expected_centres = 0.0, ll_tracked = 0.0;
+    const double floor = std::exp(-big_r * big_r / (2 * o.sigma * o.sigma));
+    auto kernel = [&](double d2) {
+      return (std::exp(-d2 / (2 * o.sigma * o.sigma)) - floor) / (1 - floor);
+    };
+    for (const Eigen::Vector2f& ef : p.endpoints) {
+      const Eigen::Vector2d e = ef.cast<double>();
+      const Eigen::Vector2i c = tracked.worldToCell(e);
+      double best_hit = big_r * big_r, best_centre = big_r * big_r;
+      for (const auto& [x, y] : occupied) {
+        if (std::abs(x - c.x()) > radius || std::abs(y - c.y()) > radius) continue;
+        best_hit = std::min(best_hit, (tracked.hitPoint({x, y}) - e).squaredNorm());
+        best_centre = std::min(best_centre, (tracked.cellCenter({x, y}) - e).squaredNorm());
+      }
+      expected_tracked += kernel(best_hit);
+      expected_centres += kernel(best_centre);
+      ll_tracked += -best_hit / (2 * o.likelihood_sigma * o.likelihood_sigma * o.likelihood_gain);
+    }
+    INFO("kernel radius " << radius);
+    CHECK(matcher.score(tracked, p, Pose2()) == Approx(expected_tracked).epsilon(1e-4));
+    CHECK(matcher.logLikelihood(tracked, p, Pose2()) == Approx(ll_tracked).epsilon(1e-4));
+    // Not tracking: cell centres, exactly as on a grid without hit points.
+    CHECK(matcher.score(untracked, p, Pose2()) == Approx(expected_centres).epsilon(1e-4));
+    CHECK(matcher.score(untracked, p, Pose2()) ==
+          matcher.score(static_cast<const FakeGrid&>(untracked), p, Pose2()));
+    CHECK(expected_tracked != Approx(expected_centres).epsilon(1e-3));
+  }
+}
+
+TEST_CASE("match on a grid tracking hit points is more precise off cell boundaries",
+          "[scan_matcher]") {
+  const Laser laser;
+  TiledGrid::Options tracked_options;
+  tracked_options.track_hit_points = true;
+
+  struct Case {
+    const char* name;
+    World world;
+    std::vector<Pose2> mapping, truths;
+  };
+  const std::vector<Case> cases = {
+      {"walls at odd millimetres",
+       offsetRoom(),
+       {Pose2(-2.0, -1.5, 0.3), Pose2(1.0, 0.8, -2.5), Pose2(-0.5, -2.0, 1.2),
+        Pose2(1.2, -1.8, 2.2), Pose2(-2.5, 1.0, -0.6), Pose2(0.0, 1.0, -1.4)},
+       {Pose2(-0.8, -0.3, 0.2), Pose2(1.3, 0.2, 2.8), Pose2(-2.3, -1.7, -1.0)}},
+      {"rotated room",
+       room(),
+       roomMappingPoses(),
+       {kRoomPose * Pose2(4.0, 3.8, 0.4), kRoomPose * Pose2(6.5, 3.5, -2.0),
+        kRoomPose * Pose2(2.5, 5.0, 1.5)}},
+  };
+  for (const Case& c : cases) {
+    const TiledGrid untracked = mapOf<TiledGrid>(c.world, laser, c.mapping);
+    const TiledGrid tracked =
+        mapOf<TiledGrid>(c.world, laser, c.mapping, 1, TiledGrid(tracked_options));
+    const MatchErrors centres = matchErrors(untracked, c.world, laser, c.truths);
+    const MatchErrors hits = matchErrors(tracked, c.world, laser, c.truths);
+    INFO(c.name << ": mean translation error " << centres.translation * 1000 << " mm on cell "
+                << "centres, " << hits.translation * 1000 << " mm on hit points; heading "
+                << centres.heading / kDeg << " / " << hits.heading / kDeg << " deg");
+    CHECK(centres.failures == 0);
+    CHECK(hits.failures == 0);
+    CHECK(hits.translation < 0.7 * centres.translation);
+    CHECK(hits.translation < 0.005);
   }
 }

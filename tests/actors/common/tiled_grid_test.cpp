@@ -1,5 +1,5 @@
 // Tests for the copy-on-write tiled occupancy grid: same cells as OccupancyGrid, tile sharing
-// between copies, bad input, growth and concurrent writes to copies.
+// between copies, bad input, growth and concurrent writes to copies; per-cell hit points.
 #include <tessera/common/occupancy_grid.hpp>
 #include <tessera/common/pose2.hpp>
 #include <tessera/common/tiled_grid.hpp>
@@ -8,6 +8,7 @@
 
 #include <cmath>
 #include <limits>
+#include <map>
 #include <numbers>
 #include <random>
 #include <set>
@@ -392,33 +393,49 @@ TEST_CASE("TiledGrid max_side_cells caps the table and counts clipped updates", 
   CHECK(grid.tileCount() <= 4);
 }
 
-TEST_CASE("concurrent writes to TiledGrid copies match serially built grids", "[tiled_grid]") {
-  const auto base_scans = randomScans(21, 6, {0.0, 0.0}, 2.0);
-  TiledGrid base(tiledOptions(0.05));
-  insertAll(base, base_scans);
-  TiledGrid base_reference(base.options());
-  insertAll(base_reference, base_scans);
+namespace {
+/// Writes two copies of one base grid from two threads at once, round after round, so both
+/// clone the same shared tiles concurrently; each copy, and the base, must equal grids built
+/// serially from the same scans. make(seed, n) gives n scans, insert(grid, scans) adds them,
+/// same(a, b) compares grids.
+template <class Make, class Insert, class Same>
+void checkConcurrentCopies(const TiledGrid::Options& options, Make make, int base_scans_n,
+                           int round_scans_n, Insert insert, Same same) {
+  const auto base_scans = make(21u, base_scans_n);
+  TiledGrid base(options);
+  insert(base, base_scans);
+  TiledGrid base_reference(options);
+  insert(base_reference, base_scans);
 
   for (unsigned round = 0; round < 8; ++round) {
-    // Both threads write over the shared map, so they clone the same shared tiles at once.
-    const auto scans_a = randomScans(100 + round, 4, {0.0, 0.0}, 2.0);
-    const auto scans_b = randomScans(200 + round, 4, {0.0, 0.0}, 2.0);
+    const auto scans_a = make(100 + round, round_scans_n);
+    const auto scans_b = make(200 + round, round_scans_n);
     TiledGrid a(base), b(base);
-    std::thread ta([&] { insertAll(a, scans_a); });
-    std::thread tb([&] { insertAll(b, scans_b); });
+    std::thread ta([&] { insert(a, scans_a); });
+    std::thread tb([&] { insert(b, scans_b); });
     ta.join();
     tb.join();
 
-    TiledGrid reference_a(base.options()), reference_b(base.options());
-    insertAll(reference_a, base_scans);
-    insertAll(reference_a, scans_a);
-    insertAll(reference_b, base_scans);
-    insertAll(reference_b, scans_b);
+    TiledGrid reference_a(options), reference_b(options);
+    insert(reference_a, base_scans);
+    insert(reference_a, scans_a);
+    insert(reference_b, base_scans);
+    insert(reference_b, scans_b);
     INFO("round " << round);
-    CHECK(sameCells(a, reference_a));
-    CHECK(sameCells(b, reference_b));
-    CHECK(sameCells(base, base_reference));
+    CHECK(same(a, reference_a));
+    CHECK(same(b, reference_b));
+    CHECK(same(base, base_reference));
   }
+}
+}  // namespace
+
+TEST_CASE("concurrent writes to TiledGrid copies match serially built grids", "[tiled_grid]") {
+  checkConcurrentCopies(
+      tiledOptions(0.05),
+      [](unsigned seed, int n) {
+        return randomScans(seed, n, {0.0, 0.0}, 2.0);
+      },
+      6, 4, insertAll, sameCells);
 }
 
 TEST_CASE("invalid TiledGrid options are rejected", "[tiled_grid]") {
@@ -439,4 +456,234 @@ TEST_CASE("invalid TiledGrid options are rejected", "[tiled_grid]") {
   CHECK_THROWS_AS(TiledGrid(with([](O& o) { o.log_odds.max = 40.0f; })), std::invalid_argument);
   CHECK_THROWS_AS(TiledGrid(with([](O& o) { o.log_odds.min = -kInf; })), std::invalid_argument);
   CHECK_THROWS_AS(TiledGrid(with([](O& o) { o.log_odds.hit = 1e-5f; })), std::invalid_argument);
+}
+
+// ---- hit points (track_hit_points) ----
+
+namespace {
+/// A convex room: the walls are lines n·p = offset with unit normals pointing out, so a ray
+/// from inside leaves through the nearest wall ahead. Exact ranges, so only the grid quantises.
+struct ConvexRoom {
+  std::vector<std::pair<Eigen::Vector2d, double>> walls;  // (normal, offset [m])
+
+  /// A square of half-size `half` around `centre`, rotated by `angle`.
+  static ConvexRoom square(const Eigen::Vector2d& centre, double half, double angle) {
+    ConvexRoom room;
+    for (int k = 0; k < 4; ++k) {
+      const double a = angle + k * kPi / 2;
+      const Eigen::Vector2d n(std::cos(a), std::sin(a));
+      room.walls.push_back({n, n.dot(centre) + half});
+    }
+    return room;
+  }
+  double range(const Eigen::Vector2d& o, double angle) const {
+    const Eigen::Vector2d d(std::cos(angle), std::sin(angle));
+    double best = std::numeric_limits<double>::infinity();
+    for (const auto& [n, offset] : walls) {
+      const double along = n.dot(d);
+      if (along > 1e-12) best = std::min(best, (offset - n.dot(o)) / along);
+    }
+    return best;
+  }
+};
+
+OwnedScan roomScan(const ConvexRoom& room, const Pose2& pose) {
+  OwnedScan s;
+  s.pose = pose;
+  const RangeScan geometry = s.view();
+  for (int k = 0; k < kBeams; ++k)
+    s.ranges.push_back(static_cast<float>(room.range(
+        pose.translation(), pose.theta + geometry.angle_min + k * geometry.angle_increment)));
+  return s;
+}
+
+std::vector<OwnedScan> roomScans(unsigned seed, int n) {
+  const ConvexRoom room = ConvexRoom::square({0.41, -0.27}, 2.6, 0.3);
+  std::mt19937 rng(seed);
+  std::uniform_real_distribution<double> pos(-1.5, 1.5), angle(-kPi, kPi);
+  std::vector<OwnedScan> scans;
+  for (int i = 0; i < n; ++i)
+    scans.push_back(roomScan(room, Pose2(0.41 + pos(rng), -0.27 + pos(rng), angle(rng))));
+  return scans;
+}
+
+const ScanInsertOptions kRoomInsert{.max_range = 7.9, .max_free_range = 3.0};
+
+TiledGrid::Options trackedOptions(double resolution) {
+  TiledGrid::Options o = tiledOptions(resolution);
+  o.track_hit_points = true;
+  return o;
+}
+
+void insertRoom(TiledGrid& grid, const std::vector<OwnedScan>& scans) {
+  for (const OwnedScan& s : scans) grid.insertScan(s.view(), s.pose, kRoomInsert);
+}
+
+/// Same cells and the same hit points (position and count) everywhere.
+bool sameHits(const TiledGrid& a, const TiledGrid& b) {
+  if (!sameCells(a, b)) return false;
+  const CellBox box = unionBox(a.knownBounds(), b.knownBounds());
+  for (int j = box.min.y(); j <= box.max.y(); ++j)
+    for (int i = box.min.x(); i <= box.max.x(); ++i)
+      if (a.hitPoint({i, j}) != b.hitPoint({i, j}) || a.hitCount({i, j}) != b.hitCount({i, j}))
+        return false;
+  return true;
+}
+}  // namespace
+
+TEST_CASE("TiledGrid hit points are the mean of the endpoints that hit each cell", "[tiled_grid]") {
+  const double res = 0.05;
+  TiledGrid grid(trackedOptions(res));
+  TiledGrid plain(tiledOptions(res));
+  const auto scans = roomScans(5, 20);
+  insertRoom(grid, scans);
+  insertRoom(plain, scans);
+  CHECK(grid.tracksHitPoints());
+  CHECK_FALSE(plain.tracksHitPoints());
+  CHECK(sameCells(grid, plain));  // tracking changes no log-odds
+
+  // Reference: every endpoint, computed as the rasteriser does (in cell units), per cell.
+  struct Sum {
+    Eigen::Vector2d offset = Eigen::Vector2d::Zero();  // Σ (endpoint − centre) [cells]
+    int n = 0;
+  };
+  std::map<std::pair<int, int>, Sum> sums;
+  for (const OwnedScan& s : scans) {
+    const RangeScan v = s.view();
+    const Eigen::Vector2d origin = s.pose.translation() / res;
+    for (int k = 0; k < kBeams; ++k) {
+      const double r = v.ranges[static_cast<std::size_t>(k)];
+      REQUIRE(r < kRoomInsert.max_range);
+      const double a = s.pose.theta + v.angle_min + k * v.angle_increment;
+      const Eigen::Vector2d end = origin + (r / res) * Eigen::Vector2d(std::cos(a), std::sin(a));
+      const Eigen::Vector2i c(static_cast<int>(std::floor(end.x())),
+                              static_cast<int>(std::floor(end.y())));
+      Sum& sum = sums[{c.x(), c.y()}];
+      sum.offset += end - c.cast<double>() - Eigen::Vector2d(0.5, 0.5);
+      ++sum.n;
+    }
+  }
+  REQUIRE(sums.size() > 300);
+
+  // Each hit rounds the mean to 1/256 cell; rounding errors are averaged down with the later
+  // hits, so after n hits the error is at most (n + 1)/4 steps (plus one where an endpoint
+  // within 1/256 of the upper edge is clamped into the cell).
+  const double unit = res / TiledGrid::kHitScale;
+  double squared_steps = 0.0;
+  int checked = 0, max_n = 0;
+  for (const auto& [key, sum] : sums) {
+    const Eigen::Vector2i c(key.first, key.second);
+    INFO("cell " << c.transpose() << " hits " << sum.n);
+    CHECK(grid.hitCount(c) == std::min(sum.n, 255));
+    CHECK(plain.hitCount(c) == 0);
+    CHECK(plain.hitPoint(c) == plain.cellCenter(c));
+    const Eigen::Vector2d p = grid.hitPoint(c);
+    CHECK(grid.worldToCell(p) == c);
+    max_n = std::max(max_n, sum.n);
+    if (sum.n > TiledGrid::kHitWindow) continue;
+    const Eigen::Vector2d mean = grid.cellCenter(c) + (sum.offset / sum.n) * res;
+    const double bound = ((sum.n + 1) / 4.0 + 1.0) * unit;
+    CHECK(std::abs(p.x() - mean.x()) <= bound);
+    CHECK(std::abs(p.y() - mean.y()) <= bound);
+    squared_steps += ((p - mean) / unit).squaredNorm() / 2;
+    ++checked;
+  }
+  CHECK(max_n > 4);
+  REQUIRE(checked > 300);
+  CHECK(std::sqrt(squared_steps / checked) < 1.0);  // typically within one storage step
+
+  // Cells crossed but never hit keep their centre.
+  std::size_t free_cells = 0;
+  const CellBox box = grid.knownBounds();
+  for (int j = box.min.y(); j <= box.max.y(); ++j)
+    for (int i = box.min.x(); i <= box.max.x(); ++i)
+      if (grid.isKnown({i, j}) && sums.count({i, j}) == 0) {
+        ++free_cells;
+        CHECK(grid.hitPoint({i, j}) == grid.cellCenter({i, j}));
+      }
+  CHECK(free_cells > 1000);
+}
+
+TEST_CASE("TiledGrid hit point follows slowly after 32 hits and the count saturates",
+          "[tiled_grid]") {
+  TiledGrid grid(trackedOptions(0.05));
+  // Beams from (0.01, 0.01) along +x: 1.0 m ends at x = 1.01 (cell 20, 0.3 cell below its
+  // centre), 1.03 m at x = 1.04 (0.3 cell above).
+  auto repeat = [&](float range, int beams) {
+    const std::vector<float> ranges(static_cast<std::size_t>(beams), range);
+    grid.insertScan(RangeScan{ranges, 0.0, 0.0, 0.1, 8.0}, Pose2(0.01, 0.01, 0.0));
+  };
+  const Eigen::Vector2i c(20, 0);
+  repeat(1.0f, 40);
+  const double low = grid.cellCenter(c).x() - 0.3 * 0.05;
+  CHECK(grid.hitPoint(c).x() == Approx(low).margin(1.0 / 256 * 0.05));
+  CHECK(grid.hitCount(c) == 40);
+  repeat(1.03f, 1);  // weight 1/32, not 1/41
+  CHECK(grid.hitPoint(c).x() == Approx(low + 0.6 * 0.05 / 32).margin(1.5 / 256 * 0.05));
+  CHECK(grid.hitPoint(c).y() ==
+        Approx(grid.cellCenter(c).y() - 0.3 * 0.05).margin(0.5 / 256 * 0.05));
+  repeat(1.03f, 300);
+  CHECK(grid.hitCount(c) == 255);
+  // Settled within one storage step of the new position, not left 1/16 cell short.
+  CHECK(grid.hitPoint(c).x() == Approx(low + 0.6 * 0.05).margin(1.0 / 256 * 0.05));
+}
+
+TEST_CASE("untracked TiledGrid tiles keep their size and tracked tiles add 3 bytes a cell",
+          "[tiled_grid]") {
+  constexpr std::size_t kCells = TiledGrid::kTileCells;
+  CHECK(TiledGrid::tileBytes() == kCells * sizeof(std::int16_t) + sizeof(std::uint32_t));
+  CHECK(TiledGrid::tileBytes(false) == TiledGrid::tileBytes());
+  CHECK(TiledGrid::tileBytes(true) == TiledGrid::tileBytes() + 3 * kCells);
+  TiledGrid plain(tiledOptions(0.05)), tracked(trackedOptions(0.05));
+  const auto scans = roomScans(9, 3);
+  insertRoom(plain, scans);
+  insertRoom(tracked, scans);
+  REQUIRE(plain.tileCount() == tracked.tileCount());
+  CHECK(tracked.memoryBytes() - plain.memoryBytes() == 3 * kCells * tracked.tileCount());
+}
+
+TEST_CASE("copies of a tracked TiledGrid share hit points and a write clones them",
+          "[tiled_grid]") {
+  TiledGrid original(trackedOptions(0.05));
+  insertRoom(original, roomScans(13, 6));
+  TiledGrid snapshot(original.options());
+  insertRoom(snapshot, roomScans(13, 6));
+  REQUIRE(sameHits(original, snapshot));
+
+  auto before = TiledGrid::counters();
+  TiledGrid copy(original);
+  CHECK(countersSince(before).tiles_cloned == 0);
+  CHECK(copy.tracksHitPoints());
+  CHECK(sameHits(copy, original));
+
+  // The copy sees one more scan: its own grid must equal a grid built with all the scans, and
+  // the original must not notice.
+  const auto extra = roomScans(14, 1);
+  before = TiledGrid::counters();
+  insertRoom(copy, extra);
+  CHECK(countersSince(before).tiles_cloned > 0);
+  CHECK(sameHits(original, snapshot));
+  TiledGrid expected(original.options());
+  insertRoom(expected, roomScans(13, 6));
+  insertRoom(expected, extra);
+  CHECK(sameHits(copy, expected));
+  CHECK_FALSE(sameHits(copy, original));
+
+  SECTION("assignment and moves keep the hit points") {
+    TiledGrid assigned(tiledOptions(0.1));  // untracked until assigned
+    assigned = copy;
+    CHECK(assigned.tracksHitPoints());
+    CHECK(sameHits(assigned, expected));
+    TiledGrid moved(std::move(assigned));
+    CHECK(sameHits(moved, expected));
+    TiledGrid target(tiledOptions(0.05));
+    insertRoom(target, extra);  // untracked tiles, released as such
+    target = std::move(moved);
+    CHECK(sameHits(target, expected));
+  }
+}
+
+TEST_CASE("concurrent writes to tracked TiledGrid copies match serially built grids",
+          "[tiled_grid]") {
+  checkConcurrentCopies(trackedOptions(0.05), roomScans, 4, 3, insertRoom, sameHits);
 }

@@ -32,6 +32,15 @@
 // lattice arithmetic from cellCenter({0, 0}) and the resolution, so only logOdds() is called per
 // cell; worldToCell() must agree with that lattice. The templates live in this header.
 //
+// Hit points. A Grid that also provides `bool tracksHitPoints() const` and `Eigen::Vector2d
+// hitPoint(const Eigen::Vector2i&) const` (TiledGrid with track_hit_points) and reports true
+// is matched GMapping-style: d is measured to the candidate's hitPoint() (the mean endpoint
+// that hit it, anywhere inside the cell) instead of its centre, which removes the cell-size
+// quantisation of walls. Everything else (candidates, free check, window, R, score and
+// likelihood) is unchanged. One difference: a hit point in a cell just outside the window can
+// lie closer than R, so d may jump as such a cell enters or leaves the window (at d between
+// r·resolution and R); centres never do.
+//
 // A ScanMatcher holds only its options: all methods are const, allocate nothing per score
 // evaluation and may be called concurrently on grids nobody is writing.
 #pragma once
@@ -43,6 +52,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <concepts>
 #include <cstddef>
 #include <numbers>
 #include <span>
@@ -135,6 +145,13 @@ struct ProposalFit {
 };
 
 namespace detail {
+/// Grids that can report, per cell, the mean position of the beam endpoints that hit it.
+template <class Grid>
+concept HitPointGrid = requires(const Grid& g, const Eigen::Vector2i& c) {
+  { g.tracksHitPoints() } -> std::convertible_to<bool>;
+  { g.hitPoint(c) } -> std::convertible_to<Eigen::Vector2d>;
+};
+
 /// A regular grid of (2·steps+1)³ poses around a centre, `linear` [m] and `angular` [rad] apart.
 struct SampleGrid {
   double linear, angular;
@@ -210,6 +227,9 @@ class ScanMatcher {
   };
   template <class Grid, bool kScore>
   Eval evaluate(const Grid& grid, const ScanPoints& points, const Pose2& pose) const;
+  /// evaluate() with d measured to cell centres or (kHitPoints) to the grid's hit points.
+  template <class Grid, bool kScore, bool kHitPoints>
+  Eval evaluateBeams(const Grid& grid, const ScanPoints& points, const Pose2& pose) const;
   template <class Grid>
   std::vector<double> sampleLogLikelihood(const Grid& grid, const ScanPoints& points,
                                           const Pose2& centre, const detail::SampleGrid& g) const;
@@ -221,6 +241,9 @@ class ScanMatcher {
   struct KernelOffset {
     int dx, dy;
     float distance;  // |offset| [cells]
+    // Least distance from the centre cell's centre to the square of this or any later cell
+    // [cells]: the walk's bound when distances are to points anywhere in a cell (hit points).
+    float square_floor;
   };
   std::vector<KernelOffset> kernel_;
 };
@@ -230,6 +253,15 @@ class ScanMatcher {
 template <class Grid, bool kScore>
 ScanMatcher::Eval ScanMatcher::evaluate(const Grid& grid, const ScanPoints& points,
                                         const Pose2& pose) const {
+  if constexpr (detail::HitPointGrid<Grid>) {
+    if (grid.tracksHitPoints()) return evaluateBeams<Grid, kScore, true>(grid, points, pose);
+  }
+  return evaluateBeams<Grid, kScore, false>(grid, points, pose);
+}
+
+template <class Grid, bool kScore, bool kHitPoints>
+ScanMatcher::Eval ScanMatcher::evaluateBeams(const Grid& grid, const ScanPoints& points,
+                                             const Pose2& pose) const {
   Eval out;
   if (points.empty() || !pose.isFinite()) return out;
   const double res = grid.resolution();
@@ -257,8 +289,9 @@ ScanMatcher::Eval ScanMatcher::evaluate(const Grid& grid, const ScanPoints& poin
     const double ex = e.x(), ey = e.y();
     // Endpoint in cell units relative to the reference centre; its cell is the nearest lattice
     // point, and the remainder is the (small, so float is plenty) offset from that cell centre.
-    const double qx = (pose.x + c * ex - s * ey - centre0.x()) * inv_res;
-    const double qy = (pose.y + s * ex + c * ey - centre0.y()) * inv_res;
+    const double px = pose.x + c * ex - s * ey, py = pose.y + s * ex + c * ey;  // map [m]
+    const double qx = (px - centre0.x()) * inv_res;
+    const double qy = (py - centre0.y()) * inv_res;
     const double fx = std::floor(qx + 0.5), fy = std::floor(qy + 0.5);
     const Eigen::Vector2i cell(static_cast<int>(fx), static_cast<int>(fy));
     const float ux = static_cast<float>((qx - fx) * res);
@@ -283,13 +316,31 @@ ScanMatcher::Eval ScanMatcher::evaluate(const Grid& grid, const ScanPoints& poin
     // cells hold the answer, and the lower bound then ends the walk without touching the rest.
     float best = big_r2;
     const float u_norm = std::sqrt(ux * ux + uy * uy);
-    for (const KernelOffset& k : kernel_) {
-      const float lower = k.distance * resf - u_norm;
-      if (lower > 0.0f && lower * lower >= best) break;
-      const float rx = ux - static_cast<float>(k.dx) * resf;
-      const float ry = uy - static_cast<float>(k.dy) * resf;
-      const float d2 = rx * rx + ry * ry;
-      if (d2 < best && candidate(k.dx, k.dy)) best = d2;
+    if constexpr (kHitPoints) {
+      // A hit point may lie anywhere in its cell, so the bound is the distance to the nearest
+      // remaining cell square rather than centre (at most √½ cell less).
+      const float half = 0.5f * resf;
+      for (const KernelOffset& k : kernel_) {
+        const float lower = k.square_floor * resf - u_norm;
+        if (lower > 0.0f && lower * lower >= best) break;
+        // Distance from e to the cell's square: no hit point of the cell can be nearer, so a
+        // cell that cannot improve on best is skipped before any lookup.
+        const float bx = std::max(std::abs(ux - static_cast<float>(k.dx) * resf) - half, 0.0f);
+        const float by = std::max(std::abs(uy - static_cast<float>(k.dy) * resf) - half, 0.0f);
+        if (bx * bx + by * by >= best || !candidate(k.dx, k.dy)) continue;
+        const Eigen::Vector2d h = grid.hitPoint(Eigen::Vector2i(cell.x() + k.dx, cell.y() + k.dy));
+        const float rx = static_cast<float>(px - h.x()), ry = static_cast<float>(py - h.y());
+        best = std::min(best, rx * rx + ry * ry);
+      }
+    } else {
+      for (const KernelOffset& k : kernel_) {
+        const float lower = k.distance * resf - u_norm;
+        if (lower > 0.0f && lower * lower >= best) break;
+        const float rx = ux - static_cast<float>(k.dx) * resf;
+        const float ry = uy - static_cast<float>(k.dy) * resf;
+        const float d2 = rx * rx + ry * ry;
+        if (d2 < best && candidate(k.dx, k.dy)) best = d2;
+      }
     }
     if (best < big_r2) ++out.matched;
     d2_sum += best;
