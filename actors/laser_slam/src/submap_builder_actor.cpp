@@ -57,6 +57,7 @@ RbpfOptions SubmapBuilderOptions::rbpf() const {
   o.sample_proposal = sample_proposal;
   o.sample_match_start = sample_match_start;
   o.grid.resolution = resolution;
+  o.grid.track_hit_points = hit_points;
   o.grid.log_odds = {static_cast<float>(l_occ), static_cast<float>(l_free),
                      static_cast<float>(l_min), static_cast<float>(l_max)};
   o.insert.max_range = max_range;

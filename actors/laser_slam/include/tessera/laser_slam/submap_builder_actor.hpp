@@ -48,6 +48,7 @@ struct SubmapBuilderOptions {
   bool sample_match_start = false;
   // Grid.
   double resolution = 0.05;
+  bool hit_points = false;
   // A weaker miss than the known-pose mapper's: a wall cell crossed by grazing beams keeps its
   // evidence, so scan matching still finds it (GMapping counts a cell hit by 10 % of its beams).
   double l_occ = 0.85, l_free = -0.2, l_min = -2.0, l_max = 3.5;
@@ -98,6 +99,9 @@ struct SubmapBuilderOptions {
     v("sample_match_start", sample_match_start,
       "start each particle's scan match from its own draw of the odometry prior");
     v("resolution", resolution, "submap cell size [m]");
+    v("hit_points", hit_points,
+      "keep each cell's mean hit position and match against it (sub-cell accuracy, 2.5x tile "
+      "memory)");
     v("l_occ", l_occ, "log-odds added at a beam endpoint (> 0)");
     v("l_free", l_free, "log-odds added along a beam (< 0)");
     v("l_min", l_min, "lower log-odds clamp (< 0)");
