@@ -122,8 +122,6 @@ RbpfStep Rbpf::addScan(double stamp_s, const common::RangeScan& scan, const Pose
     return step;
   }
   const common::ScanPoints points = matcher_.prepare(scan, mount);
-  const common::ScanPoints coarse_points =
-      coarse_matcher_ ? coarse_matcher_->prepare(scan, mount) : common::ScanPoints{};
   const bool usable = !points.endpoints.empty();
   if (usable) {
     last_ranges_.assign(scan.ranges.begin(), scan.ranges.end());
@@ -162,6 +160,8 @@ RbpfStep Rbpf::addScan(double stamp_s, const common::RangeScan& scan, const Pose
   if (!gate) return step;
 
   ++update_index_;
+  const common::ScanPoints coarse_points =
+      coarse_matcher_ ? coarse_matcher_->prepare(scan, mount) : common::ScanPoints{};
   const std::size_t failures =
       updateParticles(points, coarse_points, common::between(update_odometry_, odometry));
   step.updated = true;
@@ -172,7 +172,7 @@ RbpfStep Rbpf::addScan(double stamp_s, const common::RangeScan& scan, const Pose
     step.resampled = true;
     ++stats_.resamples;
   }
-  insertScan(stamp_s, scan, mount);
+  insertScan(scan, mount);
   for (auto& p : particles_)
     p.node = std::make_shared<TrajectoryNode>(TrajectoryNode{stamp_s, p.pose, std::move(p.node)});
   best_ = bestIndex();
@@ -287,7 +287,7 @@ void Rbpf::resample() {
   particles_ = std::move(next);
 }
 
-void Rbpf::insertScan(double /*stamp_s*/, const common::RangeScan& scan, const Pose2& mount) {
+void Rbpf::insertScan(const common::RangeScan& scan, const Pose2& mount) {
   // Particles that hold the same map at the same pose (copies from resampling) insert once and
   // keep sharing; a map also held at another pose is copied first (tiles shared, copy on write).
   struct Group {

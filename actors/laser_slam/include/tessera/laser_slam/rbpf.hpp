@@ -192,7 +192,7 @@ class Rbpf {
                               const common::Pose2& odom_delta);
   double normalizeWeights();
   void resample();
-  void insertScan(double stamp_s, const common::RangeScan& scan, const common::Pose2& mount);
+  void insertScan(const common::RangeScan& scan, const common::Pose2& mount);
   Eigen::Matrix3d motionCovariance(const common::Pose2& delta) const;
   int bestIndex() const;
 
