@@ -39,7 +39,8 @@ TEST_CASE("carmen_rbpf maps the first 500 scans of intel.clf better than odometr
                        {"player.path=" + log.string(), "player.scan_times=" + times.string(),
                         "player.max_scans=500", "particles=5"});
   CHECK(report.stop_reason == "all inputs finished");
-  for (const char* f : {"map.pgm", "map.yaml", "map.png", "trajectory.tum", "odometry.tum"}) {
+  for (const char* f : {"map.pgm", "map.yaml", "map.png", "trajectory.tum", "trajectory_final.tum",
+                        "odometry.tum"}) {
     INFO(f);
     CHECK(fs::exists(out / f));
   }

@@ -102,6 +102,7 @@ void SubmapBuilderActor::configure(ActorContext& ctx) {
   correction_pub_ = ctx.advertise<msg::PoseStamped>("map_to_odom");
   submap_pub_ = ctx.advertise<msg::Submap>("submaps");
   constraint_pub_ = ctx.advertise<msg::SubmapConstraint>("constraints");
+  final_pub_ = ctx.advertise<msg::PoseStamped>("final_poses");
 }
 
 void SubmapBuilderActor::onScan(const Message<msg::LaserScan>& scan) {
@@ -185,6 +186,7 @@ void SubmapBuilderActor::publishPose(Nanos stamp, const common::Pose2& odometry)
 }
 
 void SubmapBuilderActor::handOver(Nanos stamp) {
+  appendBestTrajectory(finished_trajectory_);
   const FinishedSubmap done = rbpf_.startSubmap();
   publishSubmap(done, stamp);
   auto loan = constraint_pub_.loan();
@@ -219,11 +221,28 @@ void SubmapBuilderActor::publishSubmap(const FinishedSubmap& submap, Nanos stamp
   ++submaps_published_;
 }
 
+void SubmapBuilderActor::appendBestTrajectory(std::vector<Rbpf::StampedPose>& out) const {
+  // A submap starts at the scan that ended the previous one: keep that stamp once.
+  for (const auto& p : rbpf_.bestTrajectory())
+    if (out.empty() || p.stamp_s > out.back().stamp_s)
+      out.push_back({p.stamp_s, submap_origin_ * p.pose});
+}
+
 void SubmapBuilderActor::stop() {
   // Upstream has stopped: no odometry will come for scans still waiting.
   scans_unpaired_ += waiting_.size();
   waiting_.clear();
-  if (rbpf_.initialized()) publishSubmap(rbpf_.currentSubmap(), last_stamp_);
+  if (!rbpf_.initialized()) return;
+  publishSubmap(rbpf_.currentSubmap(), last_stamp_);
+  std::vector<Rbpf::StampedPose> trajectory = finished_trajectory_;
+  appendBestTrajectory(trajectory);
+  for (const auto& p : trajectory) {
+    auto loan = final_pub_.loan();
+    setHeader(loan->initHeader(), secondsToNanos(p.stamp_s), options_.frame_id,
+              final_pub_.nextSeq());
+    writePose(loan->initPose(), xyt(p.pose));
+    final_pub_.publish(std::move(loan));
+  }
 }
 
 void SubmapBuilderActor::summarize(Summary& out) const {

@@ -14,6 +14,9 @@
 //   submaps      msg::Submap            reliable consumers: each finished submap, and the last
 //                                       one (finished) in stop()
 //   constraints  msg::SubmapConstraint  at each hand-over: the new submap's origin in the old one
+//   final_poses  msg::PoseStamped       in stop(): the best particle's poses at its filter
+//                                       updates (trajectory tree), submap by submap, in the map
+//                                       frame: the smoothed estimate (write trajectory_final.tum)
 //
 // The map frame is the first submap's frame; later submaps are placed by chaining hand-over
 // constraints (the graph optimiser moves them later). Scans wait (bounded) for an odometry pose
@@ -30,6 +33,7 @@
 #include <cstdint>
 #include <deque>
 #include <string>
+#include <vector>
 
 namespace tessera::laser_slam {
 
@@ -162,6 +166,8 @@ class SubmapBuilderActor final : public Actor {
   void publishPose(Nanos stamp, const common::Pose2& odometry);
   void handOver(Nanos stamp);
   void publishSubmap(const FinishedSubmap& submap, Nanos stamp);
+  /// The current submap's best trajectory, in the map frame, after `out`'s last stamp.
+  void appendBestTrajectory(std::vector<Rbpf::StampedPose>& out) const;
 
   SubmapBuilderOptions options_;
   Rbpf rbpf_;
@@ -170,6 +176,8 @@ class SubmapBuilderActor final : public Actor {
   Publisher<msg::PoseStamped> pose_pub_, correction_pub_;
   Publisher<msg::Submap> submap_pub_;
   Publisher<msg::SubmapConstraint> constraint_pub_;
+  Publisher<msg::PoseStamped> final_pub_;
+  std::vector<Rbpf::StampedPose> finished_trajectory_;  // best trajectories of closed submaps
 
   common::Pose2 submap_origin_;  // current submap's origin in the map frame
   Nanos last_stamp_ = 0;
