@@ -5,11 +5,12 @@
 // Per filter update, for every particle (in parallel, TBB):
 //   1. predict: prior mean = particle pose ⊕ odometry increment, prior covariance from the
 //      motion-noise model (srr, srt, str, stt as in GMapping);
-//   2. scan-match the new scan against the particle's own map from the prior mean;
+//   2. scan-match the new scan against the particle's own map from the prior mean: a coarse
+//      stage (wide kernel, every n-th beam) brings the pose into the basin of the fine stage;
 //   3. improved proposal: fit a Gaussian to p(z|m,x)·p(x|x',u) sampled around the matched mode,
-//      draw the new pose from it, and multiply the weight by its normaliser η;
-//      when matching fails (too few beams agree) the pose is drawn from the motion model and the
-//      weight multiplied by the scan likelihood at it;
+//      draw the new pose from it, and multiply the weight by its normaliser η (divided by
+//      weight_divisor, as GMapping flattens its weights); when both stages fail (too few beams
+//      agree) the pose is drawn from the motion model instead;
 //   4. resample (systematic) when N_eff = 1/Σw² < resample_threshold·N;
 //   5. insert the scan into each particle's map. Particles copied by resampling share map tiles
 //      (copy-on-write TiledGrid): identical copies insert once and share the result, so memory
