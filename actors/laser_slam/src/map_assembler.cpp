@@ -23,14 +23,20 @@ MapAssembler::MapAssembler(double resolution) : resolution_(resolution) {
 }
 
 void MapAssembler::setSubmap(int id, common::OccupancyMap grid) {
-  if (!(grid.resolution > 0) || grid.cells.size() != static_cast<std::size_t>(grid.width) *
-                                                         static_cast<std::size_t>(grid.height))
+  if (!(grid.resolution > 0) || !std::isfinite(grid.resolution) || !grid.origin.isFinite() ||
+      grid.width < 0 || grid.height < 0 ||
+      grid.cells.size() !=
+          static_cast<std::size_t>(grid.width) * static_cast<std::size_t>(grid.height))
     throw std::invalid_argument("map_assembler: submap " + std::to_string(id) +
-                                " has an inconsistent grid (resolution/width/height/cells)");
+                                " has an inconsistent grid (resolution, origin, width x height "
+                                "= cells expected)");
   submaps_[id].grid = std::move(grid);
 }
 
 void MapAssembler::setPose(int id, const common::Pose2& global_pose) {
+  if (!global_pose.isFinite())
+    throw std::invalid_argument("map_assembler: submap " + std::to_string(id) +
+                                " has a non-finite global pose");
   Entry& e = submaps_[id];
   e.pose = global_pose;
   e.placed = true;

@@ -60,7 +60,11 @@ void MapAssemblerActor::onSubmap(const Message<msg::Submap>& m) {
   grid.origin = toPose2(g.getOrigin());
   const auto cells = viewInt8(g.getCells());
   grid.cells.assign(cells.begin(), cells.end());
+  const common::Pose2 global = toPose2(m->getGlobalPose());
   try {
+    if (!global.isFinite())
+      throw std::invalid_argument("map_assembler: submap " + std::to_string(id) +
+                                  " has a non-finite global pose");
     assembler_.setSubmap(id, std::move(grid));
   } catch (const std::invalid_argument& e) {
     // A malformed submap is reported and left out; the rest of the map is still drawn.
@@ -68,7 +72,7 @@ void MapAssemblerActor::onSubmap(const Message<msg::Submap>& m) {
     ++submaps_rejected_;
     return;
   }
-  message_pose_[id] = toPose2(m->getGlobalPose());
+  message_pose_[id] = global;
   last_stamp_ = std::max(last_stamp_, m->getHeader().getStampNs());
   ++submaps_;
   placeChained();
@@ -78,8 +82,14 @@ void MapAssemblerActor::onSubmap(const Message<msg::Submap>& m) {
 void MapAssemblerActor::onConstraint(const Message<msg::SubmapConstraint>& m) {
   ++constraints_;
   if (m->getKind() != msg::SubmapConstraint::Kind::HAND_OVER) return;
-  handover_[static_cast<int>(m->getToId())] = {static_cast<int>(m->getFromId()),
-                                               toPose2(m->getRelative())};
+  const common::Pose2 relative = toPose2(m->getRelative());
+  if (!relative.isFinite()) {
+    std::cerr << "[map_assembler] hand-over " << m->getFromId() << " -> " << m->getToId()
+              << " has a non-finite pose; ignored\n";
+    ++constraints_rejected_;
+    return;
+  }
+  handover_[static_cast<int>(m->getToId())] = {static_cast<int>(m->getFromId()), relative};
   placeChained();
   dirty_ = true;
 }
@@ -130,6 +140,7 @@ void MapAssemblerActor::summarize(Summary& out) const {
   out["map_width"] = static_cast<std::int64_t>(map_width_);
   out["map_height"] = static_cast<std::int64_t>(map_height_);
   if (submaps_rejected_ > 0) out["submaps_rejected"] = i64(submaps_rejected_);
+  if (constraints_rejected_ > 0) out["constraints_rejected"] = i64(constraints_rejected_);
 }
 
 TESSERA_REGISTER_ACTOR("map_assembler", MapAssemblerActor, MapAssemblerOptions,

@@ -239,6 +239,12 @@ TEST_CASE("map assembler draws submaps at their global poses", "[map_assembler]"
   common::OccupancyMap bad = grid;
   bad.cells.pop_back();
   CHECK_THROWS_WITH(assembler.setSubmap(2, bad), Catch::Contains("submap 2"));
+  common::OccupancyMap nan_origin = grid;
+  nan_origin.origin.x = std::numeric_limits<double>::quiet_NaN();
+  CHECK_THROWS_WITH(assembler.setSubmap(3, nan_origin), Catch::Contains("origin"));
+  CHECK_THROWS_WITH(assembler.setPose(1, Pose2(std::numeric_limits<double>::infinity(), 0, 0)),
+                    Catch::Contains("non-finite"));
+  CHECK(assembler.pose(1).x == 5.0);  // unchanged
 }
 
 TEST_CASE("map assembler actor chains hand-over constraints", "[map_assembler]") {
@@ -272,6 +278,27 @@ TEST_CASE("map assembler actor chains hand-over constraints", "[map_assembler]")
   auto& actor = static_cast<laser_slam::MapAssemblerActor&>(h.actor());
   CHECK(actor.assembler().pose(1).x == Approx(2.0));
   CHECK(actor.assembler().pose(1).y == Approx(1.0));
+  // A malformed submap (cells do not match width x height) is reported and left out.
+  h.push<msg::Submap>("submaps", [&](auto& b) {
+    b.setId(2);
+    auto g = b.initGrid();
+    g.setResolution(0.1f);
+    g.setWidth(4);
+    g.setHeight(4);
+    g.initCells(3);
+  });
+  h.push<msg::SubmapConstraint>("constraints", [&](auto& b) {
+    b.setFromId(1);
+    b.setToId(2);
+    writePose(b.initRelative(), PoseXYT{std::numeric_limits<double>::quiet_NaN(), 0.0, 0.0});
+    b.setKind(msg::SubmapConstraint::Kind::HAND_OVER);
+  });
+  h.runUntilIdle();
+  Summary summary;
+  h.actor().summarize(summary);
+  CHECK(std::get<std::int64_t>(summary.at("submaps_rejected")) == 1);
+  CHECK(std::get<std::int64_t>(summary.at("constraints_rejected")) == 1);
+  CHECK(std::get<std::int64_t>(summary.at("submaps_received")) == 2);
   h.stop();
   const auto maps = h.published<msg::OccupancyGrid>("map");
   REQUIRE(maps.size() == 1);

@@ -60,6 +60,7 @@ class MapAssemblerActor final : public Actor {
   Nanos last_stamp_ = 0;
   bool dirty_ = false;
   std::uint64_t submaps_ = 0, constraints_ = 0, maps_published_ = 0, submaps_rejected_ = 0;
+  std::uint64_t constraints_rejected_ = 0;
   int map_width_ = 0, map_height_ = 0;
 };
 
