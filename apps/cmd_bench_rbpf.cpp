@@ -1,11 +1,11 @@
 // `tessera bench rbpf`: the local laser SLAM on a CARMEN log at several particle counts. Each
 // count runs as its own `tessera run` child process (so peak RSS and CPU time are that run's
 // alone), then its online trajectory is scored with the relations metric.
+#include "cli_inputs.hpp"
 #include "commands.hpp"
 
 #include <tessera/common/trajectory_io.hpp>
 #include <tessera/common/trajectory_metrics.hpp>
-#include <tessera/datasets/relations.hpp>
 #include <tessera/runtime/options.hpp>
 #include <tessera/runtime/process_stats.hpp>
 
@@ -36,12 +36,6 @@ struct Options {
   std::string out = "out/bench_rbpf";
   bool json = false;
 };
-
-void requireFile(const std::string& path, const char* option) {
-  std::error_code ec;
-  if (!fs::is_regular_file(path, ec))
-    throw ConfigError(std::string(option) + ": '" + path + "' is not a readable file");
-}
 
 /// Runs `tessera run` in a child process; stdout/stderr go to log_path. Returns its exit code.
 int runChild(const std::vector<std::string>& args, const fs::path& log_path) {
@@ -86,14 +80,10 @@ void addBenchRbpfCommand(CLI::App& bench, int& result) {
   cmd->add_flag("--json", o->json, "print exactly one JSON object on stdout");
   cmd->callback([o, &result] {
     requireFile(o->log, "--log");
-    requireFile(o->relations, "--relations");
     if (!o->scan_times.empty()) requireFile(o->scan_times, "--scan-times");
     for (int n : o->particles)
       if (n < 1) throw ConfigError("--particles: counts must be >= 1, got " + std::to_string(n));
-    const auto file = datasets::readRelations(o->relations);
-    std::vector<common::PoseRelation> relations;
-    for (const auto& r : file.relations)
-      relations.push_back({r.t1_ns, r.t2_ns, common::Pose2(r.dx, r.dy, r.yaw)});
+    const auto relations = loadPoseRelations(o->relations, "--relations");
 
     nlohmann::json runs = nlohmann::json::array();
     for (int n : o->particles) {

@@ -3,6 +3,7 @@
 // object and the summary goes to stderr, so the output can be piped into other tools.
 // Exit codes: 0 ok; 2 usage errors (bad option values, an input file that does not exist);
 // 1 bad input contents (malformed line: the message names file:line) or nothing to compare.
+#include "cli_inputs.hpp"
 #include "commands.hpp"
 
 #include <tessera/common/landmark_io.hpp>
@@ -26,13 +27,6 @@ namespace fs = std::filesystem;
 using namespace tessera::common;
 
 namespace {
-
-void requireFile(const std::string& path, const char* option) {
-  std::error_code ec;
-  if (!fs::is_regular_file(path, ec))
-    throw ConfigError(std::string(option) + " " + path +
-                      (fs::exists(path, ec) ? ": not a regular file" : ": no such file"));
-}
 
 void requireFinite(double v, const char* option) {
   if (!std::isfinite(v)) throw ConfigError(std::string(option) + " must be a finite number");
@@ -109,12 +103,7 @@ void addRelations(CLI::App& eval, int& result) {
     if (!(a->max_gap_s >= 0)) throw ConfigError("--max-gap must be a number >= 0");
     requireFinite(a->time_offset_s, "--time-offset");
     const auto trajectory = loadTrajectory(a->trajectory, "--trajectory");
-    requireFile(a->relations, "--relations");
-    const auto file = datasets::readRelations(a->relations);
-    std::vector<PoseRelation> relations;
-    relations.reserve(file.relations.size());
-    for (const auto& r : file.relations)
-      relations.push_back({r.t1_ns, r.t2_ns, Pose2(r.dx, r.dy, r.yaw)});
+    const std::vector<PoseRelation> relations = loadPoseRelations(a->relations, "--relations");
     RelationsOptions options;
     options.max_gap_s = a->max_gap_s;
     options.time_offset_s = a->time_offset_s;

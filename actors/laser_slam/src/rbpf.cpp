@@ -218,10 +218,7 @@ std::size_t Rbpf::updateParticles(const common::ScanPoints& points,
     r.topLeftCorner<2, 2>() = p.pose.rotation();
     const Eigen::Matrix3d prior_cov = r * local_cov * r.transpose();
 
-    // Each particle starts its search from its own draw of the odometry prior (as GMapping
-    // does): copies made by resampling then settle in different local optima, which keeps the
-    // diversity that lets the filter close loops. The weight still uses the prior's density.
-    Pose2 start = options_.sample_match_start ? sampleGaussian(prior, prior_cov, rng) : prior;
+    Pose2 start = prior;
     bool matched = false;
     if (coarse_matcher_) {
       const common::MatchResult coarse = coarse_matcher_->match(*p.map, coarse_points, prior);

@@ -55,7 +55,6 @@ RbpfOptions SubmapBuilderOptions::rbpf() const {
   o.seed = seed;
   o.parallel = parallel;
   o.sample_proposal = sample_proposal;
-  o.sample_match_start = sample_match_start;
   o.grid.resolution = resolution;
   o.grid.track_hit_points = hit_points;
   o.grid.log_odds = {static_cast<float>(l_occ), static_cast<float>(l_free),

@@ -76,8 +76,6 @@ struct RbpfOptions {
   /// Draw each particle's pose from the fitted proposal (Grisetti et al. 2007); false keeps the
   /// proposal's mean (GMapping's shortcut: less diversity, less jitter).
   bool sample_proposal = true;
-  /// Start each particle's scan match from a draw of the odometry prior instead of its mean.
-  bool sample_match_start = false;
 };
 
 /// A pose with its uncertainty, e.g. an inter-submap constraint.

@@ -49,7 +49,6 @@ struct SubmapBuilderOptions {
   std::uint64_t seed = 1;
   bool parallel = true;
   bool sample_proposal = true;
-  bool sample_match_start = false;
   // Grid.
   double resolution = 0.05;
   bool hit_points = false;
@@ -100,8 +99,6 @@ struct SubmapBuilderOptions {
     v("parallel", parallel, "update particles on TBB worker threads");
     v("sample_proposal", sample_proposal,
       "draw poses from the fitted proposal (true) or keep its mean (false)");
-    v("sample_match_start", sample_match_start,
-      "start each particle's scan match from its own draw of the odometry prior");
     v("resolution", resolution, "submap cell size [m]");
     v("hit_points", hit_points,
       "keep each cell's mean hit position and match against it (sub-cell accuracy, 2.5x tile "

@@ -1,0 +1,29 @@
+#include "cli_inputs.hpp"
+
+#include <tessera/datasets/relations.hpp>
+#include <tessera/runtime/options.hpp>
+
+#include <filesystem>
+
+namespace tessera::app {
+
+namespace fs = std::filesystem;
+
+void requireFile(const std::string& path, const char* option) {
+  std::error_code ec;
+  if (!fs::is_regular_file(path, ec))
+    throw ConfigError(std::string(option) + " " + path +
+                      (fs::exists(path, ec) ? ": not a regular file" : ": no such file"));
+}
+
+std::vector<common::PoseRelation> loadPoseRelations(const std::string& path, const char* option) {
+  requireFile(path, option);
+  const auto file = datasets::readRelations(path);
+  std::vector<common::PoseRelation> relations;
+  relations.reserve(file.relations.size());
+  for (const auto& r : file.relations)
+    relations.push_back({r.t1_ns, r.t2_ns, common::Pose2(r.dx, r.dy, r.yaw)});
+  return relations;
+}
+
+}  // namespace tessera::app
