@@ -15,6 +15,10 @@ void addRunCommand(CLI::App& app, int& result);
 void addActorsCommand(CLI::App& app, int& result);
 /// Adds `tessera eval relations|ate|rpe|landmarks` (trajectory and map accuracy).
 void addEvalCommand(CLI::App& app, int& result);
+/// Adds `tessera graph optimize` (pose-graph files through SGD / Ceres).
+void addGraphCommand(CLI::App& app, int& result);
+/// Adds `tessera bench graph` (pose-graph solvers against g2o's figures).
+void addBenchGraphCommand(CLI::App& bench, int& result);
 /// Adds `tessera bench runtime`.
 void addBenchRuntimeCommand(CLI::App& bench, int& result);
 /// Adds `tessera bench rbpf` (laser SLAM accuracy, CPU and memory on a CARMEN log).

@@ -12,10 +12,12 @@ int main(int argc, char** argv) {
   tessera::app::addRunCommand(app, result);
   tessera::app::addActorsCommand(app, result);
   tessera::app::addEvalCommand(app, result);
+  tessera::app::addGraphCommand(app, result);
   auto* bench = app.add_subcommand("bench", "benchmarks that print their figures and the machine");
   bench->require_subcommand(1);
   tessera::app::addBenchRuntimeCommand(*bench, result);
   tessera::app::addBenchRbpfCommand(*bench, result);
+  tessera::app::addBenchGraphCommand(*bench, result);
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {

@@ -1,0 +1,155 @@
+// Ceres stage: the g2o objective as Ceres residuals r = L eᵀ with Ω = Lᵀ L (full information,
+// not only its diagonal), so χ² = 2 × Ceres' cost.
+#include "solvers.hpp"
+
+#include <ceres/ceres.h>
+#include <ceres/manifold.h>
+
+#include <Eigen/Eigenvalues>
+
+#include <cmath>
+
+namespace tessera::pose_graph::detail {
+namespace {
+
+template <class T>
+T wrapAngle(const T& a) {
+  const T two_pi = T(2.0 * M_PI);
+  return a - two_pi * ceres::floor((a + T(M_PI)) / two_pi);
+}
+
+template <int D>
+Eigen::Matrix<double, D, D> sqrtInformation(const Eigen::Matrix<double, D, D>& omega) {
+  // Ω = V Λ Vᵀ → L = Λ^½ Vᵀ. Unlike a Cholesky factor this also takes the singular PSD
+  // matrices some files hold (e.g. a zero rotation weight).
+  Eigen::SelfAdjointEigenSolver<Eigen::Matrix<double, D, D>> eig(omega);
+  return eig.eigenvalues().cwiseMax(0.0).cwiseSqrt().asDiagonal() * eig.eigenvectors().transpose();
+}
+
+struct Se2Residual {
+  Eigen::Vector3d z;
+  Eigen::Matrix3d sqrt_info;
+
+  template <class T>
+  bool operator()(const T* a, const T* b, T* out) const {
+    const T ca = ceres::cos(a[2]), sa = ceres::sin(a[2]);
+    const T dx = b[0] - a[0], dy = b[1] - a[1];
+    // X_a⁻¹ X_b, then Z⁻¹ (·).
+    const T lx = ca * dx + sa * dy, ly = -sa * dx + ca * dy;
+    const double cz = std::cos(z[2]), sz = std::sin(z[2]);
+    Eigen::Matrix<T, 3, 1> e;
+    e[0] = cz * (lx - z[0]) + sz * (ly - z[1]);
+    e[1] = -sz * (lx - z[0]) + cz * (ly - z[1]);
+    e[2] = wrapAngle(b[2] - a[2] - T(z[2]));
+    Eigen::Map<Eigen::Matrix<T, 3, 1>> residual(out);
+    residual = sqrt_info.cast<T>() * e;
+    return true;
+  }
+};
+
+struct Se3Residual {
+  Pose3 z_inverse;
+  Eigen::Matrix<double, 6, 6> sqrt_info;
+
+  template <class T>
+  bool operator()(const T* ta, const T* qa, const T* tb, const T* qb, T* out) const {
+    const Eigen::Map<const Eigen::Matrix<T, 3, 1>> pa(ta), pb(tb);
+    const Eigen::Map<const Eigen::Quaternion<T>> ra(qa), rb(qb);
+    const Eigen::Quaternion<T> ra_inv = ra.conjugate();
+    const Eigen::Quaternion<T> zq = z_inverse.q.cast<T>();
+    // Z⁻¹ (X_a⁻¹ X_b)
+    const Eigen::Matrix<T, 3, 1> t_ab = ra_inv * (pb - pa);
+    const Eigen::Quaternion<T> q_ab = ra_inv * rb;
+    const Eigen::Matrix<T, 3, 1> t = zq * t_ab + z_inverse.t.cast<T>();
+    Eigen::Quaternion<T> q = zq * q_ab;
+    // Unit quaternions from the manifold stay unit up to rounding; normalise as g2o does.
+    q.normalize();
+    Eigen::Matrix<T, 6, 1> e;
+    e.template head<3>() = t;
+    if (q.w() < T(0)) {
+      e.template tail<3>() = -q.vec();
+    } else {
+      e.template tail<3>() = q.vec();
+    }
+    Eigen::Map<Eigen::Matrix<T, 6, 1>> residual(out);
+    residual = sqrt_info.cast<T>() * e;
+    return true;
+  }
+};
+
+ceres::Solver::Options solverOptions(const CeresOptions& options) {
+  ceres::Solver::Options o;
+  o.linear_solver_type = ceres::SPARSE_NORMAL_CHOLESKY;
+  o.sparse_linear_algebra_library_type = ceres::SUITE_SPARSE;
+  o.trust_region_strategy_type =
+      options.levenberg_marquardt ? ceres::LEVENBERG_MARQUARDT : ceres::DOGLEG;
+  o.max_num_iterations = options.max_iterations;
+  o.initial_trust_region_radius = options.initial_trust_region;
+  o.function_tolerance = options.function_tolerance;
+  o.gradient_tolerance = options.gradient_tolerance;
+  o.parameter_tolerance = options.parameter_tolerance;
+  o.num_threads = options.threads;
+  o.logging_type = ceres::SILENT;
+  o.minimizer_progress_to_stdout = false;
+  return o;
+}
+
+ceres::LossFunction* lossFor(bool robust, const CeresOptions& options) {
+  if (!robust || options.huber_delta <= 0.0) return nullptr;
+  return new ceres::HuberLoss(options.huber_delta);
+}
+
+StageResult solve(ceres::Problem& problem, const CeresOptions& options) {
+  ceres::Solver::Summary summary;
+  ceres::Solve(solverOptions(options), &problem, &summary);
+  StageResult result;
+  result.iterations = static_cast<int>(summary.iterations.size()) - 1;  // [0] is the start
+  result.converged = summary.termination_type == ceres::CONVERGENCE;
+  result.message = "Ceres: " + summary.message;
+  if (summary.termination_type == ceres::FAILURE)
+    throw GraphError("pose graph: Ceres failed: " + summary.message);
+  return result;
+}
+
+}  // namespace
+
+StageResult runCeres(Graph2D& graph, const CeresOptions& options) {
+  ceres::Problem problem;
+  for (const auto& e : graph.edges) {
+    auto* cost = new ceres::AutoDiffCostFunction<Se2Residual, 3, 3, 3>(
+        new Se2Residual{e.measurement, sqrtInformation<3>(e.information)});
+    problem.AddResidualBlock(cost, lossFor(e.robust, options), graph.poses[e.from].data(),
+                             graph.poses[e.to].data());
+  }
+  for (int i = 0; i < graph.size(); ++i)
+    if ((i == 0 || graph.fixed[i]) && problem.HasParameterBlock(graph.poses[i].data()))
+      problem.SetParameterBlockConstant(graph.poses[i].data());
+  StageResult result = solve(problem, options);
+  for (auto& p : graph.poses) p.z() = std::remainder(p.z(), 2.0 * M_PI);
+  return result;
+}
+
+StageResult runCeres(Graph3D& graph, const CeresOptions& options) {
+  ceres::Problem problem;
+  for (const auto& e : graph.edges) {
+    auto* cost = new ceres::AutoDiffCostFunction<Se3Residual, 6, 3, 4, 3, 4>(
+        new Se3Residual{e.measurement.inverse(), sqrtInformation<6>(e.information)});
+    problem.AddResidualBlock(cost, lossFor(e.robust, options), graph.poses[e.from].t.data(),
+                             graph.poses[e.from].q.coeffs().data(), graph.poses[e.to].t.data(),
+                             graph.poses[e.to].q.coeffs().data());
+  }
+  for (int i = 0; i < graph.size(); ++i) {
+    double* q = graph.poses[i].q.coeffs().data();
+    if (!problem.HasParameterBlock(q)) continue;
+    problem.SetManifold(q, new ceres::EigenQuaternionManifold);
+    if (i == 0 || graph.fixed[i]) {
+      problem.SetParameterBlockConstant(graph.poses[i].t.data());
+      problem.SetParameterBlockConstant(q);
+    }
+  }
+  StageResult result = solve(problem, options);
+  for (auto& p : graph.poses) p.q.normalize();
+  return result;
+}
+
+}  // namespace tessera::pose_graph::detail
