@@ -55,7 +55,8 @@ LineSlamActor::LineSlamActor(LineSlamActorOptions options)
     : options_(std::move(options)),
       extractor_(checked<common::LineExtractor>(options_.extractor)),
       slam_(checked<LineEkfSlam>(checkedSlamOptions(options_))),
-      odometry_(static_cast<std::size_t>(options_.pose_history), options_.max_pose_gap_s),
+      pairing_(static_cast<std::size_t>(options_.scan_buffer),
+               static_cast<std::size_t>(options_.pose_history), options_.max_pose_gap_s),
       truth_(static_cast<std::size_t>(options_.pose_history), options_.max_pose_gap_s) {}
 
 void LineSlamActor::configure(ActorContext& ctx) {
@@ -86,36 +87,18 @@ void LineSlamActor::onScan(const Message<msg::LaserScan>& scan) {
     ++scans_rejected_;
     return;
   }
-  if (waiting_.empty() && tryProcess(scan)) return;
-  if (waiting_.size() >= static_cast<std::size_t>(options_.scan_buffer)) {
-    waiting_.pop_front();
-    ++scans_unpaired_;
-  }
-  waiting_.push_back(scan);
+  pairing_.addItem(scan, scan->getHeader().getStampNs(),
+                   [this](const auto& s, const common::Pose2& odom) { process(s, odom); });
 }
 
 void LineSlamActor::onOdometry(Nanos stamp, const common::Pose2& pose) {
-  if (!odometry_.add(stamp, pose)) {
+  if (!pairing_.addPose(stamp, pose,
+                        [this](const auto& s, const common::Pose2& odom) { process(s, odom); }))
     ++odometry_invalid_;
-    return;
-  }
-  while (!waiting_.empty() && tryProcess(waiting_.front())) waiting_.pop_front();
 }
 
-bool LineSlamActor::tryProcess(const Message<msg::LaserScan>& scan) {
+void LineSlamActor::process(const Message<msg::LaserScan>& scan, const common::Pose2& odom) {
   const Nanos stamp = scan->getHeader().getStampNs();
-  common::Pose2 odom;
-  switch (odometry_.at(stamp, odom)) {
-    case common::PoseHistory::Lookup::kWait:
-      return false;
-    case common::PoseHistory::Lookup::kTooOld:
-    case common::PoseHistory::Lookup::kGap:
-      ++scans_unpaired_;
-      return true;
-    case common::PoseHistory::Lookup::kExact:
-    case common::PoseHistory::Lookup::kInterpolated:
-      break;
-  }
   ++scans_paired_;
   if (!last_odom_) {
     slam_.reset(odom);  // the map frame is the odometry frame at the first scan
@@ -152,7 +135,6 @@ bool LineSlamActor::tryProcess(const Message<msg::LaserScan>& scan) {
   writePose(loan->initPose(), PoseXYT{p.x, p.y, p.theta}, &cov);
   pose_pub_.publish(std::move(loan));
   if (options_.ground_truth) compareWithTruth(stamp);
-  return true;
 }
 
 void LineSlamActor::compareWithTruth(Nanos stamp) {
@@ -193,8 +175,7 @@ void LineSlamActor::publishMap(Nanos stamp) {
 }
 
 void LineSlamActor::stop() {
-  scans_unpaired_ += waiting_.size();
-  waiting_.clear();
+  pairing_.finish();
   if (last_odom_) publishMap(last_stamp_);
 }
 
@@ -204,7 +185,7 @@ void LineSlamActor::summarize(Summary& out) const {
   out["scans_read"] = i64(scans_read_);
   out["scans_paired"] = i64(scans_paired_);
   out["scans_processed"] = i64(filter_updates_);
-  out["scans_unpaired"] = i64(scans_unpaired_);
+  out["scans_unpaired"] = i64(pairing_.unpaired());
   out["scans_rejected"] = i64(scans_rejected_);
   out["segments_extracted"] = i64(segments_extracted_);
   out["segments_rejected"] = i64(s.segments_rejected);

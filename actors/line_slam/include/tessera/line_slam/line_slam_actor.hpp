@@ -19,13 +19,12 @@
 
 #include <tessera/msg/lines.capnp.h>
 #include <tessera/common/line_extraction.hpp>
-#include <tessera/common/pose_history.hpp>
+#include <tessera/common/pose_pairing.hpp>
 #include <tessera/line_slam/line_ekf_slam.hpp>
 #include <tessera/messages/types.hpp>
 #include <tessera/runtime/actor.hpp>
 
 #include <cstdint>
-#include <deque>
 #include <optional>
 #include <string>
 
@@ -84,22 +83,22 @@ class LineSlamActor final : public Actor {
  private:
   void onScan(const Message<msg::LaserScan>& scan);
   void onOdometry(Nanos stamp, const common::Pose2& pose);
-  bool tryProcess(const Message<msg::LaserScan>& scan);
+  void process(const Message<msg::LaserScan>& scan, const common::Pose2& odom);
   void publishMap(Nanos stamp);
   void compareWithTruth(Nanos stamp);
 
   LineSlamActorOptions options_;
   common::LineExtractor extractor_;
   LineEkfSlam slam_;
-  common::PoseHistory odometry_, truth_;
-  std::deque<Message<msg::LaserScan>> waiting_;
+  common::PosePairing<Message<msg::LaserScan>> pairing_;
+  common::PoseHistory truth_;
   Publisher<msg::PoseStamped> pose_pub_;
   Publisher<msg::LineMap> map_pub_;
 
   std::optional<common::Pose2> last_odom_;    // odometry at the previous paired scan
   std::optional<common::Pose2> update_odom_;  // odometry at the previous filter update
   Nanos last_stamp_ = 0;
-  std::uint64_t scans_read_ = 0, scans_unpaired_ = 0, scans_rejected_ = 0, scans_paired_ = 0;
+  std::uint64_t scans_read_ = 0, scans_rejected_ = 0, scans_paired_ = 0;
   std::uint64_t filter_updates_ = 0, segments_extracted_ = 0, odometry_invalid_ = 0;
   std::uint64_t truth_compared_ = 0;
   double final_position_error_ = -1, final_heading_error_ = -1, max_position_error_ = -1;
