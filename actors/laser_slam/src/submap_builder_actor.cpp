@@ -80,7 +80,8 @@ RbpfOptions SubmapBuilderOptions::rbpf() const {
 SubmapBuilderActor::SubmapBuilderActor(SubmapBuilderOptions options)
     : options_(std::move(options)),
       rbpf_(checkedFilter(options_)),
-      odometry_(static_cast<std::size_t>(options_.pose_history), options_.max_pose_gap_s) {}
+      pairing_(static_cast<std::size_t>(options_.scan_buffer),
+               static_cast<std::size_t>(options_.pose_history), options_.max_pose_gap_s) {}
 
 void SubmapBuilderActor::configure(ActorContext& ctx) {
   ctx.subscribe<msg::LaserScan>(
@@ -106,21 +107,14 @@ void SubmapBuilderActor::configure(ActorContext& ctx) {
 
 void SubmapBuilderActor::onScan(const Message<msg::LaserScan>& scan) {
   ++scans_read_;
-  // Scans queued behind this one keep their order: only try it now if none is waiting.
-  if (waiting_.empty() && tryProcess(scan)) return;
-  if (waiting_.size() >= static_cast<std::size_t>(options_.scan_buffer)) {
-    waiting_.pop_front();
-    ++scans_unpaired_;
-  }
-  waiting_.push_back(scan);
+  pairing_.addItem(scan, scan->getHeader().getStampNs(),
+                   [this](const auto& s, const common::Pose2& odom) { process(s, odom); });
 }
 
 void SubmapBuilderActor::onOdometry(Nanos stamp, const common::Pose2& pose) {
-  if (!odometry_.add(stamp, pose)) {
+  if (!pairing_.addPose(stamp, pose,
+                        [this](const auto& s, const common::Pose2& odom) { process(s, odom); }))
     ++odometry_invalid_;
-    return;
-  }
-  while (!waiting_.empty() && tryProcess(waiting_.front())) waiting_.pop_front();
 }
 
 void SubmapBuilderActor::onCameraEvent(const Message<msg::CameraEvent>& event) {
@@ -131,27 +125,15 @@ void SubmapBuilderActor::onCameraEvent(const Message<msg::CameraEvent>& event) {
   handover_requested_ = true;
 }
 
-bool SubmapBuilderActor::tryProcess(const Message<msg::LaserScan>& scan) {
+void SubmapBuilderActor::process(const Message<msg::LaserScan>& scan, const common::Pose2& odom) {
   const Nanos stamp = scan->getHeader().getStampNs();
-  common::Pose2 odom;
-  switch (odometry_.at(stamp, odom)) {
-    case common::PoseHistory::Lookup::kWait:
-      return false;
-    case common::PoseHistory::Lookup::kTooOld:
-    case common::PoseHistory::Lookup::kGap:
-      ++scans_unpaired_;
-      return true;
-    case common::PoseHistory::Lookup::kExact:
-    case common::PoseHistory::Lookup::kInterpolated:
-      break;
-  }
   const common::RangeScan ranges{view<float>(scan->getRanges()), scan->getAngleMin(),
                                  scan->getAngleIncrement(), scan->getRangeMin(),
                                  scan->getRangeMax()};
   const common::Pose2 mount(scan->getMountX(), scan->getMountY(), scan->getMountTheta());
   const RbpfStep step = rbpf_.addScan(nanosToSeconds(stamp), ranges, mount, odom);
   last_stamp_ = stamp;
-  if (!rbpf_.initialized()) return true;  // nothing to publish before the first usable scan
+  if (!rbpf_.initialized()) return;  // nothing to publish before the first usable scan
 
   const bool by_distance =
       options_.submap_distance > 0 && rbpf_.submapTravelled() >= options_.submap_distance;
@@ -163,7 +145,6 @@ bool SubmapBuilderActor::tryProcess(const Message<msg::LaserScan>& scan) {
     handOver(stamp);
   }
   publishPose(stamp, odom);
-  return true;
 }
 
 void SubmapBuilderActor::publishPose(Nanos stamp, const common::Pose2& odometry) {
@@ -229,8 +210,7 @@ void SubmapBuilderActor::appendBestTrajectory(std::vector<Rbpf::StampedPose>& ou
 
 void SubmapBuilderActor::stop() {
   // Upstream has stopped: no odometry will come for scans still waiting.
-  scans_unpaired_ += waiting_.size();
-  waiting_.clear();
+  pairing_.finish();
   if (!rbpf_.initialized()) return;
   publishSubmap(rbpf_.currentSubmap(), last_stamp_);
   std::vector<Rbpf::StampedPose> trajectory = finished_trajectory_;
@@ -256,7 +236,7 @@ void SubmapBuilderActor::summarize(Summary& out) const {
   out["coarse_evaluations"] = i64(s.coarse_evaluations);
   out["fine_evaluations"] = i64(s.fine_evaluations);
   out["submaps"] = i64(submaps_published_);
-  out["scans_unpaired"] = i64(scans_unpaired_);
+  out["scans_unpaired"] = i64(pairing_.unpaired());
   out["scans_unusable"] = i64(s.unusable_scans);
   if (camera_handovers_ > 0) out["camera_handovers"] = i64(camera_handovers_);
   if (odometry_invalid_ + s.invalid_odometry > 0)

@@ -1,9 +1,11 @@
 #include <tessera/mapping/feature_writers.hpp>
 
+#include <tessera/common/line_map_io.hpp>
 #include <tessera/runtime/options.hpp>
 #include <tessera/runtime/registry.hpp>
 
 #include <cinttypes>
+#include <cmath>
 #include <cstdio>
 #include <filesystem>
 #include <iomanip>
@@ -197,5 +199,84 @@ void LandmarkMapWriterActor::summarize(Summary& out) const {
 
 TESSERA_REGISTER_ACTOR("landmark_map_writer", LandmarkMapWriterActor, LandmarkMapWriterOptions,
                        "writes the last landmark map as `id x y` lines");
+
+// ---- line_map_writer ----
+
+LineMapWriterActor::LineMapWriterActor(LineMapWriterOptions options)
+    : options_(std::move(options)) {
+  if (!(std::isfinite(options_.pixels_per_m) && options_.pixels_per_m > 0))
+    throw ConfigError("line_map_writer: option 'pixels_per_m' must be > 0");
+}
+
+void LineMapWriterActor::configure(ActorContext& ctx) {
+  ctx_ = &ctx;
+  ctx.subscribe<msg::LineMap>("line_map", MailboxPolicy::keepLatest(1),
+                              [this](const Message<msg::LineMap>& m) { latest_ = m; });
+  if (options_.draw_trajectory) {
+    ctx.subscribe<msg::PoseStamped>(
+        "poses", MailboxPolicy::reliable(), [this](const Message<msg::PoseStamped>& m) {
+          const Eigen::Vector2d p(m->getPose().getX(), m->getPose().getY());
+          // 2 cm steps are plenty for a drawing and keep long runs small.
+          if (p.allFinite() && (trajectory_.empty() || (p - trajectory_.back()).norm() > 0.02))
+            trajectory_.push_back(p);
+        });
+  }
+}
+
+void LineMapWriterActor::stop() {
+  if (ctx_->outputDir().empty()) return;
+  if (!latest_) {
+    std::cerr << ctx_->name() << ": no line map received, nothing written\n";
+    return;
+  }
+  // stop() must not throw: report failures instead.
+  try {
+    std::vector<common::MapSegment> lines;
+    for (const auto f : latest_->getLines()) {
+      common::MapSegment s;
+      s.id = f.getId();
+      s.r = f.getR();
+      s.phi = f.getPhi();
+      if (f.getCovariance().size() == 4)
+        s.covariance << f.getCovariance()[0], f.getCovariance()[1], f.getCovariance()[2],
+            f.getCovariance()[3];
+      s.p0 = {f.getX0(), f.getY0()};
+      s.p1 = {f.getX1(), f.getY1()};
+      s.observations = f.getObservations();
+      lines.push_back(s);
+    }
+    std::vector<common::MapSegment> walls;
+    const fs::path walls_path = fs::path(ctx_->outputDir()) / options_.walls_file;
+    if (!options_.walls_file.empty() && fs::exists(walls_path)) {
+      walls = common::readWallSegments(walls_path);
+      const auto score = common::scoreLineMap(lines, walls);
+      walls_ = score.walls;
+      walls_matched_ = score.walls_matched;
+      lines_on_walls_ = score.lines_on_walls;
+    }
+    if (!options_.lines_file.empty())
+      common::writeLinesCsv(fs::path(ctx_->outputDir()) / options_.lines_file, lines);
+    if (!options_.svg_file.empty())
+      common::writeLinesSvg(fs::path(ctx_->outputDir()) / options_.svg_file, lines, walls,
+                            trajectory_, options_.pixels_per_m);
+    lines_written_ = static_cast<std::int64_t>(lines.size());
+  } catch (const std::exception& e) {
+    error_ = e.what();
+    std::cerr << ctx_->name() << ": " << error_ << "\n";
+  }
+}
+
+void LineMapWriterActor::summarize(Summary& out) const {
+  out["lines_written"] = lines_written_;
+  if (walls_ >= 0) {
+    out["walls"] = static_cast<std::int64_t>(walls_);
+    out["walls_matched"] = static_cast<std::int64_t>(walls_matched_);
+    out["lines_on_walls"] = static_cast<std::int64_t>(lines_on_walls_);
+  }
+  if (!error_.empty()) out["error"] = error_;
+}
+
+TESSERA_REGISTER_ACTOR("line_map_writer", LineMapWriterActor, LineMapWriterOptions,
+                       "writes the last line map as CSV and SVG and scores it against true walls");
 
 }  // namespace tessera::mapping

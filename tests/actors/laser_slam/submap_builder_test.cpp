@@ -14,40 +14,18 @@
 #include <limits>
 #include <numbers>
 
-#include "sim_scans.hpp"
+#include "../scan_messages.hpp"
 
 using namespace tessera;
 using common::Pose2;
 using laser_slam::MapAssembler;
 using laser_slam::SubmapBuilderActor;
 using laser_slam::SubmapBuilderOptions;
+using test::pushOdometry;
+using test::pushScan;
+using test::stampOf;
 
 namespace {
-
-Nanos stampOf(double s) {
-  return static_cast<Nanos>(std::llround(s * 1e9));
-}
-
-void pushOdometry(ActorHarness& h, Nanos stamp, const Pose2& p) {
-  h.push<msg::Odometry>("odom", [&](auto& b) {
-    setHeader(b.initHeader(), stamp, "odom", 0);
-    b.setChildFrameId("base_link");
-    writePose(b.initPose(), PoseXYT{p.x, p.y, p.theta});
-  });
-}
-
-void pushScan(ActorHarness& h, Nanos stamp, const test::SimScans& sim,
-              const std::vector<float>& ranges) {
-  h.push<msg::LaserScan>("scan", [&](auto& b) {
-    setHeader(b.initHeader(), stamp, "laser", 0);
-    b.setAngleMin(static_cast<float>(sim.laser.angle_min));
-    b.setAngleIncrement(static_cast<float>(sim.laser.angle_increment));
-    b.setRangeMin(static_cast<float>(sim.laser.range_min));
-    b.setRangeMax(static_cast<float>(sim.laser.range_max));
-    auto r = b.initRanges(static_cast<unsigned>(ranges.size()));
-    for (unsigned i = 0; i < ranges.size(); ++i) r.set(i, ranges[i]);
-  });
-}
 
 SubmapBuilderOptions fastOptions() {
   SubmapBuilderOptions o;

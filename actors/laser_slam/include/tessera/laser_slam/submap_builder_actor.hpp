@@ -25,13 +25,12 @@
 
 #include <tessera/msg/camera.capnp.h>
 #include <tessera/msg/submap.capnp.h>
-#include <tessera/common/pose_history.hpp>
+#include <tessera/common/pose_pairing.hpp>
 #include <tessera/laser_slam/rbpf.hpp>
 #include <tessera/messages/types.hpp>
 #include <tessera/runtime/actor.hpp>
 
 #include <cstdint>
-#include <deque>
 #include <string>
 #include <vector>
 
@@ -158,8 +157,8 @@ class SubmapBuilderActor final : public Actor {
   void onScan(const Message<msg::LaserScan>& scan);
   void onOdometry(Nanos stamp, const common::Pose2& pose);
   void onCameraEvent(const Message<msg::CameraEvent>& event);
-  /// Runs the scan through the filter if its odometry is known; false = keep waiting.
-  bool tryProcess(const Message<msg::LaserScan>& scan);
+  /// Runs a scan, paired with the odometry pose at its stamp, through the filter.
+  void process(const Message<msg::LaserScan>& scan, const common::Pose2& odom);
   void publishPose(Nanos stamp, const common::Pose2& odometry);
   void handOver(Nanos stamp);
   void publishSubmap(const FinishedSubmap& submap, Nanos stamp);
@@ -168,8 +167,7 @@ class SubmapBuilderActor final : public Actor {
 
   SubmapBuilderOptions options_;
   Rbpf rbpf_;
-  common::PoseHistory odometry_;
-  std::deque<Message<msg::LaserScan>> waiting_;
+  common::PosePairing<Message<msg::LaserScan>> pairing_;
   Publisher<msg::PoseStamped> pose_pub_, correction_pub_;
   Publisher<msg::Submap> submap_pub_;
   Publisher<msg::SubmapConstraint> constraint_pub_;
@@ -180,7 +178,7 @@ class SubmapBuilderActor final : public Actor {
   Nanos last_stamp_ = 0;
   int last_camera_ = -1;
   bool handover_requested_ = false;
-  std::uint64_t scans_read_ = 0, scans_unpaired_ = 0, odometry_invalid_ = 0;
+  std::uint64_t scans_read_ = 0, odometry_invalid_ = 0;
   std::uint64_t submaps_published_ = 0, camera_handovers_ = 0;
 };
 

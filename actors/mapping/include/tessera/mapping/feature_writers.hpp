@@ -14,16 +14,26 @@
 // landmark_map_writer  subscribes "landmark_map" (msg::LandmarkMap, keep_latest(1)) and in
 //                      stop() writes the last map as `id x y` lines with '#' comments (the format
 //                      `tessera eval landmarks` reads).
+// line_map_writer      subscribes "line_map" (msg::LineMap, keep_latest(1)) and, with
+//                      draw_trajectory, "poses" (msg::PoseStamped, reliable); in stop() writes
+//                      the last map as <lines_file> (CSV, common/line_map_io.hpp) and
+//                      <svg_file> (drawing over the true walls of <walls_file> when that file
+//                      exists in the output folder, e.g. written by world_writer), and scores
+//                      the map against those walls in its summary.
 #pragma once
 
 #include <tessera/msg/camera.capnp.h>
 #include <tessera/msg/landmark.capnp.h>
+#include <tessera/msg/lines.capnp.h>
 #include <tessera/messages/types.hpp>
 #include <tessera/runtime/actor.hpp>
 
 #include <cstdint>
 #include <fstream>
 #include <string>
+#include <vector>
+
+#include <Eigen/Core>
 
 namespace tessera::mapping {
 
@@ -106,6 +116,44 @@ class LandmarkMapWriterActor final : public Actor {
   Message<msg::LandmarkMap> latest_;
   std::int64_t landmarks_written_ = 0;
   std::string path_, error_;
+};
+
+struct LineMapWriterOptions {
+  std::string lines_file = "lines.csv";
+  std::string svg_file = "lines.svg";
+  std::string walls_file;
+  bool draw_trajectory = true;
+  double pixels_per_m = 60.0;
+
+  template <class V>
+  void visit(V& v) {
+    v("lines_file", lines_file, "CSV of the map lines, in the output folder; empty = none");
+    v("svg_file", svg_file, "SVG drawing of the map lines; empty = none");
+    v("walls_file", walls_file,
+      "true walls ('x0 y0 x1 y1' lines) in the output folder, drawn beneath the map and used to "
+      "score it; empty or absent = none");
+    v("draw_trajectory", draw_trajectory, "subscribe to poses and draw the trajectory");
+    v("pixels_per_m", pixels_per_m, "SVG scale [px/m] (> 0)");
+  }
+};
+
+class LineMapWriterActor final : public Actor {
+ public:
+  /// Throws ConfigError for bad options.
+  explicit LineMapWriterActor(LineMapWriterOptions options);
+  void configure(ActorContext& ctx) override;
+  void stop() override;
+  /// lines_written, and with walls: walls, walls_matched, lines_on_walls.
+  void summarize(Summary& out) const override;
+
+ private:
+  LineMapWriterOptions options_;
+  ActorContext* ctx_ = nullptr;
+  Message<msg::LineMap> latest_;
+  std::vector<Eigen::Vector2d> trajectory_;
+  std::int64_t lines_written_ = 0;
+  int walls_ = -1, walls_matched_ = 0, lines_on_walls_ = 0;
+  std::string error_;
 };
 
 }  // namespace tessera::mapping
