@@ -16,6 +16,7 @@ int main(int argc, char** argv) {
   bench->require_subcommand(1);
   tessera::app::addBenchRuntimeCommand(*bench, result);
   tessera::app::addBenchRbpfCommand(*bench, result);
+  tessera::app::addBenchLandmarksCommand(*bench, result);
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {

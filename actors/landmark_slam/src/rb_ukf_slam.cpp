@@ -1,0 +1,96 @@
+#include <tessera/landmark_slam/landmark_filter.hpp>
+
+#include <Eigen/LU>
+
+namespace tessera::landmark_slam {
+
+RbUkfSlam::RbUkfSlam(LandmarkSlamOptions options) : LandmarkFilter(std::move(options)) {
+  pose_ = options_.initial_pose.vector();
+  P_ = options_.initial_std.cwiseAbs2().asDiagonal();
+}
+
+LandmarkEstimate RbUkfSlam::gaussian(std::size_t index) const {
+  LandmarkEstimate e;
+  e.mean = landmarks_.at(index).mean;
+  e.covariance = landmarks_.at(index).cov;
+  return e;
+}
+
+void RbUkfSlam::doPredict(const common::DriveInput& u, const Eigen::Matrix2d& control_cov) {
+  // Sigma points over (pose, speed noise, steering / turn-rate noise).
+  Eigen::VectorXd mean = Eigen::VectorXd::Zero(5);
+  mean.head<3>() = pose_;
+  Eigen::MatrixXd C = Eigen::MatrixXd::Zero(5, 5);
+  C.topLeftCorner<3, 3>() = P_;
+  C.bottomRightCorner<2, 2>() = control_cov;
+  const auto r = common::unscentedTransform(
+      mean, C,
+      [&u](const Eigen::VectorXd& a) -> Eigen::VectorXd {
+        common::DriveInput v = u;
+        v.speed += a[3];
+        (v.carLike() ? v.steer : v.turn_rate) += a[4];
+        return common::driveStep(a.head<3>(), v).pose;
+      },
+      {2}, options_.unscented);
+  pose_ = r.mean;
+  P_ = 0.5 * (r.covariance + r.covariance.transpose());
+}
+
+LandmarkFilter::Innovation RbUkfSlam::innovation(std::size_t index, const Eigen::Vector2d& z,
+                                                 const Eigen::Matrix2d& R,
+                                                 const common::Pose2& mount) const {
+  // Gating only: linearised, so that scanning every landmark stays cheap.
+  const Gaussian2& l = landmarks_[index];
+  const auto pred = common::predictRangeBearing(pose_, l.mean, mount);
+  Innovation in;
+  in.nu = {z[0] - pred.z[0], common::angleDiff(z[1], pred.z[1])};
+  in.S = pred.H_pose * P_ * pred.H_pose.transpose() +
+         pred.H_landmark * l.cov * pred.H_landmark.transpose() + R;
+  return in;
+}
+
+LandmarkFilter::Innovation RbUkfSlam::correct(std::size_t index, const Eigen::Vector2d& z,
+                                              const Eigen::Matrix2d& R,
+                                              const common::Pose2& mount) {
+  Gaussian2& l = landmarks_[index];
+  Eigen::VectorXd mean(5);
+  mean << pose_, l.mean;
+  Eigen::MatrixXd C = Eigen::MatrixXd::Zero(5, 5);
+  C.topLeftCorner<3, 3>() = P_;
+  C.bottomRightCorner<2, 2>() = l.cov;
+  const auto r = common::unscentedTransform(
+      mean, C,
+      [&mount](const Eigen::VectorXd& a) -> Eigen::VectorXd {
+        return common::predictRangeBearing(a.head<3>(), a.tail<2>(), mount).z;
+      },
+      {1}, options_.unscented);
+  Innovation in;
+  in.nu = {z[0] - r.mean[0], common::angleDiff(z[1], r.mean[1])};
+  in.S = r.covariance + R;
+  in.S = 0.5 * (in.S + in.S.transpose()).eval();
+  const Eigen::Matrix2d S_inv = in.S.inverse();
+
+  // Pose: the UKF gain from the unscented cross-covariance.
+  const Eigen::Matrix<double, 3, 2> Kx = r.cross.topRows<3>() * S_inv;
+  // Landmark: the EKF gain of its own 2x2 filter (Jacobian at the prior), same innovation.
+  const auto pred = common::predictRangeBearing(pose_, l.mean, mount);
+  const Eigen::Matrix2d Km = l.cov * pred.H_landmark.transpose() * S_inv;
+
+  pose_ += Kx * in.nu;
+  pose_[2] = common::normalizeAngle(pose_[2]);
+  P_ -= Kx * in.S * Kx.transpose();
+  P_ = 0.5 * (P_ + P_.transpose()).eval();
+  l.mean += Km * in.nu;
+  l.cov -= Km * in.S * Km.transpose();
+  l.cov = 0.5 * (l.cov + l.cov.transpose()).eval();
+  return in;
+}
+
+void RbUkfSlam::augment(const Eigen::Vector2d& z, const Eigen::Matrix2d& R,
+                        const common::Pose2& mount) {
+  const auto lf = common::landmarkFromRangeBearing(pose_, z, mount);
+  landmarks_.push_back(
+      {lf.m, lf.G_pose * P_ * lf.G_pose.transpose() + lf.G_z * R * lf.G_z.transpose()});
+}
+
+}  // namespace tessera::landmark_slam
