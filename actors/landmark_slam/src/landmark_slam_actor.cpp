@@ -146,7 +146,11 @@ void LandmarkSlamActor::predictFor(const common::DriveInput& u, Nanos dt) {
   common::DriveInput v = u;
   v.dt = nanosToSeconds(dt);
   const auto t0 = std::chrono::steady_clock::now();
-  filter_->predict(v);
+  try {
+    filter_->predict(v);
+  } catch (const std::exception& e) {
+    noteFilterError(e);
+  }
   predict_s_ += secondsSince(t0);
   ++predicts_;
 }
@@ -168,7 +172,12 @@ void LandmarkSlamActor::onScan(const Message<msg::LandmarkScan>& m) {
   observations_ += obs.size();
   const common::Pose2 mount(m->getMountX(), m->getMountY(), m->getMountTheta());
   const auto t0 = std::chrono::steady_clock::now();
-  const UpdateResult r = mount.isFinite() ? filter_->update(obs, mount) : UpdateResult{};
+  UpdateResult r;
+  try {
+    if (mount.isFinite()) r = filter_->update(obs, mount);
+  } catch (const std::exception& e) {
+    noteFilterError(e);
+  }
   update_s_ += secondsSince(t0);
   if (!mount.isFinite()) ++bad_mounts_;
   corrections_ += r.corrected;
@@ -176,6 +185,12 @@ void LandmarkSlamActor::onScan(const Message<msg::LandmarkScan>& m) {
   if (options_.landmark_publish_every > 0 &&
       scans_ % static_cast<std::uint64_t>(options_.landmark_publish_every) == 0)
     publishLandmarks(stamp);
+}
+
+void LandmarkSlamActor::noteFilterError(const std::exception& e) {
+  // The cores validate their input; this is the last line of defence (numerical breakdown),
+  // reported once and counted rather than ending the run.
+  if (filter_errors_++ == 0) std::cerr << ctx_->name() << ": filter error: " << e.what() << "\n";
 }
 
 void LandmarkSlamActor::publishPose(Nanos stamp) {
@@ -285,6 +300,7 @@ void LandmarkSlamActor::summarize(Summary& out) const {
   out["rejected_bad_control"] = i64(r.bad_control + bad_controls_);
   out["rejected_bad_mount_scans"] = i64(bad_mounts_);
   out["late_scans"] = i64(late_scans_);
+  out["filter_errors"] = i64(filter_errors_);
   if (!svg_error_.empty()) out["svg_error"] = svg_error_;
   out["nis_count"] = i64(filter_->nisCount());
   out["mean_nis"] =

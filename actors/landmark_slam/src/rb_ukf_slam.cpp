@@ -1,8 +1,23 @@
 #include <tessera/landmark_slam/landmark_filter.hpp>
 
+#include <Eigen/Eigenvalues>
 #include <Eigen/LU>
 
 namespace tessera::landmark_slam {
+namespace {
+
+// Symmetric part with negative eigenvalues (rounding) clamped to zero, so the next unscented
+// transform always gets a valid covariance.
+template <int N>
+Eigen::Matrix<double, N, N> nearestPsd(const Eigen::Matrix<double, N, N>& m) {
+  const Eigen::Matrix<double, N, N> s = 0.5 * (m + m.transpose());
+  const Eigen::SelfAdjointEigenSolver<Eigen::Matrix<double, N, N>> eig(s);
+  if (eig.eigenvalues().minCoeff() >= 0) return s;
+  return eig.eigenvectors() * eig.eigenvalues().cwiseMax(0.0).asDiagonal() *
+         eig.eigenvectors().transpose();
+}
+
+}  // namespace
 
 RbUkfSlam::RbUkfSlam(LandmarkSlamOptions options) : LandmarkFilter(std::move(options)) {
   pose_ = options_.initial_pose.vector();
@@ -33,7 +48,7 @@ void RbUkfSlam::doPredict(const common::DriveInput& u, const Eigen::Matrix2d& co
       },
       {2}, options_.unscented);
   pose_ = r.mean;
-  P_ = 0.5 * (r.covariance + r.covariance.transpose());
+  P_ = nearestPsd<3>(r.covariance);
 }
 
 LandmarkFilter::Innovation RbUkfSlam::innovation(std::size_t index, const Eigen::Vector2d& z,
@@ -72,17 +87,22 @@ LandmarkFilter::Innovation RbUkfSlam::correct(std::size_t index, const Eigen::Ve
 
   // Pose: the UKF gain from the unscented cross-covariance.
   const Eigen::Matrix<double, 3, 2> Kx = r.cross.topRows<3>() * S_inv;
-  // Landmark: the EKF gain of its own 2x2 filter (Jacobian at the prior), same innovation.
+  // Landmark: its own 2x2 EKF, linearised at the prior pose and landmark, with the pose
+  // uncertainty as extra observation noise. Its innovation covariance bounds H_m P_m H_mᵀ + R
+  // from above, so the landmark covariance stays positive definite (the unscented S need not,
+  // mixed with a Jacobian, at short range).
   const auto pred = common::predictRangeBearing(pose_, l.mean, mount);
-  const Eigen::Matrix2d Km = l.cov * pred.H_landmark.transpose() * S_inv;
+  const Eigen::Vector2d nu_m(z[0] - pred.z[0], common::angleDiff(z[1], pred.z[1]));
+  Eigen::Matrix2d S_m = pred.H_landmark * l.cov * pred.H_landmark.transpose() +
+                        pred.H_pose * P_ * pred.H_pose.transpose() + R;
+  S_m = 0.5 * (S_m + S_m.transpose()).eval();
+  const Eigen::Matrix2d Km = l.cov * pred.H_landmark.transpose() * S_m.inverse();
 
   pose_ += Kx * in.nu;
   pose_[2] = common::normalizeAngle(pose_[2]);
-  P_ -= Kx * in.S * Kx.transpose();
-  P_ = 0.5 * (P_ + P_.transpose()).eval();
-  l.mean += Km * in.nu;
-  l.cov -= Km * in.S * Km.transpose();
-  l.cov = 0.5 * (l.cov + l.cov.transpose()).eval();
+  P_ = nearestPsd<3>(P_ - Kx * in.S * Kx.transpose());
+  l.mean += Km * nu_m;
+  l.cov = nearestPsd<2>(l.cov - Km * S_m * Km.transpose());
   return in;
 }
 

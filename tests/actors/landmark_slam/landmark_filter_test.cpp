@@ -247,12 +247,17 @@ TEST_CASE("Rao-Blackwellised filter matches a hand-computed UKF pose and 2x2 EKF
     VectorXd nu = zOf(second[i]) - r.mean;
     nu[1] = wrap(nu[1]);
     const MatrixXd Kx = r.cross.topRows(3) * S.inverse();
+    // The landmark's own EKF at the prior pose, pose uncertainty as extra noise.
     const MatrixXd Hm = jac([&](const VectorXd& l) { return hPlain(pose, l); }, m[i]);
-    const MatrixXd Km = Pm[i] * Hm.transpose() * S.inverse();
+    const MatrixXd Hx = jac([&](const VectorXd& p) { return hPlain(p, m[i]); }, pose);
+    const MatrixXd Sm = Hm * Pm[i] * Hm.transpose() + Hx * P * Hx.transpose() + toy.R;
+    const MatrixXd Km = Pm[i] * Hm.transpose() * Sm.inverse();
+    VectorXd nu_m = zOf(second[i]) - hPlain(pose, m[i]);
+    nu_m[1] = wrap(nu_m[1]);
     pose += Kx * nu;
     P -= Kx * S * Kx.transpose();
-    m[i] += Km * nu;
-    Pm[i] -= Km * S * Km.transpose();
+    m[i] += Km * nu_m;
+    Pm[i] -= Km * Sm * Km.transpose();
   }
 
   CHECK((rb.pose() - pose).cwiseAbs().maxCoeff() < 1e-9);

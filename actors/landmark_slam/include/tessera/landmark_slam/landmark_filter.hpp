@@ -185,11 +185,14 @@ class EkfSlam final : public LandmarkFilter {
 /// Gaussian, pose-landmark and landmark-landmark correlations dropped (the Rao-Blackwellised
 /// factorisation p(x | z, u) Π p(m_i | x, z) with one Gaussian for the path).
 ///  - predict: unscented transform over (pose, control noise), 5-D.
-///  - correct: one unscented transform over (pose, landmark i), 5-D, with block-diagonal prior
-///    gives the predicted observation, S = P_zz + R and the pose-observation cross-covariance;
-///    pose gain K_x = P_xz S⁻¹ (the UKF). The landmark gain is the EKF's, K_m = P_i H_mᵀ S⁻¹
-///    with the same innovation and S (eqs. 13-14 of the paper), so the sighting is used once for
-///    the pair. The new pose-landmark cross-covariance is then dropped.
+///  - correct (pose): one unscented transform over (pose, landmark i), 5-D, block-diagonal
+///    prior, gives the predicted observation, S = P_zz + R and the pose-observation
+///    cross-covariance; pose gain K_x = P_xz S⁻¹ (the UKF; landmark uncertainty acts as noise).
+///  - correct (landmark i): its own 2x2 EKF (eqs. 13-14 of the paper), linearised at the prior
+///    pose and landmark, with the pose uncertainty as extra noise:
+///    S_m = H_m P_i H_mᵀ + H_x P_x H_xᵀ + R, K_m = P_i H_mᵀ S_m⁻¹.
+///    Both halves use the same sighting, each treating the other's uncertainty as noise; no
+///    pose-landmark cross-covariance is kept (the decomposition's approximation).
 ///  - augment: m = g(pose, z), P_m = G_x P_x G_xᵀ + G_z R G_zᵀ.
 /// Each correction and augmentation is O(1) in the number of landmarks (nearest-neighbour
 /// association still scans all landmarks).

@@ -31,6 +31,7 @@
 
 #include <cstdint>
 #include <deque>
+#include <exception>
 #include <memory>
 #include <string>
 #include <vector>
@@ -116,6 +117,7 @@ class LandmarkSlamActor final : public Actor {
   void publishPose(Nanos stamp);
   void publishLandmarks(Nanos stamp);
   void writeSvg(const std::string& path) const;
+  void noteFilterError(const std::exception& e);
 
   LandmarkSlamActorOptions options_;
   std::unique_ptr<LandmarkFilter> filter_;
@@ -132,7 +134,7 @@ class LandmarkSlamActor final : public Actor {
   std::string svg_error_;
 
   std::uint64_t scans_ = 0, controls_ = 0, observations_ = 0, corrections_ = 0, late_scans_ = 0;
-  std::uint64_t predicts_ = 0, bad_controls_ = 0, bad_mounts_ = 0;
+  std::uint64_t predicts_ = 0, bad_controls_ = 0, bad_mounts_ = 0, filter_errors_ = 0;
   double update_s_ = 0, predict_s_ = 0;
 };
 
