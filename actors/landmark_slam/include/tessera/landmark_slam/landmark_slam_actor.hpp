@@ -97,10 +97,12 @@ class LandmarkSlamActor final : public Actor {
   explicit LandmarkSlamActor(LandmarkSlamActorOptions options);
   void configure(ActorContext& ctx) override;
   void stop() override;
-  /// filter, scans, controls, observations, corrections, landmarks, rejected_<reason>,
-  /// late_scans, mean_nis, nis_count, update_us_mean (per scan: observe + update + augment),
-  /// predict_us_mean; with truth: ate_rmse_m, ate_pairs, landmark_rmse_m, landmark_mean_m,
-  /// landmark_pairs.
+  /// filter, association, scans, controls, observations, corrections, landmarks,
+  /// rejected_<reason> (non_finite, negative_range, unknown_id, gate, ambiguous, between_gates,
+  /// duplicate, bad_control, bad_mount_scans), late_scans, filter_errors, mean_nis, nis_count,
+  /// update_us_mean (per scan: observe + update + augment), predict_us_mean, final_x/y/theta;
+  /// with truth: ate_rmse_m, ate_max_m, ate_pairs, landmark_rmse_m, landmark_mean_m,
+  /// landmark_max_m, landmark_pairs.
   void summarize(Summary& out) const override;
 
   const LandmarkFilter& filter() const { return *filter_; }
