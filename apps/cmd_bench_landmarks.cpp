@@ -172,7 +172,7 @@ void addBenchLandmarksCommand(CLI::App& bench, int& result) {
   auto o = std::make_shared<Options>();
   cmd->add_option("--seeds", o->seeds, "simulator seeds 1..N per filter (0 = skip accuracy)")
       ->capture_default_str();
-  cmd->add_option("--landmarks", o->landmarks, "map sizes for the cost benchmark (empty = skip)")
+  cmd->add_option("--landmarks", o->landmarks, "map sizes for the cost benchmark")
       ->delimiter(',')
       ->capture_default_str();
   cmd->add_option("--observations", o->observations, "sightings per timed scan update")
