@@ -23,6 +23,8 @@ void addBenchGraphCommand(CLI::App& bench, int& result);
 void addBenchRuntimeCommand(CLI::App& bench, int& result);
 /// Adds `tessera bench rbpf` (laser SLAM accuracy, CPU and memory on a CARMEN log).
 void addBenchRbpfCommand(CLI::App& bench, int& result);
+/// Adds `tessera bench landmarks` (landmark SLAM accuracy over seeds, cost vs map size).
+void addBenchLandmarksCommand(CLI::App& bench, int& result);
 
 /// Folders searched for profile names: the source tree's apps/profiles and ./apps/profiles.
 std::vector<std::string> profileSearchDirs();

@@ -18,6 +18,7 @@ int main(int argc, char** argv) {
   tessera::app::addBenchRuntimeCommand(*bench, result);
   tessera::app::addBenchRbpfCommand(*bench, result);
   tessera::app::addBenchGraphCommand(*bench, result);
+  tessera::app::addBenchLandmarksCommand(*bench, result);
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
