@@ -30,3 +30,15 @@ struct SubmapConstraint {
     revisit @1;                 # a relocalisation in an existing submap (camera, loop closure)
   }
 }
+
+# The global level's answer: every submap's optimised origin in the map frame (SPEC §A).
+struct SubmapPoses {
+  header @0 :Common.Header;     # stamp of the newest constraint in the graph; frameId = map
+  poses @1 :List(SubmapPose);   # by increasing id
+  chi2 @2 :Float64;             # g2o objective after this optimisation (without the 1/2)
+  iterations @3 :UInt32;        # solver iterations this optimisation took
+  struct SubmapPose {
+    id @0 :UInt32;
+    pose @1 :Common.Pose2D;     # covariance left zero
+  }
+}

@@ -38,6 +38,10 @@ void MapAssemblerActor::configure(ActorContext& ctx) {
   ctx.subscribe<msg::SubmapConstraint>(
       "constraints", MailboxPolicy::reliable(),
       [this](const Message<msg::SubmapConstraint>& m) { onConstraint(m); });
+  if (options_.optimized_poses)
+    ctx.subscribe<msg::SubmapPoses>(
+        "submap_poses", MailboxPolicy::keepLatest(1),
+        [this](const Message<msg::SubmapPoses>& m) { onOptimizedPoses(m); });
   map_pub_ = ctx.advertise<msg::OccupancyGrid>("map");
   if (options_.publish_period_s > 0) {
     const Nanos period = std::max<Nanos>(1, secondsToNanos(options_.publish_period_s));
@@ -94,6 +98,17 @@ void MapAssemblerActor::onConstraint(const Message<msg::SubmapConstraint>& m) {
   dirty_ = true;
 }
 
+void MapAssemblerActor::onOptimizedPoses(const Message<msg::SubmapPoses>& m) {
+  ++pose_updates_;
+  for (const auto p : m->getPoses()) {
+    const common::Pose2 pose = toPose2(p.getPose());
+    if (pose.isFinite()) optimized_[static_cast<int>(p.getId())] = pose;
+  }
+  last_stamp_ = std::max(last_stamp_, m->getHeader().getStampNs());
+  placeChained();
+  dirty_ = true;
+}
+
 void MapAssemblerActor::placeChained() {
   // Submap poses follow the chain of hand-overs from the first submap; a submap whose chain is
   // broken falls back to the pose its own message carries.
@@ -101,7 +116,9 @@ void MapAssemblerActor::placeChained() {
   for (const auto& [id, msg_pose] : message_pose_) {
     common::Pose2 pose = msg_pose;
     const auto h = handover_.find(id);
-    if (h != handover_.end()) {
+    if (const auto o = optimized_.find(id); o != optimized_.end()) {
+      pose = o->second;
+    } else if (h != handover_.end()) {
       const auto from = placed.find(h->second.first);
       if (from != placed.end()) pose = from->second * h->second.second;
     }
@@ -141,6 +158,7 @@ void MapAssemblerActor::summarize(Summary& out) const {
   out["map_height"] = static_cast<std::int64_t>(map_height_);
   if (submaps_rejected_ > 0) out["submaps_rejected"] = i64(submaps_rejected_);
   if (constraints_rejected_ > 0) out["constraints_rejected"] = i64(constraints_rejected_);
+  if (options_.optimized_poses) out["optimized_pose_updates"] = i64(pose_updates_);
 }
 
 TESSERA_REGISTER_ACTOR("map_assembler", MapAssemblerActor, MapAssemblerOptions,

@@ -1,0 +1,70 @@
+// graph_optimizer actor: the global level of SPEC §A around SubmapGraph.
+//
+// Subscribes:
+//   submaps       msg::Submap            reliable   makes each submap a node (its globalPose is
+//                                                   only a first guess)
+//   constraints   msg::SubmapConstraint  reliable   hand-overs (submap builder) and revisits
+//                                                   (loop detector, camera network)
+// Publishes:
+//   submap_poses  msg::SubmapPoses       after every re-optimisation, and in stop()
+// The optimiser runs in this actor's own handler, so the submap builder never waits for it
+// (constraints that arrive meanwhile queue in the reliable mailbox). Each constraint that can
+// move the optimum (a revisit, a fusion) triggers one optimisation, warm-started from the
+// current poses; a hand-over only places its new submap.
+// A constraint naming an unknown submap waits for it; at stop, any still waiting are reported
+// by id in the log and counted (`constraints_unresolved`), never a crash.
+#pragma once
+
+#include <tessera/msg/submap.capnp.h>
+#include <tessera/laser_slam/submap_graph.hpp>
+#include <tessera/runtime/actor.hpp>
+
+#include <cstdint>
+#include <string>
+
+namespace tessera::laser_slam {
+
+struct GraphOptimizerActorOptions {
+  std::string solver = "sgd+ceres";
+  int sgd_iterations = 10;
+  int ceres_iterations = 100;
+  double huber_delta = 1.0;
+  std::string frame_id = "map";
+
+  template <class V>
+  void visit(V& v) {
+    v("solver", solver, "sgd | ceres | sgd+ceres: solver of each re-optimisation");
+    v("sgd_iterations", sgd_iterations, "SGD passes before Ceres (sgd, sgd+ceres)");
+    v("ceres_iterations", ceres_iterations, "Ceres iterations (max) per re-optimisation");
+    v("huber_delta", huber_delta,
+      "Huber scale on revisit (loop-closure) edges, whitened units; 0 = plain least squares");
+    v("frame_id", frame_id, "frame of the published poses");
+  }
+};
+
+class GraphOptimizerActor final : public Actor {
+ public:
+  /// Throws ConfigError on invalid options.
+  explicit GraphOptimizerActor(GraphOptimizerActorOptions options);
+  void configure(ActorContext& ctx) override;
+  void stop() override;
+  void summarize(Summary& out) const override;
+
+  const SubmapGraph& graph() const { return graph_; }
+
+ private:
+  void onSubmap(const Message<msg::Submap>& m);
+  void onConstraint(const Message<msg::SubmapConstraint>& m);
+  void optimizeAndPublish();
+  void publishPoses(double chi2, int iterations);
+
+  GraphOptimizerActorOptions options_;
+  SubmapGraph graph_;
+  Publisher<msg::SubmapPoses> poses_pub_;
+  Nanos last_stamp_ = 0;
+  std::uint64_t submaps_ = 0, constraints_ = 0, added_ = 0, fused_ = 0, duplicates_ = 0;
+  std::uint64_t rejected_ = 0, optimizations_ = 0, published_ = 0, solver_failures_ = 0;
+  double optimize_seconds_ = 0.0, last_chi2_ = 0.0;
+};
+
+}  // namespace tessera::laser_slam

@@ -1,0 +1,99 @@
+// SubmapGraph: the global level of SPEC §A. Nodes are submap origins (local map poses) in the
+// map frame; edges are constraints between submaps (hand-overs from the submap builder,
+// revisits from the loop detector or the camera network). A second constraint between the same
+// two submaps is fused into the first by information weighting, so revisits do not grow the
+// graph. The graph is re-optimised (pose_graph::optimize, warm-started from the current poses)
+// whenever a constraint can change the optimum: a new revisit or a fusion. A hand-over to a new
+// submap only extends the graph by a leaf and places it by composition.
+//
+// Arrival order does not matter: a constraint naming a submap the graph does not know yet waits
+// (pending) until that submap appears, through addSubmap() or a hand-over that places it.
+// Frames: poses of submap origins in the map frame; a constraint i -> j is the pose of j's
+// origin in i's frame with its covariance over (x [m], y [m], θ [rad]) in frame i.
+// Plain C++ over Eigen; not thread-safe (one actor owns it).
+#pragma once
+
+#include <tessera/common/pose2.hpp>
+#include <tessera/pose_graph/optimizer.hpp>
+
+#include <Eigen/Core>
+
+#include <cstdint>
+#include <map>
+#include <set>
+#include <string>
+#include <tuple>
+#include <vector>
+
+namespace tessera::laser_slam {
+
+struct SubmapGraphOptions {
+  /// Solver for re-optimisations. SGD first (cheap on a small graph) keeps a late loop closure
+  /// that moves the estimate far from the basin Ceres alone would stay in.
+  pose_graph::OptimizerOptions optimizer = [] {
+    pose_graph::OptimizerOptions o;
+    o.solver = pose_graph::Solver::kSgdCeres;
+    o.ceres.huber_delta = 1.0;  // revisits are loop closures: robust
+    return o;
+  }();
+  /// Constraints waiting for an unknown submap beyond this many are rejected (oldest first), so
+  /// a stream naming submaps that never come cannot grow memory without bound.
+  std::size_t max_pending = 1000;
+};
+
+struct SubmapConstraintInput {
+  int from = 0;
+  int to = 0;
+  common::Pose2 relative;  ///< pose of `to`'s origin in `from`'s frame
+  Eigen::Matrix3d covariance = Eigen::Matrix3d::Identity();
+  bool revisit = false;  ///< false: the hand-over from `from` to the new submap `to`
+};
+
+class SubmapGraph {
+ public:
+  enum class Outcome {
+    kAdded,      ///< a new edge
+    kFused,      ///< merged into the edge between the same two submaps
+    kDuplicate,  ///< the very same constraint again (e.g. re-sent): ignored
+    kPending,    ///< names a submap not known yet: kept until it is
+    kRejected,   ///< invalid (see lastError())
+  };
+
+  explicit SubmapGraph(SubmapGraphOptions options = {});
+
+  /// A submap exists, with its origin guessed at `guess` in the map frame (used only when no
+  /// constraint placed it yet). Resolves constraints that were waiting for it.
+  void addSubmap(int id, const common::Pose2& guess);
+  /// Adds or fuses a constraint (see Outcome). Pending constraints it unblocks are added too.
+  Outcome addConstraint(const SubmapConstraintInput& c);
+
+  /// True when a constraint since the last optimize() can move the optimum.
+  bool needsOptimization() const { return dirty_; }
+  pose_graph::OptimizerSummary optimize();
+
+  bool contains(int id) const { return graph_.contains(id); }
+  common::Pose2 pose(int id) const;
+  /// Every known submap's origin in the map frame, by id.
+  std::map<int, common::Pose2> poses() const;
+  std::size_t nodes() const { return static_cast<std::size_t>(graph_.size()); }
+  std::size_t edges() const { return graph_.edges.size(); }
+  std::size_t pending() const { return pending_.size(); }
+  /// "from -> to" of each constraint still waiting for a submap.
+  std::vector<std::string> pendingDescriptions() const;
+  double chi2() const { return pose_graph::chi2(graph_); }
+  const std::string& lastError() const { return last_error_; }
+  const pose_graph::Graph2D& graph() const { return graph_; }
+
+ private:
+  Outcome insert(const SubmapConstraintInput& c);
+  void resolvePending();
+
+  SubmapGraphOptions options_;
+  pose_graph::Graph2D graph_;
+  std::vector<SubmapConstraintInput> pending_;
+  std::set<std::tuple<int, int, double, double, double>> seen_;  // exact repeats
+  bool dirty_ = false;
+  std::string last_error_;
+};
+
+}  // namespace tessera::laser_slam

@@ -1,0 +1,156 @@
+#include <tessera/laser_slam/graph_optimizer_actor.hpp>
+
+#include <tessera/messages/types.hpp>
+#include <tessera/runtime/options.hpp>
+#include <tessera/runtime/registry.hpp>
+
+#include <algorithm>
+#include <cmath>
+#include <iostream>
+#include <stdexcept>
+
+namespace tessera::laser_slam {
+namespace {
+
+SubmapGraphOptions graphOptions(const GraphOptimizerActorOptions& o) {
+  SubmapGraphOptions g;
+  try {
+    g.optimizer.solver = pose_graph::parseSolver(o.solver);
+  } catch (const std::invalid_argument& e) {
+    throw ConfigError(std::string("graph_optimizer: solver: ") + e.what());
+  }
+  if (o.sgd_iterations < 0) throw ConfigError("graph_optimizer: sgd_iterations must be >= 0");
+  if (o.ceres_iterations < 1) throw ConfigError("graph_optimizer: ceres_iterations must be >= 1");
+  if (!(std::isfinite(o.huber_delta) && o.huber_delta >= 0))
+    throw ConfigError("graph_optimizer: huber_delta must be >= 0");
+  if (o.frame_id.empty()) throw ConfigError("graph_optimizer: frame_id must not be empty");
+  g.optimizer.sgd.iterations = o.sgd_iterations;
+  g.optimizer.ceres.max_iterations = o.ceres_iterations;
+  g.optimizer.ceres.huber_delta = o.huber_delta;
+  return g;
+}
+
+common::Pose2 toPose2(msg::Pose2D::Reader p) {
+  const PoseXYT x = readPose(p);
+  return {x.x, x.y, x.theta};
+}
+
+}  // namespace
+
+GraphOptimizerActor::GraphOptimizerActor(GraphOptimizerActorOptions options)
+    : options_(std::move(options)), graph_(graphOptions(options_)) {}
+
+void GraphOptimizerActor::configure(ActorContext& ctx) {
+  ctx.subscribe<msg::Submap>("submaps", MailboxPolicy::reliable(),
+                             [this](const Message<msg::Submap>& m) { onSubmap(m); });
+  ctx.subscribe<msg::SubmapConstraint>(
+      "constraints", MailboxPolicy::reliable(),
+      [this](const Message<msg::SubmapConstraint>& m) { onConstraint(m); });
+  poses_pub_ = ctx.advertise<msg::SubmapPoses>("submap_poses");
+}
+
+void GraphOptimizerActor::onSubmap(const Message<msg::Submap>& m) {
+  ++submaps_;
+  last_stamp_ = std::max(last_stamp_, m->getHeader().getStampNs());
+  const common::Pose2 guess = toPose2(m->getGlobalPose());
+  // A non-finite guess is harmless only if a constraint places the submap: start it at the
+  // origin and let the constraints move it.
+  graph_.addSubmap(static_cast<int>(m->getId()), guess.isFinite() ? guess : common::Pose2{});
+  if (graph_.needsOptimization()) optimizeAndPublish();
+}
+
+void GraphOptimizerActor::onConstraint(const Message<msg::SubmapConstraint>& m) {
+  ++constraints_;
+  last_stamp_ = std::max(last_stamp_, m->getHeader().getStampNs());
+  SubmapConstraintInput c;
+  c.from = static_cast<int>(m->getFromId());
+  c.to = static_cast<int>(m->getToId());
+  c.relative = toPose2(m->getRelative());
+  c.revisit = m->getKind() == msg::SubmapConstraint::Kind::REVISIT;
+  if (!readCovariance(m->getRelative(), c.covariance)) {
+    std::cerr << "[graph_optimizer] constraint " << c.from << " -> " << c.to
+              << " has no covariance (9 values expected); rejected\n";
+    ++rejected_;
+    return;
+  }
+  switch (graph_.addConstraint(c)) {
+    case SubmapGraph::Outcome::kAdded:
+      ++added_;
+      break;
+    case SubmapGraph::Outcome::kFused:
+      ++fused_;
+      break;
+    case SubmapGraph::Outcome::kDuplicate:
+      ++duplicates_;
+      break;
+    case SubmapGraph::Outcome::kPending:
+      break;
+    case SubmapGraph::Outcome::kRejected:
+      std::cerr << "[graph_optimizer] " << graph_.lastError() << "; rejected\n";
+      ++rejected_;
+      return;
+  }
+  if (!graph_.lastError().empty()) std::cerr << "[graph_optimizer] " << graph_.lastError() << "\n";
+  if (graph_.needsOptimization()) optimizeAndPublish();
+}
+
+void GraphOptimizerActor::optimizeAndPublish() {
+  try {
+    const auto s = graph_.optimize();
+    ++optimizations_;
+    optimize_seconds_ += s.seconds;
+    last_chi2_ = s.final_chi2;
+    publishPoses(s.final_chi2, s.iterations);
+  } catch (const pose_graph::GraphError& e) {
+    // Keep the last good poses; the next constraint tries again.
+    std::cerr << "[graph_optimizer] optimisation failed: " << e.what() << "\n";
+    ++solver_failures_;
+  }
+}
+
+void GraphOptimizerActor::publishPoses(double chi2, int iterations) {
+  const auto poses = graph_.poses();
+  auto loan = poses_pub_.loan(64 * poses.size() + 256);
+  setHeader(loan->initHeader(), last_stamp_, options_.frame_id, poses_pub_.nextSeq());
+  auto list = loan->initPoses(static_cast<unsigned>(poses.size()));
+  unsigned k = 0;
+  for (const auto& [id, p] : poses) {
+    list[k].setId(static_cast<std::uint32_t>(id));
+    writePose(list[k].initPose(), PoseXYT{p.x, p.y, p.theta});
+    ++k;
+  }
+  loan->setChi2(chi2);
+  loan->setIterations(static_cast<std::uint32_t>(std::max(0, iterations)));
+  poses_pub_.publish(std::move(loan));
+  ++published_;
+}
+
+void GraphOptimizerActor::stop() {
+  for (const auto& d : graph_.pendingDescriptions())
+    std::cerr << "[graph_optimizer] constraint " << d
+              << " names a submap that never arrived; left out of the graph\n";
+  if (graph_.needsOptimization()) optimizeAndPublish();
+  if (graph_.nodes() > 0) publishPoses(graph_.chi2(), 0);
+}
+
+void GraphOptimizerActor::summarize(Summary& out) const {
+  const auto i64 = [](std::uint64_t v) { return static_cast<std::int64_t>(v); };
+  out["graph_nodes"] = i64(graph_.nodes());
+  out["graph_edges"] = i64(graph_.edges());
+  out["submaps_received"] = i64(submaps_);
+  out["constraints_received"] = i64(constraints_);
+  out["constraints_added"] = i64(added_);
+  out["constraints_fused"] = i64(fused_);
+  out["constraints_duplicate"] = i64(duplicates_);
+  out["constraints_rejected"] = i64(rejected_);
+  out["constraints_unresolved"] = i64(graph_.pending());
+  out["optimizations"] = i64(optimizations_);
+  out["optimize_s"] = optimize_seconds_;
+  out["final_chi2"] = last_chi2_;
+  if (solver_failures_ > 0) out["solver_failures"] = i64(solver_failures_);
+}
+
+TESSERA_REGISTER_ACTOR("graph_optimizer", GraphOptimizerActor, GraphOptimizerActorOptions,
+                       "global laser SLAM: fuses submap constraints and optimises the pose graph");
+
+}  // namespace tessera::laser_slam

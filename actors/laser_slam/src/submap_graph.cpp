@@ -1,0 +1,136 @@
+#include <tessera/laser_slam/submap_graph.hpp>
+
+#include <Eigen/Eigenvalues>
+
+#include <algorithm>
+#include <cmath>
+#include <stdexcept>
+
+namespace tessera::laser_slam {
+namespace {
+
+Eigen::Vector3d vec(const common::Pose2& p) {
+  return {p.x, p.y, p.theta};
+}
+
+std::string describe(const SubmapConstraintInput& c) {
+  return std::to_string(c.from) + " -> " + std::to_string(c.to);
+}
+
+}  // namespace
+
+SubmapGraph::SubmapGraph(SubmapGraphOptions options) : options_(std::move(options)) {}
+
+void SubmapGraph::addSubmap(int id, const common::Pose2& guess) {
+  if (graph_.contains(id)) return;
+  graph_.addNode(id, vec(guess));
+  resolvePending();
+}
+
+SubmapGraph::Outcome SubmapGraph::addConstraint(const SubmapConstraintInput& c) {
+  const Outcome outcome = insert(c);
+  if (outcome == Outcome::kAdded || outcome == Outcome::kFused) resolvePending();
+  return outcome;
+}
+
+SubmapGraph::Outcome SubmapGraph::insert(const SubmapConstraintInput& c) {
+  last_error_.clear();
+  if (c.from == c.to) {
+    last_error_ = "constraint " + describe(c) + " links a submap to itself";
+    return Outcome::kRejected;
+  }
+  if (!c.relative.isFinite() || !c.covariance.allFinite()) {
+    last_error_ = "constraint " + describe(c) + " has a non-finite pose or covariance";
+    return Outcome::kRejected;
+  }
+  const Eigen::Matrix3d cov = 0.5 * (c.covariance + c.covariance.transpose());
+  const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eig(cov);
+  if (eig.eigenvalues().minCoeff() <= 0.0) {
+    last_error_ = "constraint " + describe(c) +
+                  " has a covariance that is not positive definite (smallest eigenvalue " +
+                  std::to_string(eig.eigenvalues().minCoeff()) + ")";
+    return Outcome::kRejected;
+  }
+  const auto key = std::make_tuple(c.from, c.to, c.relative.x, c.relative.y, c.relative.theta);
+  if (seen_.count(key)) return Outcome::kDuplicate;
+
+  const bool from_known = graph_.contains(c.from), to_known = graph_.contains(c.to);
+  if (!from_known || (!to_known && c.revisit)) {
+    if (pending_.size() >= options_.max_pending) {
+      last_error_ = "more than " + std::to_string(options_.max_pending) +
+                    " constraints wait for unknown submaps; dropped the oldest, " +
+                    describe(pending_.front());
+      pending_.erase(pending_.begin());
+    }
+    pending_.push_back(c);
+    return Outcome::kPending;
+  }
+  seen_.insert(key);
+  const int a = graph_.index(c.from);
+  const Eigen::Vector3d placed = pose_graph::compose(graph_.poses[a], vec(c.relative));
+  if (!to_known) graph_.addNode(c.to, placed);
+  const int b = graph_.index(c.to);
+  auto isolated = [this](int n) {
+    return std::none_of(graph_.edges.begin(), graph_.edges.end(),
+                        [n](const auto& e) { return e.from == n || e.to == n; });
+  };
+  // The first edge of a submap places it by composition: that is its optimum and nothing else
+  // moves. Node 0 anchors the map frame and is never the one moved. A fusion, or an edge
+  // between two linked submaps, can move everything: that needs an optimisation.
+  bool placed_by_composition = true;
+  if (isolated(b) && b != 0) {
+    graph_.poses[b] = placed;
+  } else if (isolated(a) && a != 0) {
+    graph_.poses[a] = pose_graph::compose(graph_.poses[b], pose_graph::inverse(vec(c.relative)));
+  } else {
+    placed_by_composition = false;
+  }
+  const pose_graph::Edge2D edge{a, b, vec(c.relative), cov.inverse(), c.revisit};
+  const bool fused = pose_graph::addOrFuse(graph_, edge);
+  if (!placed_by_composition) dirty_ = true;
+  return fused ? Outcome::kFused : Outcome::kAdded;
+}
+
+void SubmapGraph::resolvePending() {
+  // Each placement can unblock others (a chain of hand-overs arriving backwards).
+  bool progress = true;
+  while (progress && !pending_.empty()) {
+    progress = false;
+    for (std::size_t k = 0; k < pending_.size(); ++k) {
+      const auto& c = pending_[k];
+      if (!graph_.contains(c.from) || (c.revisit && !graph_.contains(c.to))) continue;
+      const SubmapConstraintInput ready = c;
+      pending_.erase(pending_.begin() + static_cast<std::ptrdiff_t>(k));
+      insert(ready);
+      progress = true;
+      break;
+    }
+  }
+}
+
+pose_graph::OptimizerSummary SubmapGraph::optimize() {
+  dirty_ = false;
+  return pose_graph::optimize(graph_, options_.optimizer);
+}
+
+common::Pose2 SubmapGraph::pose(int id) const {
+  const auto& p = graph_.poses[graph_.index(id)];
+  return {p.x(), p.y(), p.z()};
+}
+
+std::map<int, common::Pose2> SubmapGraph::poses() const {
+  std::map<int, common::Pose2> out;
+  for (int i = 0; i < graph_.size(); ++i) {
+    const auto& p = graph_.poses[i];
+    out[static_cast<int>(graph_.ids[i])] = {p.x(), p.y(), p.z()};
+  }
+  return out;
+}
+
+std::vector<std::string> SubmapGraph::pendingDescriptions() const {
+  std::vector<std::string> out;
+  for (const auto& c : pending_) out.push_back(describe(c));
+  return out;
+}
+
+}  // namespace tessera::laser_slam

@@ -1,0 +1,247 @@
+#include <tessera/laser_slam/graph_optimizer_actor.hpp>
+#include <tessera/laser_slam/map_assembler_actor.hpp>
+#include <tessera/laser_slam/submap_graph.hpp>
+#include <tessera/messages/types.hpp>
+#include <tessera/messages/views.hpp>
+#include <tessera/runtime/harness.hpp>
+#include <tessera/runtime/options.hpp>
+
+#include <catch2/catch.hpp>
+
+#include <cmath>
+#include <limits>
+#include <numbers>
+
+using namespace tessera;
+using common::Pose2;
+using laser_slam::GraphOptimizerActor;
+using laser_slam::GraphOptimizerActorOptions;
+using laser_slam::SubmapConstraintInput;
+using laser_slam::SubmapGraph;
+using Outcome = SubmapGraph::Outcome;
+
+namespace {
+
+constexpr double kPi = std::numbers::pi;
+
+// Submap origins on a 10 m square, one per corner and edge midpoint, heading along the route.
+std::vector<Pose2> squareRoute() {
+  // Drives 5 m per submap around a 10 m square, turning 90 degrees after every second one.
+  std::vector<Pose2> p;
+  Pose2 at;
+  for (int i = 0; i < 8; ++i) {
+    p.push_back(at);
+    at = at * Pose2(5.0, 0.0, i % 2 == 1 ? kPi / 2 : 0.0);
+  }
+  return p;
+}
+
+SubmapConstraintInput constraint(int from, int to, const Pose2& rel, bool revisit,
+                                 double sigma = 0.05) {
+  SubmapConstraintInput c;
+  c.from = from;
+  c.to = to;
+  c.relative = rel;
+  c.revisit = revisit;
+  c.covariance = Eigen::Vector3d(sigma * sigma, sigma * sigma, 0.01 * sigma * sigma).asDiagonal();
+  return c;
+}
+
+double distance(const Pose2& a, const Pose2& b) {
+  return std::hypot(a.x - b.x, a.y - b.y);
+}
+
+}  // namespace
+
+TEST_CASE("hand-overs place each new submap by composition without optimising",
+          "[graph_optimizer]") {
+  SubmapGraph g;
+  g.addSubmap(0, Pose2());
+  CHECK(g.addConstraint(constraint(0, 1, Pose2(5, 0, kPi / 2), false)) == Outcome::kAdded);
+  CHECK(g.addConstraint(constraint(1, 2, Pose2(5, 0, 0), false)) == Outcome::kAdded);
+  CHECK_FALSE(g.needsOptimization());
+  CHECK(g.pose(2).x == Approx(5.0));
+  CHECK(g.pose(2).y == Approx(5.0));
+  CHECK(g.pose(2).theta == Approx(kPi / 2));
+}
+
+TEST_CASE("a revisit closing a drifted loop pulls the submaps back to the truth",
+          "[graph_optimizer]") {
+  const auto truth = squareRoute();
+  SubmapGraph g;
+  g.addSubmap(0, truth[0]);
+  // Hand-overs with a heading bias of 2 degrees each: the chain drifts by metres.
+  for (std::size_t i = 0; i + 1 < truth.size(); ++i) {
+    Pose2 rel = truth[i].inverse() * truth[i + 1];
+    rel = rel * Pose2(0, 0, 2.0 * kPi / 180);
+    g.addConstraint(constraint(static_cast<int>(i), static_cast<int>(i + 1), rel, false));
+  }
+  const int last = static_cast<int>(truth.size()) - 1;
+  const double drift = distance(g.pose(last), truth[last]);
+  CHECK(drift > 1.0);
+  // The loop detector sees submap 0 again from the last one, exactly and confidently.
+  const auto c = constraint(last, 0, truth[last].inverse() * truth[0], true, 0.01);
+  CHECK(g.addConstraint(c) == Outcome::kAdded);
+  REQUIRE(g.needsOptimization());
+  const auto s = g.optimize();
+  CHECK(s.final_chi2 < s.initial_chi2);
+  CHECK(distance(g.pose(last), truth[last]) < 0.25 * drift);
+}
+
+TEST_CASE("a second revisit between the same submaps is fused, an exact repeat ignored",
+          "[graph_optimizer]") {
+  SubmapGraph g;
+  g.addSubmap(0, Pose2());
+  g.addConstraint(constraint(0, 1, Pose2(5, 0, 0), false));
+  g.addConstraint(constraint(1, 2, Pose2(5, 0, 0), false));
+  CHECK(g.addConstraint(constraint(2, 0, Pose2(-9.8, 0, 0), true)) == Outcome::kAdded);
+  CHECK(g.addConstraint(constraint(2, 0, Pose2(-9.8, 0, 0), true)) == Outcome::kDuplicate);
+  // Seen from the other end, with the same uncertainty: fused into the same edge.
+  CHECK(g.addConstraint(constraint(0, 2, Pose2(10.2, 0, 0), true)) == Outcome::kFused);
+  CHECK(g.edges() == 3);
+  const auto& fused = g.graph().edges.back();
+  CHECK(fused.measurement.x() == Approx(-10.0).margin(1e-6));
+}
+
+TEST_CASE("constraints arriving before their submaps wait and are resolved in any order",
+          "[graph_optimizer]") {
+  SubmapGraph g;
+  // Hand-overs arrive backwards, then a revisit, and only then the first submap.
+  CHECK(g.addConstraint(constraint(2, 3, Pose2(1, 0, 0), false)) == Outcome::kPending);
+  CHECK(g.addConstraint(constraint(1, 2, Pose2(1, 0, 0), false)) == Outcome::kPending);
+  CHECK(g.addConstraint(constraint(3, 0, Pose2(-3, 0, 0), true)) == Outcome::kPending);
+  CHECK(g.addConstraint(constraint(0, 1, Pose2(1, 0, 0), false)) == Outcome::kPending);
+  CHECK(g.pending() == 4);
+  g.addSubmap(0, Pose2(10, 10, 0));
+  CHECK(g.pending() == 0);
+  CHECK(g.nodes() == 4);
+  CHECK(g.edges() == 4);
+  CHECK(g.pose(3).x == Approx(13.0));
+}
+
+TEST_CASE("invalid constraints are rejected with the reason and the pending queue is bounded",
+          "[graph_optimizer]") {
+  laser_slam::SubmapGraphOptions o;
+  o.max_pending = 2;
+  SubmapGraph g(o);
+  g.addSubmap(0, Pose2());
+  CHECK(g.addConstraint(constraint(0, 0, Pose2(), true)) == Outcome::kRejected);
+  CHECK_THAT(g.lastError(), Catch::Contains("links a submap to itself"));
+  auto singular = constraint(0, 1, Pose2(1, 0, 0), false);
+  singular.covariance.setZero();
+  CHECK(g.addConstraint(singular) == Outcome::kRejected);
+  CHECK_THAT(g.lastError(), Catch::Contains("not positive definite"));
+  auto nan = constraint(0, 1, Pose2(1, 0, 0), false);
+  nan.relative.x = std::numeric_limits<double>::quiet_NaN();
+  CHECK(g.addConstraint(nan) == Outcome::kRejected);
+  CHECK_THAT(g.lastError(), Catch::Contains("non-finite"));
+  CHECK(g.addConstraint(constraint(7, 8, Pose2(), false)) == Outcome::kPending);
+  CHECK(g.addConstraint(constraint(8, 9, Pose2(), false)) == Outcome::kPending);
+  CHECK(g.addConstraint(constraint(9, 10, Pose2(), false)) == Outcome::kPending);
+  CHECK(g.pending() == 2);
+  CHECK_THAT(g.lastError(), Catch::Contains("dropped the oldest, 7 -> 8"));
+  CHECK(g.nodes() == 1);
+}
+
+namespace {
+
+void pushSubmap(ActorHarness& h, int id, const Pose2& guess) {
+  h.push<msg::Submap>("submaps", [&](auto& b) {
+    setHeader(b.initHeader(), 1000 + id, "map", 0);
+    b.setId(static_cast<std::uint32_t>(id));
+    auto g = b.initGrid();
+    g.setResolution(0.1f);
+    g.setWidth(2);
+    g.setHeight(2);
+    writePose(g.initOrigin(), PoseXYT{0, 0, 0});
+    g.initCells(4);
+    writePose(b.initGlobalPose(), PoseXYT{guess.x, guess.y, guess.theta});
+    b.setFinished(true);
+  });
+}
+
+void pushConstraint(ActorHarness& h, const SubmapConstraintInput& c, bool with_covariance = true) {
+  h.push<msg::SubmapConstraint>("constraints", [&](auto& b) {
+    setHeader(b.initHeader(), 2000, "map", 0);
+    b.setFromId(static_cast<std::uint32_t>(c.from));
+    b.setToId(static_cast<std::uint32_t>(c.to));
+    writePose(b.initRelative(), PoseXYT{c.relative.x, c.relative.y, c.relative.theta},
+              with_covariance ? &c.covariance : nullptr);
+    b.setKind(c.revisit ? msg::SubmapConstraint::Kind::REVISIT
+                        : msg::SubmapConstraint::Kind::HAND_OVER);
+  });
+}
+
+std::int64_t count(const Summary& s, const std::string& key) {
+  return std::get<std::int64_t>(s.at(key));
+}
+
+}  // namespace
+
+TEST_CASE("graph_optimizer actor publishes optimised submap poses from out-of-order input",
+          "[graph_optimizer]") {
+  ActorHarness h(std::make_unique<GraphOptimizerActor>(GraphOptimizerActorOptions{}));
+  const auto truth = squareRoute();
+  // A revisit first (both ends unknown), then the submaps and their biased hand-overs.
+  const int last = static_cast<int>(truth.size()) - 1;
+  pushConstraint(h, constraint(last, 0, truth[last].inverse() * truth[0], true, 0.01));
+  // Submap 0 anchors the map frame; the others' carried guesses are wrong and must not matter.
+  for (int i = 0; i <= last; ++i) pushSubmap(h, i, i == 0 ? truth[0] : truth[i] * Pose2(1, 1, 0));
+  for (int i = 0; i < last; ++i) {
+    Pose2 rel = (truth[i].inverse() * truth[i + 1]) * Pose2(0, 0, 2.0 * kPi / 180);
+    pushConstraint(h, constraint(i, i + 1, rel, false));
+  }
+  pushConstraint(h, constraint(0, 1, truth[0].inverse() * truth[1], false), false);  // no cov
+  pushConstraint(h, constraint(3, 42, Pose2(), true));  // submap 42 never comes
+  h.runUntilIdle();
+  h.stop();
+
+  const auto published = h.published<msg::SubmapPoses>("submap_poses");
+  REQUIRE(!published.empty());
+  const auto final_poses = published.back()->getPoses();
+  REQUIRE(final_poses.size() == truth.size());
+  const auto p = final_poses[last].getPose();
+  CHECK(std::hypot(p.getX() - truth[last].x, p.getY() - truth[last].y) < 0.5);
+  Summary s;
+  h.actor().summarize(s);
+  CHECK(count(s, "graph_nodes") == static_cast<std::int64_t>(truth.size()));
+  CHECK(count(s, "graph_edges") == static_cast<std::int64_t>(truth.size()));
+  CHECK(count(s, "constraints_rejected") == 1);
+  CHECK(count(s, "constraints_unresolved") == 1);
+  CHECK(count(s, "optimizations") >= 1);
+}
+
+TEST_CASE("graph_optimizer refuses bad options", "[graph_optimizer]") {
+  GraphOptimizerActorOptions o;
+  o.solver = "newton";
+  CHECK_THROWS_AS(GraphOptimizerActor(o), ConfigError);
+  o = {};
+  o.ceres_iterations = 0;
+  CHECK_THROWS_AS(GraphOptimizerActor(o), ConfigError);
+  o = {};
+  o.huber_delta = -1;
+  CHECK_THROWS_AS(GraphOptimizerActor(o), ConfigError);
+}
+
+TEST_CASE("map_assembler draws submaps at the optimised poses when asked to", "[graph_optimizer]") {
+  laser_slam::MapAssemblerOptions o;
+  o.optimized_poses = true;
+  ActorHarness h(std::make_unique<laser_slam::MapAssemblerActor>(o));
+  pushSubmap(h, 0, Pose2());
+  pushSubmap(h, 1, Pose2(3, 0, 0));
+  pushConstraint(h, constraint(0, 1, Pose2(2, 0, 0), false));
+  h.runUntilIdle();
+  auto& actor = static_cast<laser_slam::MapAssemblerActor&>(h.actor());
+  CHECK(actor.assembler().pose(1).x == Approx(2.0));  // chained
+  h.push<msg::SubmapPoses>("submap_poses", [](auto& b) {
+    auto poses = b.initPoses(2);
+    poses[0].setId(0);
+    writePose(poses[0].initPose(), PoseXYT{0, 0, 0});
+    poses[1].setId(1);
+    writePose(poses[1].initPose(), PoseXYT{2.5, 0.5, 0.1});
+  });
+  h.runUntilIdle();
+  CHECK(actor.assembler().pose(1).x == Approx(2.5));
+  CHECK(actor.assembler().pose(1).y == Approx(0.5));
+  h.stop();
+}
