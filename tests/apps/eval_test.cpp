@@ -12,35 +12,14 @@
 #include <sstream>
 
 #include "../shared_data.hpp"
+#include "cli_run.hpp"
 
 namespace fs = std::filesystem;
 using namespace tessera::common;
+using tessera::test::CliRun;
+using tessera::test::runCli;
 
 namespace {
-
-struct CliRun {
-  int exit_code = -1;
-  std::string out, err;
-};
-
-CliRun runCli(const std::string& args, const fs::path& dir) {
-  const fs::path err_file = dir / "stderr.txt";
-  const std::string command =
-      std::string(TESSERA_CLI_PATH) + " " + args + " 2>" + err_file.string();
-  CliRun run;
-  FILE* pipe = ::popen(command.c_str(), "r");
-  REQUIRE(pipe != nullptr);
-  char buf[4096];
-  std::size_t n;
-  while ((n = std::fread(buf, 1, sizeof buf, pipe)) > 0) run.out.append(buf, n);
-  const int status = ::pclose(pipe);
-  run.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
-  std::ifstream in(err_file);
-  std::ostringstream s;
-  s << in.rdbuf();
-  run.err = s.str();
-  return run;
-}
 
 std::vector<TumPose> square(double side, int per_side) {
   std::vector<TumPose> out;
