@@ -47,12 +47,22 @@ void GraphOptimizerActor::configure(ActorContext& ctx) {
       "constraints", MailboxPolicy::reliable(),
       [this](const Message<msg::SubmapConstraint>& m) { onConstraint(m); });
   poses_pub_ = ctx.advertise<msg::SubmapPoses>("submap_poses");
+  if (options_.compose_trajectory) {
+    ctx.subscribe<msg::PoseStamped>("trajectory", MailboxPolicy::reliable(),
+                                    [this](const Message<msg::PoseStamped>& m) {
+                                      const common::Pose2 p = toPose2(m->getPose());
+                                      if (p.isFinite())
+                                        trajectory_.emplace_back(m->getHeader().getStampNs(), p);
+                                    });
+    trajectory_pub_ = ctx.advertise<msg::PoseStamped>("trajectory_final");
+  }
 }
 
 void GraphOptimizerActor::onSubmap(const Message<msg::Submap>& m) {
   ++submaps_;
   last_stamp_ = std::max(last_stamp_, m->getHeader().getStampNs());
   const common::Pose2 guess = toPose2(m->getGlobalPose());
+  if (guess.isFinite()) spans_[static_cast<int>(m->getId())] = {m->getHeader().getStampNs(), guess};
   // A non-finite guess is harmless only if a constraint places the submap: start it at the
   // origin and let the constraints move it.
   graph_.addSubmap(static_cast<int>(m->getId()), guess.isFinite() ? guess : common::Pose2{});
@@ -131,6 +141,28 @@ void GraphOptimizerActor::stop() {
               << " names a submap that never arrived; left out of the graph\n";
   if (graph_.needsOptimization()) optimizeAndPublish();
   if (graph_.nodes() > 0) publishPoses(graph_.chi2(), 0);
+  if (options_.compose_trajectory) publishComposedTrajectory();
+}
+
+void GraphOptimizerActor::publishComposedTrajectory() {
+  // Submaps by their last scan's stamp: a pose belongs to the first one not older than it.
+  std::map<Nanos, int> by_end;
+  for (const auto& [id, span] : spans_)
+    if (graph_.contains(id)) by_end.emplace(span.last_stamp, id);
+  if (by_end.empty()) return;
+  std::sort(trajectory_.begin(), trajectory_.end(),
+            [](const auto& a, const auto& b) { return a.first < b.first; });
+  for (const auto& [stamp, pose] : trajectory_) {
+    auto it = by_end.lower_bound(stamp);
+    if (it == by_end.end()) --it;  // after the last submap's last scan: still the last submap
+    const int id = it->second;
+    const common::Pose2 local = spans_.at(id).chained.inverse() * pose;
+    const common::Pose2 moved = graph_.pose(id) * local;
+    auto loan = trajectory_pub_.loan();
+    setHeader(loan->initHeader(), stamp, options_.frame_id, trajectory_pub_.nextSeq());
+    writePose(loan->initPose(), PoseXYT{moved.x, moved.y, moved.theta});
+    trajectory_pub_.publish(std::move(loan));
+  }
 }
 
 void GraphOptimizerActor::summarize(Summary& out) const {

@@ -245,3 +245,32 @@ TEST_CASE("map_assembler draws submaps at the optimised poses when asked to", "[
   CHECK(actor.assembler().pose(1).y == Approx(0.5));
   h.stop();
 }
+
+TEST_CASE("trajectory poses move with their optimised submap", "[graph_optimizer]") {
+  GraphOptimizerActorOptions o;
+  o.compose_trajectory = true;
+  ActorHarness h(std::make_unique<GraphOptimizerActor>(o));
+  // Submap 0 holds scans up to t = 1000 ns, submap 1 the rest; chained origins as the builder
+  // saw them. A confident revisit then says submap 1 starts 0.5 m further along y.
+  pushSubmap(h, 0, Pose2());  // stamped 1000 by pushSubmap
+  pushConstraint(h, constraint(0, 1, Pose2(4, 0, 0), false));
+  pushSubmap(h, 1, Pose2(4, 0, 0));  // stamped 1001
+  for (int k = 0; k < 4; ++k) {
+    h.push<msg::PoseStamped>("trajectory", [&](auto& b) {
+      setHeader(b.initHeader(), k < 2 ? 500 + k : 1001 + k, "map", 0);
+      writePose(b.initPose(), PoseXYT{k * 2.0, 0.0, 0.0});
+    });
+  }
+  pushConstraint(h, constraint(0, 1, Pose2(4, 0.5, 0), true, 0.001));
+  h.runUntilIdle();
+  h.stop();
+  const auto out = h.published<msg::PoseStamped>("trajectory_final");
+  REQUIRE(out.size() == 4);
+  // Poses in submap 0 stay; poses in submap 1 follow it (fused hand-over + revisit: y between
+  // 0 and 0.5, dominated by the confident revisit).
+  CHECK(out[0]->getPose().getY() == Approx(0.0).margin(1e-9));
+  CHECK(out[1]->getPose().getY() == Approx(0.0).margin(1e-9));
+  CHECK(out[2]->getPose().getY() > 0.45);
+  CHECK(out[3]->getPose().getY() == Approx(out[2]->getPose().getY()));
+  CHECK(out[3]->getPose().getX() - out[2]->getPose().getX() == Approx(2.0));
+}

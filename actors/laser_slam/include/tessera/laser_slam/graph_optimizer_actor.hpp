@@ -5,8 +5,15 @@
 //                                                   only a first guess)
 //   constraints   msg::SubmapConstraint  reliable   hand-overs (submap builder) and revisits
 //                                                   (loop detector, camera network)
+//   trajectory    msg::PoseStamped       reliable, only with compose_trajectory: robot poses in
+//                                                   the chained map frame (the submap builder's
+//                                                   final_poses, which arrive at its stop)
 // Publishes:
 //   submap_poses  msg::SubmapPoses       after every re-optimisation, and in stop()
+//   trajectory_final msg::PoseStamped    in stop(), with compose_trajectory: each trajectory pose
+//                                        moved with its submap: optimised origin ⊕ (chained
+//                                        origin⁻¹ ⊕ pose). A pose belongs to the first submap
+//                                        whose last scan is not older than it.
 // The optimiser runs in this actor's own handler, so the submap builder never waits for it
 // (constraints that arrive meanwhile queue in the reliable mailbox). Each constraint that can
 // move the optimum (a revisit, a fusion) triggers one optimisation, warm-started from the
@@ -20,7 +27,10 @@
 #include <tessera/runtime/actor.hpp>
 
 #include <cstdint>
+#include <map>
 #include <string>
+#include <utility>
+#include <vector>
 
 namespace tessera::laser_slam {
 
@@ -30,9 +40,12 @@ struct GraphOptimizerActorOptions {
   int ceres_iterations = 100;
   double huber_delta = 1.0;
   std::string frame_id = "map";
+  bool compose_trajectory = false;
 
   template <class V>
   void visit(V& v) {
+    v("compose_trajectory", compose_trajectory,
+      "subscribe to trajectory and publish it re-expressed in the optimised submaps at stop");
     v("solver", solver, "sgd | ceres | sgd+ceres: solver of each re-optimisation");
     v("sgd_iterations", sgd_iterations, "SGD passes before Ceres (sgd, sgd+ceres)");
     v("ceres_iterations", ceres_iterations, "Ceres iterations (max) per re-optimisation");
@@ -57,10 +70,18 @@ class GraphOptimizerActor final : public Actor {
   void onConstraint(const Message<msg::SubmapConstraint>& m);
   void optimizeAndPublish();
   void publishPoses(double chi2, int iterations);
+  void publishComposedTrajectory();
 
   GraphOptimizerActorOptions options_;
   SubmapGraph graph_;
   Publisher<msg::SubmapPoses> poses_pub_;
+  Publisher<msg::PoseStamped> trajectory_pub_;
+  struct SubmapSpan {
+    Nanos last_stamp = 0;
+    common::Pose2 chained;  // origin in the chained map frame, as the builder published it
+  };
+  std::map<int, SubmapSpan> spans_;
+  std::vector<std::pair<Nanos, common::Pose2>> trajectory_;
   Nanos last_stamp_ = 0;
   std::uint64_t submaps_ = 0, constraints_ = 0, added_ = 0, fused_ = 0, duplicates_ = 0;
   std::uint64_t rejected_ = 0, optimizations_ = 0, published_ = 0, solver_failures_ = 0;
