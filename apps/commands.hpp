@@ -25,6 +25,8 @@ void addBenchRuntimeCommand(CLI::App& bench, int& result);
 void addBenchRbpfCommand(CLI::App& bench, int& result);
 /// Adds `tessera bench landmarks` (landmark SLAM accuracy over seeds, cost vs map size).
 void addBenchLandmarksCommand(CLI::App& bench, int& result);
+/// Adds `tessera bench matcher` (correlative matcher: branch and bound vs exhaustive search).
+void addBenchMatcherCommand(CLI::App& bench, int& result);
 
 /// Folders searched for profile names: the source tree's apps/profiles and ./apps/profiles.
 std::vector<std::string> profileSearchDirs();

@@ -19,6 +19,7 @@ int main(int argc, char** argv) {
   tessera::app::addBenchRbpfCommand(*bench, result);
   tessera::app::addBenchGraphCommand(*bench, result);
   tessera::app::addBenchLandmarksCommand(*bench, result);
+  tessera::app::addBenchMatcherCommand(*bench, result);
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {

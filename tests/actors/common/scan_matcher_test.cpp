@@ -6,6 +6,8 @@
 #include <tessera/common/scan_matcher.hpp>
 #include <tessera/common/tiled_grid.hpp>
 
+#include "segment_world.hpp"
+
 #include <catch2/catch.hpp>
 
 #include <Eigen/Dense>
@@ -36,26 +38,9 @@ constexpr double kDeg = kPi / 180.0;
 constexpr float kInf = std::numeric_limits<float>::infinity();
 constexpr float kNaN = std::numeric_limits<float>::quiet_NaN();
 
-struct Segment {
-  Eigen::Vector2d a, b;
-};
-using World = std::vector<Segment>;
-
-/// Distance along the ray to the nearest segment, +inf when none is hit.
-double castRay(const World& world, const Eigen::Vector2d& o, double angle) {
-  const Eigen::Vector2d d(std::cos(angle), std::sin(angle));
-  double best = std::numeric_limits<double>::infinity();
-  for (const Segment& s : world) {
-    const Eigen::Vector2d e = s.b - s.a;
-    const double den = d.x() * e.y() - d.y() * e.x();
-    if (std::abs(den) < 1e-12) continue;
-    const Eigen::Vector2d w = s.a - o;
-    const double t = (w.x() * e.y() - w.y() * e.x()) / den;
-    const double u = (w.x() * d.y() - w.y() * d.x()) / den;
-    if (t > 0 && u >= 0 && u <= 1) best = std::min(best, t);
-  }
-  return best;
-}
+using Segment = tessera::test::Segment;
+using World = tessera::test::SegmentWorld;
+using tessera::test::castRay;
 
 struct Laser {
   double angle_min = -135 * kDeg;
