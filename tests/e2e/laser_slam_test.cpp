@@ -82,3 +82,26 @@ TEST_CASE("sim_slam keeps the simulated robot on its true path while odometry dr
   CHECK(test::summaryInt(report, "slam", "submaps") == 1);
   CHECK(fs::exists(out / "map.png"));
 }
+
+TEST_CASE("sim_slam_global closes loops without a false one and straightens the submap chain",
+          "[e2e][rbpf][global]") {
+  const fs::path out = test::scratchDir("sim_slam_global");
+  const RunReport report = test::runProfile("sim_slam_global", out);
+  CHECK(report.stop_reason == "all inputs finished");
+  const auto truth = common::readTum(out / "ground_truth.tum");
+  const auto online = common::computeAte(common::readTum(out / "trajectory.tum"), truth);
+  const auto final_ate = common::computeAte(common::readTum(out / "trajectory_final.tum"), truth);
+  INFO("ATE online (chained submaps) " << online.translation.rmse << " m, after optimisation "
+                                       << final_ate.translation.rmse << " m");
+  const auto loops_true = test::summaryInt(report, "loops", "loops_true");
+  const auto loops_false = test::summaryInt(report, "loops", "loops_false");
+  INFO("loop closures: " << loops_true << " true, " << loops_false << " false");
+  CHECK(test::summaryInt(report, "slam", "submaps") >= 10);
+  CHECK(loops_true >= 10);
+  CHECK(static_cast<double>(loops_true) / static_cast<double>(loops_true + loops_false) >= 0.98);
+  CHECK(test::summaryInt(report, "optimizer", "optimizations") > 0);
+  CHECK(test::summaryInt(report, "optimizer", "constraints_unresolved") == 0);
+  CHECK(final_ate.translation.rmse < 0.2);
+  CHECK(final_ate.translation.rmse < online.translation.rmse);
+  CHECK(fs::exists(out / "map.png"));
+}

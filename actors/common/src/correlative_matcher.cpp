@@ -438,6 +438,8 @@ const char* toString(LoopRejection r) {
       return "low_score";
     case LoopRejection::kAmbiguous:
       return "ambiguous";
+    case LoopRejection::kUnconstrained:
+      return "unconstrained";
     case LoopRejection::kInconsistent:
       return "inconsistent";
     case LoopRejection::kBadPrior:
@@ -451,6 +453,8 @@ LoopClosureVerifier::LoopClosureVerifier(Options o) : options_(o) {
     throw std::invalid_argument("LoopClosureVerifier: min_score must be in [0, 1]");
   if (!(o.max_ambiguity > 0.0 && o.max_ambiguity <= 1.0))
     throw std::invalid_argument("LoopClosureVerifier: max_ambiguity must be in (0, 1]");
+  if (!(std::isfinite(o.max_position_sigma) && o.max_position_sigma >= 0.0))
+    throw std::invalid_argument("LoopClosureVerifier: max_position_sigma must be >= 0");
   if (!(std::isfinite(o.max_prior_sigmas) && o.max_prior_sigmas > 0.0))
     throw std::invalid_argument("LoopClosureVerifier: max_prior_sigmas must be > 0");
 }
@@ -470,6 +474,12 @@ LoopVerdict LoopClosureVerifier::verify(const CorrelativeMatchResult& match, con
   if (match.score < options_.min_score) return reject(LoopRejection::kLowScore, counts_.low_score);
   if (v.ambiguity > options_.max_ambiguity)
     return reject(LoopRejection::kAmbiguous, counts_.ambiguous);
+  if (options_.max_position_sigma > 0.0) {
+    const Eigen::SelfAdjointEigenSolver<Eigen::Matrix2d> position(
+        match.covariance.topLeftCorner<2, 2>(), Eigen::EigenvaluesOnly);
+    if (!(std::sqrt(std::max(0.0, position.eigenvalues()[1])) <= options_.max_position_sigma))
+      return reject(LoopRejection::kUnconstrained, counts_.unconstrained);
+  }
 
   const bool finite = prior.isFinite() && prior_covariance.allFinite();
   const double asym = (prior_covariance - prior_covariance.transpose()).cwiseAbs().maxCoeff();

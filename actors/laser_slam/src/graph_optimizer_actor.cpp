@@ -4,6 +4,8 @@
 #include <tessera/runtime/options.hpp>
 #include <tessera/runtime/registry.hpp>
 
+#include "message_pose.hpp"
+
 #include <algorithm>
 #include <cmath>
 #include <iostream>
@@ -28,11 +30,6 @@ SubmapGraphOptions graphOptions(const GraphOptimizerActorOptions& o) {
   g.optimizer.ceres.max_iterations = o.ceres_iterations;
   g.optimizer.ceres.huber_delta = o.huber_delta;
   return g;
-}
-
-common::Pose2 toPose2(msg::Pose2D::Reader p) {
-  const PoseXYT x = readPose(p);
-  return {x.x, x.y, x.theta};
 }
 
 }  // namespace

@@ -4,6 +4,8 @@
 #include <tessera/runtime/options.hpp>
 #include <tessera/runtime/registry.hpp>
 
+#include "message_pose.hpp"
+
 #include <algorithm>
 #include <cmath>
 #include <iostream>
@@ -11,10 +13,6 @@
 
 namespace tessera::laser_slam {
 namespace {
-
-common::Pose2 toPose2(msg::Pose2D::Reader p) {
-  return {p.getX(), p.getY(), p.getTheta()};
-}
 
 MapAssembler checkedAssembler(const MapAssemblerOptions& o) {
   if (!(std::isfinite(o.publish_period_s) && o.publish_period_s >= 0))

@@ -48,8 +48,8 @@ std::vector<float> castRanges(const Walls& walls, const Pose2& pose, double max_
   std::normal_distribution<double> n(0.0, noise);
   std::vector<float> ranges(kBeams);
   for (int k = 0; k < kBeams; ++k) {
-    const double r =
-        tessera::test::castRay(walls, pose.translation(), pose.theta + k * 2.0 * std::numbers::pi / kBeams);
+    const double r = tessera::test::castRay(walls, pose.translation(),
+                                            pose.theta + k * 2.0 * std::numbers::pi / kBeams);
     ranges[static_cast<std::size_t>(k)] =
         r < max_range ? static_cast<float>(r + n(rng)) : std::numeric_limits<float>::infinity();
   }
@@ -322,6 +322,17 @@ TEST_CASE("a corridor scan is flagged ambiguous along the corridor", "[correlati
   CHECK_FALSE(v.accepted);
   CHECK(v.reason == LoopRejection::kAmbiguous);
   CHECK(verifier.counts().ambiguous == 1);
+
+  // With the ambiguity test off, the position spread along the corridor still rejects it.
+  tessera::common::LoopClosureVerifierOptions spread_only;
+  spread_only.max_ambiguity = 1.0;
+  spread_only.max_position_sigma = 0.12;
+  LoopClosureVerifier by_spread(spread_only);
+  const auto u = by_spread.verify(r, initial, Eigen::Vector3d(1.0, 1.0, 0.3).asDiagonal());
+  CHECK(u.reason == LoopRejection::kUnconstrained);
+  CHECK(by_spread.counts().unconstrained == 1);
+  spread_only.max_position_sigma = -1;
+  CHECK_THROWS_AS(LoopClosureVerifier(spread_only), std::invalid_argument);
 }
 
 TEST_CASE("loop verifier rejects a match inconsistent with the prior", "[correlative_matcher]") {

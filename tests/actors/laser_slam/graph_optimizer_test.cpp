@@ -1,4 +1,5 @@
 #include <tessera/laser_slam/graph_optimizer_actor.hpp>
+#include <tessera/laser_slam/loop_detector_actor.hpp>
 #include <tessera/laser_slam/map_assembler_actor.hpp>
 #include <tessera/laser_slam/submap_graph.hpp>
 #include <tessera/messages/types.hpp>
@@ -273,4 +274,35 @@ TEST_CASE("trajectory poses move with their optimised submap", "[graph_optimizer
   CHECK(out[2]->getPose().getY() > 0.45);
   CHECK(out[3]->getPose().getY() == Approx(out[2]->getPose().getY()));
   CHECK(out[3]->getPose().getX() - out[2]->getPose().getX() == Approx(2.0));
+}
+
+TEST_CASE("loop_detector refuses bad options and skips a malformed submap", "[loop_detector]") {
+  laser_slam::LoopDetectorOptions o;
+  o.every_n_scans = 0;
+  CHECK_THROWS_AS(laser_slam::LoopDetectorActor(o), ConfigError);
+  o = {};
+  o.window_linear = 5;
+  o.window_linear_max = 1;
+  CHECK_THROWS_AS(laser_slam::LoopDetectorActor(o), ConfigError);
+  o = {};
+  o.min_score = 2;
+  CHECK_THROWS_AS(laser_slam::LoopDetectorActor(o), ConfigError);
+
+  ActorHarness h(
+      std::make_unique<laser_slam::LoopDetectorActor>(laser_slam::LoopDetectorOptions{}));
+  h.push<msg::Submap>("submaps", [](auto& b) {
+    b.setId(0);
+    auto g = b.initGrid();
+    g.setResolution(0.05f);
+    g.setWidth(4);
+    g.setHeight(4);
+    g.initCells(3);  // not 4 x 4
+    b.setFinished(true);
+  });
+  h.runUntilIdle();
+  h.stop();
+  Summary s;
+  h.actor().summarize(s);
+  CHECK(count(s, "loop_submaps_rejected") == 1);
+  CHECK(count(s, "loops_published") == 0);
 }

@@ -223,18 +223,23 @@ struct LoopClosureVerifierOptions {
   /// Reject as ambiguous when second_best_score / score exceeds this (a long corridor, a
   /// repeated room). (0, 1].
   double max_ambiguity = 0.9;
+  /// [m] Reject as unconstrained when the match's largest position standard deviation (from its
+  /// covariance) exceeds this: a scan that slides along a corridor, or past the edge of the
+  /// submap, scores well at the wrong place without a distinct second best. 0 = off.
+  double max_position_sigma = 0.0;
   /// Reject as inconsistent when the match lies more than this many standard deviations of the
   /// prior covariance from the prior pose (Mahalanobis distance in x, y, θ). > 0.
   double max_prior_sigmas = 3.0;
 };
 
 enum class LoopRejection {
-  kNone,          ///< accepted
-  kNoMatch,       ///< the matcher found nothing (any status other than kMatched)
-  kLowScore,      ///< score < min_score
-  kAmbiguous,     ///< second-best / best > max_ambiguity
-  kInconsistent,  ///< too far from the prior
-  kBadPrior,      ///< prior pose non-finite or covariance not symmetric positive definite
+  kNone,           ///< accepted
+  kNoMatch,        ///< the matcher found nothing (any status other than kMatched)
+  kLowScore,       ///< score < min_score
+  kAmbiguous,      ///< second-best / best > max_ambiguity
+  kUnconstrained,  ///< the match's position sigma exceeds max_position_sigma
+  kInconsistent,   ///< too far from the prior
+  kBadPrior,       ///< prior pose non-finite or covariance not symmetric positive definite
 };
 const char* toString(LoopRejection r);
 
@@ -253,6 +258,7 @@ struct LoopVerifierCounts {
   std::size_t no_match = 0;
   std::size_t low_score = 0;
   std::size_t ambiguous = 0;
+  std::size_t unconstrained = 0;
   std::size_t inconsistent = 0;
   std::size_t bad_prior = 0;
 };
@@ -267,7 +273,8 @@ class LoopClosureVerifier {
 
   /// Judges `match` against the prior belief (pose and covariance (x, y, θ) in the same frame as
   /// match.pose, normally the initial pose given to the matcher). Checks in order: no match,
-  /// low score, ambiguous, bad prior, inconsistent. Never throws; counts the decision.
+  /// low score, ambiguous, unconstrained, bad prior, inconsistent. Never throws; counts the
+  /// decision.
   LoopVerdict verify(const CorrelativeMatchResult& match, const Pose2& prior,
                      const Eigen::Matrix3d& prior_covariance);
 

@@ -1,0 +1,347 @@
+#include <tessera/laser_slam/loop_detector_actor.hpp>
+
+#include <tessera/messages/types.hpp>
+#include <tessera/messages/views.hpp>
+#include <tessera/runtime/options.hpp>
+#include <tessera/runtime/registry.hpp>
+
+#include "message_pose.hpp"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <iostream>
+#include <iterator>
+#include <stdexcept>
+
+namespace tessera::laser_slam {
+namespace {
+
+const LoopDetectorOptions& checked(const LoopDetectorOptions& o) {
+  auto positive = [](double v) { return std::isfinite(v) && v > 0; };
+  auto non_negative = [](double v) { return std::isfinite(v) && v >= 0; };
+  if (o.every_n_scans < 1) throw ConfigError("loop_detector: every_n_scans must be >= 1");
+  if (o.skip_recent < 0) throw ConfigError("loop_detector: skip_recent must be >= 0");
+  if (o.max_candidates < 1) throw ConfigError("loop_detector: max_candidates must be >= 1");
+  if (!positive(o.window_linear) || !positive(o.window_linear_max) ||
+      o.window_linear_max < o.window_linear)
+    throw ConfigError("loop_detector: need 0 < window_linear <= window_linear_max");
+  if (!non_negative(o.window_angular) || !non_negative(o.window_angular_max) ||
+      o.window_angular_max < o.window_angular)
+    throw ConfigError("loop_detector: need 0 <= window_angular <= window_angular_max");
+  if (!non_negative(o.window_growth) || !non_negative(o.window_angular_growth))
+    throw ConfigError("loop_detector: window growth rates must be >= 0");
+  if (!non_negative(o.sigma_floor_linear) || !non_negative(o.sigma_floor_angular))
+    throw ConfigError("loop_detector: sigma floors must be >= 0");
+  if (!positive(o.truth_tolerance_linear) || !positive(o.truth_tolerance_angular))
+    throw ConfigError("loop_detector: truth tolerances must be > 0");
+  if (o.scan_queue < 1 || o.pose_queue < 1)
+    throw ConfigError("loop_detector: scan_queue and pose_queue must be >= 1");
+  return o;
+}
+
+template <class Make>
+auto configError(const char* what, Make make) {
+  try {
+    return make();
+  } catch (const std::invalid_argument& e) {
+    throw ConfigError(std::string("loop_detector: ") + what + ": " + e.what());
+  }
+}
+
+common::ScanMatcher pointMaker(const LoopDetectorOptions& o) {
+  common::ScanMatcherOptions m;
+  m.max_range = o.max_range;
+  return configError("max_range", [&] { return common::ScanMatcher(m); });
+}
+
+common::CorrelativeMatcher correlativeMatcher(const LoopDetectorOptions& o) {
+  common::CorrelativeMatcherOptions m;
+  m.pyramid_depth = o.pyramid_depth;
+  m.max_range = o.max_range;
+  m.min_score = o.min_score;
+  return configError("matcher", [&] { return common::CorrelativeMatcher(m); });
+}
+
+common::LoopClosureVerifier verifier(const LoopDetectorOptions& o) {
+  common::LoopClosureVerifierOptions v;
+  v.min_score = o.min_score;
+  v.max_ambiguity = o.max_ambiguity;
+  v.max_prior_sigmas = o.max_prior_sigmas;
+  v.max_position_sigma = o.max_position_sigma;
+  return configError("verifier", [&] { return common::LoopClosureVerifier(v); });
+}
+
+/// Covariance of T = a ⊕ b⁻¹ from that of b, by a numeric Jacobian (the map is smooth and
+/// 3-dimensional; a closed form buys nothing here).
+Eigen::Matrix3d relativeCovariance(const common::Pose2& a, const common::Pose2& b,
+                                   const Eigen::Matrix3d& cov_b) {
+  const common::Pose2 t0 = a * b.inverse();
+  Eigen::Matrix3d j;
+  const double h = 1e-6;
+  for (int k = 0; k < 3; ++k) {
+    Eigen::Vector3d d = Eigen::Vector3d::Zero();
+    d[k] = h;
+    const common::Pose2 t = a * common::Pose2(b.x + d[0], b.y + d[1], b.theta + d[2]).inverse();
+    j.col(k) = Eigen::Vector3d(t.x - t0.x, t.y - t0.y, common::angleDiff(t.theta, t0.theta)) / h;
+  }
+  return j * cov_b * j.transpose();
+}
+
+}  // namespace
+
+LoopDetectorActor::LoopDetectorActor(LoopDetectorOptions options)
+    : options_(checked(options)),
+      points_(pointMaker(options_)),
+      matcher_(correlativeMatcher(options_)),
+      verifier_(verifier(options_)) {}
+
+void LoopDetectorActor::configure(ActorContext& ctx) {
+  ctx.subscribe<msg::LaserScan>(
+      "scan", MailboxPolicy::keepLatest(static_cast<std::size_t>(options_.scan_queue)),
+      [this](const Message<msg::LaserScan>& m) { onScan(m); });
+  ctx.subscribe<msg::PoseStamped>(
+      "pose", MailboxPolicy::keepLatest(static_cast<std::size_t>(options_.pose_queue)),
+      [this](const Message<msg::PoseStamped>& m) { onPose(m); });
+  ctx.subscribe<msg::Submap>("submaps", MailboxPolicy::reliable(),
+                             [this](const Message<msg::Submap>& m) { onSubmap(m); });
+  if (options_.optimized_poses)
+    ctx.subscribe<msg::SubmapPoses>(
+        "submap_poses", MailboxPolicy::keepLatest(1),
+        [this](const Message<msg::SubmapPoses>& m) { onSubmapPoses(m); });
+  if (options_.score_ground_truth)
+    ctx.subscribe<msg::GroundTruthPose>(
+        "ground_truth", MailboxPolicy::keepLatest(1000),
+        [this](const Message<msg::GroundTruthPose>& m) { onGroundTruth(m); });
+  loop_pub_ = ctx.advertise<msg::SubmapConstraint>("loop_constraints");
+}
+
+void LoopDetectorActor::onScan(const Message<msg::LaserScan>& m) {
+  scans_.push_back(m);
+  while (scans_.size() > static_cast<std::size_t>(options_.scan_queue)) scans_.pop_front();
+}
+
+void LoopDetectorActor::onPose(const Message<msg::PoseStamped>& m) {
+  const Nanos stamp = m->getHeader().getStampNs();
+  const common::Pose2 pose = toPose2(m->getPose());
+  if (!pose.isFinite()) return;
+  if (first_stamp_ < 0) first_stamp_ = stamp;
+  if (have_last_pose_) driven_ += std::hypot(pose.x - last_pose_.x, pose.y - last_pose_.y);
+  last_pose_ = pose;
+  have_last_pose_ = true;
+  // The builder stamps each pose with its scan's stamp.
+  while (!scans_.empty() && scans_.front()->getHeader().getStampNs() < stamp) scans_.pop_front();
+  if (scans_.empty() || scans_.front()->getHeader().getStampNs() != stamp) return;
+  const auto scan = scans_.front();
+  scans_.pop_front();
+  if (++scans_seen_ % static_cast<std::uint64_t>(options_.every_n_scans) != 0) return;
+  tryScan(scan, pose);
+}
+
+void LoopDetectorActor::tryScan(const Message<msg::LaserScan>& scan,
+                                const common::Pose2& robot_chained) {
+  const int searchable = static_cast<int>(submaps_.size()) - options_.skip_recent;
+  if (searchable <= 0) return;
+  ++scans_tried_;
+  // The robot in the optimised frame: moved like the newest finished submap was.
+  const FinishedSubmap& newest = submaps_.back();
+  const common::Pose2 robot = newest.optimized * newest.chained.inverse() * robot_chained;
+  struct Candidate {
+    std::size_t index;
+    double distance;
+    common::Pose2 local;
+  };
+  std::vector<Candidate> candidates;
+  for (int k = 0; k < searchable; ++k) {
+    const auto& s = submaps_[static_cast<std::size_t>(k)];
+    const common::Pose2 local = s.optimized.inverse() * robot;
+    const double linear =
+        std::min(options_.window_linear_max,
+                 options_.window_linear + options_.window_growth * (driven_ - s.driven_at_finish));
+    const double d = (local.translation() - s.centre).norm();
+    if (d <= s.radius + linear) candidates.push_back({static_cast<std::size_t>(k), d, local});
+  }
+  std::sort(candidates.begin(), candidates.end(),
+            [](const Candidate& a, const Candidate& b) { return a.distance < b.distance; });
+  if (candidates.size() > static_cast<std::size_t>(options_.max_candidates))
+    candidates.resize(static_cast<std::size_t>(options_.max_candidates));
+  if (candidates.empty()) return;
+
+  const common::RangeScan ranges{view<float>(scan->getRanges()), scan->getAngleMin(),
+                                 scan->getAngleIncrement(), scan->getRangeMin(),
+                                 scan->getRangeMax()};
+  const common::Pose2 mount(scan->getMountX(), scan->getMountY(), scan->getMountTheta());
+  const common::ScanPoints prepared = points_.prepare(ranges, mount);
+  std::vector<Eigen::Vector2d> points;
+  points.reserve(prepared.size());
+  for (const auto& p : prepared.endpoints) points.push_back(p.cast<double>());
+  if (points.empty()) return;
+
+  const auto start = std::chrono::steady_clock::now();
+  bool have_best = false;
+  PendingClosure best;
+  double best_score = 0.0;
+  for (const auto& c : candidates) {
+    const auto& s = submaps_[c.index];
+    const double driven = driven_ - s.driven_at_finish;
+    const common::SearchWindow window{
+        std::min(options_.window_linear_max,
+                 options_.window_linear + options_.window_growth * driven),
+        std::min(options_.window_angular_max,
+                 options_.window_angular + options_.window_angular_growth * driven)};
+    const auto result = matcher_.match(s.grid, points, c.local, window);
+    ++matches_run_;
+    const Eigen::Vector3d sigma(window.linear / 3, window.linear / 3,
+                                std::max(window.angular, 1e-3) / 3);
+    const Eigen::Matrix3d prior = sigma.cwiseAbs2().asDiagonal();
+    const auto verdict = verifier_.verify(result, c.local, prior);
+    if (!verdict.accepted || (have_best && result.score <= best_score)) continue;
+    have_best = true;
+    best_score = result.score;
+    best = {scan->getHeader().getStampNs(), s.id, result.pose, robot_chained, result.covariance};
+  }
+  match_seconds_ += std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  if (!have_best) return;
+  if (options_.score_ground_truth) {
+    const auto& s = *std::find_if(submaps_.begin(), submaps_.end(),
+                                  [&](const auto& x) { return x.id == best.matched; });
+    common::Pose2 now, origin;
+    if (truthAt(best.stamp, now) && truthAt(s.start, origin)) {
+      const common::Pose2 truth = origin.inverse() * now;
+      const bool ok = std::hypot(truth.x - best.in_matched.x, truth.y - best.in_matched.y) <=
+                          options_.truth_tolerance_linear &&
+                      std::abs(common::angleDiff(truth.theta, best.in_matched.theta)) <=
+                          options_.truth_tolerance_angular;
+      ++(ok ? truth_true_ : truth_false_);
+    } else {
+      ++truth_unknown_;
+    }
+  }
+  pending_.push_back(best);
+}
+
+void LoopDetectorActor::onSubmap(const Message<msg::Submap>& m) {
+  if (!m->getFinished()) return;
+  const int id = static_cast<int>(m->getId());
+  const auto g = m->getGrid();
+  common::GridView view;
+  view.width = static_cast<int>(g.getWidth());
+  view.height = static_cast<int>(g.getHeight());
+  view.resolution = g.getResolution();
+  view.origin = toPose2(g.getOrigin());
+  const auto cells = viewInt8(g.getCells());
+  view.percent = std::span<const std::int8_t>(cells.data(), cells.size());
+  FinishedSubmap s{id, matcher_.precompute(view), toPose2(m->getGlobalPose()), {}};
+  const Nanos end = m->getHeader().getStampNs();
+  const Nanos start = last_end_ >= 0 ? last_end_ : std::max<Nanos>(first_stamp_, 0);
+  last_end_ = std::max(last_end_, end);
+  // This submap's own scans ran up to `end`: their closures can be expressed now.
+  const common::Pose2 chained = s.chained;
+  std::vector<PendingClosure> still;
+  for (const auto& c : pending_) {
+    if (c.stamp <= end && chained.isFinite())
+      publishClosure(c, id, chained);
+    else
+      still.push_back(c);
+  }
+  pending_ = std::move(still);
+  if (s.grid.empty() || !chained.isFinite()) {
+    std::cerr << "[loop_detector] submap " << id << " cannot be searched: "
+              << (s.grid.empty() ? s.grid.error() : "non-finite global pose") << "\n";
+    ++submaps_rejected_;
+    return;
+  }
+  s.optimized = chained;
+  const double half_w = 0.5 * view.width * view.resolution,
+               half_h = 0.5 * view.height * view.resolution;
+  s.centre = view.origin * Eigen::Vector2d(half_w, half_h);
+  s.radius = std::hypot(half_w, half_h);
+  s.driven_at_finish = driven_;
+  s.start = start;
+  s.end = end;
+  submaps_.push_back(std::move(s));
+}
+
+void LoopDetectorActor::publishClosure(const PendingClosure& c, int current,
+                                       const common::Pose2& current_chained) {
+  if (c.matched == current) return;
+  const common::Pose2 in_current = current_chained.inverse() * c.robot_chained;
+  // The matched submap's origin seen from the current one's: robot-in-current ⊕ robot-in-matched⁻¹.
+  const common::Pose2 relative = in_current * c.in_matched.inverse();
+  Eigen::Matrix3d cov = relativeCovariance(in_current, c.in_matched, c.covariance);
+  cov.diagonal() += Eigen::Vector3d(options_.sigma_floor_linear * options_.sigma_floor_linear,
+                                    options_.sigma_floor_linear * options_.sigma_floor_linear,
+                                    options_.sigma_floor_angular * options_.sigma_floor_angular);
+  auto loan = loop_pub_.loan();
+  setHeader(loan->initHeader(), c.stamp, "map", loop_pub_.nextSeq());
+  loan->setFromId(static_cast<std::uint32_t>(current));
+  loan->setToId(static_cast<std::uint32_t>(c.matched));
+  writePose(loan->initRelative(), PoseXYT{relative.x, relative.y, relative.theta}, &cov);
+  loan->setKind(msg::SubmapConstraint::Kind::REVISIT);
+  loop_pub_.publish(std::move(loan));
+  ++published_;
+}
+
+void LoopDetectorActor::onSubmapPoses(const Message<msg::SubmapPoses>& m) {
+  for (const auto p : m->getPoses()) {
+    const common::Pose2 pose = toPose2(p.getPose());
+    if (!pose.isFinite()) continue;
+    for (auto& s : submaps_)
+      if (s.id == static_cast<int>(p.getId())) s.optimized = pose;
+  }
+}
+
+void LoopDetectorActor::onGroundTruth(const Message<msg::GroundTruthPose>& m) {
+  const common::Pose2 p = toPose2(m->getPose());
+  if (p.isFinite()) truth_[m->getHeader().getStampNs()] = p;
+}
+
+bool LoopDetectorActor::truthAt(Nanos stamp, common::Pose2& out) const {
+  // Linear interpolation between the neighbouring truth poses (at most 0.5 s apart).
+  const auto after = truth_.lower_bound(stamp);
+  if (after == truth_.end()) return false;
+  if (after->first == stamp || after == truth_.begin()) {
+    if (std::abs(after->first - stamp) > 500'000'000) return false;
+    out = after->second;
+    return true;
+  }
+  const auto before = std::prev(after);
+  if (after->first - before->first > 500'000'000) return false;
+  const double f = static_cast<double>(stamp - before->first) /
+                   static_cast<double>(after->first - before->first);
+  const common::Pose2& a = before->second;
+  const common::Pose2& b = after->second;
+  out = {a.x + f * (b.x - a.x), a.y + f * (b.y - a.y),
+         a.theta + f * common::angleDiff(b.theta, a.theta)};
+  return true;
+}
+
+void LoopDetectorActor::summarize(Summary& out) const {
+  const auto i64 = [](std::uint64_t v) { return static_cast<std::int64_t>(v); };
+  const auto& c = verifier_.counts();
+  out["loop_scans_tried"] = i64(scans_tried_);
+  out["loop_matches_run"] = i64(matches_run_);
+  out["loop_match_s"] = match_seconds_;
+  out["loops_accepted"] = i64(c.accepted);
+  out["loops_published"] = i64(published_);
+  out["loops_rejected_no_match"] = i64(c.no_match);
+  out["loops_rejected_low_score"] = i64(c.low_score);
+  out["loops_rejected_ambiguous"] = i64(c.ambiguous);
+  out["loops_rejected_unconstrained"] = i64(c.unconstrained);
+  out["loops_rejected_inconsistent"] = i64(c.inconsistent);
+  out["loops_unpublished"] = i64(pending_.size());
+  if (submaps_rejected_ > 0) out["loop_submaps_rejected"] = i64(submaps_rejected_);
+  if (options_.score_ground_truth) {
+    out["loops_true"] = i64(truth_true_);
+    out["loops_false"] = i64(truth_false_);
+    out["loops_unscored"] = i64(truth_unknown_);
+    const auto scored = truth_true_ + truth_false_;
+    out["loop_precision"] = scored > 0 ? static_cast<double>(truth_true_) / scored : 1.0;
+  }
+}
+
+TESSERA_REGISTER_ACTOR("loop_detector", LoopDetectorActor, LoopDetectorOptions,
+                       "loop closures: scans matched against finished submaps (branch and "
+                       "bound), verified, published as revisit constraints");
+
+}  // namespace tessera::laser_slam
