@@ -119,23 +119,39 @@ void LoopDetectorActor::configure(ActorContext& ctx) {
 void LoopDetectorActor::onScan(const Message<msg::LaserScan>& m) {
   scans_.push_back(m);
   while (scans_.size() > static_cast<std::size_t>(options_.scan_queue)) scans_.pop_front();
+  pairScansWithPoses();
 }
 
 void LoopDetectorActor::onPose(const Message<msg::PoseStamped>& m) {
-  const Nanos stamp = m->getHeader().getStampNs();
   const common::Pose2 pose = toPose2(m->getPose());
   if (!pose.isFinite()) return;
-  if (first_stamp_ < 0) first_stamp_ = stamp;
-  if (have_last_pose_) driven_ += std::hypot(pose.x - last_pose_.x, pose.y - last_pose_.y);
-  last_pose_ = pose;
-  have_last_pose_ = true;
-  // The builder stamps each pose with its scan's stamp.
-  while (!scans_.empty() && scans_.front()->getHeader().getStampNs() < stamp) scans_.pop_front();
-  if (scans_.empty() || scans_.front()->getHeader().getStampNs() != stamp) return;
-  const auto scan = scans_.front();
-  scans_.pop_front();
-  if (++scans_seen_ % static_cast<std::uint64_t>(options_.every_n_scans) != 0) return;
-  tryScan(scan, pose);
+  poses_.emplace_back(m->getHeader().getStampNs(), pose);
+  while (poses_.size() > static_cast<std::size_t>(options_.pose_queue)) poses_.pop_front();
+  pairScansWithPoses();
+}
+
+void LoopDetectorActor::pairScansWithPoses() {
+  // The builder stamps each pose with its scan's stamp; the two mailboxes may be served in
+  // either order, so whichever comes first waits for the other.
+  while (!scans_.empty() && !poses_.empty()) {
+    const Nanos scan_stamp = scans_.front()->getHeader().getStampNs();
+    const Nanos pose_stamp = poses_.front().first;
+    if (scan_stamp < pose_stamp) {
+      scans_.pop_front();  // a scan the builder gave no pose (skipped or unpaired)
+      continue;
+    }
+    const common::Pose2 pose = poses_.front().second;
+    poses_.pop_front();
+    if (first_stamp_ < 0) first_stamp_ = pose_stamp;
+    if (have_last_pose_) driven_ += std::hypot(pose.x - last_pose_.x, pose.y - last_pose_.y);
+    last_pose_ = pose;
+    have_last_pose_ = true;
+    if (scan_stamp > pose_stamp) continue;  // its scan is gone (dropped); keep the path length
+    const auto scan = scans_.front();
+    scans_.pop_front();
+    if (++scans_seen_ % static_cast<std::uint64_t>(options_.every_n_scans) == 0)
+      tryScan(scan, pose);
+  }
 }
 
 void LoopDetectorActor::tryScan(const Message<msg::LaserScan>& scan,

@@ -42,6 +42,7 @@
 #include <map>
 #include <memory>
 #include <string>
+#include <utility>
 #include <vector>
 
 namespace tessera::laser_slam {
@@ -134,6 +135,7 @@ class LoopDetectorActor final : public Actor {
 
   void onScan(const Message<msg::LaserScan>& m);
   void onPose(const Message<msg::PoseStamped>& m);
+  void pairScansWithPoses();
   void onSubmap(const Message<msg::Submap>& m);
   void onSubmapPoses(const Message<msg::SubmapPoses>& m);
   void onGroundTruth(const Message<msg::GroundTruthPose>& m);
@@ -147,8 +149,9 @@ class LoopDetectorActor final : public Actor {
   common::LoopClosureVerifier verifier_;
   Publisher<msg::SubmapConstraint> loop_pub_;
   std::vector<FinishedSubmap> submaps_;
-  std::deque<Message<msg::LaserScan>> scans_;  // waiting for their pose
-  std::vector<PendingClosure> pending_;        // matched, waiting for their own submap to end
+  std::deque<Message<msg::LaserScan>> scans_;          // waiting for their pose
+  std::deque<std::pair<Nanos, common::Pose2>> poses_;  // waiting for their scan
+  std::vector<PendingClosure> pending_;  // matched, waiting for their own submap to end
   std::map<Nanos, common::Pose2> truth_;
   Nanos last_end_ = -1;  // last stamp of the newest finished submap
   Nanos first_stamp_ = -1;
