@@ -105,6 +105,7 @@ struct OptimizeOptions {
   int sgd_iterations = pg::SgdOptions{}.iterations;
   int ceres_iterations = pg::CeresOptions{}.max_iterations;
   double huber = 0.0;
+  std::string method = "lm";
   bool json = false;
 };
 
@@ -114,6 +115,7 @@ pg::OptimizerOptions solverOptions(const OptimizeOptions& o) {
   options.sgd.iterations = o.sgd_iterations;
   options.ceres.max_iterations = o.ceres_iterations;
   options.ceres.huber_delta = o.huber;
+  options.ceres.method = pg::parseMethod(o.method);
   return options;
 }
 
@@ -158,6 +160,7 @@ const std::vector<BenchCase>& benchCases() {
 struct BenchOptions {
   std::string data = "../shared/data";
   std::vector<std::string> solvers{"ceres", "sgd+ceres"};
+  std::vector<std::string> methods{"lm", "gn"};
   int sgd_iterations = pg::SgdOptions{}.iterations;
   bool json = false;
 };
@@ -182,6 +185,10 @@ void addGraphCommand(CLI::App& app, int& result) {
   cmd->add_option("--sgd-iterations", o->sgd_iterations, "SGD passes")->capture_default_str();
   cmd->add_option("--iterations", o->ceres_iterations, "Ceres iterations (max)")
       ->capture_default_str();
+  cmd->add_option("--method", o->method,
+                  "Ceres stage: lm (Levenberg-Marquardt), dogleg, or gn (undamped Gauss-Newton, "
+                  "as g2o)")
+      ->capture_default_str();
   cmd->add_option("--huber", o->huber,
                   "Huber scale on loop-closure edges (0 = off: the plain g2o objective)")
       ->capture_default_str();
@@ -198,7 +205,7 @@ void addGraphCommand(CLI::App& app, int& result) {
     try {
       options = solverOptions(*o);
     } catch (const std::invalid_argument& e) {
-      throw ConfigError(std::string("--solver: ") + e.what());
+      throw ConfigError(std::string("--solver/--method: ") + e.what());
     }
     const auto file = ds::readPoseGraph(o->input);
     nlohmann::json j = file.dimension == 2 ? optimizeFile(file.graph2d, *o, options)
@@ -229,6 +236,9 @@ void addBenchGraphCommand(CLI::App& bench, int& result) {
   auto o = std::make_shared<BenchOptions>();
   cmd->add_option("--data", o->data, "dataset root")->capture_default_str();
   cmd->add_option("--solvers", o->solvers, "solvers to run")->delimiter(',')->capture_default_str();
+  cmd->add_option("--methods", o->methods, "Ceres-stage methods to run (lm, dogleg, gn)")
+      ->delimiter(',')
+      ->capture_default_str();
   cmd->add_option("--sgd-iterations", o->sgd_iterations, "SGD passes")->capture_default_str();
   cmd->add_flag("--json", o->json, "print exactly one JSON object on stdout");
   cmd->callback([o, &result] {
@@ -239,29 +249,39 @@ void addBenchGraphCommand(CLI::App& bench, int& result) {
         throw ConfigError(std::string("--solvers: ") + e.what());
       }
     }
+    for (const auto& m : o->methods) {
+      try {
+        pg::parseMethod(m);
+      } catch (const std::invalid_argument& e) {
+        throw ConfigError(std::string("--methods: ") + e.what());
+      }
+    }
     nlohmann::json runs = nlohmann::json::array();
     if (!o->json) std::cout << "machine: " << machineDescription() << "\n\n";
     for (const auto& c : benchCases()) {
       const fs::path path = fs::path(o->data) / c.file;
       requireFile(path.string(), "--data");
       const auto file = ds::readPoseGraph(path);
-      for (const auto& solver : o->solvers) {
-        OptimizeOptions opt;
-        opt.solver = solver;
-        opt.init = c.init;
-        opt.sgd_iterations = o->sgd_iterations;
-        if (!o->json)
-          std::cerr << "[bench graph] " << c.file << " (" << c.init << ") " << solver << " ...\n";
-        nlohmann::json j = file.dimension == 2
-                               ? optimizeFile(file.graph2d, opt, solverOptions(opt))
-                               : optimizeFile(file.graph3d, opt, solverOptions(opt));
-        j["file"] = c.file;
-        j["init"] = c.init;
-        j["g2o_chi2"] = c.g2o_chi2;
-        j["g2o_seconds"] = c.g2o_seconds;
-        j["relative_to_g2o"] = (j["final_chi2"].get<double>() - c.g2o_chi2) / c.g2o_chi2;
-        runs.push_back(j);
-      }
+      for (const auto& solver : o->solvers)
+        for (const auto& method : o->methods) {
+          OptimizeOptions opt;
+          opt.solver = solver;
+          opt.method = method;
+          opt.init = c.init;
+          opt.sgd_iterations = o->sgd_iterations;
+          if (!o->json)
+            std::cerr << "[bench graph] " << c.file << " (" << c.init << ") " << solver << " ...\n";
+          nlohmann::json j = file.dimension == 2
+                                 ? optimizeFile(file.graph2d, opt, solverOptions(opt))
+                                 : optimizeFile(file.graph3d, opt, solverOptions(opt));
+          j["file"] = c.file;
+          j["method"] = method;
+          j["init"] = c.init;
+          j["g2o_chi2"] = c.g2o_chi2;
+          j["g2o_seconds"] = c.g2o_seconds;
+          j["relative_to_g2o"] = (j["final_chi2"].get<double>() - c.g2o_chi2) / c.g2o_chi2;
+          runs.push_back(j);
+        }
     }
     if (o->json) {
       std::cout << nlohmann::json{{"machine", machineDescription()}, {"runs", runs}}.dump(2)
@@ -269,7 +289,7 @@ void addBenchGraphCommand(CLI::App& bench, int& result) {
       result = 0;
       return;
     }
-    std::cout << std::left << std::setw(38) << "graph" << std::setw(9) << "init" << std::setw(11)
+    std::cout << std::left << std::setw(38) << "graph" << std::setw(9) << "init" << std::setw(14)
               << "solver" << std::right << std::setw(16) << "initial chi2" << std::setw(14)
               << "final chi2" << std::setw(14) << "g2o chi2" << std::setw(11) << "rel diff"
               << std::setw(7) << "iters" << std::setw(9) << "s" << std::setw(8) << "g2o s"
@@ -278,7 +298,8 @@ void addBenchGraphCommand(CLI::App& bench, int& result) {
       std::ostringstream rel;
       rel << std::scientific << std::setprecision(1) << r["relative_to_g2o"].get<double>();
       std::cout << std::left << std::setw(38) << r["file"].get<std::string>() << std::setw(9)
-                << r["init"].get<std::string>() << std::setw(11) << r["solver"].get<std::string>()
+                << r["init"].get<std::string>() << std::setw(14)
+                << (r["solver"].get<std::string>() + "/" + r["method"].get<std::string>())
                 << std::right << std::fixed << std::setprecision(2) << std::setw(16)
                 << r["initial_chi2"].get<double>() << std::setprecision(4) << std::setw(14)
                 << r["final_chi2"].get<double>() << std::setw(14) << r["g2o_chi2"].get<double>()

