@@ -173,21 +173,30 @@ StrandPool::~StrandPool() {
   {
     std::lock_guard lock(mutex_);
     quit_ = true;
+    for (Sleeper* s : sleeping_) {
+      s->woken = true;
+      s->cv.notify_one();
+    }
+    sleeping_.clear();
   }
-  cv_.notify_all();
   for (auto& t : threads_) t.join();
 }
 void StrandPool::post(Cell& cell) {
-  bool wake;
+  Sleeper* wake = nullptr;
   {
     std::lock_guard lock(mutex_);
     ready_.push_back(&cell);
     ready_count_.store(ready_.size(), std::memory_order_release);
-    wake = idle_ > 0;
+    if (!sleeping_.empty()) {
+      wake = sleeping_.back();
+      sleeping_.pop_back();
+      wake->woken = true;
+    }
   }
-  if (wake) cv_.notify_one();
+  if (wake) wake->cv.notify_one();
 }
 void StrandPool::loop() {
+  Sleeper self;
   std::unique_lock lock(mutex_);
   while (true) {
     if (ready_.empty()) {
@@ -200,10 +209,10 @@ void StrandPool::loop() {
         std::this_thread::yield();
       }
       lock.lock();
-      if (!ready_.empty()) continue;
-      ++idle_;
-      cv_.wait(lock, [&] { return !ready_.empty() || quit_; });
-      --idle_;
+      if (!ready_.empty() || quit_) continue;
+      self.woken = false;
+      sleeping_.push_back(&self);
+      self.cv.wait(lock, [&] { return self.woken; });
       continue;
     }
     Cell* cell = ready_.front();

@@ -114,8 +114,11 @@ struct Cell {
 }  // namespace detail
 
 namespace detail {
-/// Dedicated executor threads: a ready queue of strands and one condition variable, so waking
-/// an idle thread costs one futex wake, like a bare hand-off.
+/// Dedicated executor threads: a ready queue of strands; an idle thread sleeps on its own
+/// condition variable, so waking it costs one futex wake, like a bare hand-off. The most
+/// recently idled thread is woken first (LIFO): it is the one whose cache is warm and which,
+/// having just run, sits on a core other than a publisher that keeps running; with one shared
+/// condition variable the kernel woke the longest-idle thread instead.
 class StrandPool {
  public:
   StrandPool(int threads, std::function<void(Cell&)> drain);
@@ -125,12 +128,15 @@ class StrandPool {
  private:
   void loop();
   std::function<void(Cell&)> drain_;
+  struct Sleeper {
+    std::condition_variable cv;
+    bool woken = false;
+  };
   std::mutex mutex_;
-  std::condition_variable cv_;
   std::deque<Cell*> ready_;
   std::atomic<std::size_t> ready_count_{0};  // ready_.size(), readable without the mutex
   static constexpr Nanos kSpinNanos = 20'000;
-  int idle_ = 0;
+  std::vector<Sleeper*> sleeping_;  // most recently idled last
   bool quit_ = false;
   std::vector<std::thread> threads_;
 };
