@@ -134,6 +134,7 @@ void SubmapBuilderActor::process(const Message<msg::LaserScan>& scan, const comm
   const RbpfStep step = rbpf_.addScan(nanosToSeconds(stamp), ranges, mount, odom);
   last_stamp_ = stamp;
   if (!rbpf_.initialized()) return;  // nothing to publish before the first usable scan
+  scan_odometry_.emplace_back(nanosToSeconds(stamp), odom);
 
   const bool by_distance =
       options_.submap_distance > 0 && rbpf_.submapTravelled() >= options_.submap_distance;
@@ -215,13 +216,39 @@ void SubmapBuilderActor::stop() {
   publishSubmap(rbpf_.currentSubmap(), last_stamp_);
   std::vector<Rbpf::StampedPose> trajectory = finished_trajectory_;
   appendBestTrajectory(trajectory);
-  for (const auto& p : trajectory) {
+  for (const auto& p : densify(trajectory)) {
     auto loan = final_pub_.loan();
     setHeader(loan->initHeader(), secondsToNanos(p.stamp_s), options_.frame_id,
               final_pub_.nextSeq());
     writePose(loan->initPose(), xyt(p.pose));
     final_pub_.publish(std::move(loan));
   }
+}
+
+std::vector<Rbpf::StampedPose> SubmapBuilderActor::densify(
+    const std::vector<Rbpf::StampedPose>& updates) const {
+  // Every scan after the first update: the smoothed pose of the update before it, moved by the
+  // odometry since (the online estimate does the same with the pose the filter had then).
+  std::vector<Rbpf::StampedPose> out;
+  out.reserve(scan_odometry_.size());
+  std::size_t k = 0;     // next update to reach
+  std::size_t scan = 0;  // scan_odometry_ index of the current update
+  bool have_update = false;
+  for (std::size_t i = 0; i < scan_odometry_.size(); ++i) {
+    const auto& [stamp, odom] = scan_odometry_[i];
+    while (k < updates.size() && updates[k].stamp_s <= stamp + 1e-6) {
+      // The update's own scan: the latest scan not after it.
+      while (scan + 1 < scan_odometry_.size() &&
+             scan_odometry_[scan + 1].first <= updates[k].stamp_s + 1e-6)
+        ++scan;
+      have_update = true;
+      ++k;
+    }
+    if (!have_update) continue;
+    const Rbpf::StampedPose& base = updates[k - 1];
+    out.push_back({stamp, base.pose * (scan_odometry_[scan].second.inverse() * odom)});
+  }
+  return out;
 }
 
 void SubmapBuilderActor::summarize(Summary& out) const {

@@ -14,9 +14,10 @@
 //   submaps      msg::Submap            reliable consumers: each finished submap, and the last
 //                                       one (finished) in stop()
 //   constraints  msg::SubmapConstraint  at each hand-over: the new submap's origin in the old one
-//   final_poses  msg::PoseStamped       in stop(): the best particle's poses at its filter
-//                                       updates (trajectory tree), submap by submap, in the map
-//                                       frame: the smoothed estimate (write trajectory_final.tum)
+//   final_poses  msg::PoseStamped       in stop(): one per scan, the best particle's pose at the
+//                                       filter update before it (trajectory tree, submap by
+//                                       submap, map frame) moved by the odometry since: the
+//                                       smoothed estimate (write trajectory_final.tum)
 //
 // The map frame is the first submap's frame; later submaps are placed by chaining hand-over
 // constraints (the graph optimiser moves them later). Scans wait (bounded) for an odometry pose
@@ -163,6 +164,7 @@ class SubmapBuilderActor final : public Actor {
   void handOver(Nanos stamp);
   void publishSubmap(const FinishedSubmap& submap, Nanos stamp);
   /// The current submap's best trajectory, in the map frame, after `out`'s last stamp.
+  std::vector<Rbpf::StampedPose> densify(const std::vector<Rbpf::StampedPose>& updates) const;
   void appendBestTrajectory(std::vector<Rbpf::StampedPose>& out) const;
 
   SubmapBuilderOptions options_;
@@ -173,6 +175,7 @@ class SubmapBuilderActor final : public Actor {
   Publisher<msg::SubmapConstraint> constraint_pub_;
   Publisher<msg::PoseStamped> final_pub_;
   std::vector<Rbpf::StampedPose> finished_trajectory_;  // best trajectories of closed submaps
+  std::vector<std::pair<double, common::Pose2>> scan_odometry_;  // [s], odometry of each scan
 
   common::Pose2 submap_origin_;  // current submap's origin in the map frame
   Nanos last_stamp_ = 0;
