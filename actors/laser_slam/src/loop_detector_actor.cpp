@@ -171,11 +171,9 @@ void LoopDetectorActor::tryScan(const Message<msg::LaserScan>& scan,
   for (int k = 0; k < searchable; ++k) {
     const auto& s = submaps_[static_cast<std::size_t>(k)];
     const common::Pose2 local = s.optimized.inverse() * robot;
-    const double linear =
-        std::min(options_.window_linear_max,
-                 options_.window_linear + options_.window_growth * (driven_ - s.driven_at_finish));
     const double d = (local.translation() - s.centre).norm();
-    if (d <= s.radius + linear) candidates.push_back({static_cast<std::size_t>(k), d, local});
+    if (d <= s.radius + windowFor(s).linear)
+      candidates.push_back({static_cast<std::size_t>(k), d, local});
   }
   std::sort(candidates.begin(), candidates.end(),
             [](const Candidate& a, const Candidate& b) { return a.distance < b.distance; });
@@ -199,12 +197,7 @@ void LoopDetectorActor::tryScan(const Message<msg::LaserScan>& scan,
   double best_score = 0.0;
   for (const auto& c : candidates) {
     const auto& s = submaps_[c.index];
-    const double driven = driven_ - s.driven_at_finish;
-    const common::SearchWindow window{
-        std::min(options_.window_linear_max,
-                 options_.window_linear + options_.window_growth * driven),
-        std::min(options_.window_angular_max,
-                 options_.window_angular + options_.window_angular_growth * driven)};
+    const common::SearchWindow window = windowFor(s);
     const auto result = matcher_.match(s.grid, points, c.local, window);
     ++matches_run_;
     const Eigen::Vector3d sigma(window.linear / 3, window.linear / 3,
@@ -234,6 +227,14 @@ void LoopDetectorActor::tryScan(const Message<msg::LaserScan>& scan,
     }
   }
   pending_.push_back(best);
+}
+
+common::SearchWindow LoopDetectorActor::windowFor(const FinishedSubmap& s) const {
+  const double driven = driven_ - s.driven_at_finish;
+  return {std::min(options_.window_linear_max,
+                   options_.window_linear + options_.window_growth * driven),
+          std::min(options_.window_angular_max,
+                   options_.window_angular + options_.window_angular_growth * driven)};
 }
 
 void LoopDetectorActor::onSubmap(const Message<msg::Submap>& m) {

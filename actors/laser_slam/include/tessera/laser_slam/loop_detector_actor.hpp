@@ -142,6 +142,8 @@ class LoopDetectorActor final : public Actor {
   void tryScan(const Message<msg::LaserScan>& scan, const common::Pose2& robot_chained);
   void publishClosure(const PendingClosure& c, int current, const common::Pose2& current_chained);
   bool truthAt(Nanos stamp, common::Pose2& out) const;
+  /// Search window for a submap: grows with the distance driven since it was finished.
+  common::SearchWindow windowFor(const FinishedSubmap& s) const;
 
   LoopDetectorOptions options_;
   common::ScanMatcher points_;  // only to turn scans into base-frame points
