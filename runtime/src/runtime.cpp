@@ -56,6 +56,11 @@ double DurationHistogram::percentileMicros(double q) const {
 
 thread_local std::vector<const Cell*> t_running;  // cells whose handlers run on this thread
 
+std::shared_ptr<LoanStorage> loanStorage(TopicState* topic, std::size_t size_hint_bytes) {
+  if (topic != nullptr && topic->exporter) return topic->exporter->loan(size_hint_bytes);
+  return makeBuilderStorage(size_hint_bytes);
+}
+
 void publishRaw(TopicState* topic, std::uint32_t owner, std::shared_ptr<const MessageStorage> m) {
   if (topic == nullptr) throw std::logic_error("publish on an unadvertised Publisher");
   topic->runtime->publish(topic, owner, std::move(m));
@@ -99,6 +104,24 @@ detail::TopicState& Runtime::Impl::topic(const std::string& name, MessageType ty
 void Runtime::Impl::publish(detail::TopicState* topic, std::uint32_t owner,
                             std::shared_ptr<const MessageStorage> message) {
   if (owner != detail::kExternalOwner) ++cells[owner]->messages_out;
+  if (topic->exporter) {
+    // A message coming back to this process is work in flight: the run is not idle until the
+    // import has queued it.
+    const bool loops = topic->exporter->loopsBack();
+    if (loops) pending.fetch_add(1);
+    try {
+      topic->exporter->send(message);
+    } catch (...) {
+      if (loops) releaseWork(1);
+      throw;
+    }
+    return;
+  }
+  deliver(topic, std::move(message));
+}
+
+void Runtime::Impl::deliver(detail::TopicState* topic,
+                            std::shared_ptr<const MessageStorage> message) {
   const auto n = topic->subscribers.size();
   for (std::size_t i = 0; i < n; ++i) {
     const auto& sub = topic->subscribers[i];
@@ -475,6 +498,24 @@ std::pair<detail::TopicState*, std::uint32_t> Runtime::externalAdvertise(const s
   return {&impl_->topic(topic, type, "(external)", true), detail::kExternalOwner};
 }
 
+void Runtime::exportTopic(const std::string& topic, MessageType type,
+                          std::shared_ptr<TopicExport> out) {
+  if (impl_->configured) throw std::logic_error("exportTopic after configure()");
+  if (!out) throw std::invalid_argument("exportTopic: null export for '" + topic + "'");
+  auto& t = impl_->topic(topic, type, "(export)", false);
+  t.exporter = std::move(out);
+}
+
+ImportFn Runtime::importTopic(const std::string& topic, MessageType type) {
+  if (impl_->configured) throw std::logic_error("importTopic after configure()");
+  auto* t = &impl_->topic(topic, type, "(import)", true);
+  auto* rt = impl_.get();
+  return [rt, t](std::shared_ptr<const MessageStorage> message, bool loopback) {
+    rt->deliver(t, std::move(message));
+    if (loopback) rt->releaseWork(1);
+  };
+}
+
 void Runtime::configure(bool allow_unpublished) {
   if (impl_->configured) throw std::logic_error("Runtime::configure called twice");
   impl_->configuring = true;
@@ -684,10 +725,45 @@ RunReport Runtime::run() {
     return rt.finite_sources.load() > 0 && rt.finished_sources.load() >= rt.finite_sources.load();
   };
 
+  auto* coordinator = rt.options.coordinator;
+  auto localState = [&] {
+    RunCoordinator::LocalState s;
+    s.next_due = std::numeric_limits<Nanos>::max();
+    {
+      std::lock_guard lock(rt.timers_mutex);
+      for (const auto& t : rt.timers) s.next_due = std::min(s.next_due, t.next);
+    }
+    s.finite_sources = rt.finite_sources.load();
+    s.finished_sources = rt.finished_sources.load();
+    return s;
+  };
+
   while (true) {
     if (sim) rt.waitIdle();
     if (rt.stop_requested.load()) break;
-    if (allSourcesDone() && rt.pending.load() == 0) {
+    if (coordinator != nullptr) {
+      // The deployment decides when time moves and when the run ends.
+      const auto decision =
+          sim ? coordinator->idle(
+                    localState(),
+                    [&] { return rt.pending.load() != 0 || rt.stop_requested.load(); })
+              : coordinator->poll(localState(), rt.pending.load() == 0);
+      using V = RunCoordinator::Verdict;
+      if (decision.verdict == V::kFinish) {
+        end_reason = decision.reason;
+        if (sim && decision.time > rt.clock.now()) rt.clock.advanceTo(decision.time);
+        break;
+      }
+      if (decision.verdict == V::kStop) {
+        rt.requestStop(decision.reason);
+        break;
+      }
+      if (decision.verdict == V::kAdvance) {
+        fireDueTimers(decision.time);
+        continue;
+      }
+      if (sim) continue;  // kWork: messages arrived
+    } else if (allSourcesDone() && rt.pending.load() == 0) {
       end_reason = "all inputs finished";
       break;
     }
@@ -757,7 +833,9 @@ RunReport Runtime::run() {
   if (rt.options.show_progress) printProgress(rt, true);
   // Stop sources first; everything they queued is handled before downstream actors stop.
   rt.stopped = true;
+  if (coordinator != nullptr) coordinator->awaitStopTurn();
   rt.stopActors();
+  if (coordinator != nullptr) coordinator->stopped();
   rt.final_report = rt.makeReport();
   rt.pool.reset();
   rt.arena.reset();

@@ -35,6 +35,7 @@ struct TopicState {
   std::vector<Subscriber> subscribers;
   std::vector<std::string> publishers;  // actor names, for error messages
   std::atomic<std::uint64_t> seq{0};
+  std::shared_ptr<TopicExport> exporter;  // set when the topic leaves this process
 };
 
 /// Log-linear histogram of durations (ns): 8 sub-buckets per power of two, ~6% resolution.
@@ -176,6 +177,8 @@ struct Runtime::Impl {
                             bool publishing);
   void publish(detail::TopicState* topic, std::uint32_t owner,
                std::shared_ptr<const MessageStorage> message);
+  /// Hands `message` to this process's subscribers of `topic`.
+  void deliver(detail::TopicState* topic, std::shared_ptr<const MessageStorage> message);
   void enqueue(detail::Cell& cell, detail::Item item);
   void schedule(detail::Cell& cell);
   void drainTask(detail::Cell& cell);

@@ -62,15 +62,23 @@ class MessageStorage {
 };
 
 namespace detail {
+/// Storage a message is built in: the heap (BuilderStorage) or, for a topic that crosses
+/// processes, a loaned shared-memory chunk (the runtime's transport provides that one).
+class LoanStorage : public MessageStorage {
+ public:
+  virtual capnp::MessageBuilder& builder() = 0;
+  /// Ends construction: records the segment table so readers never touch the builder state.
+  virtual void seal() = 0;
+};
+
 /// Storage whose segments were allocated by a Cap'n Proto builder on the heap.
-class BuilderStorage final : public MessageStorage {
+class BuilderStorage final : public LoanStorage {
  public:
   explicit BuilderStorage(std::size_t size_hint_bytes);
   // Cap'n Proto destructors are noexcept(false); freeing heap segments cannot throw.
   ~BuilderStorage() noexcept override;
-  capnp::MessageBuilder& builder() { return *builder_; }
-  /// Ends construction: records the segment table so readers never touch the builder state.
-  void seal();
+  capnp::MessageBuilder& builder() override { return *builder_; }
+  void seal() override;
   capnp::AnyPointer::Reader root() const override;
   kj::ArrayPtr<const kj::ArrayPtr<const capnp::word>> segments() const override;
 
@@ -122,8 +130,10 @@ class Loan {
 
   /// size_hint_bytes: expected encoded size; large arrays fit in one segment when it is right.
   explicit Loan(std::size_t size_hint_bytes = 0)
-      : storage_(detail::makeBuilderStorage(size_hint_bytes)),
-        root_(storage_->builder().template initRoot<T>()) {}
+      : Loan(detail::makeBuilderStorage(size_hint_bytes)) {}
+  /// Builds in storage provided by the caller (e.g. a shared-memory chunk).
+  explicit Loan(std::shared_ptr<detail::LoanStorage> storage)
+      : storage_(std::move(storage)), root_(storage_->builder().template initRoot<T>()) {}
 
   Builder& operator*() { return root_; }
   Builder* operator->() { return &root_; }
@@ -137,7 +147,7 @@ class Loan {
   }
 
  private:
-  std::shared_ptr<detail::BuilderStorage> storage_;
+  std::shared_ptr<detail::LoanStorage> storage_;
   Builder root_;
 };
 

@@ -27,6 +27,8 @@ class ActorContext;
 
 namespace detail {
 struct TopicState;  // runtime-internal
+/// Storage for a new message on `topic`: heap, or shared memory when the topic is exported.
+std::shared_ptr<LoanStorage> loanStorage(TopicState* topic, std::size_t size_hint_bytes);
 using RawHandler = std::function<void(const std::shared_ptr<const MessageStorage>&)>;
 }  // namespace detail
 
@@ -52,7 +54,10 @@ class Publisher {
   Publisher() = default;
 
   /// Starts a message; size_hint_bytes lets large arrays land in one segment.
-  Loan<T> loan(std::size_t size_hint_bytes = 0) const { return Loan<T>(size_hint_bytes); }
+  /// On a topic that crosses processes the message is built in a shared-memory chunk.
+  Loan<T> loan(std::size_t size_hint_bytes = 0) const {
+    return Loan<T>(detail::loanStorage(topic_, size_hint_bytes));
+  }
   /// Delivers the message to every subscriber (zero copy). May wait on reliable mailboxes.
   void publish(Loan<T>&& loan) const;
   /// Publishes an already sealed message (e.g. forwarding a received one without copying).

@@ -11,6 +11,7 @@
 #pragma once
 
 #include <tessera/runtime/actor.hpp>
+#include <tessera/runtime/transport.hpp>
 
 #include <cstdint>
 #include <map>
@@ -41,6 +42,9 @@ struct RuntimeOptions {
   Nanos max_sim_duration = 0;
   /// No executor threads: the caller drives the run with step()/fireDueTimers().
   bool manual = false;
+  /// Part of a multi-process deployment: time and the end of the run are decided together
+  /// (see transport.hpp). Not owned; must outlive run().
+  RunCoordinator* coordinator = nullptr;
 };
 
 /// Per-actor figures printed at exit and stored in summary.json.
@@ -82,6 +86,10 @@ class Runtime {
     auto [state, owner] = externalAdvertise(topic, messageTypeOf<T>());
     return Publisher<T>(state, owner);
   }
+
+  /// Cross-process topics (see transport.hpp). Call before configure().
+  void exportTopic(const std::string& topic, MessageType type, std::shared_ptr<TopicExport> out);
+  ImportFn importTopic(const std::string& topic, MessageType type);
 
   /// Configures every actor and checks the wiring: one message type per topic, and every
   /// subscribed topic has a publisher (unless allow_unpublished). Throws ConfigError.

@@ -1,0 +1,93 @@
+// ShmTransport: topics between processes of one machine over iceoryx shared memory, zero copy.
+//
+// A publisher on an exported topic loans a chunk, zeroes the part the Cap'n Proto builder may
+// use (the message's size hint plus headroom, never the whole chunk) and builds the message in
+// place. Subscribers in every importing process read the same chunk through a Message<T> whose
+// storage releases the chunk when the last local reader drops it. Chunk layout: a 16-byte
+// prefix (magic, sending process, flags) followed by the message in Cap'n Proto's standard
+// framing, so a reader needs no copy and no parse beyond the segment table.
+//
+// Policies across processes: a topic with a reliable subscriber anywhere makes its publishers
+// wait for full queues (iceoryx WAIT_FOR_CONSUMER + BLOCK_PRODUCER); keep_latest(n) becomes a
+// queue of n that discards the oldest, and those discards are counted.
+// A message larger than the largest shared-memory chunk is a MessageError naming the topic,
+// never an iceoryx abort. A message that outgrew its loaned chunk (size hint too small) is
+// copied once into a larger chunk and counted in `copies`.
+//
+// Ownership: the transport owns the iceoryx runtime connection, publishers, subscribers and
+// the receiving thread; exports and imported messages keep what they need alive through
+// shared pointers, so messages may outlive the transport's receive loop (not the process).
+#pragma once
+
+#include <tessera/runtime/mailbox.hpp>
+#include <tessera/runtime/runtime.hpp>
+
+#include <atomic>
+#include <chrono>
+#include <cstdint>
+#include <memory>
+#include <string>
+#include <vector>
+
+namespace tessera {
+
+struct ShmTopic {
+  std::string name;
+  MessageType type;
+  bool exported = false;  // published in this process and read in some process
+  bool imported = false;  // read in this process and published in some process
+  /// Processes that import the topic (each receives every message; for in-flight counting).
+  std::uint32_t importing_processes = 0;
+  bool loopback = false;        // exported and imported here
+  bool any_reliable = false;    // some subscriber anywhere is reliable: publishers wait
+  MailboxPolicy import_policy;  // this process's strongest subscription to it
+};
+
+struct ShmTransportOptions {
+  std::string runtime_name;         // unique per process incarnation (iceoryx runtime name)
+  std::uint32_t process_index = 0;  // written into every chunk this process sends
+  std::size_t max_chunk_bytes = 0;  // largest chunk payload RouDi offers
+  std::chrono::milliseconds roudi_wait{10000};
+  /// Counters for in-flight accounting (may be null): incremented per message sent, times
+  /// importing processes; and per message received, after it was queued locally.
+  std::atomic<std::uint64_t>* sent = nullptr;
+  std::atomic<std::uint64_t>* received = nullptr;
+};
+
+struct ShmStats {
+  std::uint64_t sent = 0, received = 0;
+  std::uint64_t copies = 0;          // messages copied into a chunk (did not fit their loan)
+  std::uint64_t drops = 0;           // keep_latest discards reported by iceoryx
+  std::uint64_t heap_fallbacks = 0;  // loans built on the heap (all chunks of a publisher busy)
+};
+
+class ShmTransport {
+ public:
+  explicit ShmTransport(ShmTransportOptions options);
+  ~ShmTransport();
+  ShmTransport(const ShmTransport&) = delete;
+  ShmTransport& operator=(const ShmTransport&) = delete;
+
+  /// Creates publishers and subscribers for `topics` and wires them into `runtime`. Call
+  /// before runtime.configure().
+  void attach(Runtime& runtime, const std::vector<ShmTopic>& topics);
+  /// Waits until every import is connected to a publisher (a message sent before that would
+  /// not reach this process); returns false on timeout.
+  bool waitForPublishers(std::chrono::milliseconds timeout);
+  /// Starts / stops the thread that takes arriving chunks and delivers them.
+  void startReceiving();
+  void stopReceiving();
+  ShmStats stats() const;
+
+  struct Impl;
+
+ private:
+  std::unique_ptr<Impl> impl_;
+};
+
+/// Bytes of chunk prefix plus segment table in front of a single-segment message.
+constexpr std::size_t kShmChunkOverhead = 24;
+/// First-segment size used when a publisher gives no size hint.
+constexpr std::size_t kShmDefaultMessageBytes = 4096;
+
+}  // namespace tessera

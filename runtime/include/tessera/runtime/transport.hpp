@@ -1,0 +1,69 @@
+// Transport hooks: how a runtime's topics cross its process boundary. The runtime knows no
+// transport; the shared-memory transport (shm_transport.hpp) plugs in through these.
+//
+// Exported topic: every message published on it in this process is built in storage the
+// TopicExport loans (a shared-memory chunk) and handed to send(). It is not also delivered
+// locally: local subscribers, if any, get it back through this process's import, like every
+// other process, so a message is read from the same bytes everywhere.
+// Imported topic: messages from outside reach this process's subscribers through the ImportFn
+// that Runtime::importTopic returns. It may be called from any thread and blocks while a
+// reliable mailbox is full, which is how back-pressure reaches the sender.
+//
+// Sim-time coordination: a RunCoordinator makes the runtimes of several processes one run —
+// simulated time moves only when every process is idle and no message is in flight, and the
+// run ends (upstream processes stopping first) when every input of the deployment finished.
+#pragma once
+
+#include <tessera/messages/message.hpp>
+#include <tessera/runtime/clock.hpp>
+
+#include <functional>
+#include <memory>
+#include <string>
+
+namespace tessera {
+
+class TopicExport {
+ public:
+  virtual ~TopicExport() = default;
+  /// Storage for one message of about `size_hint_bytes` (0: small).
+  virtual std::shared_ptr<detail::LoanStorage> loan(std::size_t size_hint_bytes) = 0;
+  /// Sends a sealed message (loaned here, or any other storage, which is then copied once).
+  virtual void send(const std::shared_ptr<const MessageStorage>& message) = 0;
+  /// True when this process imports the topic too: send() comes back through the import, and
+  /// the runtime counts the message as pending work until it does.
+  virtual bool loopsBack() const = 0;
+};
+
+/// Delivers one message from outside to this process's subscribers. `loopback`: the message was
+/// sent by this process (its TopicExport) and is now pending work being returned.
+using ImportFn = std::function<void(std::shared_ptr<const MessageStorage> message, bool loopback)>;
+
+class RunCoordinator {
+ public:
+  virtual ~RunCoordinator() = default;
+
+  struct LocalState {
+    Nanos next_due = 0;  // earliest local timer (Nanos max: none)
+    int finite_sources = 0;
+    int finished_sources = 0;
+  };
+  enum class Verdict { kWork, kAdvance, kFinish, kStop };
+  struct Decision {
+    Verdict verdict = Verdict::kWork;
+    Nanos time = 0;      // kAdvance: the deployment's new simulated time
+    std::string reason;  // kFinish / kStop
+  };
+
+  /// Simulated clock: called when this process has nothing queued. Returns kWork as soon as
+  /// busy() turns true, kAdvance when the deployment's clock moves, kFinish/kStop at the end.
+  virtual Decision idle(const LocalState& state, const std::function<bool()>& busy) = 0;
+  /// Wall clock: called about every 20 ms with whether the process is idle; kWork: go on.
+  virtual Decision poll(const LocalState& state, bool idle) = 0;
+  /// Blocks until this process may stop its actors (upstream processes stop first).
+  virtual void awaitStopTurn() = 0;
+  /// This process's actors have stopped and their last messages are sent.
+  virtual void stopped() = 0;
+};
+
+}  // namespace tessera

@@ -1,0 +1,456 @@
+#include <tessera/runtime/shm_transport.hpp>
+
+#include "runtime_impl.hpp"
+
+#include <iceoryx_posh/mepoo/chunk_header.hpp>
+#include <iceoryx_posh/popo/untyped_publisher.hpp>
+#include <iceoryx_posh/popo/untyped_subscriber.hpp>
+#include <iceoryx_posh/popo/user_trigger.hpp>
+#include <iceoryx_posh/popo/wait_set.hpp>
+#include <iceoryx_posh/runtime/posh_runtime.hpp>
+
+#include <capnp/serialize.h>
+
+#include <cstring>
+#include <mutex>
+#include <thread>
+
+namespace tessera {
+
+namespace {
+
+constexpr std::uint32_t kChunkMagic = 0x31525354;  // "TSR1"
+constexpr std::size_t kPrefixBytes = 16;           // magic, origin process, reserved
+constexpr std::size_t kWord = sizeof(capnp::word);
+static_assert(kShmChunkOverhead == kPrefixBytes + kWord, "prefix + one-segment table");
+
+struct Prefix {
+  std::uint32_t magic;
+  std::uint32_t origin;
+  std::uint64_t reserved;
+};
+
+iox::capro::ServiceDescription serviceOf(const std::string& topic) {
+  // iceoryx ids hold at most 100 characters; topic names are far shorter in practice.
+  if (topic.size() > iox::capro::IdString_t::capacity()) {
+    throw ConfigError("topic '" + topic + "': name longer than " +
+                      std::to_string(iox::capro::IdString_t::capacity()) +
+                      " characters cannot cross processes");
+  }
+  return {"tessera", iox::capro::IdString_t(iox::cxx::TruncateToCapacity, topic.c_str()), "capnp"};
+}
+
+}  // namespace
+
+// ------------------------------------------------------------------ exports
+
+struct ShmExport;
+
+struct ShmTransport::Impl {
+  ShmTransportOptions options;
+  std::vector<std::shared_ptr<ShmExport>> exports;
+  struct Import;
+  std::vector<std::shared_ptr<Import>> imports;
+  std::atomic<std::uint64_t> copies{0}, drops{0}, heap_fallbacks{0}, sent{0}, received{0};
+  std::optional<iox::popo::UserTrigger> wake;
+  std::thread receiver;
+  std::atomic<bool> quit{false};
+};
+
+/// A message being built in (the first segment of) a loaned chunk. Further segments, if the
+/// message outgrows the chunk, come from the heap and are copied into a new chunk on send.
+class ChunkLoan final : public detail::LoanStorage {
+ public:
+  ChunkLoan(std::shared_ptr<ShmExport> owner, void* payload, std::size_t segment_words);
+  ~ChunkLoan() noexcept override;
+  capnp::MessageBuilder& builder() override { return *builder_; }
+  void seal() override { segments_ = builder_->getSegmentsForOutput(); }
+  capnp::AnyPointer::Reader root() const override {
+    return const_cast<Builder&>(*builder_).getRoot<capnp::AnyPointer>().asReader();
+  }
+  kj::ArrayPtr<const kj::ArrayPtr<const capnp::word>> segments() const override {
+    return segments_;
+  }
+
+  /// Writes prefix and segment table; true when the message sits wholly in the chunk.
+  bool finishInPlace(std::uint32_t origin);
+  void* payload() const { return payload_; }
+  void disown() { payload_ = nullptr; }
+
+ private:
+  class Builder final : public capnp::MessageBuilder {
+   public:
+    explicit Builder(kj::ArrayPtr<capnp::word> first) : first_(first) {}
+    kj::ArrayPtr<capnp::word> allocateSegment(capnp::uint minimum_size) override {
+      if (!first_used_ && minimum_size <= first_.size()) {
+        first_used_ = true;
+        return first_;
+      }
+      first_used_ = true;
+      overflow_ = true;
+      const std::size_t words = std::max<std::size_t>(minimum_size, 1024);
+      extra_.push_back(kj::heapArray<capnp::word>(words));
+      std::memset(extra_.back().begin(), 0, words * kWord);
+      return extra_.back().asPtr();
+    }
+    bool overflowed() const { return overflow_; }
+
+   private:
+    kj::ArrayPtr<capnp::word> first_;
+    bool first_used_ = false, overflow_ = false;
+    std::vector<kj::Array<capnp::word>> extra_;
+  };
+
+  std::shared_ptr<ShmExport> owner_;
+  void* payload_;
+  std::optional<Builder> builder_;
+  kj::ArrayPtr<const kj::ArrayPtr<const capnp::word>> segments_;
+};
+
+struct ShmExport final : TopicExport, std::enable_shared_from_this<ShmExport> {
+  ShmExport(const ShmTopic& t, const ShmTransportOptions& o, ShmTransport::Impl& transport)
+      : topic(t), options(o), owner(transport) {
+    iox::popo::PublisherOptions po;
+    po.subscriberTooSlowPolicy = t.any_reliable
+                                     ? iox::popo::ConsumerTooSlowPolicy::WAIT_FOR_CONSUMER
+                                     : iox::popo::ConsumerTooSlowPolicy::DISCARD_OLDEST_DATA;
+    publisher.emplace(serviceOf(t.name), po);
+  }
+
+  std::shared_ptr<detail::LoanStorage> loan(std::size_t size_hint_bytes) override;
+  void send(const std::shared_ptr<const MessageStorage>& message) override;
+  bool loopsBack() const override { return topic.loopback; }
+
+  /// Loans a chunk of `payload_bytes`; nullptr when every chunk of this publisher is in use
+  /// or the pool is empty (the caller decides whether to wait).
+  void* tryLoan(std::size_t payload_bytes, bool& exhausted);
+  void checkFits(std::size_t payload_bytes) const {
+    if (payload_bytes > options.max_chunk_bytes) {
+      throw MessageError("topic '" + topic.name + "': a message of " +
+                         std::to_string(payload_bytes - kShmChunkOverhead) +
+                         " bytes does not fit the largest shared-memory chunk (" +
+                         std::to_string(options.max_chunk_bytes - kShmChunkOverhead) +
+                         " bytes); raise transport.max_message_bytes in the profile");
+    }
+  }
+  void publishChunk(void* payload) {
+    {
+      std::lock_guard lock(mutex);
+      publisher->publish(payload);
+    }
+    ++owner.sent;
+    if (options.sent != nullptr) options.sent->fetch_add(topic.importing_processes);
+  }
+  void release(void* payload) {
+    std::lock_guard lock(mutex);
+    publisher->release(payload);
+  }
+
+  ShmTopic topic;
+  ShmTransportOptions options;
+  ShmTransport::Impl& owner;
+  std::mutex mutex;  // iceoryx ports are not thread-safe; actors may share a topic
+  std::optional<iox::popo::UntypedPublisher> publisher;
+};
+
+ChunkLoan::ChunkLoan(std::shared_ptr<ShmExport> owner, void* payload, std::size_t segment_words)
+    : owner_(std::move(owner)), payload_(payload) {
+  auto* first =
+      reinterpret_cast<capnp::word*>(static_cast<std::byte*>(payload) + kShmChunkOverhead);
+  // Chunks are reused: zero exactly what the builder may hand out, not the whole chunk.
+  std::memset(static_cast<void*>(first), 0, segment_words * kWord);
+  builder_.emplace(kj::arrayPtr(first, segment_words));
+}
+
+ChunkLoan::~ChunkLoan() noexcept {
+  try {
+    builder_.reset();
+  } catch (...) {
+  }
+  if (payload_ != nullptr) owner_->release(payload_);  // built but never sent
+}
+
+bool ChunkLoan::finishInPlace(std::uint32_t origin) {
+  auto* bytes = static_cast<std::byte*>(payload_);
+  const Prefix prefix{kChunkMagic, origin, 0};
+  std::memcpy(bytes, &prefix, sizeof(prefix));
+  if (builder_->overflowed() || segments_.size() != 1) return false;
+  const std::uint32_t table[2] = {0, static_cast<std::uint32_t>(segments_[0].size())};
+  std::memcpy(bytes + kPrefixBytes, table, sizeof(table));
+  return true;
+}
+
+void* ShmExport::tryLoan(std::size_t payload_bytes, bool& exhausted) {
+  exhausted = false;
+  std::lock_guard lock(mutex);
+  auto r = publisher->loan(static_cast<std::uint32_t>(payload_bytes), alignof(capnp::word));
+  if (!r.has_error()) return r.value();
+  exhausted = r.get_error() == iox::popo::AllocationError::RUNNING_OUT_OF_CHUNKS;
+  return nullptr;
+}
+
+std::shared_ptr<detail::LoanStorage> ShmExport::loan(std::size_t size_hint_bytes) {
+  // Headroom over the hint: the root struct, header, list tags and padding.
+  std::size_t words = (std::max(size_hint_bytes, kShmDefaultMessageBytes) + 511) / kWord + 64;
+  std::size_t bytes = kShmChunkOverhead + words * kWord;
+  if (bytes > options.max_chunk_bytes) {
+    checkFits(kShmChunkOverhead + size_hint_bytes);  // the message itself can never fit
+    bytes = options.max_chunk_bytes;
+    words = (bytes - kShmChunkOverhead) / kWord;
+  }
+  bool exhausted = false;
+  if (void* payload = tryLoan(bytes, exhausted)) {
+    return std::make_shared<ChunkLoan>(shared_from_this(), payload, words);
+  }
+  // All of this publisher's loans are out (an actor holds many unsent messages) or the pool is
+  // empty: build on the heap; send() copies into a chunk when one is free.
+  ++owner.heap_fallbacks;
+  return detail::makeBuilderStorage(size_hint_bytes);
+}
+
+void ShmExport::send(const std::shared_ptr<const MessageStorage>& message) {
+  if (auto* chunk = dynamic_cast<const ChunkLoan*>(message.get())) {
+    auto* mine = const_cast<ChunkLoan*>(chunk);
+    if (mine->finishInPlace(options.process_index)) {
+      void* payload = mine->payload();
+      mine->disown();
+      publishChunk(payload);
+      return;
+    }
+  }
+  // Copy once into a chunk of the exact size (standard framing after the prefix).
+  auto segments = message->segments();
+  const std::size_t table_words = (segments.size() + 2) / 2;
+  std::size_t bytes = kPrefixBytes + table_words * kWord;
+  for (auto s : segments) bytes += s.size() * kWord;
+  checkFits(bytes - kPrefixBytes + kWord);
+  void* payload = nullptr;
+  const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(10);
+  for (int attempt = 0;; ++attempt) {
+    bool exhausted = false;
+    payload = tryLoan(bytes, exhausted);
+    if (payload != nullptr) break;
+    if (std::chrono::steady_clock::now() > deadline) {
+      throw MessageError("topic '" + topic.name + "': no shared-memory chunk of " +
+                         std::to_string(bytes) +
+                         " bytes became free within 10 s (subscribers hold them all)");
+    }
+    std::this_thread::sleep_for(std::chrono::microseconds(attempt < 100 ? 10 : 1000));
+  }
+  auto* out = static_cast<std::byte*>(payload);
+  const Prefix prefix{kChunkMagic, options.process_index, 0};
+  std::memcpy(out, &prefix, sizeof(prefix));
+  std::vector<std::uint32_t> table(table_words * 2, 0);
+  table[0] = static_cast<std::uint32_t>(segments.size() - 1);
+  for (std::size_t i = 0; i < segments.size(); ++i) {
+    table[i + 1] = static_cast<std::uint32_t>(segments[i].size());
+  }
+  std::memcpy(out + kPrefixBytes, table.data(), table_words * kWord);
+  std::size_t at = kPrefixBytes + table_words * kWord;
+  for (auto s : segments) {
+    std::memcpy(out + at, s.begin(), s.size() * kWord);
+    at += s.size() * kWord;
+  }
+  ++owner.copies;
+  publishChunk(payload);
+}
+
+// ------------------------------------------------------------------ imports
+
+struct ShmTransport::Impl::Import {
+  ShmTopic topic;
+  ImportFn deliver;
+  std::mutex mutex;  // take and release from different threads
+  std::optional<iox::popo::UntypedSubscriber> subscriber;
+};
+
+namespace {
+
+/// A received chunk, read in place. Releases the chunk when the last reader is done.
+class ChunkView final : public MessageStorage {
+ public:
+  ChunkView(std::shared_ptr<ShmTransport::Impl::Import> import, const void* payload,
+            kj::ArrayPtr<const capnp::word> words)
+      : import_(std::move(import)), payload_(payload) {
+    capnp::ReaderOptions options;
+    // One reader serves every local subscriber: give it room for many full traversals.
+    options.traversalLimitInWords = std::max<std::uint64_t>(64 * words.size(), 1u << 20);
+    reader_.emplace(words, options);  // checks the segment table against the chunk size
+    const unsigned count = segmentCount(words);
+    segments_ = kj::heapArray<kj::ArrayPtr<const capnp::word>>(count);
+    for (unsigned i = 0; i < count; ++i) segments_[i] = reader_->getSegment(i);
+  }
+  ~ChunkView() noexcept override {
+    try {
+      reader_.reset();
+    } catch (...) {
+    }
+    std::lock_guard lock(import_->mutex);
+    import_->subscriber->release(payload_);
+  }
+  capnp::AnyPointer::Reader root() const override {
+    return const_cast<capnp::FlatArrayMessageReader&>(*reader_).getRoot<capnp::AnyPointer>();
+  }
+  kj::ArrayPtr<const kj::ArrayPtr<const capnp::word>> segments() const override {
+    return segments_.asPtr();
+  }
+
+ private:
+  static unsigned segmentCount(kj::ArrayPtr<const capnp::word> words) {
+    std::uint32_t count_minus_one = 0;
+    std::memcpy(&count_minus_one, words.begin(), sizeof(count_minus_one));
+    return count_minus_one + 1;
+  }
+  std::shared_ptr<ShmTransport::Impl::Import> import_;
+  const void* payload_;
+  std::optional<capnp::FlatArrayMessageReader> reader_;
+  kj::Array<kj::ArrayPtr<const capnp::word>> segments_;
+};
+
+}  // namespace
+
+ShmTransport::ShmTransport(ShmTransportOptions options) : impl_(std::make_unique<Impl>()) {
+  impl_->options = std::move(options);
+  if (impl_->options.runtime_name.empty() ||
+      impl_->options.runtime_name.size() > iox::RuntimeName_t::capacity()) {
+    throw ConfigError("shared-memory runtime name must have 1 to " +
+                      std::to_string(iox::RuntimeName_t::capacity()) + " characters");
+  }
+  iox::runtime::PoshRuntime::initRuntime(
+      iox::RuntimeName_t(iox::cxx::TruncateToCapacity, impl_->options.runtime_name.c_str()));
+}
+
+ShmTransport::~ShmTransport() {
+  stopReceiving();
+}
+
+void ShmTransport::attach(Runtime& runtime, const std::vector<ShmTopic>& topics) {
+  for (const auto& t : topics) {
+    if (t.imported) {
+      auto import = std::make_shared<Impl::Import>();
+      import->topic = t;
+      iox::popo::SubscriberOptions so;
+      // A topic this process also sends must not lose its own messages in the shared queue: the
+      // runtime counts them as pending until they are back. Local mailboxes still apply the
+      // subscription's own policy (and count its drops).
+      const bool reliable = t.import_policy.kind == MailboxPolicy::Kind::kReliable || t.loopback;
+      so.queueCapacity = std::clamp<std::uint64_t>(
+          std::max<std::uint64_t>(t.import_policy.capacity, reliable ? 16 : 1), 1,
+          iox::MAX_SUBSCRIBER_QUEUE_CAPACITY);
+      so.queueFullPolicy = reliable ? iox::popo::QueueFullPolicy::BLOCK_PRODUCER
+                                    : iox::popo::QueueFullPolicy::DISCARD_OLDEST_DATA;
+      import->subscriber.emplace(serviceOf(t.name), so);
+      import->deliver = runtime.importTopic(t.name, t.type);
+      impl_->imports.push_back(std::move(import));
+    }
+    if (t.exported) {
+      auto e = std::make_shared<ShmExport>(t, impl_->options, *impl_);
+      impl_->exports.push_back(e);
+      runtime.exportTopic(t.name, t.type, e);
+    }
+  }
+}
+
+bool ShmTransport::waitForPublishers(std::chrono::milliseconds timeout) {
+  const auto deadline = std::chrono::steady_clock::now() + timeout;
+  for (;;) {
+    bool all = true;
+    for (auto& i : impl_->imports) {
+      all = all && i->subscriber->getSubscriptionState() == iox::SubscribeState::SUBSCRIBED;
+    }
+    bool peers = true;
+    for (auto& e : impl_->exports) {
+      std::lock_guard lock(e->mutex);
+      peers = peers && e->publisher->hasSubscribers();
+    }
+    if (all && peers) return true;
+    if (std::chrono::steady_clock::now() > deadline) return false;
+    std::this_thread::sleep_for(std::chrono::milliseconds(2));
+  }
+}
+
+void ShmTransport::startReceiving() {
+  if (impl_->receiver.joinable() || impl_->imports.empty()) return;
+  impl_->quit = false;
+  impl_->wake.emplace();
+  impl_->receiver = std::thread([impl = impl_.get()] {
+    iox::popo::WaitSet<> waitset;
+    for (auto& i : impl->imports) {
+      waitset.attachState(*i->subscriber, iox::popo::SubscriberState::HAS_DATA).or_else([&](auto) {
+        std::fprintf(stderr, "error: cannot watch topic '%s' for data\n", i->topic.name.c_str());
+      });
+    }
+    waitset.attachEvent(*impl->wake).or_else([](auto) {});
+    while (!impl->quit.load()) {
+      auto notes = waitset.wait();
+      for (auto& i : impl->imports) {
+        for (;;) {
+          const void* payload = nullptr;
+          {
+            std::lock_guard lock(i->mutex);
+            if (i->subscriber->hasMissedData()) ++impl->drops;
+            auto r = i->subscriber->take();
+            if (r.has_error()) {
+              if (r.get_error() ==
+                  iox::popo::ChunkReceiveResult::TOO_MANY_CHUNKS_HELD_IN_PARALLEL) {
+                // Local readers hold 256 chunks of this topic: let them finish first.
+                std::this_thread::sleep_for(std::chrono::microseconds(200));
+              }
+              break;
+            }
+            payload = r.value();
+          }
+          const auto* header = iox::mepoo::ChunkHeader::fromUserPayload(payload);
+          const std::size_t size = header->userPayloadSize();
+          Prefix prefix{};
+          if (size >= kShmChunkOverhead) std::memcpy(&prefix, payload, sizeof(prefix));
+          if (size < kShmChunkOverhead || prefix.magic != kChunkMagic) {
+            std::fprintf(stderr,
+                         "warning: topic '%s': dropped a chunk that is not a Tessera message\n",
+                         i->topic.name.c_str());
+            std::lock_guard lock(i->mutex);
+            i->subscriber->release(payload);
+            continue;
+          }
+          const auto* words = reinterpret_cast<const capnp::word*>(
+              static_cast<const std::byte*>(payload) + kPrefixBytes);
+          std::shared_ptr<const MessageStorage> view;
+          try {
+            view = std::make_shared<ChunkView>(i, payload,
+                                               kj::arrayPtr(words, (size - kPrefixBytes) / kWord));
+          } catch (const kj::Exception& e) {
+            // The view was not built, so its destructor will not release the chunk.
+            std::fprintf(stderr, "warning: topic '%s': dropped a malformed message: %s\n",
+                         i->topic.name.c_str(), e.getDescription().cStr());
+            std::lock_guard lock(i->mutex);
+            i->subscriber->release(payload);
+            continue;
+          }
+          const bool loopback = prefix.origin == impl->options.process_index && i->topic.loopback;
+          i->deliver(std::move(view), loopback);
+          ++impl->received;
+          if (impl->options.received != nullptr) impl->options.received->fetch_add(1);
+        }
+      }
+    }
+  });
+}
+
+void ShmTransport::stopReceiving() {
+  if (!impl_->receiver.joinable()) return;
+  impl_->quit = true;
+  impl_->wake->trigger();
+  impl_->receiver.join();
+}
+
+ShmStats ShmTransport::stats() const {
+  ShmStats s;
+  s.copies = impl_->copies.load();
+  s.drops = impl_->drops.load();
+  s.heap_fallbacks = impl_->heap_fallbacks.load();
+  s.received = impl_->received.load();
+  s.sent = impl_->sent.load();
+  return s;
+}
+
+}  // namespace tessera

@@ -1,0 +1,195 @@
+#include "../runtime/test_actors.hpp"
+#include "processes.hpp"
+
+#include <tessera/messages/types.hpp>
+#include <tessera/runtime/roudi_host.hpp>
+#include <tessera/runtime/runtime.hpp>
+#include <tessera/runtime/shm_transport.hpp>
+
+#include <catch2/catch.hpp>
+
+#include <filesystem>
+
+using namespace tessera;
+using namespace std::chrono_literals;
+
+namespace {
+
+RouDiHostOptions smallPools() {
+  RouDiHostOptions o;
+  o.pools = memPoolsFor({{1 << 16, 64}});
+  return o;
+}
+
+ShmTopic topic(const std::string& name, bool exported, bool imported, MailboxPolicy policy) {
+  ShmTopic t;
+  t.name = name;
+  t.type = messageTypeOf<msg::Blob>();
+  t.exported = exported;
+  t.imported = imported;
+  t.importing_processes = 1;
+  t.any_reliable = policy.kind == MailboxPolicy::Kind::kReliable;
+  t.import_policy = policy;
+  return t;
+}
+
+/// Receiving process: records every Blob on `topic` until `expected` arrived (or 20 s), then
+/// checks order. Returns 0 when complete and in order, 2 when messages are missing, 3 when out
+/// of order, 4 when the bytes were not read in place.
+int receive(const std::string& topic_name, MailboxPolicy policy, int expected,
+            std::chrono::microseconds work, std::size_t max_chunk, bool expect_all) {
+  ShmTransportOptions so;
+  so.runtime_name = "tessera_test_rx";
+  so.process_index = 1;
+  so.max_chunk_bytes = max_chunk;
+  ShmTransport transport(so);
+  RuntimeOptions ro;
+  ro.clock = ClockKind::kWall;
+  ro.threads = 1;
+  ro.show_progress = false;
+  Runtime rt(ro);
+  auto& rec = static_cast<test::Recorder&>(
+      rt.add("rx", std::make_unique<test::Recorder>(policy, work), {{"in", topic_name}}));
+  transport.attach(rt, {topic(topic_name, false, true, policy)});
+  rt.configure();
+  rt.start();
+  transport.startReceiving();
+  if (!transport.waitForPublishers(10s)) return 5;
+  const auto deadline = std::chrono::steady_clock::now() + 20s;
+  std::size_t last = 0;
+  auto quiet_since = std::chrono::steady_clock::now();
+  while (std::chrono::steady_clock::now() < deadline) {
+    std::this_thread::sleep_for(5ms);
+    const auto n = transport.stats().received;
+    if (n != last) {
+      last = n;
+      quiet_since = std::chrono::steady_clock::now();
+    }
+    if (static_cast<int>(n) >= expected) break;
+    if (!expect_all && n > 0 && std::chrono::steady_clock::now() - quiet_since > 1s) break;
+  }
+  rt.stop();
+  transport.stopReceiving();
+  std::printf("rx: %zu messages, %llu iceoryx drops, %llu local drops\n", rec.seqs.size(),
+              static_cast<unsigned long long>(transport.stats().drops),
+              static_cast<unsigned long long>(rt.report().actors[0].drops));
+  for (std::size_t i = 1; i < rec.seqs.size(); ++i) {
+    if (rec.seqs[i] <= rec.seqs[i - 1]) return 3;
+  }
+  if (expect_all && static_cast<int>(rec.seqs.size()) != expected) return 2;
+  if (!expect_all && (rec.seqs.empty() || static_cast<int>(rec.seqs.size()) >= expected)) return 2;
+  return 0;
+}
+
+/// Sending process: publishes `count` Blobs of `payload` bytes as fast as it can. Returns 0,
+/// or 6 when a publish took longer than `max_block` (a blocked publisher).
+int send(const std::string& topic_name, MailboxPolicy policy, int count, std::size_t payload,
+         std::size_t max_chunk, std::chrono::milliseconds max_block) {
+  ShmTransportOptions so;
+  so.runtime_name = "tessera_test_tx";
+  so.process_index = 0;
+  so.max_chunk_bytes = max_chunk;
+  ShmTransport transport(so);
+  RuntimeOptions ro;
+  ro.clock = ClockKind::kWall;
+  ro.manual = true;
+  Runtime rt(ro);
+  auto t = topic(topic_name, true, false, policy);
+  transport.attach(rt, {t});
+  auto pub = rt.externalPublisher<msg::Blob>(topic_name);
+  rt.configure(true);
+  if (!transport.waitForPublishers(10s)) return 5;
+  auto slowest = std::chrono::steady_clock::duration::zero();
+  for (int i = 0; i < count; ++i) {
+    auto loan = pub.loan(payload);
+    setHeader(loan->initHeader(), i, "test", pub.nextSeq());
+    auto bytes = loan->initPayload(static_cast<unsigned>(payload));
+    if (payload > 0) bytes[0] = static_cast<std::uint8_t>(i);
+    const auto t0 = std::chrono::steady_clock::now();
+    pub.publish(std::move(loan));
+    slowest = std::max(slowest, std::chrono::steady_clock::now() - t0);
+  }
+  std::printf("tx: %d sent, %llu copies, slowest publish %.3f ms\n", count,
+              static_cast<unsigned long long>(transport.stats().copies),
+              std::chrono::duration<double, std::milli>(slowest).count());
+  if (transport.stats().copies != 0) return 7;
+  std::this_thread::sleep_for(300ms);  // let the receiver take the last chunks
+  return slowest > max_block ? 6 : 0;
+}
+
+}  // namespace
+
+TEST_CASE("two processes exchange 10000 messages on a reliable topic without loss or reordering",
+          "[shm]") {
+  RouDiHost roudi(smallPools());
+  test::Children children;
+  const auto max_chunk = roudi.maxChunkBytes();
+  auto rx = children.spawn([&] {
+    return receive("reliable_blobs", MailboxPolicy::reliable(8), 10000, 0us, max_chunk, true);
+  });
+  auto tx = children.spawn([&] {
+    return send("reliable_blobs", MailboxPolicy::reliable(8), 10000, 200, max_chunk, 60000ms);
+  });
+  CHECK(children.wait(tx) == 0);
+  CHECK(children.wait(rx) == 0);
+}
+
+TEST_CASE("a slow keep_latest subscriber in another process drops and the publisher never blocks",
+          "[shm]") {
+  RouDiHost roudi(smallPools());
+  test::Children children;
+  const auto max_chunk = roudi.maxChunkBytes();
+  auto rx = children.spawn([&] {
+    return receive("latest_blobs", MailboxPolicy::keepLatest(2), 2000, 2000us, max_chunk, false);
+  });
+  auto tx = children.spawn([&] {
+    return send("latest_blobs", MailboxPolicy::keepLatest(2), 2000, 200, max_chunk, 50ms);
+  });
+  CHECK(children.wait(tx) == 0);
+  CHECK(children.wait(rx) == 0);
+}
+
+TEST_CASE("a message larger than the largest shared-memory chunk is a clear error", "[shm]") {
+  RouDiHost roudi(smallPools());
+  test::Children children;
+  const auto max_chunk = roudi.maxChunkBytes();
+  auto tx = children.spawn([&] {
+    ShmTransportOptions so;
+    so.runtime_name = "tessera_test_big";
+    so.max_chunk_bytes = max_chunk;
+    ShmTransport transport(so);
+    RuntimeOptions ro;
+    ro.manual = true;
+    Runtime rt(ro);
+    transport.attach(rt, {topic("big", true, false, MailboxPolicy::reliable())});
+    auto pub = rt.externalPublisher<msg::Blob>("big");
+    rt.configure(true);
+    try {
+      auto loan = pub.loan(max_chunk * 2);
+      return 1;
+    } catch (const MessageError& e) {
+      const std::string what = e.what();
+      return what.find("'big'") != std::string::npos &&
+                     what.find("largest shared-memory chunk") != std::string::npos
+                 ? 0
+                 : 2;
+    }
+  });
+  CHECK(children.wait(tx) == 0);
+}
+
+TEST_CASE("the RouDi host removes shared memory left by a crashed run", "[shm]") {
+  const std::filesystem::path stale = "/dev/shm/iceoryx_mgmt";
+  {
+    std::FILE* f = std::fopen(stale.c_str(), "w");
+    REQUIRE(f != nullptr);
+    std::fclose(f);
+  }
+  std::vector<std::string> removed;
+  {
+    RouDiHost roudi(smallPools());
+    removed = roudi.removedStale();
+  }
+  CHECK(std::find(removed.begin(), removed.end(), stale.string()) != removed.end());
+  CHECK_FALSE(std::filesystem::exists(stale));  // and RouDi cleaned its own on exit
+}
