@@ -25,6 +25,8 @@ nlohmann::json toJson(const SummaryValue& v) {
   return std::visit([](const auto& x) { return nlohmann::json(x); }, v);
 }
 
+}  // namespace
+
 nlohmann::json summaryJson(const Profile& profile, const RunReport& r) {
   nlohmann::json j;
   j["profile"] = profile.name;
@@ -60,8 +62,6 @@ nlohmann::json summaryJson(const Profile& profile, const RunReport& r) {
   j["actors"] = actors;
   return j;
 }
-
-}  // namespace
 
 void addRunCommand(CLI::App& app, int& result) {
   auto* cmd = app.add_subcommand("run", "run a profile in one process");

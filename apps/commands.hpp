@@ -1,7 +1,10 @@
 // Sub-commands of the `tessera` CLI. Each registers itself on the CLI11 app and runs when chosen.
 #pragma once
 
+#include <tessera/runtime/profile.hpp>
+
 #include <CLI/CLI.hpp>
+#include <nlohmann/json.hpp>
 
 #include <functional>
 #include <string>
@@ -27,6 +30,13 @@ void addBenchRbpfCommand(CLI::App& bench, int& result);
 void addBenchLandmarksCommand(CLI::App& bench, int& result);
 /// Adds `tessera bench matcher` (correlative matcher: branch and bound vs exhaustive search).
 void addBenchMatcherCommand(CLI::App& bench, int& result);
+
+/// Adds `tessera launch` (a profile as several processes over shared memory) and the internal
+/// `tessera worker` it starts for each process.
+void addLaunchCommand(CLI::App& app, int& result);
+
+/// summary.json of one run (DESIGN.md: outputs).
+nlohmann::json summaryJson(const Profile& profile, const RunReport& report);
 
 /// Folders searched for profile names: the source tree's apps/profiles and ./apps/profiles.
 std::vector<std::string> profileSearchDirs();

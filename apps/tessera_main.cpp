@@ -10,6 +10,7 @@ int main(int argc, char** argv) {
   app.require_subcommand(1);
   int result = 0;
   tessera::app::addRunCommand(app, result);
+  tessera::app::addLaunchCommand(app, result);
   tessera::app::addActorsCommand(app, result);
   tessera::app::addEvalCommand(app, result);
   tessera::app::addGraphCommand(app, result);

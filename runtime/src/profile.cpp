@@ -51,8 +51,8 @@ std::vector<std::string> split(const std::string& s, char sep) {
   return out;
 }
 
-const std::set<std::string> kTopKeys = {"name",     "description",    "clock",
-                                        "sim_rate", "max_duration_s", "actors"};
+const std::set<std::string> kTopKeys = {"name",           "description", "clock",  "sim_rate",
+                                        "max_duration_s", "actors",      "restart"};
 const std::set<std::string> kActorKeys = {"type", "process", "remap", "params"};
 
 void applyOverride(YAML::Node root, const std::string& text, const std::string& path) {
@@ -135,7 +135,8 @@ Profile parseProfile(const std::string& yaml_text, const std::string& path,
     const std::string key = kv.first.as<std::string>();
     if (!kTopKeys.count(key)) {
       throw ConfigError(atKey(path, kv) + ": unknown key '" + key +
-                        "' (known: name, description, clock, sim_rate, max_duration_s, actors)");
+                        "' (known: name, description, clock, sim_rate, max_duration_s, actors, "
+                        "restart)");
     }
   }
   if (root["name"]) p.name = scalar(path, root["name"], "name");
@@ -159,6 +160,12 @@ Profile parseProfile(const std::string& yaml_text, const std::string& path,
     p.max_duration_s = number(path, root["max_duration_s"], "max_duration_s");
     if (!(p.max_duration_s >= 0))
       throw ConfigError(at(path, root["max_duration_s"]) + ": max_duration_s must be >= 0");
+  }
+  if (const YAML::Node restart = root["restart"]) {
+    if (!restart.IsSequence()) {
+      throw ConfigError(at(path, restart) + ": restart: expected a list of process names");
+    }
+    for (const auto& r : restart) p.restart.push_back(scalar(path, r, "restart"));
   }
   const YAML::Node actors = root["actors"];
   if (!actors || !actors.IsMap() || actors.size() == 0) {
@@ -218,12 +225,16 @@ Profile loadProfile(const std::string& path, const std::vector<std::string>& ove
   return parseProfile(ss.str(), path, overrides);
 }
 
-std::unique_ptr<Runtime> buildRuntime(const Profile& profile, RuntimeOptions options) {
+namespace {
+std::unique_ptr<Runtime> build(const Profile& profile, RuntimeOptions options,
+                               const std::string* process,
+                               const std::function<void(Runtime&)>& before_configure) {
   options.clock = profile.clock;
   options.sim_rate = profile.sim_rate;
   options.max_sim_duration = secondsToNanos(profile.max_duration_s);
   auto runtime = std::make_unique<Runtime>(options);
   for (const auto& spec : profile.actors) {
+    if (process != nullptr && spec.process != *process) continue;
     std::unique_ptr<Actor> actor;
     try {
       actor = ActorRegistry::instance().create(spec.type, spec.params);
@@ -235,12 +246,24 @@ std::unique_ptr<Runtime> buildRuntime(const Profile& profile, RuntimeOptions opt
     }
     runtime->add(spec.name, std::move(actor), spec.remap);
   }
+  if (before_configure) before_configure(*runtime);
   try {
     runtime->configure();
   } catch (const ConfigError& e) {
     throw ConfigError(profile.path + ": " + e.what());
   }
   return runtime;
+}
+}  // namespace
+
+std::unique_ptr<Runtime> buildRuntime(const Profile& profile, RuntimeOptions options) {
+  return build(profile, std::move(options), nullptr, {});
+}
+
+std::unique_ptr<Runtime> buildProcessRuntime(
+    const Profile& profile, RuntimeOptions options, const std::string& process,
+    const std::function<void(Runtime&)>& before_configure) {
+  return build(profile, std::move(options), &process, before_configure);
 }
 
 std::string resolveProfilePath(const std::string& name_or_path,

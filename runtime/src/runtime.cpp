@@ -747,7 +747,7 @@ RunReport Runtime::run() {
           sim ? coordinator->idle(
                     localState(),
                     [&] { return rt.pending.load() != 0 || rt.stop_requested.load(); })
-              : coordinator->poll(localState(), rt.pending.load() == 0);
+              : coordinator->poll(localState(), [&] { return rt.pending.load() != 0; });
       using V = RunCoordinator::Verdict;
       if (decision.verdict == V::kFinish) {
         end_reason = decision.reason;
@@ -833,7 +833,7 @@ RunReport Runtime::run() {
   if (rt.options.show_progress) printProgress(rt, true);
   // Stop sources first; everything they queued is handled before downstream actors stop.
   rt.stopped = true;
-  if (coordinator != nullptr) coordinator->awaitStopTurn();
+  if (coordinator != nullptr) coordinator->awaitStopTurn([&] { return rt.pending.load() != 0; });
   rt.stopActors();
   if (coordinator != nullptr) coordinator->stopped();
   rt.final_report = rt.makeReport();
@@ -880,6 +880,23 @@ std::vector<std::string> Runtime::topicsOfType(MessageType type) const {
     if (t->type == type) out.push_back(name);
   }
   return out;
+}
+
+MessageType Runtime::topicType(const std::string& topic) const {
+  auto it = impl_->topics.find(topic);
+  if (it == impl_->topics.end()) throw std::invalid_argument("no topic named '" + topic + "'");
+  return it->second->type;
+}
+
+MailboxPolicy Runtime::subscriptionPolicy(const std::string& actor,
+                                          const std::string& topic) const {
+  for (const auto& c : impl_->cells) {
+    if (c->name != actor) continue;
+    for (const auto& s : c->slots) {
+      if (s.topic == topic) return s.policy;
+    }
+  }
+  throw std::invalid_argument("actor '" + actor + "' does not subscribe to '" + topic + "'");
 }
 
 std::string RunReport::table() const {

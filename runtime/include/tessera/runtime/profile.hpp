@@ -5,6 +5,7 @@
 //   clock: sim            # sim | wall
 //   sim_rate: 0           # sim clock: 0 = as fast as possible, 1 = real time
 //   max_duration_s: 0     # stop after this much data time (0 = until the inputs end)
+//   restart: [mapper]     # `tessera launch`: processes restarted when they die (wall clock)
 //   actors:
 //     sim:                # instance name
 //       type: simulator   # registered actor type (tessera actors lists them)
@@ -21,6 +22,7 @@
 #include <tessera/runtime/options.hpp>
 #include <tessera/runtime/runtime.hpp>
 
+#include <functional>
 #include <map>
 #include <memory>
 #include <string>
@@ -45,6 +47,7 @@ struct Profile {
   double sim_rate = 0.0;
   double max_duration_s = 0.0;
   std::vector<ActorSpec> actors;
+  std::vector<std::string> restart;  // process names `tessera launch` restarts when they die
 };
 
 /// Parses and validates a profile file, applying --set overrides in order. Throws ConfigError.
@@ -56,6 +59,12 @@ Profile parseProfile(const std::string& yaml_text, const std::string& path,
 /// Creates every actor through the ActorRegistry and adds it to a new runtime, then configures
 /// it. Option errors are rethrown as ConfigError naming the profile file and actor.
 std::unique_ptr<Runtime> buildRuntime(const Profile& profile, RuntimeOptions options);
+
+/// Same for one process of a multi-process deployment: only the actors whose `process` is
+/// `process`; `before_configure` wires the cross-process topics.
+std::unique_ptr<Runtime> buildProcessRuntime(const Profile& profile, RuntimeOptions options,
+                                             const std::string& process,
+                                             const std::function<void(Runtime&)>& before_configure);
 
 /// Finds a profile by name or path: the path as given, else NAME or NAME.yaml in each of
 /// `search_dirs`. Throws ConfigError listing what it tried.

@@ -122,6 +122,10 @@ class Runtime {
   std::vector<std::string> subscriptionsOf(const std::string& actor) const;
   std::vector<std::string> publicationsOf(const std::string& actor) const;
   std::vector<std::string> topicsOfType(MessageType type) const;
+  /// Message type a topic carries (after configure()); throws for an unknown topic.
+  MessageType topicType(const std::string& topic) const;
+  /// Mailbox policy of `actor`'s subscription to global `topic`.
+  MailboxPolicy subscriptionPolicy(const std::string& actor, const std::string& topic) const;
 
   struct Impl;
 

@@ -58,10 +58,11 @@ class RunCoordinator {
   /// Simulated clock: called when this process has nothing queued. Returns kWork as soon as
   /// busy() turns true, kAdvance when the deployment's clock moves, kFinish/kStop at the end.
   virtual Decision idle(const LocalState& state, const std::function<bool()>& busy) = 0;
-  /// Wall clock: called about every 20 ms with whether the process is idle; kWork: go on.
-  virtual Decision poll(const LocalState& state, bool idle) = 0;
-  /// Blocks until this process may stop its actors (upstream processes stop first).
-  virtual void awaitStopTurn() = 0;
+  /// Wall clock: called about every 20 ms; busy() tells whether work is queued; kWork: go on.
+  virtual Decision poll(const LocalState& state, const std::function<bool()>& busy) = 0;
+  /// Blocks until this process may stop its actors (upstream processes stop first); busy()
+  /// tells whether messages still arrive meanwhile.
+  virtual void awaitStopTurn(const std::function<bool()>& busy) = 0;
   /// This process's actors have stopped and their last messages are sent.
   virtual void stopped() = 0;
 };

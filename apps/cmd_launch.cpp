@@ -1,0 +1,585 @@
+// `tessera launch PROFILE`: the profile's actors as one process per `process:` group, over
+// shared memory. The launcher embeds RouDi (memory pools sized from the plan), starts one
+// `tessera worker` per process (its output prefixed with the process name), coordinates
+// simulated time and the end of the run through a control block (runtime/deployment.hpp),
+// restarts processes the profile names under `restart:` when they die (wall clock), and stops
+// everything cleanly on Ctrl-C (a second Ctrl-C terminates the workers, a third kills them).
+#include "commands.hpp"
+
+#include <tessera/runtime/deployment.hpp>
+#include <tessera/runtime/process_stats.hpp>
+#include <tessera/runtime/roudi_host.hpp>
+#include <tessera/runtime/shm_transport.hpp>
+
+#include <fcntl.h>
+#include <poll.h>
+#include <signal.h>
+#include <sys/prctl.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <atomic>
+#include <cstring>
+#include <filesystem>
+#include <fstream>
+#include <iomanip>
+#include <iostream>
+#include <limits>
+#include <mutex>
+#include <thread>
+
+namespace tessera::app {
+
+namespace fs = std::filesystem;
+
+namespace {
+
+std::atomic<int> g_interrupts{0};
+extern "C" void onLaunchSignal(int) {
+  g_interrupts.fetch_add(1);
+}
+
+std::string signalName(int sig) {
+  const char* d = ::sigabbrev_np(sig);
+  return d != nullptr ? std::string("SIG") + d : "signal " + std::to_string(sig);
+}
+
+std::string describeStatus(int status) {
+  if (WIFEXITED(status)) return "exited with status " + std::to_string(WEXITSTATUS(status));
+  if (WIFSIGNALED(status)) {
+    return "was killed by " + signalName(WTERMSIG(status)) +
+           (WCOREDUMP(status) ? " (core dumped)" : "");
+  }
+  return "ended (status " + std::to_string(status) + ")";
+}
+
+struct Worker {
+  std::string process;
+  int index = 0;
+  pid_t pid = -1;
+  int out = -1;         // read end of the worker's stdout+stderr
+  std::string partial;  // an unfinished output line
+  int incarnation = 0;
+  bool running = false;
+  bool restart = false;
+  int status = 0;
+};
+
+/// The launcher's side of the control block: moves time, detects quiescence, ends the run.
+class DeploymentClock {
+ public:
+  DeploymentClock(SyncBlock& block, int processes, bool sim, double sim_rate, Nanos limit)
+      : block_(block), n_(processes), sim_(sim), rate_(sim_rate), limit_(limit) {}
+
+  void markDead(int index) {
+    std::lock_guard lock(mutex_);
+    dead_[index] = true;
+    any_death_ = true;
+  }
+  void markAlive(int index) {
+    std::lock_guard lock(mutex_);
+    dead_[index] = false;
+  }
+  void requestStop(const std::string& reason) {
+    std::lock_guard lock(mutex_);
+    if (block_.command.load() == 0) issue(2, reason, 0);
+  }
+  bool allStopped() {
+    std::lock_guard lock(mutex_);
+    for (int i = 0; i < n_; ++i) {
+      if (!dead_[i] && block_.slots[i].stopped.load() == 0) return false;
+    }
+    return true;
+  }
+  std::string reason() const {
+    return std::string(block_.reason, strnlen(block_.reason, sizeof(block_.reason)));
+  }
+
+  /// One round of the protocol; called in a loop by the clock thread.
+  void step() {
+    std::lock_guard lock(mutex_);
+    if (block_.go.load() == 0) {
+      for (int i = 0; i < n_; ++i) {
+        if (!dead_[i] && block_.slots[i].ready.load() == 0) return;
+      }
+      start_wall_ = steadyNow();
+      block_.go = 1;
+      return;
+    }
+    if (block_.command.load() == 0) {
+      for (int i = 0; i < n_; ++i) {
+        if (!dead_[i] && block_.slots[i].wants_stop.load() != 0) {
+          issue(2, "process stopped by itself (signal or actor error)", 0);
+          return;
+        }
+      }
+      if (!quiescent(true)) return;
+      std::int64_t finite = 0, finished = 0;
+      Nanos due = std::numeric_limits<Nanos>::max();
+      for (int i = 0; i < n_; ++i) {
+        if (dead_[i]) continue;
+        finite += block_.slots[i].finite.load();
+        finished += block_.slots[i].finished.load();
+        due = std::min<Nanos>(due, block_.slots[i].next_due.load());
+      }
+      if (finite > 0 && finished >= finite) {
+        issue(1, "all inputs finished", 0);
+        return;
+      }
+      if (!sim_) return;
+      if (due == std::numeric_limits<Nanos>::max()) {
+        issue(1, "nothing left to do (no timers, all mailboxes empty)", 0);
+        return;
+      }
+      if (due > limit_) {
+        issue(1, "reached max_duration_s", limit_);
+        return;
+      }
+      if (rate_ > 0) {
+        if (first_due_ < 0) first_due_ = due;
+        const Nanos target =
+            start_wall_ + static_cast<Nanos>(static_cast<double>(due - first_due_) / rate_);
+        if (steadyNow() < target) return;
+      }
+      block_.grant_time = due;
+      block_.grant_seq.fetch_add(1);
+      return;
+    }
+    // Stopping: process k stops once k-1 has stopped and everything it sent was handled.
+    const auto turn = block_.stop_turn.load();
+    if (turn >= static_cast<std::uint64_t>(n_)) return;
+    if (turn > 0 && !dead_[turn - 1] && block_.slots[turn - 1].stopped.load() == 0) return;
+    if (!quiescent(false)) return;
+    block_.stop_turn = turn + 1;
+  }
+
+ private:
+  struct Snapshot {
+    std::uint64_t gen, sent, received;
+  };
+  bool wave(bool running, std::vector<Snapshot>& out, std::uint64_t& sent, std::uint64_t& recv) {
+    out.assign(n_, {});
+    sent = recv = 0;
+    bool ok = true;
+    for (int i = 0; i < n_; ++i) {
+      auto& s = block_.slots[i];
+      const auto g1 = s.gen.load();
+      const bool idle = s.idle.load() == 1;
+      const auto r = s.received.load();
+      const auto sn = s.sent.load();
+      const bool fresh = s.recv_at_idle.load() == r;
+      const bool granted = !running || s.grant_seen.load() == block_.grant_seq.load();
+      const auto g2 = s.gen.load();
+      sent += sn;
+      recv += r;
+      out[i] = {g1, sn, r};
+      if (dead_[i]) continue;
+      ok = ok && idle && fresh && granted && g1 == g2;
+    }
+    return ok;
+  }
+  bool quiescent(bool running) {
+    std::vector<Snapshot> a, b;
+    std::uint64_t sa, ra, sb, rb;
+    if (!wave(running, a, sa, ra)) return false;
+    if (!wave(running, b, sb, rb)) return false;
+    for (int i = 0; i < n_; ++i) {
+      if (a[i].gen != b[i].gen || a[i].sent != b[i].sent || a[i].received != b[i].received)
+        return false;
+    }
+    // After a death the counts cannot balance (messages to the dead process were never taken).
+    return any_death_ || sa == ra;
+  }
+  void issue(std::uint64_t command, const std::string& reason, Nanos end_time) {
+    std::memset(block_.reason, 0, sizeof(block_.reason));
+    std::memcpy(block_.reason, reason.data(), std::min(reason.size(), sizeof(block_.reason) - 1));
+    block_.end_time = end_time;
+    block_.stop_turn = 0;
+    block_.command = command;
+  }
+
+  SyncBlock& block_;
+  int n_;
+  bool sim_;
+  double rate_;
+  Nanos limit_;
+  Nanos start_wall_ = 0, first_due_ = -1;
+  bool dead_[kMaxDeploymentProcesses] = {};
+  bool any_death_ = false;
+  std::mutex mutex_;
+};
+
+struct LaunchArgs {
+  std::string profile;
+  std::vector<std::string> sets;
+  std::string out;
+  int threads = 0;
+  bool quiet = false;
+  std::string shm_log = "error";
+};
+
+pid_t spawnWorker(const LaunchArgs& a, const std::string& profile_path, Worker& w,
+                  const std::string& sync_name, std::size_t max_chunk, const std::string& out_dir) {
+  int fds[2];
+  if (::pipe2(fds, O_CLOEXEC) != 0)
+    throw std::runtime_error("pipe: " + std::string(std::strerror(errno)));
+  std::vector<std::string> args = {"tessera",
+                                   "worker",
+                                   profile_path,
+                                   "--process",
+                                   w.process,
+                                   "--sync",
+                                   sync_name,
+                                   "--max-chunk",
+                                   std::to_string(max_chunk),
+                                   "--incarnation",
+                                   std::to_string(w.incarnation),
+                                   "--threads",
+                                   std::to_string(a.threads),
+                                   "--shm-log",
+                                   a.shm_log};
+  if (!out_dir.empty()) {
+    args.push_back("--out");
+    args.push_back(out_dir);
+  }
+  for (const auto& s : a.sets) {
+    args.push_back("--set");
+    args.push_back(s);
+  }
+  const pid_t pid = ::fork();
+  if (pid < 0) throw std::runtime_error("fork: " + std::string(std::strerror(errno)));
+  if (pid == 0) {
+    ::setpgid(0, 0);                     // Ctrl-C reaches the launcher only; it stops workers
+    ::prctl(PR_SET_PDEATHSIG, SIGTERM);  // the launcher (and its RouDi) died: stop
+    ::dup2(fds[1], 1);
+    ::dup2(fds[1], 2);
+    std::vector<char*> argv;
+    for (auto& s : args) argv.push_back(s.data());
+    argv.push_back(nullptr);
+    ::execv("/proc/self/exe", argv.data());
+    ::_exit(127);
+  }
+  ::close(fds[1]);
+  w.pid = pid;
+  w.out = fds[0];
+  w.running = true;
+  return pid;
+}
+
+void pump(Worker& w, bool flush_all) {
+  char buf[4096];
+  for (;;) {
+    const ssize_t n = ::read(w.out, buf, sizeof(buf));
+    if (n <= 0) break;
+    w.partial.append(buf, static_cast<std::size_t>(n));
+    if (n < static_cast<ssize_t>(sizeof(buf))) break;
+  }
+  std::size_t at;
+  while ((at = w.partial.find_first_of("\n\r")) != std::string::npos) {
+    const std::string line = w.partial.substr(0, at);
+    w.partial.erase(0, at + 1);
+    if (!line.empty()) std::cerr << "[" << w.process << "] " << line << "\n";
+  }
+  if (flush_all && !w.partial.empty()) {
+    std::cerr << "[" << w.process << "] " << w.partial << "\n";
+    w.partial.clear();
+  }
+}
+
+int launch(const LaunchArgs& a) {
+  ::prctl(PR_SET_TIMERSLACK, 1UL);  // the clock thread's short sleeps must stay short
+  const std::string path = resolveProfilePath(a.profile, profileSearchDirs());
+  const Profile profile = loadProfile(path, a.sets);
+  const DeploymentPlan plan = planDeployment(profile);
+  std::string out_dir;
+  if (!a.out.empty()) {
+    fs::create_directories(a.out);
+    out_dir = fs::absolute(a.out).lexically_normal().string();
+  }
+
+  std::cerr << "tessera launch " << profile.name << " (" << path << "): " << plan.processes.size()
+            << " processes over shared memory\n";
+  for (const auto& p : plan.processes) {
+    std::cerr << "  process " << std::left << std::setw(14) << p << " actors:";
+    for (const auto& actor : plan.actors.at(p)) std::cerr << " " << actor;
+    std::cerr << "\n";
+    auto t = plan.topics.find(p);
+    if (t != plan.topics.end()) {
+      std::cerr << "  " << std::setw(22) << ""
+                << " shared:";
+      for (const auto& topic : t->second) {
+        std::cerr << " " << topic.name << (topic.exported ? (topic.imported ? "<>" : ">") : "<");
+      }
+      std::cerr << "\n";
+    }
+  }
+
+  RouDiHostOptions ro;
+  ro.pools = memPoolsFor(plan.demands);
+  ro.log_level = a.shm_log;
+  RouDiHost roudi(ro);
+  for (const auto& f : roudi.removedStale()) {
+    std::cerr << "  removed stale shared memory of a crashed run: " << f << "\n";
+  }
+  std::size_t pool_bytes = 0;
+  for (const auto& p : ro.pools) pool_bytes += p.chunk_bytes * p.count;
+  std::cerr << "  RouDi embedded: " << ro.pools.size() << " memory pools, chunks up to "
+            << (roudi.maxChunkBytes() >> 10) << " KiB, " << (pool_bytes >> 20)
+            << " MiB reserved (sparse)\n"
+            << "  clock: "
+            << (profile.clock == ClockKind::kSimulated ? "simulated, coordinated across processes"
+                                                       : "wall")
+            << ", output: " << (out_dir.empty() ? "(none; use --out DIR)" : out_dir)
+            << "\n  Ctrl-C stops cleanly (a second Ctrl-C terminates the workers)\n";
+
+  const std::string sync_name = "/tessera_sync_" + std::to_string(::getpid());
+  SyncMemory sync(sync_name, true);
+  const bool sim = profile.clock == ClockKind::kSimulated;
+  DeploymentClock clock(sync.block(), static_cast<int>(plan.processes.size()), sim,
+                        profile.sim_rate,
+                        profile.max_duration_s > 0 ? secondsToNanos(profile.max_duration_s)
+                                                   : std::numeric_limits<Nanos>::max());
+
+  struct sigaction sa {};
+  sa.sa_handler = onLaunchSignal;
+  ::sigaction(SIGINT, &sa, nullptr);
+  ::sigaction(SIGTERM, &sa, nullptr);
+  g_interrupts = 0;
+
+  std::vector<Worker> workers(plan.processes.size());
+  for (std::size_t i = 0; i < workers.size(); ++i) {
+    auto& w = workers[i];
+    w.process = plan.processes[i];
+    w.index = static_cast<int>(i);
+    w.restart = std::find(profile.restart.begin(), profile.restart.end(), w.process) !=
+                profile.restart.end();
+    spawnWorker(a, path, w, sync_name, roudi.maxChunkBytes(), out_dir);
+  }
+
+  std::atomic<bool> quit{false};
+  std::thread clock_thread([&] {
+    int idle_rounds = 0;
+    while (!quit.load()) {
+      clock.step();
+      // Hand-offs take microseconds; sleep only when nothing moves for a while.
+      if (++idle_rounds > 200) {
+        std::this_thread::sleep_for(std::chrono::microseconds(50));
+        idle_rounds = 150;
+      } else {
+        std::this_thread::yield();
+      }
+    }
+  });
+
+  const Nanos start = steadyNow();
+  int handled_interrupts = 0;
+  bool failed = false;
+  std::string failure;
+  for (;;) {
+    std::vector<pollfd> fds;
+    for (auto& w : workers) {
+      if (w.out >= 0) fds.push_back({w.out, POLLIN, 0});
+    }
+    ::poll(fds.data(), fds.size(), 20);
+    for (auto& w : workers) {
+      if (w.out >= 0) pump(w, false);
+    }
+    const int interrupts = g_interrupts.load();
+    if (interrupts > handled_interrupts) {
+      handled_interrupts = interrupts;
+      if (interrupts == 1) {
+        std::cerr << "[launch] interrupt: stopping every process cleanly\n";
+        clock.requestStop("interrupted (SIGINT/SIGTERM)");
+      } else {
+        std::cerr << "[launch] second interrupt: terminating the workers\n";
+        for (auto& w : workers) {
+          if (w.running) ::kill(w.pid, interrupts == 2 ? SIGTERM : SIGKILL);
+        }
+      }
+    }
+    bool any_running = false;
+    for (auto& w : workers) {
+      if (!w.running) continue;
+      int status = 0;
+      if (::waitpid(w.pid, &status, WNOHANG) != w.pid) {
+        any_running = true;
+        continue;
+      }
+      w.running = false;
+      w.status = status;
+      pump(w, true);
+      ::close(w.out);
+      w.out = -1;
+      const bool clean = WIFEXITED(status) &&
+                         (WEXITSTATUS(status) == 0 || WEXITSTATUS(status) == 130) &&
+                         sync.block().slots[w.index].stopped.load() == 1;
+      if (clean) continue;
+      clock.markDead(w.index);
+      std::cerr << "[launch] process '" << w.process << "' (pid " << w.pid << ") "
+                << describeStatus(status) << "\n";
+      const bool ending = sync.block().command.load() != 0;
+      if (w.restart && !sim && !ending) {
+        ++w.incarnation;
+        sync.block().slots[w.index].stopped = 0;
+        std::cerr << "[launch] restarting '" << w.process << "' (restart " << w.incarnation
+                  << ")\n";
+        spawnWorker(a, path, w, sync_name, roudi.maxChunkBytes(), out_dir);
+        clock.markAlive(w.index);
+        any_running = true;
+      } else if (!ending) {
+        failed = true;
+        failure = "process '" + w.process + "' " + describeStatus(status);
+        std::cerr << "[launch] "
+                  << (sim ? "a simulated-time deployment cannot continue without it"
+                          : "it is not listed under restart:")
+                  << "; stopping the others\n";
+        clock.requestStop(failure);
+      } else if (!failed) {
+        failed = true;
+        failure = "process '" + w.process + "' " + describeStatus(status) + " while stopping";
+      }
+    }
+    if (!any_running) break;
+  }
+  quit = true;
+  clock_thread.join();
+
+  // One summary for the deployment, from each process's own.
+  const double wall_s = static_cast<double>(steadyNow() - start) * 1e-9;
+  nlohmann::json summary;
+  summary["profile"] = profile.name;
+  summary["processes"] = nlohmann::json::object();
+  summary["wall_s"] = wall_s;
+  double cpu = 0, rss = 0, data = 0;
+  nlohmann::json actors = nlohmann::json::object();
+  for (const auto& w : workers) {
+    const fs::path file = fs::path(out_dir) / ("summary_" + w.process + ".json");
+    if (out_dir.empty() || !fs::exists(file)) continue;
+    nlohmann::json j;
+    try {
+      std::ifstream(file) >> j;
+    } catch (const std::exception&) {
+      continue;
+    }
+    cpu += j.value("cpu_s", 0.0);
+    rss += j.value("peak_rss_mb", 0.0);
+    data = std::max(data, j.value("data_duration_s", 0.0));
+    for (auto& [k, v] : j["actors"].items()) actors[k] = v;
+    for (auto& [k, v] : j.items()) {
+      if (k == "actors" || k == "profile" || k == "wall_s" || k == "cpu_s" || k == "peak_rss_mb" ||
+          k == "data_duration_s" || k == "realtime_factor" || k == "interrupted" ||
+          k == "stop_reason")
+        continue;
+      summary[k] = v;
+    }
+    summary["processes"][w.process] = {{"cpu_s", j.value("cpu_s", 0.0)},
+                                       {"peak_rss_mb", j.value("peak_rss_mb", 0.0)},
+                                       {"restarts", w.incarnation}};
+  }
+  const std::string reason = failed ? failure : clock.reason();
+  summary["cpu_s"] = cpu;
+  summary["peak_rss_mb"] = rss;  // sum of the processes' peaks: an upper bound of the total
+  summary["data_duration_s"] = data;
+  summary["realtime_factor"] = wall_s > 0 ? data / wall_s : 0.0;
+  summary["interrupted"] = failed || handled_interrupts > 0;
+  summary["stop_reason"] = reason;
+  summary["actors"] = actors;
+  if (!out_dir.empty()) {
+    std::ofstream(fs::path(out_dir) / "summary.json") << summary.dump(2) << "\n";
+  }
+  std::cerr << "[launch] stopped: " << reason << "\n"
+            << std::fixed << std::setprecision(2) << "[launch] data " << data << " s in " << wall_s
+            << " s wall, " << cpu << " s CPU over " << workers.size() << " processes\n";
+  if (!out_dir.empty()) std::cerr << "[launch] outputs in " << out_dir << "\n";
+  if (failed) return 1;
+  return handled_interrupts > 0 ? 130 : 0;
+}
+
+struct WorkerArgs {
+  std::string profile, process, sync, out, shm_log = "error";
+  std::vector<std::string> sets;
+  std::size_t max_chunk = 0;
+  int incarnation = 0, threads = 0;
+};
+
+int worker(const WorkerArgs& a) {
+  ::prctl(PR_SET_TIMERSLACK, 1UL);  // waits for the deployment clock use short sleeps
+  const Profile profile = loadProfile(a.profile, a.sets);
+  const DeploymentPlan plan = planDeployment(profile);
+  const int index = plan.indexOf(a.process);
+  if (index < 0) throw ConfigError("worker: no process '" + a.process + "' in " + a.profile);
+  SyncMemory sync(a.sync, false);
+  WorkerCoordinator coordinator(sync.block(), index);
+  setIceoryxLogLevel(a.shm_log);
+  ShmTransportOptions so;
+  so.runtime_name = "tessera_" + a.process + "_" + std::to_string(a.incarnation);
+  so.process_index = static_cast<std::uint32_t>(index);
+  so.max_chunk_bytes = a.max_chunk;
+  so.sent = &coordinator.slot().sent;
+  so.received = &coordinator.slot().received;
+  ShmTransport transport(so);
+  RuntimeOptions options;
+  options.threads = a.threads;
+  options.show_progress = false;
+  options.output_dir = a.out;
+  options.coordinator = &coordinator;
+  const auto topics =
+      plan.topics.count(a.process) ? plan.topics.at(a.process) : std::vector<ShmTopic>{};
+  auto runtime = buildProcessRuntime(profile, options, a.process,
+                                     [&](Runtime& rt) { transport.attach(rt, topics); });
+  transport.startReceiving();
+  if (!transport.waitForPublishers(std::chrono::seconds(30))) {
+    throw std::runtime_error("process '" + a.process + "': its peers did not connect within 30 s");
+  }
+  runtime->installSignalHandlers();
+  if (!coordinator.readyAndWait()) {
+    coordinator.stopped();
+    return 130;
+  }
+  const RunReport report = runtime->run();
+  transport.stopReceiving();
+  const auto stats = transport.stats();
+  std::cerr << report.table();
+  std::cerr << "shared memory: " << stats.sent << " sent, " << stats.received << " received, "
+            << stats.copies << " copied into a larger chunk, " << stats.drops
+            << " discard events\n";
+  if (!a.out.empty()) {
+    auto j = summaryJson(profile, report);
+    j["shm_sent"] = stats.sent;
+    j["shm_received"] = stats.received;
+    j["shm_copies"] = stats.copies;
+    std::ofstream(fs::path(a.out) / ("summary_" + a.process + ".json")) << j.dump(2) << "\n";
+  }
+  const bool actor_failure = report.interrupted && report.stop_reason.rfind("actor '", 0) == 0;
+  return actor_failure ? 1 : 0;
+}
+
+}  // namespace
+
+void addLaunchCommand(CLI::App& app, int& result) {
+  auto* cmd = app.add_subcommand("launch", "run a profile as several processes over shared memory");
+  auto args = std::make_shared<LaunchArgs>();
+  cmd->add_option("profile", args->profile, "profile name (apps/profiles/NAME.yaml) or path")
+      ->required();
+  cmd->add_option("--set", args->sets, "override: ACTOR.KEY=VALUE, KEY=VALUE (repeatable)");
+  cmd->add_option("--out", args->out, "output folder (created); default: none, nothing is written");
+  cmd->add_option("--threads", args->threads, "executor threads per process (0: all cores)");
+  cmd->add_option("--shm-log", args->shm_log, "iceoryx log level: off, error, warn, info");
+  cmd->callback([args, &result] { result = launch(*args); });
+
+  auto* w = app.add_subcommand("worker", "");  // started by `launch`; hidden from --help
+  w->group("");
+  auto wargs = std::make_shared<WorkerArgs>();
+  w->add_option("profile", wargs->profile)->required();
+  w->add_option("--process", wargs->process)->required();
+  w->add_option("--sync", wargs->sync)->required();
+  w->add_option("--max-chunk", wargs->max_chunk)->required();
+  w->add_option("--incarnation", wargs->incarnation);
+  w->add_option("--threads", wargs->threads);
+  w->add_option("--out", wargs->out);
+  w->add_option("--shm-log", wargs->shm_log);
+  w->add_option("--set", wargs->sets);
+  w->callback([wargs, &result] { result = worker(*wargs); });
+}
+
+}  // namespace tessera::app

@@ -1,0 +1,108 @@
+// Deployment: one profile run as several processes over shared memory (`tessera launch`).
+//
+// planDeployment() reads the profile's wiring once (every actor configured in a throw-away
+// runtime) and decides, per process, which topics leave it (exports), which arrive (imports),
+// the order processes stop in (publishers before subscribers, like actors in one process) and
+// how much shared memory the topics need.
+//
+// The launcher and its worker processes share a small control block (POSIX shared memory,
+// mode 0600): each worker reports whether it is idle, its next timer, its inputs and how many
+// messages it sent and received; the launcher's DeploymentClock moves simulated time only
+// when every worker is idle and every sent message was received (so a multi-process run is
+// as deterministic as a single-process one), ends the run when every input finished, and lets
+// processes stop one after the other. WorkerCoordinator is the worker's side of that block.
+#pragma once
+
+#include <tessera/runtime/profile.hpp>
+#include <tessera/runtime/roudi_host.hpp>
+#include <tessera/runtime/shm_transport.hpp>
+#include <tessera/runtime/transport.hpp>
+
+#include <atomic>
+#include <cstdint>
+#include <map>
+#include <memory>
+#include <string>
+#include <vector>
+
+namespace tessera {
+
+struct DeploymentPlan {
+  /// Process names in stop order (upstream first); a process's index in this list is its id.
+  std::vector<std::string> processes;
+  std::map<std::string, std::vector<std::string>> actors;  // process -> actor names
+  std::map<std::string, std::vector<ShmTopic>> topics;     // process -> crossing topics
+  std::vector<ChunkDemand> demands;                        // shared-memory demand per topic
+  int indexOf(const std::string& process) const;
+};
+
+/// Throws ConfigError for a profile that cannot be deployed (e.g. a restart entry naming no
+/// process).
+DeploymentPlan planDeployment(const Profile& profile);
+
+/// Largest message expected on a topic of `type` (bytes), by message family.
+std::size_t messageBound(const MessageType& type);
+
+constexpr int kMaxDeploymentProcesses = 32;
+
+/// The control block shared by the launcher and its workers. Plain atomics in shared memory.
+struct SyncSlot {
+  std::atomic<std::uint64_t> gen;  // bumped on every idle/busy change
+  std::atomic<std::uint64_t> idle;
+  std::atomic<std::uint64_t> recv_at_idle;
+  std::atomic<std::uint64_t> grant_seen;
+  std::atomic<std::int64_t> next_due;
+  std::atomic<std::int64_t> finite, finished;
+  std::atomic<std::uint64_t> sent, received;  // live counters (messages x importing processes)
+  std::atomic<std::uint64_t> ready, stopped, wants_stop;
+};
+struct SyncBlock {
+  std::atomic<std::uint64_t> magic;
+  std::atomic<std::uint64_t> go;  // all workers ready: start
+  std::atomic<std::uint64_t> grant_seq;
+  std::atomic<std::int64_t> grant_time;
+  std::atomic<std::uint64_t> command;  // 0 run, 1 finish, 2 stop
+  std::atomic<std::int64_t> end_time;
+  std::atomic<std::uint64_t> stop_turn;  // processes with index < stop_turn may stop
+  char reason[240];
+  SyncSlot slots[kMaxDeploymentProcesses];
+};
+
+/// Maps (creates when `create`) the control block named `name` ("/tessera_sync_<pid>").
+class SyncMemory {
+ public:
+  SyncMemory(const std::string& name, bool create);
+  ~SyncMemory();
+  SyncMemory(const SyncMemory&) = delete;
+  SyncMemory& operator=(const SyncMemory&) = delete;
+  SyncBlock& block() { return *block_; }
+  const std::string& name() const { return name_; }
+
+ private:
+  std::string name_;
+  bool owner_;
+  SyncBlock* block_ = nullptr;
+};
+
+/// A worker's side: implements the runtime's RunCoordinator over its slot.
+class WorkerCoordinator final : public RunCoordinator {
+ public:
+  WorkerCoordinator(SyncBlock& block, int index);
+  Decision idle(const LocalState& state, const std::function<bool()>& busy) override;
+  Decision poll(const LocalState& state, const std::function<bool()>& busy) override;
+  void awaitStopTurn(const std::function<bool()>& busy) override;
+  void stopped() override;
+  /// Announces this worker attached and connected, then waits for the launcher's go (false when
+  /// the launcher asked to stop instead).
+  bool readyAndWait();
+  SyncSlot& slot() { return block_.slots[index_]; }
+
+ private:
+  Decision ended() const;
+  void publishIdle(bool idle, std::uint64_t received);
+  SyncBlock& block_;
+  int index_;
+  std::uint64_t last_grant_ = 0;
+};
+
+}  // namespace tessera

@@ -1,0 +1,287 @@
+#include <tessera/runtime/deployment.hpp>
+
+#include <fcntl.h>
+#include <sys/mman.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <cerrno>
+#include <cstring>
+#include <limits>
+#include <set>
+#include <stdexcept>
+#include <thread>
+
+namespace tessera {
+
+int DeploymentPlan::indexOf(const std::string& process) const {
+  for (std::size_t i = 0; i < processes.size(); ++i) {
+    if (processes[i] == process) return static_cast<int>(i);
+  }
+  return -1;
+}
+
+std::size_t messageBound(const MessageType& type) {
+  const std::string name = type.name;
+  // Families with large arrays: grids and submaps (a 100 m x 100 m map at 5 cm is 4 MB), images
+  // and depth frames, point sets. Everything else (scans, poses, odometry, constraints) is small.
+  if (name == "OccupancyGrid" || name == "Submap") return std::size_t{16} << 20;
+  if (name.find("Image") != std::string::npos || name.find("Rgbd") != std::string::npos ||
+      name.find("Frame") != std::string::npos) {
+    return std::size_t{8} << 20;
+  }
+  if (name == "Blob") return std::size_t{4} << 20;
+  return std::size_t{256} << 10;
+}
+
+DeploymentPlan planDeployment(const Profile& profile) {
+  DeploymentPlan plan;
+  std::vector<std::string> order;  // first appearance in the profile
+  for (const auto& a : profile.actors) {
+    if (std::find(order.begin(), order.end(), a.process) == order.end()) order.push_back(a.process);
+    plan.actors[a.process].push_back(a.name);
+  }
+  if (order.size() > static_cast<std::size_t>(kMaxDeploymentProcesses)) {
+    throw ConfigError(profile.path + ": " + std::to_string(order.size()) +
+                      " processes; a deployment has at most " +
+                      std::to_string(kMaxDeploymentProcesses));
+  }
+  for (const auto& r : profile.restart) {
+    if (!plan.actors.count(r)) {
+      throw ConfigError(profile.path + ": restart names process '" + r +
+                        "', but no actor runs in it");
+    }
+  }
+  // The wiring, from every actor configured once in a runtime that never starts.
+  RuntimeOptions options;
+  options.manual = true;
+  auto rt = buildRuntime(profile, options);
+  struct Wiring {
+    MessageType type;
+    std::set<std::string> publishers;
+    std::map<std::string, MailboxPolicy> subscribers;  // process -> strongest policy
+  };
+  std::map<std::string, Wiring> topics;
+  for (const auto& a : profile.actors) {
+    for (const auto& t : rt->publicationsOf(a.name)) {
+      topics[t].type = rt->topicType(t);
+      topics[t].publishers.insert(a.process);
+    }
+    for (const auto& t : rt->subscriptionsOf(a.name)) {
+      auto& w = topics[t];
+      w.type = rt->topicType(t);
+      const auto policy = rt->subscriptionPolicy(a.name, t);
+      auto [it, fresh] = w.subscribers.emplace(a.process, policy);
+      if (!fresh) {
+        auto& p = it->second;
+        if (policy.kind == MailboxPolicy::Kind::kReliable) p.kind = policy.kind;
+        p.capacity = std::max(p.capacity, policy.capacity);
+      }
+    }
+  }
+
+  // Stop order: a process stops after every process that publishes to it (cycles broken by
+  // profile order), as actors do inside one process.
+  std::map<std::string, std::set<std::string>> upstream;
+  for (const auto& [name, w] : topics) {
+    for (const auto& [sub, policy] : w.subscribers) {
+      for (const auto& pub : w.publishers) {
+        if (pub != sub) upstream[sub].insert(pub);
+      }
+    }
+  }
+  std::vector<std::string> remaining = order;
+  while (!remaining.empty()) {
+    auto pick = remaining.begin();
+    for (auto it = remaining.begin(); it != remaining.end(); ++it) {
+      bool ready = true;
+      for (const auto& u : upstream[*it]) {
+        ready = ready &&
+                std::find(plan.processes.begin(), plan.processes.end(), u) != plan.processes.end();
+      }
+      if (ready) {
+        pick = it;
+        break;
+      }
+    }
+    plan.processes.push_back(*pick);
+    remaining.erase(pick);
+  }
+
+  for (const auto& [name, w] : topics) {
+    std::set<std::string> involved(w.publishers.begin(), w.publishers.end());
+    for (const auto& [sub, policy] : w.subscribers) involved.insert(sub);
+    if (involved.size() < 2 || w.publishers.empty() || w.subscribers.empty()) continue;
+    bool any_reliable = false, any_loop = false;
+    std::uint32_t alive = 0;
+    for (const auto& [sub, policy] : w.subscribers) {
+      any_reliable = any_reliable || policy.kind == MailboxPolicy::Kind::kReliable;
+      any_loop = any_loop || w.publishers.count(sub) > 0;
+      alive += static_cast<std::uint32_t>(std::min<std::size_t>(policy.capacity, 256)) + 2;
+    }
+    alive += 8 * static_cast<std::uint32_t>(w.publishers.size());
+    plan.demands.push_back({messageBound(w.type) + kShmChunkOverhead, alive});
+    for (const auto& process : involved) {
+      ShmTopic t;
+      t.name = name;
+      t.type = w.type;
+      t.exported = w.publishers.count(process) > 0;
+      auto sub = w.subscribers.find(process);
+      t.imported = sub != w.subscribers.end();
+      if (t.imported) t.import_policy = sub->second;
+      t.importing_processes = static_cast<std::uint32_t>(w.subscribers.size());
+      t.loopback = t.exported && t.imported;
+      t.any_reliable = any_reliable || any_loop;
+      plan.topics[process].push_back(t);
+    }
+  }
+  return plan;
+}
+
+// ------------------------------------------------------------------ control block
+
+SyncMemory::SyncMemory(const std::string& name, bool create) : name_(name), owner_(create) {
+  const int fd = create ? ::shm_open(name.c_str(), O_CREAT | O_EXCL | O_RDWR, 0600)
+                        : ::shm_open(name.c_str(), O_RDWR, 0600);
+  if (fd < 0) {
+    throw std::runtime_error("shared memory '" + name + "': " + std::strerror(errno));
+  }
+  if (create && ::ftruncate(fd, sizeof(SyncBlock)) != 0) {
+    const int e = errno;
+    ::close(fd);
+    ::shm_unlink(name.c_str());
+    throw std::runtime_error("shared memory '" + name + "': " + std::strerror(e));
+  }
+  void* p = ::mmap(nullptr, sizeof(SyncBlock), PROT_READ | PROT_WRITE, MAP_SHARED, fd, 0);
+  ::close(fd);
+  if (p == MAP_FAILED) {
+    if (create) ::shm_unlink(name.c_str());
+    throw std::runtime_error("shared memory '" + name + "': mmap failed");
+  }
+  block_ = static_cast<SyncBlock*>(p);  // zero-filled by ftruncate: every atomic starts at 0
+}
+
+SyncMemory::~SyncMemory() {
+  if (block_ != nullptr) ::munmap(block_, sizeof(SyncBlock));
+  if (owner_) ::shm_unlink(name_.c_str());
+}
+
+// ------------------------------------------------------------------ worker side
+
+namespace {
+/// Waits with growing pauses: a hand-off within microseconds when the peer is quick, without
+/// burning a core when it is not.
+class Backoff {
+ public:
+  void pause() {
+    // On a 2-core machine the peer needs the core: yield a little, then sleep (the process sets a
+    // small timer slack, so short sleeps stay short).
+    if (++n_ < 16) {
+      std::this_thread::yield();
+    } else {
+      std::this_thread::sleep_for(std::chrono::microseconds(n_ < 2000 ? 10 : 200));
+    }
+  }
+
+ private:
+  int n_ = 0;
+};
+}  // namespace
+
+WorkerCoordinator::WorkerCoordinator(SyncBlock& block, int index) : block_(block), index_(index) {
+  auto& s = slot();
+  s.idle = 0;
+  s.stopped = 0;
+  s.wants_stop = 0;
+  s.ready = 0;
+  s.sent = 0;
+  s.received = 0;
+  s.gen.fetch_add(1);
+  last_grant_ = block_.grant_seq.load();
+}
+
+bool WorkerCoordinator::readyAndWait() {
+  slot().ready = 1;
+  Backoff b;
+  while (block_.go.load() == 0) {
+    if (block_.command.load() != 0) return false;
+    b.pause();
+  }
+  return block_.command.load() == 0;
+}
+
+RunCoordinator::Decision WorkerCoordinator::ended() const {
+  Decision d;
+  d.verdict = block_.command.load() == 1 ? Verdict::kFinish : Verdict::kStop;
+  d.time = block_.end_time.load();
+  d.reason = std::string(block_.reason, strnlen(block_.reason, sizeof(block_.reason)));
+  return d;
+}
+
+void WorkerCoordinator::publishIdle(bool idle, std::uint64_t received) {
+  // `received` was read before the caller found the process idle: every message it counts has
+  // been handled, so the launcher may take "idle with these receipts" at face value.
+  auto& s = slot();
+  if (idle == (s.idle.load() == 1) && (!idle || s.recv_at_idle.load() == received)) return;
+  if (idle) s.recv_at_idle = received;
+  s.gen.fetch_add(1);
+  s.idle = idle ? 1 : 0;
+}
+
+RunCoordinator::Decision WorkerCoordinator::idle(const LocalState& state,
+                                                 const std::function<bool()>& busy) {
+  auto& s = slot();
+  s.next_due = state.next_due;
+  s.finite = state.finite_sources;
+  s.finished = state.finished_sources;
+  s.grant_seen = last_grant_;
+  s.gen.fetch_add(1);  // new timer/source figures
+  Backoff b;
+  for (;;) {
+    const auto received = s.received.load();
+    if (busy()) {
+      publishIdle(false, received);
+      return {Verdict::kWork, 0, {}};
+    }
+    publishIdle(true, received);
+    if (block_.command.load() != 0) return ended();
+    const auto g = block_.grant_seq.load();
+    if (g != last_grant_) {
+      last_grant_ = g;
+      publishIdle(false, received);
+      return {Verdict::kAdvance, block_.grant_time.load(), {}};
+    }
+    b.pause();
+  }
+}
+
+RunCoordinator::Decision WorkerCoordinator::poll(const LocalState& state,
+                                                 const std::function<bool()>& busy) {
+  auto& s = slot();
+  s.next_due = state.next_due;
+  s.finite = state.finite_sources;
+  s.finished = state.finished_sources;
+  const auto received = s.received.load();
+  publishIdle(!busy(), received);
+  if (block_.command.load() != 0) return ended();
+  return {Verdict::kWork, 0, {}};
+}
+
+void WorkerCoordinator::awaitStopTurn(const std::function<bool()>& busy) {
+  auto& s = slot();
+  if (block_.command.load() == 0) s.wants_stop = 1;  // a local stop (signal, fatal error)
+  Backoff b;
+  while (block_.command.load() == 0 ||
+         block_.stop_turn.load() <= static_cast<std::uint64_t>(index_)) {
+    const auto received = s.received.load();
+    publishIdle(!busy(), received);
+    b.pause();
+  }
+}
+
+void WorkerCoordinator::stopped() {
+  publishIdle(true, slot().received.load());  // stopActors() drained everything
+  slot().stopped = 1;
+}
+
+}  // namespace tessera
