@@ -11,6 +11,8 @@ int main(int argc, char** argv) {
   int result = 0;
   tessera::app::addRunCommand(app, result);
   tessera::app::addActorsCommand(app, result);
+  tessera::app::addRecordCommand(app, result);
+  tessera::app::addReplayCommand(app, result);
   tessera::app::addEvalCommand(app, result);
   tessera::app::addGraphCommand(app, result);
   auto* bench = app.add_subcommand("bench", "benchmarks that print their figures and the machine");
