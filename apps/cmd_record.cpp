@@ -28,7 +28,8 @@ std::vector<std::string> splitTopics(const std::vector<std::string>& args) {
     std::size_t start = 0;
     while (start <= a.size()) {
       const auto comma = a.find(',', start);
-      const auto part = a.substr(start, comma == std::string::npos ? std::string::npos : comma - start);
+      const auto part =
+          a.substr(start, comma == std::string::npos ? std::string::npos : comma - start);
       if (!part.empty()) out.push_back(part);
       if (comma == std::string::npos) break;
       start = comma + 1;
@@ -126,8 +127,7 @@ int printInfo(const std::string& file, const std::vector<std::string>& topics) {
     bytes += m.message->sizeInBytes();
   }
   std::cout << "recording " << file << "\n"
-            << "  format version " << reader.version() << ", " << reader.blockCount()
-            << " blocks, "
+            << "  format version " << reader.version() << ", " << reader.blockCount() << " blocks, "
             << (reader.indexed() ? "indexed" : "no index (not closed: scanned block by block)")
             << "\n"
             << std::fixed << std::setprecision(3) << "  duration "
@@ -200,8 +200,8 @@ void addRecordCommand(CLI::App& app, int& result) {
                 << summaryValue<std::int64_t>(*s, "blocks") << " blocks to "
                 << summaryValue<std::string>(*s, "path") << ": "
                 << summaryValue<double>(*s, "payload_mb") << " MB of messages, file "
-                << summaryValue<double>(*s, "file_mb") << " MB (compression "
-                << args->compression << ", ratio " << summaryValue<double>(*s, "compression_ratio")
+                << summaryValue<double>(*s, "file_mb") << " MB (compression " << args->compression
+                << ", ratio " << summaryValue<double>(*s, "compression_ratio")
                 << "), writer throughput " << std::setprecision(0)
                 << summaryValue<double>(*s, "write_mb_per_s") << " MB/s\n";
     }
@@ -246,7 +246,8 @@ void addReplayCommand(CLI::App& app, int& result) {
     RecordingReader reader(args->file, ro);  // clear error before anything runs
     std::vector<std::string> replayed;
     for (const auto& t : reader.topics())
-      if (topics.empty() || std::count(topics.begin(), topics.end(), t.name)) replayed.push_back(t.name);
+      if (topics.empty() || std::count(topics.begin(), topics.end(), t.name))
+        replayed.push_back(t.name);
 
     Profile profile;
     if (!args->profile.empty()) {
@@ -274,8 +275,7 @@ void addReplayCommand(CLI::App& app, int& result) {
       const auto losses = summaryValue<std::int64_t>(*s, "losses");
       if (losses > 0) {
         std::cerr << "DAMAGED recording: " << losses << " damaged region(s), "
-                  << summaryValue<std::int64_t>(*s, "messages_lost")
-                  << " messages known lost:\n";
+                  << summaryValue<std::int64_t>(*s, "messages_lost") << " messages known lost:\n";
         std::istringstream lines(summaryValue<std::string>(*s, "loss_report"));
         for (std::string line; std::getline(lines, line);) std::cerr << "  " << line << "\n";
         if (result == 0) result = kDamagedExit;

@@ -21,10 +21,10 @@ namespace {
 // ---------------------------------------------------------------- layout (recording_format.md)
 
 constexpr unsigned char kFileMagic[8] = {0x89, 'T', 'S', 'R', '\r', '\n', 0x1a, '\n'};
-constexpr std::uint32_t kBlockMagic = 0x4b4c4254;  // "TBLK" in file order
-constexpr std::uint32_t kIndexMagic = 0x58444954;  // "TIDX"
+constexpr std::uint32_t kBlockMagic = 0x4b4c4254;   // "TBLK" in file order
+constexpr std::uint32_t kIndexMagic = 0x58444954;   // "TIDX"
 constexpr std::uint32_t kFooterMagic = 0x444e4554;  // "TEND"
-constexpr std::size_t kFilePreamble = 16;          // magic, version, header body size
+constexpr std::size_t kFilePreamble = 16;           // magic, version, header body size
 constexpr std::size_t kBlockHeader = 56;
 constexpr std::size_t kRecordHeader = 16;
 constexpr std::size_t kIndexEntry = 32;
@@ -161,8 +161,7 @@ RecordingWriter::RecordingWriter(std::string path, std::vector<RecordingTopic> t
   }
   if (options_.block_bytes == 0) options_.block_bytes = 1;
   file_ = std::fopen(path_.c_str(), "wb");
-  if (file_ == nullptr)
-    throw RecordingError(path_ + ": cannot create: " + std::strerror(errno));
+  if (file_ == nullptr) throw RecordingError(path_ + ": cannot create: " + std::strerror(errno));
   topic_counts_.assign(topics_.size(), 0);
 
   std::vector<unsigned char> body;
@@ -299,16 +298,15 @@ void RecordingWriter::close() {
   writeBytes(footer.data(), footer.size());
   std::FILE* f = file_;
   file_ = nullptr;
-  if (std::fclose(f) != 0)
-    throw RecordingError(path_ + ": close failed: " + std::strerror(errno));
+  if (std::fclose(f) != 0) throw RecordingError(path_ + ": close failed: " + std::strerror(errno));
 }
 
 // ---------------------------------------------------------------- reader
 
 std::string RecordingLoss::describe() const {
   std::ostringstream s;
-  s << "byte " << offset << " (+" << bytes << " bytes): "
-    << (messages ? std::to_string(*messages) : std::string("an unknown number of"))
+  s << "byte " << offset << " (+" << bytes
+    << " bytes): " << (messages ? std::to_string(*messages) : std::string("an unknown number of"))
     << " message" << (messages && *messages == 1 ? "" : "s") << " lost: " << what;
   return s.str();
 }
@@ -415,8 +413,7 @@ struct RecordingReader::Impl {
     version = get<std::uint32_t>(pre + 8);
     if (version != kRecordingFormatVersion)
       throw RecordingError(at(8) + "recording format version " + std::to_string(version) +
-                           ", this build reads version " +
-                           std::to_string(kRecordingFormatVersion));
+                           ", this build reads version " + std::to_string(kRecordingFormatVersion));
     const std::uint64_t body = get<std::uint32_t>(pre + 12);
     if (body > kMaxHeaderBody || kFilePreamble + body + 4 > size)
       throw RecordingError(at(12) + "header size " + std::to_string(body) +
@@ -445,8 +442,9 @@ struct RecordingReader::Impl {
       need(4, what);
       const auto n = get<std::uint32_t>(p);
       p += 4;
-      if (n > kMaxName) throw RecordingError(at(static_cast<std::uint64_t>(p - head.data())) +
-                                             std::string(what) + " longer than 4096 bytes");
+      if (n > kMaxName)
+        throw RecordingError(at(static_cast<std::uint64_t>(p - head.data())) + std::string(what) +
+                             " longer than 4096 bytes");
       need(n, what);
       std::string s(reinterpret_cast<const char*>(p), n);
       p += n;
@@ -528,7 +526,8 @@ struct RecordingReader::Impl {
     }
     const unsigned char* counts = index.data() + kIndexHead + std::size_t{nblocks} * kIndexEntry;
     topic_counts.resize(ntopics);
-    for (std::uint32_t i = 0; i < ntopics; ++i) topic_counts[i] = get<std::uint64_t>(counts + 8 * i);
+    for (std::uint32_t i = 0; i < ntopics; ++i)
+      topic_counts[i] = get<std::uint64_t>(counts + 8 * i);
     blocks = std::move(parsed);
     data_end = offset;
     return true;
@@ -561,12 +560,15 @@ struct RecordingReader::Impl {
     std::string why;
     while (pos < data_end) {
       unsigned char h[kBlockHeader] = {};
-      const auto avail = static_cast<std::size_t>(std::min<std::uint64_t>(kBlockHeader, data_end - pos));
+      const auto avail =
+          static_cast<std::size_t>(std::min<std::uint64_t>(kBlockHeader, data_end - pos));
       source->read(pos, avail, h);
-      const bool index_tail = avail >= 4 && get<std::uint32_t>(h) == kIndexMagic;
+      // The start of an index (even its first bytes) ends the blocks of a closed file.
+      const bool index_tail =
+          avail >= 2 && std::memcmp(h, "TIDX", std::min<std::size_t>(avail, 4)) == 0;
       if (avail < kBlockHeader && !index_tail) {
-        losses.push_back({pos, data_end - pos, std::nullopt,
-                          "file ends inside a block header (truncated)"});
+        losses.push_back(
+            {pos, data_end - pos, std::nullopt, "file ends inside a block header (truncated)"});
         break;
       }
       if (index_tail) {
@@ -617,8 +619,8 @@ struct RecordingReader::Impl {
       return lose(limit - b.offset, "file ends inside the block payload");
     const auto computed = crc(stored.data(), stored.size());
     if (computed != header->payload_crc)
-      return lose(bytes, "block payload checksum mismatch (stored " +
-                             hex32(header->payload_crc) + ", computed " + hex32(computed) + ")");
+      return lose(bytes, "block payload checksum mismatch (stored " + hex32(header->payload_crc) +
+                             ", computed " + hex32(computed) + ")");
     if (header->flags & kFlagZstd) {
       const auto content = ZSTD_getFrameContentSize(stored.data(), stored.size());
       if (content != header->raw)

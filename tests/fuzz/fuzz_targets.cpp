@@ -125,7 +125,8 @@ std::string recordingSeed() {
         });
         w.append(0, i * 1000, *m.storage());
       } else {
-        auto m = makeMessage<msg::Blob>([&](auto b) { b.initPayload(static_cast<unsigned>(8 * i)); });
+        auto m =
+            makeMessage<msg::Blob>([&](auto b) { b.initPayload(static_cast<unsigned>(8 * i)); });
         w.append(1, i * 1000, *m.storage());
       }
     }

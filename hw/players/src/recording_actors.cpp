@@ -147,9 +147,9 @@ void RecordingPlayer::configure(ActorContext& ctx) {
   publishers_.resize(topics.size());
   for (std::size_t i = 0; i < topics.size(); ++i) {
     const auto& t = topics[i];
-    const bool wanted = options_.topics.empty() ||
-                        std::find(options_.topics.begin(), options_.topics.end(), t.name) !=
-                            options_.topics.end();
+    const bool wanted =
+        options_.topics.empty() ||
+        std::find(options_.topics.begin(), options_.topics.end(), t.name) != options_.topics.end();
     if (!wanted) continue;
     // The reader outlives the runtime's use of the name (this actor lives as long as it).
     publishers_[i] = ctx.advertiseUntyped(t.name, MessageType{t.type_id, t.type_name.c_str()});

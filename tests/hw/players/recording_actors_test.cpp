@@ -49,9 +49,8 @@ TEST_CASE("recorder records a topic of any type and recording_player republishes
     // The untyped subscriber is configured before the publisher: the topic's type comes later.
     rt.add("rec", std::make_unique<RecorderActor>(ro));
     rt.add("src", std::make_unique<test::CountingSource>(50, 10'000'000, 300), {{"out", "blobs"}});
-    auto& sink = static_cast<test::Recorder&>(
-        rt.add("sink", std::make_unique<test::Recorder>(MailboxPolicy::reliable()),
-               {{"in", "blobs"}}));
+    auto& sink = static_cast<test::Recorder&>(rt.add(
+        "sink", std::make_unique<test::Recorder>(MailboxPolicy::reliable()), {{"in", "blobs"}}));
     const auto report = rt.run();
     REQUIRE(sink.seqs.size() == 50);
     for (const auto& a : report.actors) {
@@ -83,9 +82,8 @@ TEST_CASE("recorder records a topic of any type and recording_player republishes
     RecordingPlayerOptions po;
     po.path = file.string();
     rt.add("play", std::make_unique<RecordingPlayer>(po));
-    auto& sink = static_cast<test::Recorder&>(
-        rt.add("sink", std::make_unique<test::Recorder>(MailboxPolicy::reliable()),
-               {{"in", "blobs"}}));
+    auto& sink = static_cast<test::Recorder&>(rt.add(
+        "sink", std::make_unique<test::Recorder>(MailboxPolicy::reliable()), {{"in", "blobs"}}));
     const auto report = rt.run();
     REQUIRE(sink.seqs.size() == 50);
     for (std::size_t i = 0; i < 50; ++i) {

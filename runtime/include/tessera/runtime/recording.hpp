@@ -93,7 +93,7 @@ class RecordingWriter {
   std::vector<RecordingTopic> topics_;
   RecordingWriterOptions options_;
   std::FILE* file_ = nullptr;
-  std::vector<unsigned char> block_;  // pending uncompressed records
+  std::vector<unsigned char> block_;   // pending uncompressed records
   std::vector<unsigned char> packed_;  // compression output, reused
   std::uint32_t block_messages_ = 0;
   Nanos block_first_ = 0, block_last_ = 0;
