@@ -161,6 +161,7 @@ void addRecordCommand(CLI::App& app, int& result) {
     std::string profile, file, compression = "zstd";
     std::vector<std::string> topics;
     std::int64_t block_kib = 1024;
+    int zstd_level = 1;
     double rate = -1;
     RunSettings run;
   };
@@ -173,6 +174,7 @@ void addRecordCommand(CLI::App& app, int& result) {
   cmd->add_option("--compression", args->compression, "none | zstd")
       ->check(CLI::IsMember({"none", "zstd"}));
   cmd->add_option("--block-kib", args->block_kib, "uncompressed block size [KiB]");
+  cmd->add_option("--zstd-level", args->zstd_level, "zstd level 1..19");
   cmd->add_option("--rate", args->rate, "simulated clock pace: 0 as fast as possible, 1 real time");
   addRunOptions(*cmd, args->run);
   cmd->callback([args, &result] {
@@ -185,6 +187,7 @@ void addRecordCommand(CLI::App& app, int& result) {
     for (const auto& t : topics) params["topics"].push_back(t);
     params["compression"] = args->compression;
     params["block_kib"] = args->block_kib;
+    params["zstd_level"] = args->zstd_level;
     const std::string name = uniqueActorName(profile, "recorder");
     profile.actors.push_back(actorSpec(name, "recorder", params));
     RunReport report;

@@ -519,7 +519,7 @@ struct RecordingReader::Impl {
       const unsigned char* e = index.data() + kIndexHead + std::size_t{i} * kIndexEntry;
       Block b{get<std::uint64_t>(e), get<std::uint32_t>(e + 8), get<Nanos>(e + 16),
               get<Nanos>(e + 24)};
-      if (b.offset < prev_end || b.offset + kBlockHeader > offset)
+      if (b.offset < prev_end || b.offset > offset || offset - b.offset < kBlockHeader)
         return damaged("entry " + std::to_string(i) + " points outside the block area");
       prev_end = b.offset + kBlockHeader;
       parsed.push_back(b);
