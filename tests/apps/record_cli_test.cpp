@@ -27,10 +27,10 @@ TEST_CASE("tessera record then replay reproduces the sim_mapping map byte for by
   fs::create_directories(dir);
   const fs::path rec = dir / "sim.trec";
 
-  const auto record =
-      runCli("record sim_mapping --topics scan,ground_truth --out " + rec.string() + " --dir " +
-                 (dir / "live").string() + " --set max_duration_s=40 --quiet --threads 2",
-             dir);
+  const auto record = runCli("record sim_mapping --topics scan,ground_truth --block-kib 64 --out " +
+                                 rec.string() + " --dir " + (dir / "live").string() +
+                                 " --set max_duration_s=40 --quiet --threads 2",
+                             dir);
   INFO(record.err);
   REQUIRE(record.exit_code == 0);
   CHECK_THAT(record.err, Catch::Contains("recorded ") && Catch::Contains("MB/s"));
