@@ -168,7 +168,9 @@ void addRecordCommand(CLI::App& app, int& result) {
   auto args = std::make_shared<Args>();
   cmd->add_option("profile", args->profile, "profile name (apps/profiles/NAME.yaml) or path")
       ->required();
-  cmd->add_option("--topics", args->topics, "topics to record: a,b,c (global names)")->required();
+  cmd->add_option("--topics", args->topics, "topics to record: a,b,c (global names)")
+      ->required()
+      ->allow_extra_args(false);
   cmd->add_option("--out", args->file, "recording file to write (e.g. run.trec)")->required();
   cmd->add_option("--dir", args->run.out, "output folder for the profile's other outputs");
   cmd->add_option("--compression", args->compression, "none | zstd")
@@ -230,7 +232,8 @@ void addReplayCommand(CLI::App& app, int& result) {
   cmd->add_flag("--max-speed", args->max_speed,
                 "as fast as the CPU allows on the simulated clock (default; deterministic)")
       ->excludes(rate);
-  cmd->add_option("--topics", args->topics, "topics to replay: a,b (default: all)");
+  cmd->add_option("--topics", args->topics, "topics to replay: a,b (default: all)")
+      ->allow_extra_args(false);
   cmd->add_option("--profile", args->profile,
                   "run this profile with the recording in place of the actors that publish the "
                   "replayed topics");
