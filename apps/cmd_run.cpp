@@ -63,83 +63,91 @@ nlohmann::json summaryJson(const Profile& profile, const RunReport& r) {
   return j;
 }
 
+void addRunOptions(CLI::App& cmd, RunSettings& s) {
+  cmd.add_option("--set", s.sets, "override: ACTOR.KEY=VALUE, KEY=VALUE (repeatable)");
+  cmd.add_option("--threads", s.threads, "executor threads (0: all cores)");
+  cmd.add_flag("--quiet", s.quiet, "no progress line and no metrics table");
+}
+
+int runProfile(const Profile& profile, const std::string& verb, const RunSettings& s,
+               RunReport* report_out) {
+  RuntimeOptions options;
+  options.threads = s.threads;
+  options.show_progress = !s.quiet;
+  if (!s.out.empty()) {
+    fs::create_directories(s.out);
+    options.output_dir = fs::absolute(s.out).lexically_normal().string();
+  }
+  auto runtime = buildRuntime(profile, options);
+
+  std::cerr << "tessera " << verb << " " << profile.name << " (" << profile.path << ")\n";
+  if (!profile.description.empty()) std::cerr << "  " << profile.description << "\n";
+  for (const auto& a : profile.actors) {
+    std::cerr << "  actor " << std::left << std::setw(22) << a.name << std::setw(20) << a.type;
+    auto subs = runtime->subscriptionsOf(a.name);
+    auto pubs = runtime->publicationsOf(a.name);
+    if (!subs.empty()) {
+      std::cerr << " in:";
+      for (const auto& sub : subs) std::cerr << " " << sub;
+    }
+    if (!pubs.empty()) {
+      std::cerr << " out:";
+      for (const auto& pub : pubs) std::cerr << " " << pub;
+    }
+    std::cerr << "\n";
+  }
+  std::cerr << "  clock: " << (profile.clock == ClockKind::kSimulated ? "simulated" : "wall")
+            << (profile.clock == ClockKind::kSimulated && profile.sim_rate == 0
+                    ? " (as fast as possible)"
+                    : "")
+            << ", output: "
+            << (options.output_dir.empty() ? "(none; use --out DIR)" : options.output_dir)
+            << "\n  Ctrl-C stops cleanly (outputs are still written)\n";
+
+  runtime->installSignalHandlers();
+  const RunReport report = runtime->run();
+  if (!s.quiet) std::cerr << "\n" << report.table();
+  std::cerr << "stopped: " << report.stop_reason << "\n";
+  std::cerr << std::fixed << std::setprecision(2) << "data " << report.sim_duration_s << " s in "
+            << report.wall_s << " s wall, " << report.cpu_s << " s CPU, peak RSS "
+            << report.peak_rss_mb << " MB\n";
+  if (!options.output_dir.empty()) {
+    const auto j = summaryJson(profile, report);
+    std::ofstream(fs::path(options.output_dir) / "summary.json") << j.dump(2) << "\n";
+    std::cerr << "outputs in " << options.output_dir << ":\n";
+    std::vector<std::string> files;
+    for (const auto& e : fs::directory_iterator(options.output_dir)) {
+      if (e.is_regular_file()) files.push_back(e.path().filename().string());
+    }
+    std::sort(files.begin(), files.end());
+    for (const auto& f : files)
+      std::cerr << "  " << (fs::path(options.output_dir) / f).string() << "\n";
+  }
+  const bool actor_failure = report.interrupted && report.stop_reason.rfind("actor '", 0) == 0;
+  if (actor_failure) std::cerr << "error: " << report.stop_reason << "\n";
+  if (report_out != nullptr) *report_out = report;
+  return actor_failure ? 1 : (report.interrupted ? 130 : 0);
+}
+
 void addRunCommand(CLI::App& app, int& result) {
   auto* cmd = app.add_subcommand("run", "run a profile in one process");
   struct Args {
     std::string profile;
-    std::vector<std::string> sets;
-    std::string out;
-    int threads = 0;
+    RunSettings run;
     double rate = -1;
-    bool quiet = false;
   };
   auto args = std::make_shared<Args>();
   cmd->add_option("profile", args->profile, "profile name (apps/profiles/NAME.yaml) or path")
       ->required();
-  cmd->add_option("--set", args->sets, "override: ACTOR.KEY=VALUE, KEY=VALUE (repeatable)");
-  cmd->add_option("--out", args->out, "output folder (created); default: none, nothing is written");
-  cmd->add_option("--threads", args->threads, "executor threads (0: all cores)");
+  cmd->add_option("--out", args->run.out,
+                  "output folder (created); default: none, nothing is written");
   cmd->add_option("--rate", args->rate, "simulated clock pace: 0 as fast as possible, 1 real time");
-  cmd->add_flag("--quiet", args->quiet, "no progress line and no metrics table");
+  addRunOptions(*cmd, args->run);
   cmd->callback([args, &result] {
     const std::string path = resolveProfilePath(args->profile, profileSearchDirs());
-    Profile profile = loadProfile(path, args->sets);
+    Profile profile = loadProfile(path, args->run.sets);
     if (args->rate >= 0) profile.sim_rate = args->rate;
-    RuntimeOptions options;
-    options.threads = args->threads;
-    options.show_progress = !args->quiet;
-    if (!args->out.empty()) {
-      fs::create_directories(args->out);
-      options.output_dir = fs::absolute(args->out).lexically_normal().string();
-    }
-    auto runtime = buildRuntime(profile, options);
-
-    std::cerr << "tessera run " << profile.name << " (" << path << ")\n";
-    if (!profile.description.empty()) std::cerr << "  " << profile.description << "\n";
-    for (const auto& a : profile.actors) {
-      std::cerr << "  actor " << std::left << std::setw(22) << a.name << std::setw(20) << a.type;
-      auto subs = runtime->subscriptionsOf(a.name);
-      auto pubs = runtime->publicationsOf(a.name);
-      if (!subs.empty()) {
-        std::cerr << " in:";
-        for (const auto& s : subs) std::cerr << " " << s;
-      }
-      if (!pubs.empty()) {
-        std::cerr << " out:";
-        for (const auto& s : pubs) std::cerr << " " << s;
-      }
-      std::cerr << "\n";
-    }
-    std::cerr << "  clock: " << (profile.clock == ClockKind::kSimulated ? "simulated" : "wall")
-              << (profile.clock == ClockKind::kSimulated && profile.sim_rate == 0
-                      ? " (as fast as possible)"
-                      : "")
-              << ", output: "
-              << (options.output_dir.empty() ? "(none; use --out DIR)" : options.output_dir)
-              << "\n  Ctrl-C stops cleanly (outputs are still written)\n";
-
-    runtime->installSignalHandlers();
-    const RunReport report = runtime->run();
-    if (!args->quiet) std::cerr << "\n" << report.table();
-    std::cerr << "stopped: " << report.stop_reason << "\n";
-    std::cerr << std::fixed << std::setprecision(2) << "data " << report.sim_duration_s << " s in "
-              << report.wall_s << " s wall, " << report.cpu_s << " s CPU, peak RSS "
-              << report.peak_rss_mb << " MB\n";
-    if (!options.output_dir.empty()) {
-      const auto j = summaryJson(profile, report);
-      std::ofstream(fs::path(options.output_dir) / "summary.json") << j.dump(2) << "\n";
-      std::cerr << "outputs in " << options.output_dir << ":\n";
-      std::vector<std::string> files;
-      for (const auto& e : fs::directory_iterator(options.output_dir)) {
-        if (e.is_regular_file()) files.push_back(e.path().filename().string());
-      }
-      std::sort(files.begin(), files.end());
-      for (const auto& f : files)
-        std::cerr << "  " << (fs::path(options.output_dir) / f).string() << "\n";
-    }
-    const bool actor_failure = report.interrupted && report.stop_reason.rfind("actor '", 0) == 0;
-    result = actor_failure ? 1 : (report.interrupted ? 130 : 0);
-    if (actor_failure) std::cerr << "error: " << report.stop_reason << "\n";
+    result = runProfile(profile, "run", args->run);
   });
 }
 

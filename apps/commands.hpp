@@ -37,6 +37,25 @@ void addLaunchCommand(CLI::App& app, int& result);
 
 /// summary.json of one run (DESIGN.md: outputs).
 nlohmann::json summaryJson(const Profile& profile, const RunReport& report);
+/// Adds `tessera record` (a profile plus a recorder actor).
+void addRecordCommand(CLI::App& app, int& result);
+/// Adds `tessera replay` (a recording into a profile, or --info).
+void addReplayCommand(CLI::App& app, int& result);
+
+/// Settings shared by the commands that run a profile in this process.
+struct RunSettings {
+  std::vector<std::string> sets;  // --set overrides
+  std::string out;                // output folder ("" writes nothing)
+  int threads = 0;
+  bool quiet = false;
+};
+/// Adds --set, --threads and --quiet to a command.
+void addRunOptions(CLI::App& cmd, RunSettings& settings);
+/// Runs a loaded profile in this process as `tessera run` does (prints the wiring, progress and
+/// metrics, writes summary.json into settings.out) and returns the exit code: 0, 1 when an actor
+/// stopped the run with an error, 130 when interrupted. `verb` names the command in messages.
+int runProfile(const Profile& profile, const std::string& verb, const RunSettings& settings,
+               RunReport* report = nullptr);
 
 /// Folders searched for profile names: the source tree's apps/profiles and ./apps/profiles.
 std::vector<std::string> profileSearchDirs();

@@ -12,6 +12,8 @@ int main(int argc, char** argv) {
   tessera::app::addRunCommand(app, result);
   tessera::app::addLaunchCommand(app, result);
   tessera::app::addActorsCommand(app, result);
+  tessera::app::addRecordCommand(app, result);
+  tessera::app::addReplayCommand(app, result);
   tessera::app::addEvalCommand(app, result);
   tessera::app::addGraphCommand(app, result);
   auto* bench = app.add_subcommand("bench", "benchmarks that print their figures and the machine");

@@ -85,6 +85,8 @@ Runtime::Impl::Impl(RuntimeOptions o)
 detail::TopicState& Runtime::Impl::topic(const std::string& name, MessageType type,
                                          const std::string& who, bool publishing) {
   if (name.empty()) throw ConfigError("actor '" + who + "': empty topic name");
+  if (publishing && type.id == kAnyMessageType.id)
+    throw ConfigError("actor '" + who + "' publishes '" + name + "' without a message type");
   auto it = topics.find(name);
   if (it == topics.end()) {
     auto t = std::make_unique<detail::TopicState>();
@@ -92,6 +94,10 @@ detail::TopicState& Runtime::Impl::topic(const std::string& name, MessageType ty
     t->name = name;
     t->type = type;
     it = topics.emplace(name, std::move(t)).first;
+  } else if (type.id == kAnyMessageType.id) {
+    // An untyped subscriber accepts whatever the topic carries.
+  } else if (it->second->type.id == kAnyMessageType.id) {
+    it->second->type = type;  // an untyped subscriber came first
   } else if (!(it->second->type == type)) {
     throw ConfigError("topic '" + name + "': actor '" + who + "' " +
                       (publishing ? "publishes" : "subscribes to") + " it as " + type.name +

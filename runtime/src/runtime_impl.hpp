@@ -228,6 +228,12 @@ class CellContext final : public ActorContext {
   const Clock& clock() const override { return rt_.clock; }
   const std::string& name() const override { return cell_.name; }
   const std::string& outputDir() const override { return rt_.options.output_dir; }
+  MessageType topicType(std::string_view topic) const override {
+    auto it = rt_.topics.find(global(topic));
+    if (it == rt_.topics.end())
+      throw std::logic_error("actor '" + cell_.name + "': no topic '" + std::string(topic) + "'");
+    return it->second->type;
+  }
   void declareFiniteSource() override {
     if (!cell_.finite) {
       cell_.finite = true;

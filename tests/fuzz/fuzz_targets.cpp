@@ -7,8 +7,13 @@
 #include <tessera/datasets/rgbd_sequence.hpp>
 #include <tessera/datasets/text_reader.hpp>
 #include <tessera/datasets/urg_log.hpp>
+#include <tessera/messages/types.hpp>
+#include <tessera/runtime/recording.hpp>
 
+#include <filesystem>
+#include <fstream>
 #include <iostream>
+#include <iterator>
 
 namespace tessera::fuzz {
 namespace {
@@ -87,6 +92,52 @@ std::string urgSeed() {
   return text;
 }
 
+// Recordings (runtime/recording.hpp): reading every message of a damaged file may only record
+// losses; only a damaged file header is an error.
+void recording(const std::string& bytes) {
+  try {
+    auto reader = RecordingReader::fromBytes(
+        "fuzz.trec", std::vector<unsigned char>(bytes.begin(), bytes.end()));
+    RecordedMessage m;
+    while (reader.next(m)) (void)m.message->root().targetSize();
+  } catch (const RecordingError& e) {
+    throw datasets::DatasetError("fuzz.trec", 0, e.what());
+  }
+}
+
+// A small zstd recording of two topics over three blocks.
+std::string recordingSeed() {
+  const auto path = std::filesystem::temp_directory_path() / "tessera_fuzz_seed.trec";
+  {
+    RecordingWriterOptions options;
+    options.block_bytes = 512;
+    options.compression = RecordingWriterOptions::Compression::kZstd;
+    RecordingWriter w(path.string(),
+                      {{"scan", messageTypeOf<msg::LaserScan>().id, "LaserScan"},
+                       {"blob", messageTypeOf<msg::Blob>().id, "Blob"}},
+                      options);
+    for (int i = 0; i < 12; ++i) {
+      if (i % 2 == 0) {
+        auto m = makeMessage<msg::LaserScan>([&](auto b) {
+          setHeader(b.initHeader(), i, "laser", static_cast<std::uint64_t>(i));
+          auto r = b.initRanges(40);
+          for (unsigned k = 0; k < 40; ++k) r.set(k, static_cast<float>(k + i));
+        });
+        w.append(0, i * 1000, *m.storage());
+      } else {
+        auto m =
+            makeMessage<msg::Blob>([&](auto b) { b.initPayload(static_cast<unsigned>(8 * i)); });
+        w.append(1, i * 1000, *m.storage());
+      }
+    }
+    w.close();
+  }
+  std::ifstream in(path, std::ios::binary);
+  std::string text{std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()};
+  std::filesystem::remove(path);
+  return text;
+}
+
 }  // namespace
 
 const std::vector<Target>& targets() {
@@ -139,6 +190,11 @@ const std::vector<Target>& targets() {
        "# timestamp filename\n1305031102.175304 rgb/1305031102.175304.png\n",
        {"tum-rgbd-fr1-desk-9frames/rgb.txt", "tum-rgbd-fr1-desk-9frames/groundtruth.txt",
         "tum-rgbd-fr1-desk-9frames/associations.txt"}},
+      {"recording",
+       "Tessera recordings (tessera record): damaged files give losses, never a crash",
+       recording,
+       recordingSeed(),
+       {}},
       {"7scenes",
        "7-Scenes pose and intrinsics files",
        sevenScenes,

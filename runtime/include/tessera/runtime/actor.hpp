@@ -75,11 +75,37 @@ class Publisher {
   std::uint32_t owner_ = 0;  // index of the publishing actor (for metrics), or external
 };
 
+/// For untyped subscriptions: the topic takes the type its publishers declare.
+inline constexpr MessageType kAnyMessageType{0, "(any type)"};
+
+/// Publishes already sealed messages whose type is fixed at advertise time but not at compile
+/// time (the recording player). Subscribers read them as the advertised type.
+class UntypedPublisher {
+ public:
+  UntypedPublisher() = default;
+  void publish(std::shared_ptr<const MessageStorage> message) const;
+  const std::string& topic() const;
+  bool valid() const { return topic_ != nullptr; }
+
+ private:
+  friend class ActorContext;
+  UntypedPublisher(detail::TopicState* t, std::uint32_t owner) : topic_(t), owner_(owner) {}
+  detail::TopicState* topic_ = nullptr;
+  std::uint32_t owner_ = 0;
+};
+
 namespace detail {
 void publishRaw(TopicState* topic, std::uint32_t owner, std::shared_ptr<const MessageStorage> m);
 std::uint64_t nextSeq(TopicState* topic);
 const std::string& topicName(const TopicState* topic);
 }  // namespace detail
+
+inline void UntypedPublisher::publish(std::shared_ptr<const MessageStorage> message) const {
+  detail::publishRaw(topic_, owner_, std::move(message));
+}
+inline const std::string& UntypedPublisher::topic() const {
+  return detail::topicName(topic_);
+}
 
 template <typename T>
 void Publisher<T>::publish(Loan<T>&& loan) const {
@@ -115,6 +141,22 @@ class ActorContext {
     auto [state, owner] = advertiseRaw(topic, messageTypeOf<T>());
     return Publisher<T>(state, owner);
   }
+
+  /// Type-erased subscription for actors that carry messages without reading them (recorder,
+  /// bridges). With kAnyMessageType the topic's type comes from its publishers; topicType()
+  /// tells it once the runtime is configured (e.g. in start()).
+  void subscribeUntyped(std::string_view topic, MessageType type, MailboxPolicy policy,
+                        std::function<void(const std::shared_ptr<const MessageStorage>&)> handler) {
+    subscribeRaw(topic, type, policy, std::move(handler));
+  }
+  /// Advertises `topic` as carrying `type` (its id must be what subscribers expect; the name
+  /// must outlive the runtime, it is used in errors).
+  UntypedPublisher advertiseUntyped(std::string_view topic, MessageType type) {
+    auto [state, owner] = advertiseRaw(topic, type);
+    return UntypedPublisher(state, owner);
+  }
+  /// The type a local topic of this actor carries, after configuration.
+  virtual MessageType topicType(std::string_view topic) const = 0;
 
   /// Calls `callback` every `period` of runtime-clock time, first at now + first_delay.
   virtual void addTimer(Nanos period, std::function<void()> callback, Nanos first_delay = 0) = 0;
