@@ -260,6 +260,8 @@ pid_t spawnWorker(const LaunchArgs& a, const std::string& profile_path, Worker& 
     ::_exit(127);
   }
   ::close(fds[1]);
+  // The launcher's loop must never block on one quiet worker.
+  ::fcntl(fds[0], F_SETFL, ::fcntl(fds[0], F_GETFL) | O_NONBLOCK);
   w.pid = pid;
   w.out = fds[0];
   w.running = true;
@@ -270,9 +272,8 @@ void pump(Worker& w, bool flush_all) {
   char buf[4096];
   for (;;) {
     const ssize_t n = ::read(w.out, buf, sizeof(buf));
-    if (n <= 0) break;
+    if (n <= 0) break;  // no more for now (EAGAIN), or the worker closed it
     w.partial.append(buf, static_cast<std::size_t>(n));
-    if (n < static_cast<ssize_t>(sizeof(buf))) break;
   }
   std::size_t at;
   while ((at = w.partial.find_first_of("\n\r")) != std::string::npos) {
@@ -354,6 +355,7 @@ int launch(const LaunchArgs& a) {
     w.restart = std::find(profile.restart.begin(), profile.restart.end(), w.process) !=
                 profile.restart.end();
     spawnWorker(a, path, w, sync_name, roudi.maxChunkBytes(), out_dir);
+    std::cerr << "[launch] started '" << w.process << "' (pid " << w.pid << ")\n";
   }
 
   std::atomic<bool> quit{false};
@@ -424,6 +426,7 @@ int launch(const LaunchArgs& a) {
         std::cerr << "[launch] restarting '" << w.process << "' (restart " << w.incarnation
                   << ")\n";
         spawnWorker(a, path, w, sync_name, roudi.maxChunkBytes(), out_dir);
+        std::cerr << "[launch] started '" << w.process << "' (pid " << w.pid << ")\n";
         clock.markAlive(w.index);
         any_running = true;
       } else if (!ending) {
@@ -537,6 +540,13 @@ int worker(const WorkerArgs& a) {
     return 130;
   }
   const RunReport report = runtime->run();
+  if (coordinator.orphaned()) {
+    // RouDi died with the launcher: iceoryx calls may now block, so leave without them (the
+    // actors' outputs were written in run()).
+    std::cerr << "the launcher died: stopped (" << report.stop_reason << ")\n";
+    std::fflush(nullptr);
+    std::_Exit(3);
+  }
   transport.stopReceiving();
   const auto stats = transport.stats();
   std::cerr << report.table();

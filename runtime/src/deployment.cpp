@@ -188,7 +188,8 @@ class Backoff {
 };
 }  // namespace
 
-WorkerCoordinator::WorkerCoordinator(SyncBlock& block, int index) : block_(block), index_(index) {
+WorkerCoordinator::WorkerCoordinator(SyncBlock& block, int index)
+    : block_(block), index_(index), launcher_(::getppid()) {
   auto& s = slot();
   s.idle = 0;
   s.stopped = 0;
@@ -204,14 +205,25 @@ bool WorkerCoordinator::readyAndWait() {
   slot().ready = 1;
   Backoff b;
   while (block_.go.load() == 0) {
-    if (block_.command.load() != 0) return false;
+    if (block_.command.load() != 0 || orphaned()) return false;
     b.pause();
   }
   return block_.command.load() == 0;
 }
 
+bool WorkerCoordinator::orphaned() {
+  // The launcher owns RouDi: when it is gone nobody moves time or ends the run.
+  if (!orphaned_ && ++checks_ % 64 == 0) orphaned_ = ::getppid() != launcher_;
+  return orphaned_;
+}
+
 RunCoordinator::Decision WorkerCoordinator::ended() const {
   Decision d;
+  if (orphaned_) {
+    d.verdict = Verdict::kStop;
+    d.reason = "the launcher (and its RouDi) died";
+    return d;
+  }
   d.verdict = block_.command.load() == 1 ? Verdict::kFinish : Verdict::kStop;
   d.time = block_.end_time.load();
   d.reason = std::string(block_.reason, strnlen(block_.reason, sizeof(block_.reason)));
@@ -244,7 +256,7 @@ RunCoordinator::Decision WorkerCoordinator::idle(const LocalState& state,
       return {Verdict::kWork, 0, {}};
     }
     publishIdle(true, received);
-    if (block_.command.load() != 0) return ended();
+    if (block_.command.load() != 0 || orphaned()) return ended();
     const auto g = block_.grant_seq.load();
     if (g != last_grant_) {
       last_grant_ = g;
@@ -263,7 +275,7 @@ RunCoordinator::Decision WorkerCoordinator::poll(const LocalState& state,
   s.finished = state.finished_sources;
   const auto received = s.received.load();
   publishIdle(!busy(), received);
-  if (block_.command.load() != 0) return ended();
+  if (block_.command.load() != 0 || orphaned()) return ended();
   return {Verdict::kWork, 0, {}};
 }
 

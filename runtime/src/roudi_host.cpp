@@ -8,11 +8,14 @@
 #include <iceoryx_posh/roudi/iceoryx_roudi_components.hpp>
 
 #include <fcntl.h>
+#include <signal.h>
 #include <sys/file.h>
 #include <sys/stat.h>
 #include <unistd.h>
 
 #include <algorithm>
+#include <cerrno>
+#include <cstdlib>
 #include <filesystem>
 #include <map>
 #include <optional>
@@ -68,6 +71,16 @@ std::vector<std::string> removeStaleShm() {
                            fs::path("/dev/shm") / groupName(), fs::path("/tmp/roudi")}) {
     if (fs::exists(fs::symlink_status(path, ec)) && fs::remove(path, ec)) {
       removed.push_back(path.string());
+    }
+  }
+  // Control blocks of launchers that no longer run (named /tessera_sync_<pid>).
+  for (const auto& entry : fs::directory_iterator("/dev/shm", ec)) {
+    const auto name = entry.path().filename().string();
+    if (name.rfind("tessera_sync_", 0) != 0) continue;
+    const long pid = std::strtol(name.c_str() + 13, nullptr, 10);
+    if (pid > 0 && ::kill(static_cast<pid_t>(pid), 0) != 0 && errno == ESRCH &&
+        fs::remove(entry.path(), ec)) {
+      removed.push_back(entry.path().string());
     }
   }
   // Sockets of Tessera processes of the dead run.

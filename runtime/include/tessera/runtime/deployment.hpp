@@ -96,12 +96,17 @@ class WorkerCoordinator final : public RunCoordinator {
   /// the launcher asked to stop instead).
   bool readyAndWait();
   SyncSlot& slot() { return block_.slots[index_]; }
+  /// True once the launcher died (this process was re-parented).
+  bool orphaned();
 
  private:
   Decision ended() const;
   void publishIdle(bool idle, std::uint64_t received);
   SyncBlock& block_;
   int index_;
+  int launcher_;
+  bool orphaned_ = false;
+  std::uint64_t checks_ = 0;
   std::uint64_t last_grant_ = 0;
 };
 

@@ -1,0 +1,228 @@
+// `tessera launch` end to end: the same outputs as `tessera run`, Ctrl-C, a killed worker
+// restarted while the other keeps receiving, and the launcher (with its RouDi) killed.
+#include "../apps/cli_run.hpp"
+
+#include <catch2/catch.hpp>
+#include <nlohmann/json.hpp>
+
+#include <fcntl.h>
+#include <signal.h>
+#include <sys/prctl.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <chrono>
+#include <filesystem>
+#include <fstream>
+#include <regex>
+#include <sstream>
+#include <thread>
+
+namespace fs = std::filesystem;
+using namespace std::chrono_literals;
+
+namespace {
+
+fs::path freshDir(const std::string& name) {
+  const fs::path dir = fs::temp_directory_path() / ("tessera_test_" + name);
+  fs::remove_all(dir);
+  fs::create_directories(dir);
+  return dir;
+}
+
+std::string readFile(const fs::path& p) {
+  std::ifstream in(p, std::ios::binary);
+  std::ostringstream s;
+  s << in.rdbuf();
+  return s.str();
+}
+
+/// `tessera launch ...` in the background, output in dir/launch.txt. Reaps everything it
+/// started (the launcher, and workers re-parented to this process) when destroyed.
+class Launch {
+ public:
+  Launch(const std::vector<std::string>& args, const fs::path& dir) : log_(dir / "launch.txt") {
+    ::prctl(PR_SET_CHILD_SUBREAPER, 1);  // orphaned workers come back to this process
+    pid_ = ::fork();
+    if (pid_ == 0) {
+      const int fd = ::open(log_.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
+      ::dup2(fd, 1);
+      ::dup2(fd, 2);
+      std::vector<std::string> all = {TESSERA_CLI_PATH, "launch"};
+      all.insert(all.end(), args.begin(), args.end());
+      std::vector<char*> argv;
+      for (auto& s : all) argv.push_back(s.data());
+      argv.push_back(nullptr);
+      ::execv(TESSERA_CLI_PATH, argv.data());
+      ::_exit(127);
+    }
+  }
+  ~Launch() {
+    if (pid_ > 0 && !reaped_) ::kill(pid_, SIGKILL);
+    reapAll(5s);
+  }
+  pid_t pid() const { return pid_; }
+  std::string output() const { return readFile(log_); }
+
+  /// Waits until the output matches `pattern`; returns the first capture group (or "").
+  std::string waitFor(const std::string& pattern, std::chrono::seconds timeout = 30s) const {
+    const std::regex re(pattern);
+    const auto deadline = std::chrono::steady_clock::now() + timeout;
+    while (std::chrono::steady_clock::now() < deadline) {
+      std::smatch m;
+      const std::string out = output();
+      if (std::regex_search(out, m, re)) return m.size() > 1 ? m[1].str() : std::string("!");
+      std::this_thread::sleep_for(20ms);
+    }
+    return "";
+  }
+  /// Exit code of the launcher (-1: still running after `timeout`, then killed).
+  int wait(std::chrono::seconds timeout = 60s) {
+    const auto deadline = std::chrono::steady_clock::now() + timeout;
+    int status = 0;
+    while (::waitpid(pid_, &status, WNOHANG) != pid_) {
+      if (std::chrono::steady_clock::now() > deadline) {
+        ::kill(pid_, SIGKILL);
+        ::waitpid(pid_, &status, 0);
+        reaped_ = true;
+        return -1;
+      }
+      std::this_thread::sleep_for(10ms);
+    }
+    reaped_ = true;
+    return WIFEXITED(status) ? WEXITSTATUS(status) : 128 + WTERMSIG(status);
+  }
+  /// Reaps every child of this process; false when some still run after `timeout`.
+  static bool reapAll(std::chrono::seconds timeout) {
+    const auto deadline = std::chrono::steady_clock::now() + timeout;
+    for (;;) {
+      int status = 0;
+      const pid_t r = ::waitpid(-1, &status, WNOHANG);
+      if (r < 0) return true;  // no children left
+      if (r == 0) {
+        if (std::chrono::steady_clock::now() > deadline) return false;
+        std::this_thread::sleep_for(10ms);
+      }
+    }
+  }
+
+ private:
+  fs::path log_;
+  pid_t pid_ = -1;
+  bool reaped_ = false;
+};
+
+bool shmClean() {
+  for (const auto& e : fs::directory_iterator("/dev/shm")) {
+    const auto name = e.path().filename().string();
+    if (name == "iceoryx_mgmt" || name.rfind("tessera_sync_", 0) == 0) return false;
+  }
+  return true;
+}
+
+}  // namespace
+
+TEST_CASE("a launched profile writes the same outputs as the same profile run in one process",
+          "[launch]") {
+  const auto dir = freshDir("launch_same");
+  const auto run =
+      tessera::test::runCli("run sim_mapping --quiet --out " + (dir / "run").string(), dir);
+  REQUIRE(run.exit_code == 0);
+  Launch launch({"sim_mapping", "--out", (dir / "launch").string()}, dir);
+  REQUIRE(launch.wait(120s) == 0);
+  INFO(launch.output());
+  CHECK(launch.output().find("stopped: all inputs finished") != std::string::npos);
+  for (const char* f :
+       {"map.pgm", "map.yaml", "trajectory.tum", "odometry.tum", "ground_truth.tum"}) {
+    INFO(f);
+    REQUIRE(fs::exists(dir / "launch" / f));
+    CHECK(readFile(dir / "run" / f) == readFile(dir / "launch" / f));
+  }
+  const auto summary = nlohmann::json::parse(readFile(dir / "launch" / "summary.json"));
+  CHECK(summary["processes"].size() == 2);
+  const auto single = nlohmann::json::parse(readFile(dir / "run" / "summary.json"));
+  CHECK(summary["actors"]["mapper"]["messages_in"] == single["actors"]["mapper"]["messages_in"]);
+  CHECK(shmClean());
+}
+
+TEST_CASE("Ctrl-C stops a launched deployment cleanly and its outputs are written", "[launch]") {
+  const auto dir = freshDir("launch_interrupt");
+  Launch launch({"sim_mapping", "--out", (dir / "out").string(), "--set", "sim_rate=2"}, dir);
+  REQUIRE(!launch.waitFor(R"(started 'mapping')").empty());
+  std::this_thread::sleep_for(1500ms);
+  ::kill(launch.pid(), SIGINT);
+  CHECK(launch.wait(60s) == 130);
+  INFO(launch.output());
+  CHECK(launch.output().find("stopped: interrupted") != std::string::npos);
+  CHECK(fs::exists(dir / "out" / "map.pgm"));
+  CHECK(Launch::reapAll(10s));
+  CHECK(shmClean());
+}
+
+TEST_CASE("a killed worker is reported and restarted while the other process keeps receiving",
+          "[launch]") {
+  const auto dir = freshDir("launch_restart");
+  // Wall clock: the robot streams in real time, the mapper is fed by whichever robot is alive.
+  std::ofstream(dir / "wall.yaml") << R"(name: wall_mapping
+clock: wall
+restart: [robot]
+actors:
+  sim:
+    type: simulator
+    process: robot
+    params: {world: builtin:office, laps: 1, scan_hz: 10, odom_hz: 50}
+  mapper:
+    type: grid_mapper
+    process: mapping
+    remap: {pose: ground_truth}
+  map_writer:
+    type: map_writer
+    process: mapping
+)";
+  Launch launch({(dir / "wall.yaml").string(), "--out", (dir / "out").string()}, dir);
+  const std::string robot = launch.waitFor(R"(started 'robot' \(pid (\d+)\))");
+  REQUIRE(!robot.empty());
+  REQUIRE(!launch.waitFor(R"(started 'mapping')").empty());
+  std::this_thread::sleep_for(1500ms);
+  ::kill(std::stoi(robot), SIGKILL);
+  CHECK(!launch.waitFor(R"(process 'robot' \(pid \d+\) was killed by SIGKILL)", 10s).empty());
+  CHECK(!launch.waitFor(R"(restarting 'robot')", 10s).empty());
+  std::this_thread::sleep_for(2500ms);
+  ::kill(launch.pid(), SIGINT);
+  CHECK(launch.wait(60s) == 130);
+  INFO(launch.output());
+  const auto summary = nlohmann::json::parse(readFile(dir / "out" / "summary.json"));
+  CHECK(summary["processes"]["robot"]["restarts"] == 1);
+  CHECK(summary["processes"]["mapping"]["restarts"] == 0);
+  // About 15 scans before the kill; more arrived only from the restarted robot.
+  CHECK(summary["actors"]["mapper"]["messages_in"].get<int>() > 25);
+  CHECK(fs::exists(dir / "out" / "map.pgm"));
+  CHECK(shmClean());
+}
+
+TEST_CASE("when the launcher and its RouDi die the workers stop and the next launch cleans up",
+          "[launch]") {
+  const auto dir = freshDir("launch_roudi_death");
+  {
+    Launch launch({"sim_mapping", "--set", "sim_rate=1"}, dir);
+    const std::string robot = launch.waitFor(R"(started 'robot' \(pid (\d+)\))");
+    const std::string mapping = launch.waitFor(R"(started 'mapping' \(pid (\d+)\))");
+    REQUIRE(!mapping.empty());
+    std::this_thread::sleep_for(1000ms);
+    ::kill(launch.pid(), SIGKILL);
+    CHECK(launch.wait(10s) == 128 + SIGKILL);
+    // The workers notice (parent-death signal, re-parenting) and exit by themselves.
+    CHECK(Launch::reapAll(15s));
+    CHECK(::kill(std::stoi(robot), 0) != 0);
+    CHECK(::kill(std::stoi(mapping), 0) != 0);
+  }
+  CHECK_FALSE(shmClean());  // RouDi had no chance to remove its shared memory
+  const auto again = freshDir("launch_roudi_death_again");
+  Launch launch({"sim_mapping", "--set", "max_duration_s=20"}, again);
+  CHECK(launch.wait(60s) == 0);
+  INFO(launch.output());
+  CHECK(
+      launch.output().find("removed stale shared memory of a crashed run: /dev/shm/iceoryx_mgmt") !=
+      std::string::npos);
+  CHECK(shmClean());
+}
