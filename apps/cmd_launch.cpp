@@ -471,8 +471,8 @@ int launch(const LaunchArgs& a) {
     for (auto& [k, v] : j.items()) {
       if (k == "actors" || k == "profile" || k == "wall_s" || k == "cpu_s" || k == "peak_rss_mb" ||
           k == "data_duration_s" || k == "realtime_factor" || k == "interrupted" ||
-          k == "stop_reason")
-        continue;
+          k == "stop_reason" || summary.contains(k))
+        continue;  // on a clash the first process (in stop order) wins
       summary[k] = v;
     }
     summary["processes"][w.process] = {{"cpu_s", j.value("cpu_s", 0.0)},

@@ -145,6 +145,29 @@ TEST_CASE("a launched profile writes the same outputs as the same profile run in
   CHECK(shmClean());
 }
 
+TEST_CASE("laser SLAM split over three processes gives the same trajectories and map as one",
+          "[launch]") {
+  // Submaps, constraints and the final poses published in stop() cross processes; the
+  // optimiser's stop-time output must still reach the writer in the last process.
+  const auto dir = freshDir("launch_slam");
+  const auto run =
+      tessera::test::runCli("run sim_slam_global --quiet --out " + (dir / "run").string(), dir);
+  REQUIRE(run.exit_code == 0);
+  Launch launch({"sim_slam_global", "--out", (dir / "launch").string(), "--set",
+                 "sim.process=robot", "--set", "loops.process=global", "--set",
+                 "optimizer.process=global", "--set", "assembler.process=global", "--set",
+                 "map_writer.process=global", "--set", "final_trajectory_writer.process=global"},
+                dir);
+  REQUIRE(launch.wait(180s) == 0);
+  INFO(launch.output());
+  for (const char* f : {"map.pgm", "trajectory.tum", "trajectory_final.tum"}) {
+    INFO(f);
+    REQUIRE(fs::exists(dir / "launch" / f));
+    CHECK(readFile(dir / "run" / f) == readFile(dir / "launch" / f));
+  }
+  CHECK(shmClean());
+}
+
 TEST_CASE("Ctrl-C stops a launched deployment cleanly and its outputs are written", "[launch]") {
   const auto dir = freshDir("launch_interrupt");
   Launch launch({"sim_mapping", "--out", (dir / "out").string(), "--set", "sim_rate=2"}, dir);
