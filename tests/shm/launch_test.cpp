@@ -2,6 +2,8 @@
 // restarted while the other keeps receiving, and the launcher (with its RouDi) killed.
 #include "../apps/cli_run.hpp"
 
+#include <tessera/runtime/roudi_host.hpp>
+
 #include <catch2/catch.hpp>
 #include <nlohmann/json.hpp>
 
@@ -58,10 +60,23 @@ class Launch {
     }
   }
   ~Launch() {
-    if (pid_ > 0 && !reaped_) ::kill(pid_, SIGKILL);
-    reapAll(5s);
+    // A failed test must not leave a deployment or its shared memory behind: ask the launcher
+    // to stop, then kill what is left and remove what a killed RouDi could not.
+    if (pid_ > 0 && !reaped_) {
+      ::kill(pid_, SIGTERM);
+      if (wait(15s) < 0) ::kill(pid_, SIGKILL);
+    }
+    reapAll(10s);
+    if (!clean_up_) return;
+    try {
+      tessera::removeStaleShm();
+    } catch (const std::exception&) {
+      // another RouDi runs (not ours): leave its memory alone
+    }
   }
   pid_t pid() const { return pid_; }
+  /// Leaves a killed RouDi's shared memory for the next launch to find.
+  void keepLeftovers() { clean_up_ = false; }
   std::string output() const { return readFile(log_); }
 
   /// Waits until the output matches `pattern`; returns the first capture group (or "").
@@ -110,6 +125,7 @@ class Launch {
   fs::path log_;
   pid_t pid_ = -1;
   bool reaped_ = false;
+  bool clean_up_ = true;
 };
 
 bool shmClean() {
@@ -228,6 +244,7 @@ TEST_CASE("when the launcher and its RouDi die the workers stop and the next lau
   const auto dir = freshDir("launch_roudi_death");
   {
     Launch launch({"sim_mapping", "--set", "sim_rate=1"}, dir);
+    launch.keepLeftovers();
     const std::string robot = launch.waitFor(R"(started 'robot' \(pid (\d+)\))");
     const std::string mapping = launch.waitFor(R"(started 'mapping' \(pid (\d+)\))");
     REQUIRE(!mapping.empty());

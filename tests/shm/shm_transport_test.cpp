@@ -21,6 +21,12 @@ RouDiHostOptions smallPools() {
   return o;
 }
 
+std::size_t maxChunk(const RouDiHostOptions& o) {
+  std::size_t m = 0;
+  for (const auto& p : o.pools) m = std::max(m, p.chunk_bytes);
+  return m;
+}
+
 ShmTopic topic(const std::string& name, bool exported, bool imported, MailboxPolicy policy) {
   ShmTopic t;
   t.name = name;
@@ -121,38 +127,42 @@ int send(const std::string& topic_name, MailboxPolicy policy, int count, std::si
 
 TEST_CASE("two processes exchange 10000 messages on a reliable topic without loss or reordering",
           "[shm]") {
-  RouDiHost roudi(smallPools());
+  const auto pools = smallPools();
+  const auto max_chunk = maxChunk(pools);
   test::Children children;
-  const auto max_chunk = roudi.maxChunkBytes();
   auto rx = children.spawn([&] {
     return receive("reliable_blobs", MailboxPolicy::reliable(8), 10000, 0us, max_chunk, true);
   });
   auto tx = children.spawn([&] {
     return send("reliable_blobs", MailboxPolicy::reliable(8), 10000, 200, max_chunk, 60000ms);
   });
+  RouDiHost roudi(pools);
+  children.open();
   CHECK(children.wait(tx) == 0);
   CHECK(children.wait(rx) == 0);
 }
 
 TEST_CASE("a slow keep_latest subscriber in another process drops and the publisher never blocks",
           "[shm]") {
-  RouDiHost roudi(smallPools());
+  const auto pools = smallPools();
+  const auto max_chunk = maxChunk(pools);
   test::Children children;
-  const auto max_chunk = roudi.maxChunkBytes();
   auto rx = children.spawn([&] {
     return receive("latest_blobs", MailboxPolicy::keepLatest(2), 2000, 2000us, max_chunk, false);
   });
   auto tx = children.spawn([&] {
     return send("latest_blobs", MailboxPolicy::keepLatest(2), 2000, 200, max_chunk, 50ms);
   });
+  RouDiHost roudi(pools);
+  children.open();
   CHECK(children.wait(tx) == 0);
   CHECK(children.wait(rx) == 0);
 }
 
 TEST_CASE("a message larger than the largest shared-memory chunk is a clear error", "[shm]") {
-  RouDiHost roudi(smallPools());
+  const auto pools = smallPools();
+  const auto max_chunk = maxChunk(pools);
   test::Children children;
-  const auto max_chunk = roudi.maxChunkBytes();
   auto tx = children.spawn([&] {
     ShmTransportOptions so;
     so.runtime_name = "tessera_test_big";
@@ -175,6 +185,8 @@ TEST_CASE("a message larger than the largest shared-memory chunk is a clear erro
                  : 2;
     }
   });
+  RouDiHost roudi(pools);
+  children.open();
   CHECK(children.wait(tx) == 0);
 }
 
