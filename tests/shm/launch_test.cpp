@@ -128,6 +128,19 @@ class Launch {
   bool clean_up_ = true;
 };
 
+/// Every number of a TUM trajectory file, in order.
+std::vector<double> readNumbers(const fs::path& p) {
+  std::ifstream in(p);
+  std::vector<double> out;
+  std::string line;
+  while (std::getline(in, line)) {
+    if (line.empty() || line[0] == '#') continue;
+    std::istringstream s(line);
+    for (double v; s >> v;) out.push_back(v);
+  }
+  return out;
+}
+
 bool shmClean() {
   for (const auto& e : fs::directory_iterator("/dev/shm")) {
     const auto name = e.path().filename().string();
@@ -176,11 +189,21 @@ TEST_CASE("laser SLAM split over three processes gives the same trajectories and
                 dir);
   REQUIRE(launch.wait(180s) == 0);
   INFO(launch.output());
-  for (const char* f : {"map.pgm", "trajectory.tum", "trajectory_final.tum"}) {
+  for (const char* f : {"map.pgm", "trajectory.tum"}) {
     INFO(f);
     REQUIRE(fs::exists(dir / "launch" / f));
     CHECK(readFile(dir / "run" / f) == readFile(dir / "launch" / f));
   }
+  // The optimiser may see the loop constraints in another interleaving with the submaps (they
+  // come from two processes) and so take other warm-started steps to the same optimum.
+  const auto single = readNumbers(dir / "run" / "trajectory_final.tum");
+  const auto multi = readNumbers(dir / "launch" / "trajectory_final.tum");
+  REQUIRE(single.size() == multi.size());
+  REQUIRE(single.size() > 1000);
+  double worst = 0;
+  for (std::size_t i = 0; i < single.size(); ++i)
+    worst = std::max(worst, std::abs(single[i] - multi[i]));
+  CHECK(worst < 1e-6);
   CHECK(shmClean());
 }
 
