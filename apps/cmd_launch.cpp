@@ -360,15 +360,19 @@ int launch(const LaunchArgs& a) {
 
   std::atomic<bool> quit{false};
   std::thread clock_thread([&] {
-    int idle_rounds = 0;
+    int quiet_rounds = 0;
     while (!quit.load()) {
+      const auto grants = sync.block().grant_seq.load();
       clock.step();
-      // Hand-offs take microseconds; sleep only when nothing moves for a while.
-      if (++idle_rounds > 200) {
-        std::this_thread::sleep_for(std::chrono::microseconds(50));
-        idle_rounds = 150;
-      } else {
+      if (sync.block().grant_seq.load() != grants) quiet_rounds = 0;
+      // Simulated time: the next step follows within microseconds, so stay close while steps
+      // come quickly. Wall clock: only the end of the run is decided here.
+      if (!sim) {
+        std::this_thread::sleep_for(std::chrono::milliseconds(2));
+      } else if (++quiet_rounds < 100) {
         std::this_thread::yield();
+      } else {
+        std::this_thread::sleep_for(std::chrono::microseconds(quiet_rounds < 5000 ? 10 : 500));
       }
     }
   });
