@@ -8,13 +8,15 @@
 // RouDi is embedded in this process (RouDiHost); leader and follower are forked children, always
 // reaped (and killed on error, timeout or Ctrl-C), so no process or shared memory outlives it.
 //
-// Latency: the leader builds a ping (payload fully written: application work, not latency),
-// waits a gap so both sides are idle, then stamps steady_clock and publishes. The follower
-// stamps on take and answers with a pong it built in advance; the pong carries the ping's
-// one-way latency and its own stamp. CLOCK_MONOTONIC is system-wide, so stamps of two processes
-// compare. One-way figures pool both directions; round trip is ping stamp to pong take.
-// Streaming: the leader publishes 64 B messages as fast as it can for --stream-seconds on a
-// reliable (blocking) path; the follower counts them and reports the count when told the end.
+// Latency: the leader asks the follower to build its pong and waits for the confirmation, builds
+// its ping (payloads fully written: application work, not latency), waits a gap so both sides
+// are idle, then stamps steady_clock and publishes. The follower stamps on take and sends the
+// prebuilt pong, which carries the ping's one-way latency and its own stamp. So no payload is
+// being written anywhere while a message is under way (writing MiBs slows this VM's wake-ups).
+// CLOCK_MONOTONIC is system-wide, so stamps of two processes compare. One-way figures pool both
+// directions; round trip is ping stamp to pong take. Streaming: the leader publishes 64 B messages
+// as fast as it can for --stream-seconds on a reliable (blocking) path; the follower counts them
+// and reports the count when told the end.
 #include "bench_util.hpp"
 #include "commands.hpp"
 
@@ -75,14 +77,18 @@ struct Options {
   bool json = false;
 };
 
-enum class Kind : std::uint32_t { kPing, kPong, kStream, kStreamEnd, kQuit };
+// kPrepare asks the follower to build its next pong (of `value` bytes) and answer kReady, so
+// that no payload is written on either side while a ping or pong is under way.
+enum class Kind : std::uint32_t { kPing, kPong, kPrepare, kReady, kStream, kStreamEnd, kQuit };
 
 /// First bytes of every payload, whatever the transport.
 struct Wire {
-  Nanos stamp = 0;          // sender's steady clock right before publish/send
-  Nanos echo = 0;           // pong: the ping's one-way latency; stream-end pong: messages counted
-  std::uint64_t aux = 0;    // pong: the follower's messages copied so far (ours only)
-  std::uint32_t bytes = 0;  // payload size, this header included
+  Nanos stamp = 0;  // sender's steady clock right before publish/send
+  // pong: the ping's one-way latency [ns]; answer to kStreamEnd: messages counted; kPrepare:
+  // size of the pong to build.
+  std::int64_t value = 0;
+  std::uint64_t copies = 0;  // pong: the follower's messages copied so far (ours only)
+  std::uint32_t bytes = 0;   // payload size, this header included
   Kind kind = Kind::kPing;
 };
 static_assert(sizeof(Wire) <= kSizes[0]);
@@ -98,13 +104,17 @@ void writeWire(void* p, const Wire& w) {
 }
 
 // Written into every payload like a real producer would (an image, a scan): every page touched.
-void fillPayload(void* p, std::size_t bytes, Kind kind) {
+void fillPayload(void* p, std::size_t bytes, Kind kind, std::int64_t value = 0) {
   std::memset(p, 0x5a, bytes);
   Wire w;
   w.bytes = static_cast<std::uint32_t>(bytes);
   w.kind = kind;
+  w.value = value;
   writeWire(p, w);
 }
+
+/// Small control messages (kPrepare, kReady, stream counts).
+constexpr std::size_t kControlBytes = 64;
 
 // ------------------------------------------------------------------ results
 
@@ -150,48 +160,62 @@ class SharedResult {
 class LeaderLink {
  public:
   virtual ~LeaderLink() = default;
-  virtual void build(std::size_t bytes, Kind kind) = 0;
+  virtual void build(std::size_t bytes, Kind kind, std::int64_t value = 0) = 0;
   virtual Nanos send() = 0;
   virtual std::pair<Wire, Nanos> receive() = 0;
   /// Messages this process copied so far (zero-copy transports that fell back to a copy).
   virtual std::uint64_t copies() const { return 0; }
 };
 
+/// One ping-pong of `bytes`; adds its one-way (both directions) and round-trip samples unless
+/// warming up, and the messages either side copied to `copies`.
+void pingPong(LeaderLink& link, std::size_t bytes, const Options& o, bool record,
+              std::vector<double>& one_way, std::vector<double>& round_trip,
+              std::uint64_t& follower_copies, std::uint64_t& copies) {
+  const std::uint64_t own_copies = link.copies();
+  link.build(kControlBytes, Kind::kPrepare, static_cast<std::int64_t>(bytes));
+  link.send();
+  if (link.receive().first.kind != Kind::kReady) {
+    throw std::runtime_error("leader: the follower did not confirm its pong was ready");
+  }
+  link.build(bytes, Kind::kPing);
+  std::this_thread::sleep_for(std::chrono::microseconds(o.gap_us));
+  // The payload's stores are done before the stamp (large memsets may use non-temporal
+  // stores that would otherwise drain inside the publish call and count as delivery).
+  std::atomic_thread_fence(std::memory_order_seq_cst);
+  const Nanos sent = link.send();
+  const auto [pong, taken] = link.receive();
+  if (pong.kind != Kind::kPong || pong.bytes != bytes) {
+    throw std::runtime_error("leader: unexpected answer (kind " +
+                             std::to_string(static_cast<int>(pong.kind)) + ", " +
+                             std::to_string(pong.bytes) + " bytes)");
+  }
+  copies += (link.copies() - own_copies) + (pong.copies - follower_copies);
+  follower_copies = pong.copies;
+  if (!record) return;
+  one_way.push_back(static_cast<double>(pong.value) * 1e-3);
+  one_way.push_back(static_cast<double>(taken - pong.stamp) * 1e-3);
+  round_trip.push_back(static_cast<double>(taken - sent) * 1e-3);
+}
+
 void lead(LeaderLink& link, const Options& o, TransportResult& out) {
+  // Sizes take turns, so a drift of the machine over the run (other load, a slower phase of
+  // the VM) affects every size alike and the size ratios stay meaningful.
+  constexpr std::size_t n = kSizes.size();
+  std::array<std::vector<double>, n> one_way, round_trip;
   std::uint64_t follower_copies = 0;
-  for (std::size_t k = 0; k < kSizes.size(); ++k) {
-    const std::size_t bytes = kSizes[k];
-    const std::uint64_t own_copies = link.copies();
-    std::uint64_t last_aux = follower_copies;
-    std::vector<double> one_way, round_trip;
-    one_way.reserve(2 * static_cast<std::size_t>(o.samples));
-    round_trip.reserve(static_cast<std::size_t>(o.samples));
-    for (int i = 0; i < o.samples + kWarmup; ++i) {
-      link.build(bytes, Kind::kPing);
-      std::this_thread::sleep_for(std::chrono::microseconds(o.gap_us));
-      // The payload's stores are done before the stamp (large memsets may use non-temporal
-      // stores that would otherwise drain inside the publish call and count as delivery).
-      std::atomic_thread_fence(std::memory_order_seq_cst);
-      const Nanos sent = link.send();
-      const auto [pong, taken] = link.receive();
-      if (pong.kind != Kind::kPong || pong.bytes != bytes) {
-        throw std::runtime_error("leader: unexpected answer (kind " +
-                                 std::to_string(static_cast<int>(pong.kind)) + ", " +
-                                 std::to_string(pong.bytes) + " bytes)");
-      }
-      last_aux = pong.aux;
-      if (i < kWarmup) continue;
-      one_way.push_back(static_cast<double>(pong.echo) * 1e-3);
-      one_way.push_back(static_cast<double>(taken - pong.stamp) * 1e-3);
-      round_trip.push_back(static_cast<double>(taken - sent) * 1e-3);
+  for (int i = 0; i < o.samples + kWarmup; ++i) {
+    for (std::size_t k = 0; k < n; ++k) {
+      pingPong(link, kSizes[k], o, i >= kWarmup, one_way[k], round_trip[k], follower_copies,
+               out.sizes[k].copies);
     }
+  }
+  for (std::size_t k = 0; k < n; ++k) {
     auto& r = out.sizes[k];
-    r.p50_us = percentile(one_way, 0.5);
-    r.p99_us = percentile(one_way, 0.99);
-    r.rtt_p50_us = percentile(round_trip, 0.5);
-    r.rtt_p99_us = percentile(round_trip, 0.99);
-    r.copies = (link.copies() - own_copies) + (last_aux - follower_copies);
-    follower_copies = last_aux;
+    r.p50_us = percentile(one_way[k], 0.5);
+    r.p99_us = percentile(one_way[k], 0.99);
+    r.rtt_p50_us = percentile(round_trip[k], 0.5);
+    r.rtt_p99_us = percentile(round_trip[k], 0.99);
   }
 
   // Streaming: as fast as the blocking path takes them, then the count from the follower.
@@ -204,53 +228,54 @@ void lead(LeaderLink& link, const Options& o, TransportResult& out) {
       link.send();
     }
   }
-  link.build(kStreamBytes, Kind::kStreamEnd);
+  link.build(kControlBytes, Kind::kStreamEnd);
   link.send();
   const auto [count, taken] = link.receive();
-  if (count.kind != Kind::kPong || count.echo != sent) {
-    throw std::runtime_error("leader: follower counted " + std::to_string(count.echo) + " of " +
+  if (count.kind != Kind::kReady || count.value != sent) {
+    throw std::runtime_error("leader: follower counted " + std::to_string(count.value) + " of " +
                              std::to_string(sent) + " streamed messages");
   }
   out.msgs_per_s = static_cast<double>(sent) / (static_cast<double>(taken - start) * 1e-9);
-  link.build(kStreamBytes, Kind::kQuit);
+  link.build(kControlBytes, Kind::kQuit);
   link.send();
   out.complete = true;
 }
 
-/// The follower's answer to one message: a pong for a ping (built in advance for the next one
-/// of the same size), the count for a stream end. Returns false on quit.
+/// The follower's answer to one message: the prebuilt pong for a ping, a pong built (kPrepare)
+/// or the stream count (kStreamEnd) confirmed by a control message. Returns false on quit.
+/// prepare(bytes) returns the pong slot, built if it is not of `bytes`; send() publishes the
+/// slot; control(wire) builds and sends a small message at once.
 class FollowerLogic {
  public:
-  /// `pong(bytes)` must return a prebuilt payload of `bytes`; `send()` publishes it.
-  template <typename Prepare, typename Send>
-  bool handle(const Wire& in, Nanos taken, std::uint64_t copies, Prepare&& prepare, Send&& send) {
+  template <typename Prepare, typename Send, typename Control>
+  bool handle(const Wire& in, Nanos taken, std::uint64_t copies, Prepare&& prepare, Send&& send,
+              Control&& control) {
+    Wire answer;
+    answer.kind = Kind::kReady;
     switch (in.kind) {
       case Kind::kPing: {
         void* p = prepare(in.bytes);
         Wire w = readWire(p);
-        w.echo = taken - in.stamp;
-        w.aux = copies;
+        w.value = taken - in.stamp;
+        w.copies = copies;
         w.kind = Kind::kPong;
         w.stamp = steadyNow();
         writeWire(p, w);
         send();
-        prepare(in.bytes);  // the next pong, while the leader is busy
         return true;
       }
+      case Kind::kPrepare:
+        prepare(static_cast<std::size_t>(in.value));
+        control(answer);
+        return true;
       case Kind::kStream:
         ++streamed_;
         return true;
-      case Kind::kStreamEnd: {
-        void* p = prepare(kStreamBytes);
-        Wire w = readWire(p);
-        w.echo = streamed_;
-        w.kind = Kind::kPong;
-        w.stamp = steadyNow();
-        writeWire(p, w);
-        send();
+      case Kind::kStreamEnd:
+        answer.value = streamed_;
         streamed_ = 0;
+        control(answer);
         return true;
-      }
       default:
         return false;
     }
@@ -299,7 +324,15 @@ class Echo : public Actor {
       loan->getHeader().setStampNs(readWire(loan->getPayload().begin()).stamp);
       pong_.publish(std::move(loan));
     };
-    if (!logic_.handle(in, taken, copies, prepare, send)) quit_ = true;
+    auto control = [this](Wire w) {
+      auto loan = pong_.loan(kControlBytes + 64);
+      w.bytes = kControlBytes;
+      w.stamp = steadyNow();
+      setHeader(loan->initHeader(), w.stamp, "bench", pong_.nextSeq());
+      writeWire(loan->initPayload(kControlBytes).begin(), w);
+      pong_.publish(std::move(loan));
+    };
+    if (!logic_.handle(in, taken, copies, prepare, send, control)) quit_ = true;
   }
 
   std::atomic<bool>& quit_;
@@ -343,10 +376,10 @@ class RuntimeLeader final : public LeaderLink {
  public:
   RuntimeLeader(Runtime& rt, Catcher& catcher, const ShmTransport* transport)
       : pub_(rt.externalPublisher<msg::Blob>("ping")), catcher_(catcher), transport_(transport) {}
-  void build(std::size_t bytes, Kind kind) override {
+  void build(std::size_t bytes, Kind kind, std::int64_t value) override {
     next_.emplace(pub_.loan(bytes + 64));
     setHeader((*next_)->initHeader(), 0, "bench", pub_.nextSeq());
-    fillPayload((*next_)->initPayload(static_cast<unsigned>(bytes)).begin(), bytes, kind);
+    fillPayload((*next_)->initPayload(static_cast<unsigned>(bytes)).begin(), bytes, kind, value);
   }
   Nanos send() override {
     auto loan = std::move(*next_);
@@ -357,7 +390,9 @@ class RuntimeLeader final : public LeaderLink {
     writeWire(p, w);
     loan->getHeader().setStampNs(w.stamp);
     pub_.publish(std::move(loan));
-    if (w.kind == Kind::kPing || w.kind == Kind::kStreamEnd) ++expected_;
+    if (w.kind == Kind::kPing || w.kind == Kind::kPrepare || w.kind == Kind::kStreamEnd) {
+      ++expected_;
+    }
     return w.stamp;
   }
   std::pair<Wire, Nanos> receive() override { return catcher_.await(expected_); }
@@ -485,15 +520,21 @@ class RawEnd {
   }
 
   /// A loaned chunk of `bytes` with its payload written (kept until published).
-  void* prepare(std::size_t bytes, Kind kind) {
+  void* prepare(std::size_t bytes, Kind kind, std::int64_t value = 0) {
     if (next_ != nullptr && next_bytes_ == bytes) return next_;
     if (next_ != nullptr) publisher_->release(next_);
-    auto r = publisher_->loan(static_cast<std::uint32_t>(bytes), alignof(Wire));
-    if (r.has_error()) throw std::runtime_error("raw iceoryx: loan failed");
-    next_ = r.value();
+    next_ = loan(bytes);
     next_bytes_ = bytes;
-    fillPayload(next_, bytes, kind);
+    fillPayload(next_, bytes, kind, value);
     return next_;
+  }
+  /// Builds and publishes a control message now, leaving the prepared chunk alone.
+  void control(Wire w) {
+    void* p = loan(kControlBytes);
+    w.bytes = kControlBytes;
+    w.stamp = steadyNow();
+    writeWire(p, w);
+    publisher_->publish(p);
   }
   /// The chunk prepare() returned last.
   void* current() const { return next_; }
@@ -521,6 +562,12 @@ class RawEnd {
   std::optional<iox::popo::UntypedPublisher> publisher_;
   std::optional<iox::popo::UntypedSubscriber> subscriber_;
   iox::popo::WaitSet<> waitset_;
+  void* loan(std::size_t bytes) {
+    auto r = publisher_->loan(static_cast<std::uint32_t>(bytes), alignof(Wire));
+    if (r.has_error()) throw std::runtime_error("raw iceoryx: loan failed");
+    return r.value();
+  }
+
   void* next_ = nullptr;
   std::size_t next_bytes_ = 0;
 };
@@ -528,11 +575,8 @@ class RawEnd {
 class RawLeader final : public LeaderLink {
  public:
   RawLeader() : end_("ping", "pong") { end_.waitConnected(10s); }
-  void build(std::size_t bytes, Kind kind) override {
-    void* p = end_.prepare(bytes, kind);
-    Wire w = readWire(p);
-    w.kind = kind;
-    writeWire(p, w);
+  void build(std::size_t bytes, Kind kind, std::int64_t value) override {
+    end_.prepare(bytes, kind, value);
   }
   Nanos send() override {
     void* p = end_.current();
@@ -562,7 +606,7 @@ int rawFollower() {
     end.take([&](const Wire& in, Nanos taken) {
       more = logic.handle(
           in, taken, 0, [&](std::size_t bytes) { return end.prepare(bytes, Kind::kPong); },
-          [&] { end.publish(); });
+          [&] { end.publish(); }, [&](const Wire& w) { end.control(w); });
     });
   }
   return 0;
@@ -628,12 +672,20 @@ class UdsReader {
 class UdsSender {
  public:
   explicit UdsSender(int fd) : fd_(fd), buffer_(kSizes.back()) {}
-  void* prepare(std::size_t bytes, Kind kind) {
+  void* prepare(std::size_t bytes, Kind kind, std::int64_t value = 0) {
     if (bytes_ != bytes) {
-      fillPayload(buffer_.data(), bytes, kind);
+      fillPayload(buffer_.data(), bytes, kind, value);
       bytes_ = bytes;
     }
     return buffer_.data();
+  }
+  /// Sends a control message now, leaving the prepared buffer alone.
+  void control(Wire w) {
+    std::array<std::byte, kControlBytes> small{};
+    w.bytes = kControlBytes;
+    w.stamp = steadyNow();
+    writeWire(small.data(), w);
+    writeAll(fd_, small.data(), small.size());
   }
   void* current() { return buffer_.data(); }
   void send() {
@@ -650,7 +702,9 @@ class UdsSender {
 class UdsLeader final : public LeaderLink {
  public:
   explicit UdsLeader(int fd) : sender_(fd), reader_(fd) {}
-  void build(std::size_t bytes, Kind kind) override { sender_.prepare(bytes, kind); }
+  void build(std::size_t bytes, Kind kind, std::int64_t value) override {
+    sender_.prepare(bytes, kind, value);
+  }
   Nanos send() override {
     void* p = sender_.current();
     Wire w = readWire(p);
@@ -674,7 +728,7 @@ int udsFollower(int fd) {
     const auto [in, taken] = reader.next();
     const bool more = logic.handle(
         in, taken, 0, [&](std::size_t bytes) { return sender.prepare(bytes, Kind::kPong); },
-        [&] { sender.send(); });
+        [&] { sender.send(); }, [&](const Wire& w) { sender.control(w); });
     if (!more) return 0;
   }
 }
