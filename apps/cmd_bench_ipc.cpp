@@ -762,8 +762,8 @@ class InterruptGuard {
   }
 
  private:
-  struct sigaction old_int_ {
-  }, old_term_{};
+  struct sigaction old_int_ = {};
+  struct sigaction old_term_ = {};
 };
 
 /// Leader and follower of one transport. Destruction kills and reaps whatever still runs.
@@ -806,8 +806,14 @@ class Pair {
     const auto deadline = std::chrono::steady_clock::now() + timeout;
     std::string failure;
     while (!running_.empty()) {
+      pid_t pid = 0;
       int status = 0;
-      const pid_t pid = ::waitpid(-1, &status, WNOHANG);
+      for (pid_t p : running_) {
+        if (::waitpid(p, &status, WNOHANG) == p) {
+          pid = p;
+          break;
+        }
+      }
       if (pid > 0) {
         running_.erase(std::remove(running_.begin(), running_.end(), pid), running_.end());
         const bool ok = WIFEXITED(status) && WEXITSTATUS(status) == 0;
@@ -834,11 +840,36 @@ class Pair {
   std::vector<pid_t> running_;
 };
 
+/// iceoryx leaves the socket /tmp/NAME and the lock /tmp/NAME.lock of a runtime whose process
+/// did not deregister (the children _exit, or were killed); removed when this goes, after the
+/// children are reaped.
+class RuntimeFiles {
+ public:
+  explicit RuntimeFiles(std::vector<std::string> names) : names_(std::move(names)) {}
+  ~RuntimeFiles() {
+    namespace fs = std::filesystem;
+    for (const auto& name : names_) {
+      std::error_code ec;
+      const fs::path socket = fs::path("/tmp") / name;
+      if (fs::is_socket(fs::symlink_status(socket, ec))) fs::remove(socket, ec);
+      fs::remove(fs::path("/tmp") / (name + ".lock"), ec);
+    }
+  }
+  RuntimeFiles(const RuntimeFiles&) = delete;
+  RuntimeFiles& operator=(const RuntimeFiles&) = delete;
+
+ private:
+  std::vector<std::string> names_;
+};
+
 /// Runs leader and follower of one transport in two children and returns the leader's result.
+/// `runtimes`: the iceoryx runtime names the children register.
 TransportResult runPair(const std::string& name, const Options& o,
                         const std::function<void(TransportResult&)>& leader,
-                        const std::function<int()>& follower) {
+                        const std::function<int()>& follower,
+                        std::vector<std::string> runtimes = {}) {
   SharedResult shared;
+  RuntimeFiles files(std::move(runtimes));  // destroyed after `pair` reaped the children
   Pair pair;
   pair.spawn(follower, shared.get());
   pair.spawn(
@@ -885,15 +916,6 @@ class StdoutToStderr {
   int saved_ = -1;
 };
 
-/// iceoryx leaves /tmp/NAME.lock of a runtime whose process exited without deregistering (the
-/// children _exit); removed once they are reaped.
-void removeRuntimeLocks(std::initializer_list<const char*> names) {
-  for (const char* name : names) {
-    std::error_code ec;
-    std::filesystem::remove(std::filesystem::path("/tmp") / (std::string(name) + ".lock"), ec);
-  }
-}
-
 std::vector<MemPool> benchPools() {
   std::vector<ChunkDemand> demands;
   for (std::size_t bytes : kSizes) {
@@ -919,7 +941,8 @@ struct Row {
 struct Target {
   std::string name, description;
   double value = 0, limit = 0;
-  bool at_most = true;  // value <= limit, else value >= limit
+  bool at_most = true;      // value <= limit, else value >= limit
+  std::size_t payload = 0;  // the size the value was taken at, when one of several
   bool met() const { return at_most ? value <= limit : value >= limit; }
 };
 
@@ -940,8 +963,8 @@ std::vector<Target> evaluate(const std::vector<Row>& rows) {
     }
   }
   t.push_back({"iceoryx_over_raw_p50_worst",
-               "one-way p50, ours / raw iceoryx, worst size (" + std::to_string(worst_at) + " B)",
-               worst, 1.5, true});
+               "one-way p50, ours / raw iceoryx, worst at " + std::to_string(worst_at) + " B",
+               worst, 1.5, true, worst_at});
   const double flat =
       find("iceoryx", kSizes.back()).r.p50_us / find("iceoryx", kSizes.front()).r.p50_us;
   t.push_back({"iceoryx_p50_4MiB_over_64B", "one-way p50, ours, 4 MiB / 64 B", flat, 1.3, true});
@@ -986,6 +1009,7 @@ void print(const std::vector<Row>& rows, const std::vector<Target>& targets, con
     for (const auto& t : targets) {
       j["targets"][t.name] = {
           {"value", t.value}, {t.at_most ? "max" : "min", t.limit}, {"met", t.met()}};
+      if (t.payload != 0) j["targets"][t.name]["payload_bytes"] = t.payload;
     }
     std::cout << j.dump(2) << "\n";
     return;
@@ -1011,7 +1035,7 @@ void print(const std::vector<Row>& rows, const std::vector<Target>& targets, con
   }
   std::cout << "\n";
   for (const auto& t : targets) {
-    std::cout << std::left << std::setw(48) << t.description << std::right
+    std::cout << std::left << std::setw(56) << t.description << std::right
               << std::setprecision(t.value >= 1000 ? 0 : 2) << std::setw(12) << t.value << "   "
               << (t.at_most ? "<= " : ">= ") << std::setprecision(t.limit >= 1000 ? 0 : 1)
               << t.limit << (t.met() ? "   met" : "   NOT met") << "\n";
@@ -1032,15 +1056,13 @@ void runBench(const Options& o) {
     addRows(rows, "iceoryx",
             runPair(
                 "iceoryx", o, [&](TransportResult& r) { shmLeader(max_chunk, o, r); },
-                [&] { return shmFollower(max_chunk); }),
+                [&] { return shmFollower(max_chunk); }, {kShmLeaderName, kShmFollowerName}),
             true);
-    removeRuntimeLocks({kShmLeaderName, kShmFollowerName});
     addRows(rows, "iceoryx_raw",
             runPair(
                 "iceoryx_raw", o, [&](TransportResult& r) { rawLeader(o, r); },
-                [] { return rawFollower(); }),
+                [] { return rawFollower(); }, {kRawLeaderName, kRawFollowerName}),
             false);
-    removeRuntimeLocks({kRawLeaderName, kRawFollowerName});
   }
   int fds[2];
   if (::socketpair(AF_UNIX, SOCK_STREAM | SOCK_CLOEXEC, 0, fds) != 0) {
