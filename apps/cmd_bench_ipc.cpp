@@ -128,11 +128,11 @@ struct TransportResult {
   std::array<SizeResult, kSizes.size()> sizes{};
   double msgs_per_s = 0;
   bool complete = false;
-  char error[256] = {};
+  std::array<char, 256> leader_error{}, follower_error{};  // what ended a child, if anything
 };
 
-void setError(TransportResult& r, const std::string& what) {
-  std::snprintf(r.error, sizeof r.error, "%s", what.c_str());
+void setError(std::array<char, 256>& error, const std::string& what) {
+  std::snprintf(error.data(), error.size(), "%s", what.c_str());
 }
 
 /// A TransportResult in an anonymous shared mapping (inherited by forked children, no file).
@@ -776,9 +776,9 @@ class Pair {
     }
   }
 
-  /// Forks a child running `body`; it exits 0 on success, 1 with the message in `result` on an
+  /// Forks a child running `body`; it exits 0 on success, 1 with the message in `error` on an
   /// exception, and dies with this process.
-  void spawn(const std::function<int()>& body, TransportResult& result) {
+  void spawn(const std::function<int()>& body, std::array<char, 256>& error) {
     const pid_t parent = ::getpid();
     std::fflush(nullptr);
     const pid_t pid = ::fork();
@@ -792,7 +792,7 @@ class Pair {
       try {
         code = body();
       } catch (const std::exception& e) {
-        setError(result, e.what());
+        setError(error, e.what());
       }
       std::fflush(nullptr);
       ::_exit(code);  // no static destructors: they belong to the parent's state
@@ -862,35 +862,75 @@ class RuntimeFiles {
   std::vector<std::string> names_;
 };
 
-/// Runs leader and follower of one transport in two children and returns the leader's result.
-/// `runtimes`: the iceoryx runtime names the children register.
-TransportResult runPair(const std::string& name, const Options& o,
-                        const std::function<void(TransportResult&)>& leader,
-                        const std::function<int()>& follower,
-                        std::vector<std::string> runtimes = {}) {
-  SharedResult shared;
-  RuntimeFiles files(std::move(runtimes));  // destroyed after `pair` reaped the children
-  Pair pair;
-  pair.spawn(follower, shared.get());
-  pair.spawn(
-      [&] {
-        leader(shared.get());
-        return 0;
-      },
-      shared.get());
-  // Generous: a sample takes a gap plus at most a few ms even at 4 MiB over the socket.
-  const auto timeout =
-      std::chrono::seconds(60 + static_cast<long>(o.samples) * static_cast<long>(kSizes.size()) *
-                                    (o.gap_us + 10000) / 1000000);
-  const std::string failure = pair.wait(timeout);
-  InterruptGuard::check();
-  TransportResult r = shared.get();
-  if (!failure.empty() || !r.complete) {
-    throw std::runtime_error("bench ipc: " + name + ": " +
-                             (r.error[0] != '\0' ? std::string(r.error) : failure));
+/// Leader and follower of one transport, forked when this is built and held at a gate until
+/// run(). The iceoryx pairs are built before RouDi starts, while this process has one thread:
+/// a child forked from a process whose other threads (RouDi's) may hold a lock at that moment
+/// can deadlock on it.
+class PairRun {
+ public:
+  /// `runtimes`: the iceoryx runtime names the children register.
+  PairRun(std::string name, const std::function<void(TransportResult&)>& leader,
+          const std::function<int()>& follower, std::vector<std::string> runtimes = {})
+      : name_(std::move(name)), files_(std::move(runtimes)) {
+    if (::pipe(gate_) != 0) throw std::runtime_error("bench ipc: pipe failed");
+    auto gated = [this](std::function<int()> body) {
+      return [this, body] {
+        ::close(gate_[1]);
+        char go = 0;
+        if (::read(gate_[0], &go, 1) != 1) return 1;  // the bench gave up before starting
+        ::close(gate_[0]);
+        setIceoryxLogLevel("error");  // as RouDiHost sets it, after these were forked
+        return body();
+      };
+    };
+    pair_.spawn(gated(follower), shared_.get().follower_error);
+    pair_.spawn(gated([this, leader] {
+                  leader(shared_.get());
+                  return 0;
+                }),
+                shared_.get().leader_error);
+    ::close(gate_[0]);
+    gate_[0] = -1;
   }
-  return r;
-}
+  ~PairRun() { closeGate(); }
+  PairRun(const PairRun&) = delete;
+  PairRun& operator=(const PairRun&) = delete;
+
+  /// Lets both children start, waits for them and returns the leader's result.
+  TransportResult run(const Options& o) {
+    const char go[2] = {1, 1};
+    if (::write(gate_[1], go, sizeof go) != static_cast<ssize_t>(sizeof go)) {
+      throw std::runtime_error("bench ipc: " + name_ + ": cannot start the children");
+    }
+    closeGate();
+    // Generous: a sample takes a gap plus at most a few ms even at 4 MiB over the socket.
+    const auto timeout =
+        std::chrono::seconds(60 + static_cast<long>(o.samples) * static_cast<long>(kSizes.size()) *
+                                      (o.gap_us + 10000) / 1000000);
+    const std::string failure = pair_.wait(timeout);
+    InterruptGuard::check();
+    TransportResult r = shared_.get();
+    if (!failure.empty() || !r.complete) {
+      throw std::runtime_error(
+          "bench ipc: " + name_ + ": " +
+          (r.leader_error[0] != '\0' ? std::string(r.leader_error.data()) : failure) +
+          (r.follower_error[0] != '\0' ? "; " + std::string(r.follower_error.data()) : ""));
+    }
+    return r;
+  }
+
+ private:
+  void closeGate() {
+    if (gate_[1] >= 0) ::close(gate_[1]);
+    gate_[1] = -1;
+  }
+
+  std::string name_;
+  SharedResult shared_;
+  RuntimeFiles files_;  // destroyed after `pair_` reaped the children
+  Pair pair_;
+  int gate_[2] = {-1, -1};
+};
 
 /// Redirects this process's stdout (and its children's) to stderr while it lives.
 class StdoutToStderr {
@@ -1049,20 +1089,21 @@ void runBench(const Options& o) {
   InterruptGuard interrupts;
   std::vector<Row> rows;
   {
+    const auto pools = benchPools();
+    std::size_t max_chunk = 0;
+    for (const auto& p : pools) max_chunk = std::max(max_chunk, p.chunk_bytes);
+    PairRun shm(
+        "iceoryx", [&](TransportResult& r) { shmLeader(max_chunk, o, r); },
+        [&] { return shmFollower(max_chunk); }, {kShmLeaderName, kShmFollowerName});
+    PairRun raw(
+        "iceoryx_raw", [&](TransportResult& r) { rawLeader(o, r); }, [] { return rawFollower(); },
+        {kRawLeaderName, kRawFollowerName});
     // RouDi prints its start-up to stdout, which belongs to the report (one JSON object).
     StdoutToStderr quiet;
-    RouDiHost roudi(RouDiHostOptions{benchPools()});
-    const std::size_t max_chunk = roudi.maxChunkBytes();
-    addRows(rows, "iceoryx",
-            runPair(
-                "iceoryx", o, [&](TransportResult& r) { shmLeader(max_chunk, o, r); },
-                [&] { return shmFollower(max_chunk); }, {kShmLeaderName, kShmFollowerName}),
-            true);
-    addRows(rows, "iceoryx_raw",
-            runPair(
-                "iceoryx_raw", o, [&](TransportResult& r) { rawLeader(o, r); },
-                [] { return rawFollower(); }, {kRawLeaderName, kRawFollowerName}),
-            false);
+    RouDiHost roudi(RouDiHostOptions{pools});
+    if (roudi.maxChunkBytes() != max_chunk) throw std::logic_error("bench ipc: pool sizes");
+    addRows(rows, "iceoryx", shm.run(o), true);
+    addRows(rows, "iceoryx_raw", raw.run(o), false);
   }
   int fds[2];
   if (::socketpair(AF_UNIX, SOCK_STREAM | SOCK_CLOEXEC, 0, fds) != 0) {
@@ -1070,19 +1111,18 @@ void runBench(const Options& o) {
   }
   try {
     // Each child closes the other end, so a dead peer shows as a closed socket.
-    addRows(rows, "uds",
-            runPair(
-                "uds", o,
-                [&](TransportResult& r) {
-                  ::close(fds[1]);
-                  UdsLeader link(fds[0]);
-                  lead(link, o, r);
-                },
-                [&] {
-                  ::close(fds[0]);
-                  return udsFollower(fds[1]);
-                }),
-            false);
+    PairRun uds(
+        "uds",
+        [&](TransportResult& r) {
+          ::close(fds[1]);
+          UdsLeader link(fds[0]);
+          lead(link, o, r);
+        },
+        [&] {
+          ::close(fds[0]);
+          return udsFollower(fds[1]);
+        });
+    addRows(rows, "uds", uds.run(o), false);
   } catch (...) {
     ::close(fds[0]);
     ::close(fds[1]);
