@@ -11,6 +11,7 @@
 // Throughput: the same publisher sends as fast as it can into reliable mailboxes while the
 // subscribers stay busy; msgs_per_s counts published messages fully delivered per second.
 // payload_copies counts deliveries whose bytes were not the published bytes.
+#include "bench_util.hpp"
 #include "commands.hpp"
 
 #include <tessera/messages/types.hpp>
@@ -47,18 +48,6 @@ struct Row {
   std::uint64_t copies = 0;
   bool has_copies = false;
 };
-
-double percentile(std::vector<double> v, double q) {
-  if (v.empty()) return 0;
-  std::sort(v.begin(), v.end());
-  return v[std::min(v.size() - 1, static_cast<std::size_t>(q * static_cast<double>(v.size())))];
-}
-
-// The waiting publisher yields its core: on a 2-core machine a pure spin would compete with
-// the executor threads it is waiting for. The floor waits the same way.
-void spinUntil(const std::atomic<int>& value, int target) {
-  while (value.load(std::memory_order_acquire) < target) std::this_thread::yield();
-}
 
 // Drops `storage` once no subscriber holds it any more.
 void waitReleased(std::shared_ptr<const MessageStorage>& storage) {

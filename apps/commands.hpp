@@ -24,6 +24,8 @@ void addGraphCommand(CLI::App& app, int& result);
 void addBenchGraphCommand(CLI::App& bench, int& result);
 /// Adds `tessera bench runtime`.
 void addBenchRuntimeCommand(CLI::App& bench, int& result);
+/// Adds `tessera bench ipc` (two processes: our iceoryx transport vs raw iceoryx, a Unix socket).
+void addBenchIpcCommand(CLI::App& bench, int& result);
 /// Adds `tessera bench rbpf` (laser SLAM accuracy, CPU and memory on a CARMEN log).
 void addBenchRbpfCommand(CLI::App& bench, int& result);
 /// Adds `tessera bench landmarks` (landmark SLAM accuracy over seeds, cost vs map size).

@@ -19,6 +19,7 @@ int main(int argc, char** argv) {
   auto* bench = app.add_subcommand("bench", "benchmarks that print their figures and the machine");
   bench->require_subcommand(1);
   tessera::app::addBenchRuntimeCommand(*bench, result);
+  tessera::app::addBenchIpcCommand(*bench, result);
   tessera::app::addBenchRbpfCommand(*bench, result);
   tessera::app::addBenchGraphCommand(*bench, result);
   tessera::app::addBenchLandmarksCommand(*bench, result);

@@ -1,0 +1,60 @@
+// `tessera bench ipc --json`: runs end to end (RouDi, forked leader and follower, every transport)
+// and reports one JSON object of the documented shape. Timing targets are reported, not asserted.
+#include "../apps/cli_run.hpp"
+
+#include <nlohmann/json.hpp>
+
+#include <catch2/catch.hpp>
+
+#include <filesystem>
+#include <set>
+
+using tessera::test::runCli;
+
+TEST_CASE("bench ipc prints one JSON object with rows for every transport and size", "[shm]") {
+  const auto dir = std::filesystem::temp_directory_path() / "tessera_bench_ipc_test";
+  std::filesystem::create_directories(dir);
+  const auto run = runCli("bench ipc --samples 50 --stream-seconds 0.2 --json", dir);
+  INFO(run.err);
+  REQUIRE(run.exit_code == 0);
+  const auto j = nlohmann::json::parse(run.out);  // throws unless stdout is exactly JSON
+  CHECK(j["machine"].is_string());
+  CHECK(j["samples"] == 50);
+
+  std::set<std::pair<std::string, std::size_t>> seen;
+  for (const auto& row : j["results"]) {
+    const std::string transport = row["transport"];
+    const std::size_t bytes = row["payload_bytes"];
+    seen.insert({transport, bytes});
+    INFO(transport << " " << bytes);
+    CHECK(row["p50_us"].get<double>() > 0);
+    CHECK(row["p99_us"].get<double>() >= row["p50_us"].get<double>());
+    CHECK(row["round_trip_p50_us"].get<double>() > 0);
+    if (bytes == 64) {
+      CHECK(row["msgs_per_s"].get<double>() > 0);
+    } else {
+      CHECK(row["msgs_per_s"].is_null());
+    }
+    if (transport == "iceoryx") {
+      CHECK(row["payload_copies"] == 0);  // every message built in its loaned chunk
+    }
+  }
+  for (const char* transport : {"iceoryx", "iceoryx_raw", "uds", "inproc"}) {
+    for (std::size_t bytes : {64u, 4096u, 1u << 20, 4u << 20}) {
+      CHECK(seen.count({transport, bytes}) == 1);
+    }
+  }
+
+  for (const char* target :
+       {"iceoryx_over_raw_p50_worst", "iceoryx_p50_4MiB_over_64B", "uds_over_iceoryx_p50_1MiB",
+        "uds_over_iceoryx_p50_4MiB", "iceoryx_msgs_per_s_64B"}) {
+    INFO(target);
+    REQUIRE(j["targets"].contains(target));
+    CHECK(j["targets"][target]["value"].get<double>() > 0);
+    CHECK(j["targets"][target]["met"].is_boolean());
+  }
+  // Nothing left behind: RouDi's shared memory and the children's runtime locks are gone.
+  CHECK_FALSE(std::filesystem::exists("/dev/shm/iceoryx_mgmt"));
+  CHECK_FALSE(std::filesystem::exists("/tmp/tessera_bench_ipc_leader.lock"));
+  std::filesystem::remove_all(dir);
+}
