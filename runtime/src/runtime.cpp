@@ -127,17 +127,27 @@ void Runtime::Impl::publish(detail::TopicState* topic, std::uint32_t owner,
 }
 
 void Runtime::Impl::deliver(detail::TopicState* topic,
-                            std::shared_ptr<const MessageStorage> message) {
+                            std::shared_ptr<const MessageStorage> message,
+                            ImportDelivery delivery) {
+  if (!started || options.manual) delivery = ImportDelivery::kSchedule;
   const auto n = topic->subscribers.size();
+  if (message) {
+    for (std::size_t i = 0; i < n; ++i) {
+      const auto& sub = topic->subscribers[i];
+      // The last subscriber takes the publisher's reference; the others share it (zero copy).
+      Item item{static_cast<std::int32_t>(sub.slot), 0, i + 1 == n ? std::move(message) : message};
+      enqueue(*cells[sub.cell], std::move(item), delivery == ImportDelivery::kSchedule);
+    }
+  }
+  if (delivery != ImportDelivery::kRunHere) return;
   for (std::size_t i = 0; i < n; ++i) {
-    const auto& sub = topic->subscribers[i];
-    // The last subscriber takes the publisher's reference; the others share it (zero copy).
-    Item item{static_cast<std::int32_t>(sub.slot), 0, i + 1 == n ? std::move(message) : message};
-    enqueue(*cells[sub.cell], std::move(item));
+    Cell& cell = *cells[topic->subscribers[i].cell];
+    // A busy strand's runner may be past its last look at the inbox: schedule another drain.
+    if (!drainIfFree(cell)) schedule(cell);
   }
 }
 
-void Runtime::Impl::enqueue(Cell& cell, Item item) {
+void Runtime::Impl::enqueue(Cell& cell, Item item, bool schedule_it) {
   std::unique_lock lock(cell.mutex);
   if (item.slot >= 0) {
     auto& slot = cell.slots[static_cast<std::size_t>(item.slot)];
@@ -179,7 +189,7 @@ void Runtime::Impl::enqueue(Cell& cell, Item item) {
   cell.queue.push_back(std::move(item));
   cell.max_depth = std::max<std::uint64_t>(cell.max_depth, cell.queue.size());
   lock.unlock();
-  if (!options.manual && started) schedule(cell);
+  if (schedule_it && !options.manual && started) schedule(cell);
 }
 
 void Runtime::Impl::schedule(Cell& cell) {
@@ -256,13 +266,18 @@ void StrandPool::loop() {
 
 void Runtime::Impl::drainTask(Cell& cell) {
   cell.scheduled.store(false);
-  if (!cell.strand.try_lock()) return;  // another thread drains; it re-checks on release
+  drainIfFree(cell);  // when another thread drains, it re-checks on release
+}
+
+bool Runtime::Impl::drainIfFree(Cell& cell) {
+  if (!cell.strand.try_lock()) return false;
   drainLocked(cell, 64);
   cell.strand.unlock();
   std::unique_lock lock(cell.mutex);
   const bool more = !cell.queue.empty();
   lock.unlock();
   if (more) schedule(cell);
+  return true;
 }
 
 std::size_t Runtime::Impl::drainLocked(Cell& cell, std::size_t budget) {
@@ -516,8 +531,9 @@ ImportFn Runtime::importTopic(const std::string& topic, MessageType type) {
   if (impl_->configured) throw std::logic_error("importTopic after configure()");
   auto* t = &impl_->topic(topic, type, "(import)", true);
   auto* rt = impl_.get();
-  return [rt, t](std::shared_ptr<const MessageStorage> message, bool loopback) {
-    rt->deliver(t, std::move(message));
+  return [rt, t](std::shared_ptr<const MessageStorage> message, bool loopback,
+                 ImportDelivery delivery) {
+    rt->deliver(t, std::move(message), delivery);
     if (loopback) rt->releaseWork(1);
   };
 }

@@ -178,10 +178,15 @@ struct Runtime::Impl {
   void publish(detail::TopicState* topic, std::uint32_t owner,
                std::shared_ptr<const MessageStorage> message);
   /// Hands `message` to this process's subscribers of `topic`.
-  void deliver(detail::TopicState* topic, std::shared_ptr<const MessageStorage> message);
-  void enqueue(detail::Cell& cell, detail::Item item);
+  /// Queues `message` (unless null) for the topic's subscribers; see ImportDelivery.
+  void deliver(detail::TopicState* topic, std::shared_ptr<const MessageStorage> message,
+               ImportDelivery delivery = ImportDelivery::kSchedule);
+  void enqueue(detail::Cell& cell, detail::Item item, bool schedule_it = true);
   void schedule(detail::Cell& cell);
   void drainTask(detail::Cell& cell);
+  /// Runs up to a budget of `cell`'s items on this thread if nobody else does (then schedules
+  /// the rest); false when another thread holds its strand.
+  bool drainIfFree(detail::Cell& cell);
   /// Runs up to `budget` items of `cell`; caller holds cell.strand.
   std::size_t drainLocked(detail::Cell& cell, std::size_t budget);
   void dispatch(detail::Cell& cell, detail::Item& item);

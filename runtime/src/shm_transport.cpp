@@ -55,6 +55,9 @@ struct ShmTransport::Impl {
   std::optional<iox::popo::UserTrigger> wake;
   std::thread receiver;
   std::atomic<bool> quit{false};
+  // The receiving thread may run handlers itself unless a handler it runs could publish into a
+  // full queue that only this same thread empties (a topic this process sends and receives).
+  bool run_handlers_here = true;
 };
 
 /// A message being built in (the first segment of) a loaned chunk. Further segments, if the
@@ -343,6 +346,7 @@ void ShmTransport::attach(Runtime& runtime, const std::vector<ShmTopic>& topics)
       import->deliver = runtime.importTopic(t.name, t.type);
       impl_->imports.push_back(std::move(import));
     }
+    if (t.loopback) impl_->run_handlers_here = false;
     if (t.exported) {
       auto e = std::make_shared<ShmExport>(t, impl_->options, *impl_);
       impl_->exports.push_back(e);
@@ -384,12 +388,15 @@ void ShmTransport::startReceiving() {
     while (!impl->quit.load()) {
       auto notes = waitset.wait();
       for (auto& i : impl->imports) {
+        int deferred = 0;  // queued without running, in this batch
         for (;;) {
           const void* payload = nullptr;
+          bool more = false;
           {
             std::lock_guard lock(i->mutex);
             if (i->subscriber->hasMissedData()) ++impl->drops;
             auto r = i->subscriber->take();
+            more = !r.has_error() && i->subscriber->hasData();
             if (r.has_error()) {
               if (r.get_error() ==
                   iox::popo::ChunkReceiveResult::TOO_MANY_CHUNKS_HELD_IN_PARALLEL) {
@@ -427,10 +434,17 @@ void ShmTransport::startReceiving() {
             continue;
           }
           const bool loopback = prefix.origin == impl->options.process_index && i->topic.loopback;
-          i->deliver(std::move(view), loopback);
+          // A burst is queued whole and run once: one pass over the strands per batch.
+          auto delivery = ImportDelivery::kSchedule;
+          if (impl->run_handlers_here) {
+            delivery = more && deferred < 32 ? ImportDelivery::kDefer : ImportDelivery::kRunHere;
+          }
+          deferred = delivery == ImportDelivery::kDefer ? deferred + 1 : 0;
+          i->deliver(std::move(view), loopback, delivery);
           ++impl->received;
           if (impl->options.received != nullptr) impl->options.received->fetch_add(1);
         }
+        if (deferred > 0) i->deliver(nullptr, false, ImportDelivery::kRunHere);
       }
     }
   });

@@ -35,9 +35,18 @@ class TopicExport {
   virtual bool loopsBack() const = 0;
 };
 
+/// How an imported message reaches its subscribers' handlers:
+///  kSchedule: an executor thread runs them (the receiving thread only queues);
+///  kDefer:    queued only; more messages of the topic follow at once (a batch);
+///  kRunHere:  the receiving thread runs the handlers itself when their strands are free, so a
+///             message costs one wake-up (the transport's) instead of two. A null message with
+///             kRunHere only runs what earlier kDefer calls queued.
+enum class ImportDelivery { kSchedule, kDefer, kRunHere };
+
 /// Delivers one message from outside to this process's subscribers. `loopback`: the message was
 /// sent by this process (its TopicExport) and is now pending work being returned.
-using ImportFn = std::function<void(std::shared_ptr<const MessageStorage> message, bool loopback)>;
+using ImportFn = std::function<void(std::shared_ptr<const MessageStorage> message, bool loopback,
+                                    ImportDelivery delivery)>;
 
 class RunCoordinator {
  public:
