@@ -282,7 +282,7 @@ const std::atomic<std::uint32_t> TiledGrid::kAllOccupied[kTileSide] = {
     ~0u, ~0u, ~0u, ~0u, ~0u, ~0u, ~0u, ~0u, ~0u, ~0u, ~0u, ~0u, ~0u, ~0u, ~0u, ~0u};
 
 const std::atomic<std::uint32_t>* TiledGrid::occupancySlow(const Tile& t, float threshold,
-                                                            int which) {
+                                                           int which) {
   // Per thread, as the cache: the caller reads at most two tiles' rows at a time.
   thread_local std::atomic<std::uint32_t> scratch_rows[2][kTileSide];
   std::atomic<std::uint32_t>* scratch = scratch_rows[which];

@@ -277,8 +277,8 @@ template <class Grid, bool kScore>
 ScanMatcher::Eval ScanMatcher::evaluate(const Grid& grid, const ScanPoints& points,
                                         const Pose2& pose) const {
   if constexpr (detail::OccupancyRowGrid<Grid>) {
-    const bool near_free_check = options_.free_check_offset < 0.0 ||
-                                 options_.free_check_offset / grid.resolution() < 1.5;
+    const bool near_free_check =
+        options_.free_check_offset < 0.0 || options_.free_check_offset / grid.resolution() < 1.5;
     if (options_.kernel_radius <= kMaxBitRadius && near_free_check) {
       if constexpr (detail::HitPointGrid<Grid>) {
         if (grid.tracksHitPoints())
@@ -354,27 +354,26 @@ ScanMatcher::Eval ScanMatcher::evaluateBeams(const Grid& grid, const ScanPoints&
     }
     const bool check_back = free_check && back != Eigen::Vector2i::Zero();
     // kBits: candidate bits of the window, row dy + r, bit dx + r + 1 (bit 0 is the border).
-    std::uint32_t cand_rows[2 * kMaxBitRadius + 1];
+    std::uint32_t occ[kBits ? 2 * kMaxBitRadius + 3 : 1];
+    std::uint32_t cand_rows[kBits && kHitPoints ? 2 * kMaxBitRadius + 1 : 1];
     std::uint32_t any_candidate = 1;
+    const std::uint32_t window = ((std::uint32_t{1} << (2 * r + 1)) - 1) << 1;
+    // Branch-free (back varies from beam to beam): a cell is blocked when its free-check cell,
+    // one row up/down and one bit right/left, is occupied.
+    const int back_right = back.x() > 0, back_left = back.x() < 0;
+    const std::uint32_t back_mask = check_back ? ~std::uint32_t{0} : 0u;
+    auto candidateRow = [&](int i) {
+      const std::uint32_t behind = occ[i + 1 + back.y()];
+      const std::uint32_t blocked = ((behind >> back_right) << back_left) & back_mask;
+      return occ[i + 1] & ~blocked & window;
+    };
     if constexpr (kBits) {
       // Rows of the window plus a one-cell border, where the free-check cells of the window's
       // edge lie (|back| ≤ 1 per axis here).
-      std::uint32_t occ[2 * kMaxBitRadius + 3];
       grid.occupancyRows(cell.x() - r - 1, cell.y() - r - 1, 2 * r + 3, threshold, occ);
-      const std::uint32_t window = ((std::uint32_t{1} << (2 * r + 1)) - 1) << 1;
-      any_candidate = 0;
-      for (int i = 0; i <= 2 * r; ++i) {
-        std::uint32_t row = occ[i + 1];
-        if (check_back) {
-          // Bit j of `blocked` says whether the free-check cell of the window cell at bit j is
-          // occupied.
-          const std::uint32_t behind = occ[i + 1 + back.y()];
-          const std::uint32_t blocked =
-              back.x() > 0 ? behind >> 1 : (back.x() < 0 ? behind << 1 : behind);
-          row &= ~blocked;
-        }
-        cand_rows[i] = row & window;
-        any_candidate |= cand_rows[i];
+      if constexpr (kHitPoints) {
+        any_candidate = 0;
+        for (int i = 0; i <= 2 * r; ++i) any_candidate |= cand_rows[i] = candidateRow(i);
       }
     }
     auto candidate = [&](int dx, int dy) {
@@ -417,8 +416,8 @@ ScanMatcher::Eval ScanMatcher::evaluateBeams(const Grid& grid, const ScanPoints&
       const int centre = r + 1;  // bit of dx = 0
       const std::uint32_t below = (std::uint32_t{1} << centre) - 1;
       for (int i = 0; i <= 2 * r; ++i) {
-        const std::uint32_t row = cand_rows[i];
-        const int right = std::countr_zero(row >> centre);                   // dx ≥ 0
+        const std::uint32_t row = candidateRow(i);
+        const int right = std::countr_zero(row >> centre);             // dx ≥ 0
         const int left = 31 - std::countl_zero(row & below) - centre;  // dx < 0; −1−centre if none
         const float ry = uy - static_cast<float>(i - r) * resf;
         const float rr = ux - static_cast<float>(right) * resf;

@@ -267,8 +267,7 @@ class TiledGrid {
   /// is stale and free, else computes them into per-thread scratch number `which` (0 or 1),
   /// valid until the next call with that number (the cache holds another threshold or another
   /// thread is filling it).
-  static const std::atomic<std::uint32_t>* occupancySlow(const Tile& t, float threshold,
-                                                         int which);
+  static const std::atomic<std::uint32_t>* occupancySlow(const Tile& t, float threshold, int which);
   /// Drops this grid's reference to t, deleting it (as the grid's tile type) if it was the last.
   void releaseTile(Tile* t) noexcept;
   /// Folds the scan's hit endpoints into the tiles' mean hit positions.
