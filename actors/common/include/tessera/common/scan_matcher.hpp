@@ -415,8 +415,16 @@ ScanMatcher::Eval ScanMatcher::evaluateBeams(const Grid& grid, const ScanPoints&
       // so the same minimum.
       const int centre = r + 1;  // bit of dx = 0
       const std::uint32_t below = (std::uint32_t{1} << centre) - 1;
+      // Most rows of a window are empty (walls are thin), so only non-empty ones are scanned.
+      std::uint32_t rows[2 * kMaxBitRadius + 1];
+      std::uint32_t nonempty = 0;
       for (int i = 0; i <= 2 * r; ++i) {
-        const std::uint32_t row = candidateRow(i);
+        rows[i] = candidateRow(i);
+        nonempty |= static_cast<std::uint32_t>(rows[i] != 0) << i;
+      }
+      for (; nonempty != 0; nonempty &= nonempty - 1) {
+        const int i = std::countr_zero(nonempty);
+        const std::uint32_t row = rows[i];
         const int right = std::countr_zero(row >> centre);             // dx ≥ 0
         const int left = 31 - std::countl_zero(row & below) - centre;  // dx < 0; −1−centre if none
         const float ry = uy - static_cast<float>(i - r) * resf;
@@ -465,7 +473,9 @@ MatchResult ScanMatcher::match(const Grid& grid, const ScanPoints& points,
   if (points.empty() || !initial.isFinite()) return result;
 
   Pose2 pose = initial;
-  double best = score(grid, points, pose);
+  // The score pass also yields the likelihood and matched count, kept for the best pose so
+  // the result needs no extra pass.
+  Eval best = evaluate<Grid, true>(grid, points, pose);
   int evaluations = 1;
   double linear = options_.linear_step, angular = options_.angular_step;
   int halvings = 0;
@@ -482,9 +492,9 @@ MatchResult ScanMatcher::match(const Grid& grid, const ScanPoints& points,
       // cannot be chosen and is not recomputed (it still counts, keeping max_iterations' cap
       // where it was).
       if (m == back_move) continue;
-      const double sc = score(grid, points, moves[m]);
-      if (sc > best) {
-        best = sc;
+      const Eval e = evaluate<Grid, true>(grid, points, moves[m]);
+      if (e.score > best.score) {
+        best = e;
         chosen = m;
       }
     }
@@ -500,9 +510,10 @@ MatchResult ScanMatcher::match(const Grid& grid, const ScanPoints& points,
   }
 
   result.pose = pose;
-  result.score = best;
+  result.score = best.score;
   result.evaluations = evaluations;
-  result.log_likelihood = logLikelihood(grid, points, pose, &result.matched_beams);
+  result.log_likelihood = best.log_likelihood;
+  result.matched_beams = best.matched;
   result.success =
       result.matched_beams > 0 &&
       result.matched_beams >= options_.min_score_fraction * static_cast<double>(points.size());
