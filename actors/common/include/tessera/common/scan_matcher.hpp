@@ -250,8 +250,9 @@ class ScanMatcher {
   template <class Grid, bool kScore>
   Eval evaluate(const Grid& grid, const ScanPoints& points, const Pose2& pose) const;
   /// evaluate() with d measured to cell centres or (kHitPoints) to the grid's hit points, and
-  /// candidates read from occupancy rows (kBits) or cell by cell.
-  template <class Grid, bool kScore, bool kHitPoints, bool kBits>
+  /// candidates read from occupancy rows (kBits) or cell by cell. kRadius > 0 fixes the kernel
+  /// radius at compile time (it must equal the option), so the row loops unroll.
+  template <class Grid, bool kScore, bool kHitPoints, bool kBits, int kRadius = 0>
   Eval evaluateBeams(const Grid& grid, const ScanPoints& points, const Pose2& pose) const;
   template <class Grid>
   std::vector<double> sampleLogLikelihood(const Grid& grid, const ScanPoints& points,
@@ -284,7 +285,15 @@ ScanMatcher::Eval ScanMatcher::evaluate(const Grid& grid, const ScanPoints& poin
         if (grid.tracksHitPoints())
           return evaluateBeams<Grid, kScore, true, true>(grid, points, pose);
       }
-      return evaluateBeams<Grid, kScore, false, true>(grid, points, pose);
+      // The RBPF's fine and coarse radii, unrolled: the bulk of its time.
+      switch (options_.kernel_radius) {
+        case 1:
+          return evaluateBeams<Grid, kScore, false, true, 1>(grid, points, pose);
+        case 4:
+          return evaluateBeams<Grid, kScore, false, true, 4>(grid, points, pose);
+        default:
+          return evaluateBeams<Grid, kScore, false, true>(grid, points, pose);
+      }
     }
   }
   if constexpr (detail::HitPointGrid<Grid>) {
@@ -293,13 +302,13 @@ ScanMatcher::Eval ScanMatcher::evaluate(const Grid& grid, const ScanPoints& poin
   return evaluateBeams<Grid, kScore, false, false>(grid, points, pose);
 }
 
-template <class Grid, bool kScore, bool kHitPoints, bool kBits>
+template <class Grid, bool kScore, bool kHitPoints, bool kBits, int kRadius>
 ScanMatcher::Eval ScanMatcher::evaluateBeams(const Grid& grid, const ScanPoints& points,
                                              const Pose2& pose) const {
   Eval out;
   if (points.empty() || !pose.isFinite()) return out;
   const double res = grid.resolution();
-  const int r = options_.kernel_radius;
+  const int r = kRadius > 0 ? kRadius : options_.kernel_radius;
   const float resf = static_cast<float>(res);
   const float big_r = (static_cast<float>(r) + 0.5f) * resf;
   const float big_r2 = big_r * big_r;

@@ -28,7 +28,7 @@
 // that share a tile share its bits too. The bits depend only on the tile's own cells, so a write
 // (which always goes to a tile this grid alone holds) simply drops that tile's bits; no
 // neighbouring tile is ever affected. One threshold is cached per tile; a request with another
-// threshold is answered from a temporary copy.
+// threshold is answered from a temporary copy. Cost: 136 bytes per tile (about 7 %).
 //
 // Thread safety: distinct TiledGrid objects may be written concurrently from different threads
 // even when they share tiles (e.g. particles updated in parallel with TBB after resampling):
