@@ -46,8 +46,10 @@
 // i}) > threshold; TiledGrid, which caches these bits per tile) is read a window at a time: the
 // candidates of a beam's window are found with a few word operations on 2r+3 rows instead of up
 // to 2·(2r+1)² logOdds() calls, and a beam whose window holds no candidate skips the walk. The
-// result is the same, bit for bit. Used when r ≤ kMaxBitRadius and the free-check offset is
-// under 1.5 cells (the default √2 cells is), so the free-check cell is a neighbour.
+// result is the same, bit for bit, except that the free-check direction is found by comparing
+// squares rather than rounding a quotient, which could differ only for a beam exactly on a
+// rounding boundary. Used when r ≤ kMaxBitRadius and the free-check offset is under 1.5 cells
+// (the default √2 cells is), so the free-check cell is a neighbour.
 //
 // A ScanMatcher holds only its options: all methods are const, allocate nothing per score
 // evaluation and may be called concurrently on grids nobody is writing.
