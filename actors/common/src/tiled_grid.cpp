@@ -3,6 +3,7 @@
 #include "scan_rasterizer.hpp"
 
 #include <algorithm>
+#include <bit>
 #include <cmath>
 #include <stdexcept>
 #include <string>
@@ -142,7 +143,11 @@ TiledGrid::Tile* TiledGrid::writableTile(std::size_t slot) {
     t = tracked ? new TrackedTile : new Tile;  // TrackedTile's hits start at zero (no hits)
     std::fill(std::begin(t->cells), std::end(t->cells), kUnknown);
     g_tiles_allocated.fetch_add(1, std::memory_order_relaxed);
-  } else if (t->refs.load(std::memory_order_acquire) != 1) {
+  } else if (t->refs.load(std::memory_order_acquire) == 1) {
+    // Written in place: its occupancy bits go stale. Nobody else can be reading them (the
+    // tile is this grid's alone and a grid is not read while written).
+    t->occ_key.store(0, std::memory_order_relaxed);
+  } else {
     // Shared: clone, then drop our reference. Acquire pairs with the release in another
     // grid's drop, so when the count reads 1 that grid's reads of the tile are finished and
     // writing in place is safe.
@@ -253,6 +258,50 @@ void TiledGrid::updateHitPoints(const detail::ScanRasterizer& rasterizer) {
     cell.dx = blend(cell.dx, h.offset.x());
     cell.dy = blend(cell.dy, h.offset.y());
   }
+}
+
+namespace {
+/// Row `row` of the occupancy bits of `cells` (one tile).
+std::uint32_t occupancyRowOf(const std::int16_t* cells, int row, float threshold,
+                             std::int16_t unknown) {
+  cells += row * TiledGrid::kTileSide;
+  std::uint32_t bits = 0;
+  for (int x = 0; x < TiledGrid::kTileSide; ++x) {
+    // The same value and comparison as logOdds(c) > threshold, so the bits agree exactly.
+    const std::int16_t v = cells[x];
+    const float l = v == unknown ? 0.0f : static_cast<float>(v) * (1.0f / TiledGrid::kLogOddsScale);
+    bits |= static_cast<std::uint32_t>(l > threshold) << x;
+  }
+  return bits;
+}
+}  // namespace
+
+const std::atomic<std::uint32_t> TiledGrid::kNoneOccupied[kTileSide] = {};
+const std::atomic<std::uint32_t> TiledGrid::kAllOccupied[kTileSide] = {
+    ~0u, ~0u, ~0u, ~0u, ~0u, ~0u, ~0u, ~0u, ~0u, ~0u, ~0u, ~0u, ~0u, ~0u, ~0u, ~0u,
+    ~0u, ~0u, ~0u, ~0u, ~0u, ~0u, ~0u, ~0u, ~0u, ~0u, ~0u, ~0u, ~0u, ~0u, ~0u, ~0u};
+
+const std::atomic<std::uint32_t>* TiledGrid::occupancySlow(const Tile& t, float threshold,
+                                                           int which) {
+  // Per thread, as the cache: the caller reads at most two tiles' rows at a time.
+  thread_local std::atomic<std::uint32_t> scratch_rows[2][kTileSide];
+  std::atomic<std::uint32_t>* scratch = scratch_rows[which];
+  const std::uint64_t key = occupancyKey(threshold);
+  std::uint64_t seen = 0;
+  // Only a stale cache is claimed: one filler at a time, and a cache kept for another
+  // threshold is left to its user rather than fought over.
+  if (t.occ_key.compare_exchange_strong(seen, kFilling, std::memory_order_acquire)) {
+    for (int row = 0; row < kTileSide; ++row)
+      t.occ_rows[row].store(occupancyRowOf(t.cells, row, threshold, kUnknown),
+                            std::memory_order_relaxed);
+    t.occ_key.store(key, std::memory_order_release);  // publishes the rows to acquiring readers
+    return t.occ_rows;
+  }
+  if (seen == key) return t.occ_rows;  // filled by another thread meanwhile
+  for (int row = 0; row < kTileSide; ++row)
+    scratch[row].store(occupancyRowOf(t.cells, row, threshold, kUnknown),
+                       std::memory_order_relaxed);
+  return scratch;
 }
 
 void TiledGrid::exportInt8(const CellBox& box, std::span<std::int8_t> out) const {

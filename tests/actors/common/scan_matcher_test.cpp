@@ -691,3 +691,163 @@ TEST_CASE("match on a grid tracking hit points is more precise off cell boundari
     CHECK(hits.translation < 0.005);
   }
 }
+
+namespace {
+/// A TiledGrid read one cell at a time: it forwards everything the matcher uses except
+/// occupancyRows(), so the matcher takes its cell-by-cell kernel walk, the reference for the
+/// occupancy-row path.
+class CellByCell {
+ public:
+  explicit CellByCell(const TiledGrid& g) : g_(g) {}
+  double resolution() const { return g_.resolution(); }
+  Eigen::Vector2i worldToCell(const Eigen::Vector2d& p) const { return g_.worldToCell(p); }
+  Eigen::Vector2d cellCenter(const Eigen::Vector2i& c) const { return g_.cellCenter(c); }
+  float logOdds(const Eigen::Vector2i& c) const { return g_.logOdds(c); }
+  bool tracksHitPoints() const { return g_.tracksHitPoints(); }
+  Eigen::Vector2d hitPoint(const Eigen::Vector2i& c) const { return g_.hitPoint(c); }
+
+ private:
+  const TiledGrid& g_;
+};
+
+/// Poses around the room's mapping poses, some far enough off that many beams miss the map or
+/// fall outside it.
+std::vector<Pose2> posesAround(const std::vector<Pose2>& centres, int n, std::uint64_t seed) {
+  std::mt19937_64 rng(seed);
+  std::normal_distribution<double> xy(0.0, 0.2), th(0.0, 0.1);
+  std::vector<Pose2> poses;
+  for (int k = 0; k < n; ++k) {
+    const Pose2& c = centres[static_cast<std::size_t>(k) % centres.size()];
+    const double scale = k % 5 == 4 ? 10.0 : 1.0;
+    poses.emplace_back(c.x + scale * xy(rng), c.y + scale * xy(rng), c.theta + th(rng));
+  }
+  return poses;
+}
+
+/// Score, log-likelihood and matched beams on `grid` equal the cell-by-cell walk's, exactly;
+/// returns how many poses matched at least one beam (so callers can tell the test was not
+/// vacuous).
+int requireSameAsWalk(const ScanMatcher& m, const TiledGrid& grid, const ScanPoints& points,
+                      const std::vector<Pose2>& poses) {
+  const CellByCell walk(grid);
+  int with_matches = 0;
+  for (const Pose2& pose : poses) {
+    INFO("pose " << pose.x << " " << pose.y << " " << pose.theta);
+    REQUIRE(m.score(grid, points, pose) == m.score(walk, points, pose));
+    int matched = -1, matched_walk = -2;
+    REQUIRE(m.logLikelihood(grid, points, pose, &matched) ==
+            m.logLikelihood(walk, points, pose, &matched_walk));
+    REQUIRE(matched == matched_walk);
+    if (matched > 0) ++with_matches;
+  }
+  return with_matches;
+}
+}  // namespace
+
+TEST_CASE("scores on a tiled grid equal the cell-by-cell kernel walk",
+          "[scan_matcher][occupancy_rows]") {
+  const World world = room();
+  const Laser laser;
+  const bool hit_points = GENERATE(false, true);
+  TiledGrid::Options go;
+  go.track_hit_points = hit_points;
+  const TiledGrid grid = mapOf(world, laser, roomMappingPoses(), 3, TiledGrid(go));
+  std::mt19937_64 rng(5);
+  const std::vector<Pose2> truths = roomMappingPoses();
+  // Radius 15 is past kMaxBitRadius and a 0.1 m offset (2 cells) past the neighbour free
+  // check: both take the walk on both grids, and must agree too.
+  for (int radius : {0, 1, 2, 4, 14, 15})
+    for (double free_offset : {-1.0, 0.0, 0.06, 0.1})
+      for (float threshold : {0.0f, 0.4f, -0.3f}) {
+        ScanMatcherOptions o;
+        o.kernel_radius = radius;
+        o.free_check_offset = free_offset;
+        o.occupied_threshold = threshold;
+        o.beam_step = radius > 4 ? 7 : 2;
+        const ScanMatcher m(o);
+        const ScanPoints points = m.prepare(
+            laser.view(simulate(world, laser, truths[static_cast<std::size_t>(radius) % 8], rng)),
+            laser.mount);
+        INFO("hit points " << hit_points << ", radius " << radius << ", free check offset "
+                           << free_offset << ", threshold " << threshold);
+        const int n = radius > 4 ? 6 : 20;
+        CHECK(requireSameAsWalk(m, grid, points, posesAround(truths, n, 7)) > 0);
+      }
+}
+
+TEST_CASE("tiled grid scores stay equal to the walk after map updates and copy-on-write copies",
+          "[scan_matcher][occupancy_rows]") {
+  const World world = room();
+  const Laser laser;
+  const std::vector<Pose2> truths = roomMappingPoses();
+  // Half the mapping poses first: the rest add cells later, where caches are already filled.
+  const std::vector<Pose2> first(truths.begin(), truths.begin() + 4);
+  const std::vector<Pose2> later(truths.begin() + 4, truths.end());
+  TiledGrid grid = mapOf(world, laser, first, 11, TiledGrid());
+  const ScanMatcher m;
+  std::mt19937_64 rng(13);
+  const ScanPoints points =
+      m.prepare(laser.view(simulate(world, laser, truths[5], rng)), laser.mount);
+  const std::vector<Pose2> poses = posesAround({truths[5]}, 15, 17);
+  requireSameAsWalk(m, grid, points, poses);  // fills the caches of the tiles it reads
+  const double before = m.score(grid, points, truths[5]);
+
+  SECTION("scans added to the grid itself") {
+    grid = mapOf(world, laser, later, 12, std::move(grid));
+    CHECK(m.score(grid, points, truths[5]) != before);  // the update changed what is read
+    CHECK(requireSameAsWalk(m, grid, points, poses) > 0);
+  }
+  SECTION("scans added to a copy leave the original's scores alone") {
+    TiledGrid copy = mapOf(world, laser, later, 12, TiledGrid(grid));
+    CHECK(m.score(copy, points, truths[5]) != before);
+    CHECK(requireSameAsWalk(m, copy, points, poses) > 0);
+    CHECK(m.score(grid, points, truths[5]) == before);
+    CHECK(requireSameAsWalk(m, grid, points, poses) > 0);
+  }
+  SECTION("matching and the proposal fit agree with the walk") {
+    const CellByCell walk(grid);
+    const Pose2 start(truths[5].x + 0.08, truths[5].y - 0.05, truths[5].theta + 0.03);
+    const MatchResult a = m.match(grid, points, start), b = m.match(walk, points, start);
+    CHECK(a.success);
+    CHECK(a.pose.x == b.pose.x);
+    CHECK(a.pose.y == b.pose.y);
+    CHECK(a.pose.theta == b.pose.theta);
+    CHECK(a.score == b.score);
+    CHECK(a.evaluations == b.evaluations);
+    const Eigen::Matrix3d prior = Eigen::Vector3d(0.01, 0.01, 0.003).asDiagonal();
+    const ProposalFit fa = m.fitProposal(grid, points, a.pose, start, prior);
+    const ProposalFit fb = m.fitProposal(walk, points, b.pose, start, prior);
+    CHECK(fa.log_eta == fb.log_eta);
+    CHECK(fa.mean.x == fb.mean.x);
+  }
+}
+
+TEST_CASE("a wall in the neighbouring tile is seen from a tile whose bits are cached",
+          "[scan_matcher][occupancy_rows]") {
+  // Cell x = 32 opens tile 1; an endpoint in cell 31 (tile 0) has it in its window.
+  TiledGrid grid;
+  const double res = grid.resolution();
+  const Eigen::Vector2i wall(TiledGrid::kTileSide, 7);
+  const Eigen::Vector2d wall_centre = grid.cellCenter(wall);
+  // Make tile 0 exist and cache its bits: a few free cells around the endpoint's cell.
+  const std::vector<float> short_range{0.2f};
+  const RangeScan short_beam{short_range, 0.0, 0.0, 0.05, 8.0};
+  grid.insertScan(short_beam, Pose2(wall_centre.x() - 0.45, wall_centre.y(), 0.0));
+  ScanMatcherOptions o;
+  o.free_check_offset = -1.0;
+  const ScanMatcher m(o);
+  // One endpoint at the centre of cell 31, robot at the map origin.
+  const ScanPoints p =
+      onePoint(Eigen::Vector2f::Zero(), Eigen::Vector2f(static_cast<float>(wall_centre.x() - res),
+                                                        static_cast<float>(wall_centre.y())));
+  CHECK(m.score(grid, p, Pose2()) == 0.0);  // fills tile 0's cache: nothing occupied yet
+  // Now the wall appears, written by a ray that stays in tile 1 (looking along −x).
+  const std::vector<float> range{0.3f};
+  const RangeScan beam{range, 0.0, 0.0, 0.05, 8.0};
+  for (int k = 0; k < 3; ++k)
+    grid.insertScan(beam, Pose2(wall_centre.x() + 0.3, wall_centre.y(), kPi));
+  REQUIRE(grid.logOdds(wall) > 0.0f);
+  const double expected = m.score(CellByCell(grid), p, Pose2());
+  CHECK(expected > 0.0);  // one cell away: within the radius-1 window
+  CHECK(m.score(grid, p, Pose2()) == expected);
+}

@@ -274,7 +274,8 @@ TEST_CASE("copies of a TiledGrid cost about one map of memory, not one per copy"
   const std::size_t tiles = grid.tileCount();
   REQUIRE(tiles > 50);
   CHECK(grid.memoryBytes() >= tiles * TiledGrid::tileBytes());
-  CHECK(TiledGrid::tileBytes() < 2100);  // 2 KiB of cells plus the count
+  // 2 KiB of cells plus the count and the occupancy bit cache (128 bytes of bits and a key).
+  CHECK(TiledGrid::tileBytes() < 2200);
 
   constexpr int kCopies = 50;
   std::vector<TiledGrid> particles(kCopies, grid);
@@ -631,7 +632,9 @@ TEST_CASE("TiledGrid hit point follows slowly after 32 hits and the count satura
 TEST_CASE("untracked TiledGrid tiles keep their size and tracked tiles add 3 bytes a cell",
           "[tiled_grid]") {
   constexpr std::size_t kCells = TiledGrid::kTileCells;
-  CHECK(TiledGrid::tileBytes() == kCells * sizeof(std::int16_t) + sizeof(std::uint32_t));
+  // Cells, the count (padded to 8 bytes), the occupancy cache's key and one bit per cell.
+  CHECK(TiledGrid::tileBytes() ==
+        kCells * sizeof(std::int16_t) + 8 + sizeof(std::uint64_t) + kCells / 8);
   CHECK(TiledGrid::tileBytes(false) == TiledGrid::tileBytes());
   CHECK(TiledGrid::tileBytes(true) == TiledGrid::tileBytes() + 3 * kCells);
   TiledGrid plain(tiledOptions(0.05)), tracked(trackedOptions(0.05));
@@ -686,4 +689,87 @@ TEST_CASE("copies of a tracked TiledGrid share hit points and a write clones the
 TEST_CASE("concurrent writes to tracked TiledGrid copies match serially built grids",
           "[tiled_grid]") {
   checkConcurrentCopies(trackedOptions(0.05), roomScans, 4, 3, insertRoom, sameHits);
+}
+
+namespace {
+/// Every bit of occupancyRows() over random windows (across tile borders, outside the table,
+/// negative cells) equals logOdds(c) > threshold.
+bool occupancyRowsMatchCells(const TiledGrid& grid, float threshold, unsigned seed) {
+  std::mt19937 rng(seed);
+  const CellBox& known = grid.knownBounds();
+  std::uniform_int_distribution<int> x(known.min.x() - 40, known.max.x() + 8);
+  std::uniform_int_distribution<int> y(known.min.y() - 40, known.max.y() + 8);
+  std::uniform_int_distribution<int> height(1, 70);
+  for (int k = 0; k < 300; ++k) {
+    const int x0 = x(rng), y0 = y(rng), h = height(rng);
+    std::vector<std::uint32_t> rows(static_cast<std::size_t>(h));
+    grid.occupancyRows(x0, y0, h, threshold, rows.data());
+    for (int i = 0; i < h; ++i)
+      for (int j = 0; j < 32; ++j) {
+        const bool bit = ((rows[static_cast<std::size_t>(i)] >> j) & 1u) != 0;
+        if (bit != (grid.logOdds({x0 + j, y0 + i}) > threshold)) return false;
+      }
+  }
+  return true;
+}
+}  // namespace
+
+TEST_CASE("TiledGrid occupancy rows follow the cells through updates and copies",
+          "[tiled_grid][occupancy_rows]") {
+  TiledGrid grid(tiledOptions(0.05));
+  insertAll(grid, randomScans(31, 12, {0.0, 0.0}, 2.0));
+  // Thresholds alternate on the same tiles: each tile caches one, the other is computed.
+  for (float threshold : {0.0f, 0.5f, -0.3f, 0.0f}) {
+    INFO("threshold " << threshold);
+    CHECK(occupancyRowsMatchCells(grid, threshold, 1));
+  }
+
+  SECTION("after more scans into the same grid") {
+    insertAll(grid, randomScans(32, 6, {0.5, -0.5}, 2.0));
+    for (float threshold : {0.0f, -0.3f}) CHECK(occupancyRowsMatchCells(grid, threshold, 2));
+  }
+  SECTION("after a write to a copy: the copy sees it, the original does not") {
+    TiledGrid copy = grid;
+    const std::size_t tiles_before = grid.uniqueTileCount();
+    insertAll(copy, randomScans(33, 4, {0.2, 0.3}, 1.0));
+    REQUIRE_FALSE(sameCells(copy, grid));
+    CHECK(occupancyRowsMatchCells(copy, 0.0f, 3));
+    CHECK(occupancyRowsMatchCells(grid, 0.0f, 3));
+    CHECK(grid.uniqueTileCount() > tiles_before);  // the copy cloned what it wrote
+  }
+  SECTION("a change in one tile shows in windows read from its neighbour") {
+    // Fill the caches, then hit the first cell of a tile with a ray that stays in that tile:
+    // its left neighbour's cells (and cached bits) stay as they were.
+    CHECK(occupancyRowsMatchCells(grid, 0.0f, 4));
+    const Eigen::Vector2i target(2 * TiledGrid::kTileSide, -3 * TiledGrid::kTileSide + 5);
+    const Eigen::Vector2d at = grid.cellCenter(target);
+    const std::vector<float> range{0.3f};
+    const Pose2 sensor(at.x() + 0.3, at.y(), kPi);  // looks along −x onto the border cell
+    const RangeScan one{range, 0.0, 0.0, 0.1, 8.0};
+    for (int k = 0; k < 5; ++k) grid.insertScan(one, sensor, kInsert);
+    REQUIRE(grid.logOdds(target) > 0.0f);
+    std::uint32_t row = 0;
+    grid.occupancyRows(target.x() - 20, target.y(), 1, 0.0f, &row);  // mostly the left tile
+    CHECK(((row >> 20) & 1u) == 1u);
+    CHECK(occupancyRowsMatchCells(grid, 0.0f, 5));
+  }
+}
+
+TEST_CASE("concurrent occupancy rows on copies sharing tiles equal the cells",
+          "[tiled_grid][occupancy_rows]") {
+  TiledGrid base(tiledOptions(0.05));
+  insertAll(base, randomScans(41, 10, {0.0, 0.0}, 2.0));
+  // Copies share every tile, and none has a cache yet: threads race to fill the same tiles,
+  // with different thresholds.
+  std::vector<TiledGrid> copies(4, base);
+  std::vector<int> ok(copies.size(), 0);
+  std::vector<std::thread> threads;
+  for (std::size_t i = 0; i < copies.size(); ++i)
+    threads.emplace_back([&, i] {
+      ok[i] =
+          occupancyRowsMatchCells(copies[i], i % 2 == 0 ? 0.0f : 0.7f, static_cast<unsigned>(i));
+    });
+  for (auto& t : threads) t.join();
+  for (std::size_t i = 0; i < copies.size(); ++i) CHECK(ok[i] == 1);
+  CHECK(occupancyRowsMatchCells(base, 0.7f, 9));
 }

@@ -41,6 +41,16 @@
 // lie closer than R, so d may jump as such a cell enters or leaves the window (at d between
 // r·resolution and R); centres never do.
 //
+// Occupancy rows. A Grid that also provides `void occupancyRows(int x0, int y0, int height,
+// float threshold, std::uint32_t* rows) const` (bit j of rows[i] set iff logOdds({x0 + j, y0 +
+// i}) > threshold; TiledGrid, which caches these bits per tile) is read a window at a time: the
+// candidates of a beam's window are found with a few word operations on 2r+3 rows instead of up
+// to 2·(2r+1)² logOdds() calls, and a beam whose window holds no candidate skips the walk. The
+// result is the same, bit for bit, except that the free-check direction is found by comparing
+// squares rather than rounding a quotient, which could differ only for a beam exactly on a
+// rounding boundary. Used when r ≤ kMaxBitRadius and the free-check offset is under 1.5 cells
+// (the default √2 cells is), so the free-check cell is a neighbour.
+//
 // A ScanMatcher holds only its options: all methods are const, allocate nothing per score
 // evaluation and may be called concurrently on grids nobody is writing.
 #pragma once
@@ -51,9 +61,11 @@
 #include <Eigen/Core>
 
 #include <algorithm>
+#include <bit>
 #include <cmath>
 #include <concepts>
 #include <cstddef>
+#include <cstdint>
 #include <numbers>
 #include <span>
 #include <stdexcept>
@@ -116,7 +128,9 @@ struct MatchResult {
   double score = 0;           ///< score() at pose
   double log_likelihood = 0;  ///< logLikelihood() at pose
   int matched_beams = 0;      ///< beams with d < R at pose
-  int evaluations = 0;        ///< score evaluations spent hill climbing (not covariance)
+  /// Score evaluations spent hill climbing (not covariance), counting the move back to the
+  /// previous pose that is skipped rather than recomputed.
+  int evaluations = 0;
   /// matched_beams ≥ min_score_fraction · beams, with at least one beam matched.
   bool success = false;
   /// Laplace approximation of the likelihood around pose (no prior): the inverse of the
@@ -152,6 +166,12 @@ concept HitPointGrid = requires(const Grid& g, const Eigen::Vector2i& c) {
   { g.hitPoint(c) } -> std::convertible_to<Eigen::Vector2d>;
 };
 
+/// Grids that can report a window's occupancy as bit rows (see the header comment).
+template <class Grid>
+concept OccupancyRowGrid = requires(const Grid& g, std::uint32_t* rows) {
+  g.occupancyRows(0, 0, 1, 0.0f, rows);
+};
+
 /// A regular grid of (2·steps+1)³ poses around a centre, `linear` [m] and `angular` [rad] apart.
 struct SampleGrid {
   double linear, angular;
@@ -178,6 +198,10 @@ ProposalFit fitProposalFromSamples(const ScanMatcherOptions& o, std::span<const 
 
 class ScanMatcher {
  public:
+  /// Largest kernel radius read as occupancy rows: the window plus its free-check border,
+  /// 2r+3 cells, fits one 32-bit row.
+  static constexpr int kMaxBitRadius = 14;
+
   /// Throws std::invalid_argument naming the first bad option.
   explicit ScanMatcher(ScanMatcherOptions o = {});
 
@@ -227,8 +251,10 @@ class ScanMatcher {
   };
   template <class Grid, bool kScore>
   Eval evaluate(const Grid& grid, const ScanPoints& points, const Pose2& pose) const;
-  /// evaluate() with d measured to cell centres or (kHitPoints) to the grid's hit points.
-  template <class Grid, bool kScore, bool kHitPoints>
+  /// evaluate() with d measured to cell centres or (kHitPoints) to the grid's hit points, and
+  /// candidates read from occupancy rows (kBits) or cell by cell. kRadius > 0 fixes the kernel
+  /// radius at compile time (it must equal the option), so the row loops unroll.
+  template <class Grid, bool kScore, bool kHitPoints, bool kBits, int kRadius = 0>
   Eval evaluateBeams(const Grid& grid, const ScanPoints& points, const Pose2& pose) const;
   template <class Grid>
   std::vector<double> sampleLogLikelihood(const Grid& grid, const ScanPoints& points,
@@ -253,19 +279,38 @@ class ScanMatcher {
 template <class Grid, bool kScore>
 ScanMatcher::Eval ScanMatcher::evaluate(const Grid& grid, const ScanPoints& points,
                                         const Pose2& pose) const {
-  if constexpr (detail::HitPointGrid<Grid>) {
-    if (grid.tracksHitPoints()) return evaluateBeams<Grid, kScore, true>(grid, points, pose);
+  if constexpr (detail::OccupancyRowGrid<Grid>) {
+    const bool near_free_check =
+        options_.free_check_offset < 0.0 || options_.free_check_offset / grid.resolution() < 1.5;
+    if (options_.kernel_radius <= kMaxBitRadius && near_free_check) {
+      if constexpr (detail::HitPointGrid<Grid>) {
+        if (grid.tracksHitPoints())
+          return evaluateBeams<Grid, kScore, true, true>(grid, points, pose);
+      }
+      // The RBPF's fine and coarse radii, unrolled: the bulk of its time.
+      switch (options_.kernel_radius) {
+        case 1:
+          return evaluateBeams<Grid, kScore, false, true, 1>(grid, points, pose);
+        case 4:
+          return evaluateBeams<Grid, kScore, false, true, 4>(grid, points, pose);
+        default:
+          return evaluateBeams<Grid, kScore, false, true>(grid, points, pose);
+      }
+    }
   }
-  return evaluateBeams<Grid, kScore, false>(grid, points, pose);
+  if constexpr (detail::HitPointGrid<Grid>) {
+    if (grid.tracksHitPoints()) return evaluateBeams<Grid, kScore, true, false>(grid, points, pose);
+  }
+  return evaluateBeams<Grid, kScore, false, false>(grid, points, pose);
 }
 
-template <class Grid, bool kScore, bool kHitPoints>
+template <class Grid, bool kScore, bool kHitPoints, bool kBits, int kRadius>
 ScanMatcher::Eval ScanMatcher::evaluateBeams(const Grid& grid, const ScanPoints& points,
                                              const Pose2& pose) const {
   Eval out;
   if (points.empty() || !pose.isFinite()) return out;
   const double res = grid.resolution();
-  const int r = options_.kernel_radius;
+  const int r = kRadius > 0 ? kRadius : options_.kernel_radius;
   const float resf = static_cast<float>(res);
   const float big_r = (static_cast<float>(r) + 0.5f) * resf;
   const float big_r2 = big_r * big_r;
@@ -273,6 +318,7 @@ ScanMatcher::Eval ScanMatcher::evaluateBeams(const Grid& grid, const ScanPoints&
   const bool free_check = options_.free_check_offset >= 0.0;
   const double free_cells =
       std::max(options_.free_check_offset / res, std::numbers::sqrt2);  // in cells
+  const double quarter_inv_free2 = 0.25 / (free_cells * free_cells);
   // Score kernel rescaled so that d = 0 gives 1 and d = R gives 0.
   const float inv_two_sigma2 = static_cast<float>(1.0 / (2.0 * options_.sigma * options_.sigma));
   const float kernel_floor = std::exp(-big_r2 * inv_two_sigma2);
@@ -297,7 +343,18 @@ ScanMatcher::Eval ScanMatcher::evaluateBeams(const Grid& grid, const ScanPoints&
     const float ux = static_cast<float>((qx - fx) * res);
     const float uy = static_cast<float>((qy - fy) * res);
     Eigen::Vector2i back(0, 0);
-    if (free_check) {
+    if constexpr (kBits) {
+      // Here free_cells < 1.5, so each component of back = round(−free_cells·d/|b|) is −1, 0
+      // or 1, decided by comparing squares: no square root or division per beam.
+      if (free_check) {
+        const double bx = ex - o.x(), by = ey - o.y();
+        const double limit = (bx * bx + by * by) * quarter_inv_free2;  // (½·|b|/free_cells)²
+        auto component = [limit](double d) {  // floor(x + ½) for x = −free_cells·d/|b|
+          return d < 0.0 ? (d * d >= limit ? 1 : 0) : (d * d > limit ? -1 : 0);
+        };
+        if (limit > 0.0) back = {component(c * bx - s * by), component(s * bx + c * by)};
+      }
+    } else if (free_check) {
       const double bx = ex - o.x(), by = ey - o.y();
       const double norm = std::sqrt(bx * bx + by * by);
       if (norm > 0.0) {
@@ -307,16 +364,45 @@ ScanMatcher::Eval ScanMatcher::evaluateBeams(const Grid& grid, const ScanPoints&
       }
     }
     const bool check_back = free_check && back != Eigen::Vector2i::Zero();
+    // kBits: candidate bits of the window, row dy + r, bit dx + r + 1 (bit 0 is the border).
+    std::uint32_t occ[kBits ? 2 * kMaxBitRadius + 3 : 1];
+    std::uint32_t cand_rows[kBits && kHitPoints ? 2 * kMaxBitRadius + 1 : 1];
+    std::uint32_t any_candidate = 1;
+    const std::uint32_t window = ((std::uint32_t{1} << (2 * r + 1)) - 1) << 1;
+    // Branch-free (back varies from beam to beam): a cell is blocked when its free-check cell,
+    // one row up/down and one bit right/left, is occupied.
+    const int back_right = back.x() > 0, back_left = back.x() < 0;
+    const std::uint32_t back_mask = check_back ? ~std::uint32_t{0} : 0u;
+    auto candidateRow = [&](int i) {
+      const std::uint32_t behind = occ[i + 1 + back.y()];
+      const std::uint32_t blocked = ((behind >> back_right) << back_left) & back_mask;
+      return occ[i + 1] & ~blocked & window;
+    };
+    if constexpr (kBits) {
+      // Rows of the window plus a one-cell border, where the free-check cells of the window's
+      // edge lie (|back| ≤ 1 per axis here).
+      grid.occupancyRows(cell.x() - r - 1, cell.y() - r - 1, 2 * r + 3, threshold, occ);
+      if constexpr (kHitPoints) {
+        any_candidate = 0;
+        for (int i = 0; i <= 2 * r; ++i) any_candidate |= cand_rows[i] = candidateRow(i);
+      }
+    }
     auto candidate = [&](int dx, int dy) {
-      const Eigen::Vector2i cand(cell.x() + dx, cell.y() + dy);
-      return grid.logOdds(cand) > threshold &&
-             !(check_back && grid.logOdds(Eigen::Vector2i(cand + back)) > threshold);
+      if constexpr (kBits) {
+        return ((cand_rows[dy + r] >> (dx + r + 1)) & 1u) != 0;
+      } else {
+        const Eigen::Vector2i cand(cell.x() + dx, cell.y() + dy);
+        return grid.logOdds(cand) > threshold &&
+               !(check_back && grid.logOdds(Eigen::Vector2i(cand + back)) > threshold);
+      }
     };
     // Nearest offsets first (the endpoint's own cell leads): at a good pose the first few
     // cells hold the answer, and the lower bound then ends the walk without touching the rest.
     float best = big_r2;
     const float u_norm = std::sqrt(ux * ux + uy * uy);
-    if constexpr (kHitPoints) {
+    if (any_candidate == 0) {
+      // Nothing in the window: d = R without a walk.
+    } else if constexpr (kHitPoints) {
       // A hit point may lie anywhere in its cell, so the bound is the distance to the nearest
       // remaining cell square rather than centre (at most √½ cell less).
       const float half = 0.5f * resf;
@@ -332,6 +418,31 @@ ScanMatcher::Eval ScanMatcher::evaluateBeams(const Grid& grid, const ScanPoints&
         const float rx = static_cast<float>(px - h.x()), ry = static_cast<float>(py - h.y());
         best = std::min(best, rx * rx + ry * ry);
       }
+    } else if constexpr (kBits) {
+      // Per window row the nearest candidate to e is the one nearest in x, i.e. the first set
+      // bit on either side of e's column; taking it from bit scans instead of walking offsets
+      // avoids the walk's unpredictable branches. A side without candidates yields an offset
+      // beyond the window (d > R), which the minimum ignores. Same d² expression as the walk,
+      // so the same minimum.
+      const int centre = r + 1;  // bit of dx = 0
+      const std::uint32_t below = (std::uint32_t{1} << centre) - 1;
+      // Most rows of a window are empty (walls are thin), so only non-empty ones are scanned.
+      std::uint32_t rows[2 * kMaxBitRadius + 1];
+      std::uint32_t nonempty = 0;
+      for (int i = 0; i <= 2 * r; ++i) {
+        rows[i] = candidateRow(i);
+        nonempty |= static_cast<std::uint32_t>(rows[i] != 0) << i;
+      }
+      for (; nonempty != 0; nonempty &= nonempty - 1) {
+        const int i = std::countr_zero(nonempty);
+        const std::uint32_t row = rows[i];
+        const int right = std::countr_zero(row >> centre);             // dx ≥ 0
+        const int left = 31 - std::countl_zero(row & below) - centre;  // dx < 0; −1−centre if none
+        const float ry = uy - static_cast<float>(i - r) * resf;
+        const float rr = ux - static_cast<float>(right) * resf;
+        const float rl = ux - static_cast<float>(left) * resf;
+        best = std::min(best, std::min(rr * rr + ry * ry, rl * rl + ry * ry));
+      }
     } else {
       for (const KernelOffset& k : kernel_) {
         const float lower = k.distance * resf - u_norm;
@@ -344,8 +455,10 @@ ScanMatcher::Eval ScanMatcher::evaluateBeams(const Grid& grid, const ScanPoints&
     }
     if (best < big_r2) ++out.matched;
     d2_sum += best;
+    // An unmatched beam adds exactly 0 to the score, so its exp() is skipped.
     if constexpr (kScore)
-      score_sum += (std::exp(-best * inv_two_sigma2) - kernel_floor) * kernel_scale;
+      if (best < big_r2)
+        score_sum += (std::exp(-best * inv_two_sigma2) - kernel_floor) * kernel_scale;
   }
   out.score = score_sum;
   out.log_likelihood = -d2_sum / (2.0 * options_.likelihood_sigma * options_.likelihood_sigma *
@@ -371,10 +484,13 @@ MatchResult ScanMatcher::match(const Grid& grid, const ScanPoints& points,
   if (points.empty() || !initial.isFinite()) return result;
 
   Pose2 pose = initial;
-  double best = score(grid, points, pose);
+  // The score pass also yields the likelihood and matched count, kept for the best pose so
+  // the result needs no extra pass.
+  Eval best = evaluate<Grid, true>(grid, points, pose);
   int evaluations = 1;
   double linear = options_.linear_step, angular = options_.angular_step;
   int halvings = 0;
+  int back_move = -1;
   while (evaluations < options_.max_iterations) {
     const Pose2 moves[6] = {
         {pose.x + linear, pose.y, pose.theta},  {pose.x - linear, pose.y, pose.theta},
@@ -382,15 +498,21 @@ MatchResult ScanMatcher::match(const Grid& grid, const ScanPoints& points,
         {pose.x, pose.y, pose.theta + angular}, {pose.x, pose.y, pose.theta - angular}};
     int chosen = -1;
     for (int m = 0; m < 6 && evaluations < options_.max_iterations; ++m) {
-      const double sc = score(grid, points, moves[m]);
       ++evaluations;
-      if (sc > best) {
-        best = sc;
+      // The move back to where the last step came from scored below the current best, so it
+      // cannot be chosen and is not recomputed (it still counts, keeping max_iterations' cap
+      // where it was).
+      if (m == back_move) continue;
+      const Eval e = evaluate<Grid, true>(grid, points, moves[m]);
+      if (e.score > best.score) {
+        best = e;
         chosen = m;
       }
     }
+    back_move = -1;
     if (chosen >= 0) {
       pose = moves[chosen];
+      back_move = chosen ^ 1;  // moves come in ± pairs
     } else {
       if (++halvings > options_.refinements) break;
       linear *= 0.5;
@@ -399,9 +521,10 @@ MatchResult ScanMatcher::match(const Grid& grid, const ScanPoints& points,
   }
 
   result.pose = pose;
-  result.score = best;
+  result.score = best.score;
   result.evaluations = evaluations;
-  result.log_likelihood = logLikelihood(grid, points, pose, &result.matched_beams);
+  result.log_likelihood = best.log_likelihood;
+  result.matched_beams = best.matched;
   result.success =
       result.matched_beams > 0 &&
       result.matched_beams >= options_.min_score_fraction * static_cast<double>(points.size());
