@@ -253,6 +253,9 @@ pid_t spawnWorker(const LaunchArgs& a, const std::string& profile_path, Worker& 
     ::prctl(PR_SET_PDEATHSIG, SIGTERM);  // the launcher (and its RouDi) died: stop
     ::dup2(fds[1], 1);
     ::dup2(fds[1], 2);
+    // Nothing of the launcher's may outlive it through a worker: not RouDi's lock file (a
+    // worker holding it would make the next launch believe RouDi still runs), not its memory.
+    ::close_range(3, ~0U, 0);
     std::vector<char*> argv;
     for (auto& s : args) argv.push_back(s.data());
     argv.push_back(nullptr);
@@ -509,6 +512,14 @@ struct WorkerArgs {
   int incarnation = 0, threads = 0;
 };
 
+/// RouDi died with the launcher: iceoryx's teardown (deregistering from RouDi) could now block
+/// for ever, so the worker leaves without it.
+[[noreturn]] void leaveOrphaned(const std::string& what) {
+  std::cerr << "the launcher (and its RouDi) died: stopped (" << what << ")\n";
+  std::fflush(nullptr);
+  std::_Exit(3);
+}
+
 int worker(const WorkerArgs& a) {
   ::prctl(PR_SET_TIMERSLACK, 1UL);  // waits for the deployment clock use short sleeps
   const Profile profile = loadProfile(a.profile, a.sets);
@@ -541,16 +552,11 @@ int worker(const WorkerArgs& a) {
   runtime->installSignalHandlers();
   if (!coordinator.readyAndWait()) {
     coordinator.stopped();
+    if (coordinator.orphaned()) leaveOrphaned("before the run started");
     return 130;
   }
   const RunReport report = runtime->run();
-  if (coordinator.orphaned()) {
-    // RouDi died with the launcher: iceoryx calls may now block, so leave without them (the
-    // actors' outputs were written in run()).
-    std::cerr << "the launcher died: stopped (" << report.stop_reason << ")\n";
-    std::fflush(nullptr);
-    std::_Exit(3);
-  }
+  if (coordinator.orphaned()) leaveOrphaned(report.stop_reason);  // outputs written in run()
   transport.stopReceiving();
   const auto stats = transport.stats();
   std::cerr << report.table();
@@ -593,7 +599,17 @@ void addLaunchCommand(CLI::App& app, int& result) {
   w->add_option("--out", wargs->out);
   w->add_option("--shm-log", wargs->shm_log);
   w->add_option("--set", wargs->sets);
-  w->callback([wargs, &result] { result = worker(*wargs); });
+  w->callback([wargs, &result] {
+    try {
+      result = worker(*wargs);
+    } catch (const std::exception& e) {
+      // Leave without iceoryx's teardown: RouDi may be the reason (and may be gone); it frees a
+      // dead process's ports itself. The launcher reports the exit status.
+      std::cerr << "error: " << e.what() << "\n";
+      std::fflush(nullptr);
+      std::_Exit(e.what()[0] != '\0' && dynamic_cast<const ConfigError*>(&e) ? 2 : 1);
+    }
+  });
 }
 
 }  // namespace tessera::app
