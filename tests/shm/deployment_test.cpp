@@ -1,0 +1,71 @@
+#include <tessera/runtime/deployment.hpp>
+#include <tessera/runtime/profile.hpp>
+
+#include <catch2/catch.hpp>
+
+#include <algorithm>
+
+using namespace tessera;
+
+namespace {
+Profile simMapping(const std::vector<std::string>& sets = {}) {
+  return loadProfile(std::string(TESSERA_SOURCE_DIR) + "/apps/profiles/sim_mapping.yaml", sets);
+}
+const ShmTopic* find(const std::vector<ShmTopic>& topics, const std::string& name) {
+  auto it =
+      std::find_if(topics.begin(), topics.end(), [&](const ShmTopic& t) { return t.name == name; });
+  return it == topics.end() ? nullptr : &*it;
+}
+}  // namespace
+
+TEST_CASE("a deployment plan exports what crosses processes and stops publishers first",
+          "[deployment]") {
+  const auto plan = planDeployment(simMapping());
+  REQUIRE(plan.processes == std::vector<std::string>{"robot", "mapping"});
+  const auto* scan_out = find(plan.topics.at("robot"), "scan");
+  const auto* scan_in = find(plan.topics.at("mapping"), "scan");
+  REQUIRE(scan_out != nullptr);
+  REQUIRE(scan_in != nullptr);
+  CHECK(scan_out->exported);
+  CHECK_FALSE(scan_out->imported);
+  CHECK(scan_in->imported);
+  CHECK_FALSE(scan_in->exported);
+  CHECK(scan_in->importing_processes == 1);
+  // A topic used inside one process stays in it (the mapper's map to the map writer).
+  CHECK(find(plan.topics.at("mapping"), "map") == nullptr);
+  CHECK_FALSE(plan.demands.empty());
+}
+
+TEST_CASE("a profile run in one process has nothing to share", "[deployment]") {
+  const auto plan = planDeployment(
+      simMapping({"sim.process=main", "mapper.process=main", "map_writer.process=main",
+                  "trajectory_writer.process=main", "ground_truth_writer.process=main",
+                  "odometry_writer.process=main"}));
+  CHECK(plan.processes == std::vector<std::string>{"main"});
+  CHECK(plan.topics.empty());
+}
+
+TEST_CASE("restart naming no process of the profile is a clear error", "[deployment]") {
+  Profile p = simMapping();
+  p.restart = {"mapper_typo"};
+  try {
+    planDeployment(p);
+    FAIL("expected a ConfigError");
+  } catch (const ConfigError& e) {
+    CHECK_THAT(e.what(), Catch::Contains("restart names process 'mapper_typo'"));
+  }
+  CHECK_THROWS_WITH(
+      parseProfile("restart: mapping\nactors: {sim: {type: simulator}}\n", "bad.yaml"),
+      Catch::Contains("bad.yaml:1") &&
+          Catch::Contains("restart: expected a list of process names"));
+}
+
+TEST_CASE("the memory pools cover every declared message bound", "[deployment]") {
+  const auto pools = memPoolsFor({{300, 10}, {5u << 20, 20}});
+  std::size_t largest = 0;
+  for (const auto& p : pools) largest = std::max(largest, p.chunk_bytes);
+  CHECK(largest >= (5u << 20));
+  std::size_t total = 0;
+  for (const auto& p : pools) total += p.chunk_bytes * p.count;
+  CHECK(total <= (std::size_t{4} << 30));
+}
