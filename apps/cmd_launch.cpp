@@ -271,6 +271,13 @@ pid_t spawnWorker(const LaunchArgs& a, const std::string& profile_path, Worker& 
   return pid;
 }
 
+/// One launcher line, written at once: RouDi's threads print to the same terminal, and a line
+/// written piecewise could be split by theirs.
+void say(const std::string& line) {
+  const std::string text = "[launch] " + line + "\n";
+  std::fwrite(text.data(), 1, text.size(), stderr);
+}
+
 void pump(Worker& w, bool flush_all) {
   char buf[4096];
   for (;;) {
@@ -282,7 +289,10 @@ void pump(Worker& w, bool flush_all) {
   while ((at = w.partial.find_first_of("\n\r")) != std::string::npos) {
     const std::string line = w.partial.substr(0, at);
     w.partial.erase(0, at + 1);
-    if (!line.empty()) std::cerr << "[" << w.process << "] " << line << "\n";
+    if (!line.empty()) {
+      const std::string text = "[" + w.process + "] " + line + "\n";
+      std::fwrite(text.data(), 1, text.size(), stderr);
+    }
   }
   if (flush_all && !w.partial.empty()) {
     std::cerr << "[" << w.process << "] " << w.partial << "\n";
@@ -358,7 +368,7 @@ int launch(const LaunchArgs& a) {
     w.restart = std::find(profile.restart.begin(), profile.restart.end(), w.process) !=
                 profile.restart.end();
     spawnWorker(a, path, w, sync_name, roudi.maxChunkBytes(), out_dir);
-    std::cerr << "[launch] started '" << w.process << "' (pid " << w.pid << ")\n";
+    say("started '" + w.process + "' (pid " + std::to_string(w.pid) + ")");
   }
 
   std::atomic<bool> quit{false};
@@ -433,7 +443,7 @@ int launch(const LaunchArgs& a) {
         std::cerr << "[launch] restarting '" << w.process << "' (restart " << w.incarnation
                   << ")\n";
         spawnWorker(a, path, w, sync_name, roudi.maxChunkBytes(), out_dir);
-        std::cerr << "[launch] started '" << w.process << "' (pid " << w.pid << ")\n";
+        say("started '" + w.process + "' (pid " + std::to_string(w.pid) + ")");
         clock.markAlive(w.index);
         any_running = true;
       } else if (!ending) {

@@ -270,6 +270,7 @@ TEST_CASE("when the launcher and its RouDi die the workers stop and the next lau
     launch.keepLeftovers();
     const std::string robot = launch.waitFor(R"(started 'robot' \(pid (\d+)\))");
     const std::string mapping = launch.waitFor(R"(started 'mapping' \(pid (\d+)\))");
+    REQUIRE(!robot.empty());
     REQUIRE(!mapping.empty());
     std::this_thread::sleep_for(1000ms);
     ::kill(launch.pid(), SIGKILL);
