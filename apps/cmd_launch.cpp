@@ -214,7 +214,6 @@ struct LaunchArgs {
   std::vector<std::string> sets;
   std::string out;
   int threads = 0;
-  bool quiet = false;
   std::string shm_log = "error";
 };
 

@@ -130,7 +130,6 @@ DeploymentPlan planDeployment(const Profile& profile) {
       t.imported = sub != w.subscribers.end();
       if (t.imported) t.import_policy = sub->second;
       t.importing_processes = static_cast<std::uint32_t>(w.subscribers.size());
-      t.loopback = t.exported && t.imported;
       t.any_reliable = any_reliable || any_loop;
       plan.topics[process].push_back(t);
     }

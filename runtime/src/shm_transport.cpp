@@ -122,7 +122,7 @@ struct ShmExport final : TopicExport, std::enable_shared_from_this<ShmExport> {
 
   std::shared_ptr<detail::LoanStorage> loan(std::size_t size_hint_bytes) override;
   void send(const std::shared_ptr<const MessageStorage>& message) override;
-  bool loopsBack() const override { return topic.loopback; }
+  bool loopsBack() const override { return topic.loopback(); }
 
   /// Loans a chunk of `payload_bytes`; nullptr when every chunk of this publisher is in use
   /// or the pool is empty (the caller decides whether to wait).
@@ -336,7 +336,7 @@ void ShmTransport::attach(Runtime& runtime, const std::vector<ShmTopic>& topics)
       // A topic this process also sends must not lose its own messages in the shared queue: the
       // runtime counts them as pending until they are back. Local mailboxes still apply the
       // subscription's own policy (and count its drops).
-      const bool reliable = t.import_policy.kind == MailboxPolicy::Kind::kReliable || t.loopback;
+      const bool reliable = t.import_policy.kind == MailboxPolicy::Kind::kReliable || t.loopback();
       so.queueCapacity = std::clamp<std::uint64_t>(
           std::max<std::uint64_t>(t.import_policy.capacity, reliable ? 16 : 1), 1,
           iox::MAX_SUBSCRIBER_QUEUE_CAPACITY);
@@ -346,7 +346,7 @@ void ShmTransport::attach(Runtime& runtime, const std::vector<ShmTopic>& topics)
       import->deliver = runtime.importTopic(t.name, t.type);
       impl_->imports.push_back(std::move(import));
     }
-    if (t.loopback) impl_->run_handlers_here = false;
+    if (t.loopback()) impl_->run_handlers_here = false;
     if (t.exported) {
       auto e = std::make_shared<ShmExport>(t, impl_->options, *impl_);
       impl_->exports.push_back(e);
@@ -433,7 +433,7 @@ void ShmTransport::startReceiving() {
             i->subscriber->release(payload);
             continue;
           }
-          const bool loopback = prefix.origin == impl->options.process_index && i->topic.loopback;
+          const bool loopback = prefix.origin == impl->options.process_index && i->topic.loopback();
           // A burst is queued whole and run once: one pass over the strands per batch.
           auto delivery = ImportDelivery::kSchedule;
           if (impl->run_handlers_here) {

@@ -38,9 +38,10 @@ struct ShmTopic {
   bool imported = false;  // read in this process and published in some process
   /// Processes that import the topic (each receives every message; for in-flight counting).
   std::uint32_t importing_processes = 0;
-  bool loopback = false;        // exported and imported here
   bool any_reliable = false;    // some subscriber anywhere is reliable: publishers wait
   MailboxPolicy import_policy;  // this process's strongest subscription to it
+  /// Sent and received by this process: its own messages come back through the import.
+  bool loopback() const { return exported && imported; }
 };
 
 struct ShmTransportOptions {
