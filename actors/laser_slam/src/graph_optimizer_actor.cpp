@@ -1,5 +1,6 @@
 #include <tessera/laser_slam/graph_optimizer_actor.hpp>
 
+#include <tessera/datasets/pose_graph_io.hpp>
 #include <tessera/messages/types.hpp>
 #include <tessera/runtime/options.hpp>
 #include <tessera/runtime/registry.hpp>
@@ -8,6 +9,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <filesystem>
 #include <iostream>
 #include <stdexcept>
 
@@ -38,6 +40,7 @@ GraphOptimizerActor::GraphOptimizerActor(GraphOptimizerActorOptions options)
     : options_(std::move(options)), graph_(graphOptions(options_)) {}
 
 void GraphOptimizerActor::configure(ActorContext& ctx) {
+  output_dir_ = ctx.outputDir();
   ctx.subscribe<msg::Submap>("submaps", MailboxPolicy::reliable(),
                              [this](const Message<msg::Submap>& m) { onSubmap(m); });
   ctx.subscribe<msg::SubmapConstraint>(
@@ -139,6 +142,31 @@ void GraphOptimizerActor::stop() {
   if (graph_.needsOptimization()) optimizeAndPublish();
   if (graph_.nodes() > 0) publishPoses(graph_.chi2(), 0);
   if (options_.compose_trajectory) publishComposedTrajectory();
+  if (!options_.g2o_file.empty() && !output_dir_.empty() && graph_.nodes() > 0) writeGraph();
+}
+
+void GraphOptimizerActor::writeGraph() {
+  const pose_graph::Graph2D& g = graph_.graph();
+  datasets::PoseGraph2D out;
+  for (int i = 0; i < g.size(); ++i) {
+    const auto& p = g.poses[static_cast<std::size_t>(i)];
+    out.vertices[g.ids[static_cast<std::size_t>(i)]] = p;
+    // The solvers hold the first node where it is (it anchors the map frame): say so in the file.
+    if (i == 0 || g.fixed[static_cast<std::size_t>(i)])
+      out.fixed.push_back(g.ids[static_cast<std::size_t>(i)]);
+  }
+  for (const auto& e : g.edges)
+    out.edges.push_back({g.ids[static_cast<std::size_t>(e.from)],
+                         g.ids[static_cast<std::size_t>(e.to)], e.measurement, e.information});
+  // stop() must not throw: a failed write is logged and reported in the summary.
+  try {
+    const std::filesystem::path path = std::filesystem::path(output_dir_) / options_.g2o_file;
+    datasets::writeG2o(out, path);
+    graph_path_ = path.string();
+  } catch (const std::exception& e) {
+    write_error_ = e.what();
+    std::cerr << "[graph_optimizer] " << write_error_ << "\n";
+  }
 }
 
 void GraphOptimizerActor::publishComposedTrajectory() {
@@ -177,6 +205,8 @@ void GraphOptimizerActor::summarize(Summary& out) const {
   out["optimize_s"] = optimize_seconds_;
   out["final_chi2"] = last_chi2_;
   if (solver_failures_ > 0) out["solver_failures"] = i64(solver_failures_);
+  if (!graph_path_.empty()) out["graph_path"] = graph_path_;
+  if (!write_error_.empty()) out["graph_write_error"] = write_error_;
 }
 
 TESSERA_REGISTER_ACTOR("graph_optimizer", GraphOptimizerActor, GraphOptimizerActorOptions,

@@ -7,6 +7,10 @@
 #include <tessera/runtime/harness.hpp>
 #include <tessera/runtime/options.hpp>
 
+#include "../../shared_data.hpp"
+
+#include <tessera/datasets/pose_graph_io.hpp>
+
 #include <catch2/catch.hpp>
 
 #include <cmath>
@@ -210,6 +214,61 @@ TEST_CASE("graph_optimizer actor publishes optimised submap poses from out-of-or
   CHECK(count(s, "constraints_rejected") == 1);
   CHECK(count(s, "constraints_unresolved") == 1);
   CHECK(count(s, "optimizations") >= 1);
+}
+
+TEST_CASE("graph_optimizer writes the final graph as g2o that reads back to the published poses",
+          "[graph_optimizer]") {
+  const auto dir = test::scratchDir("graph_g2o");
+  ActorHarness h(std::make_unique<GraphOptimizerActor>(GraphOptimizerActorOptions{}), dir.string());
+  const auto truth = squareRoute();
+  const int last = static_cast<int>(truth.size()) - 1;
+  for (int i = 0; i <= last; ++i) pushSubmap(h, i, truth[i]);
+  for (int i = 0; i < last; ++i) {
+    const Pose2 rel = (truth[i].inverse() * truth[i + 1]) * Pose2(0.1, 0, 0.02);
+    pushConstraint(h, constraint(i, i + 1, rel, false));
+  }
+  pushConstraint(h, constraint(last, 0, truth[last].inverse() * truth[0], true, 0.01));
+  h.runUntilIdle();
+  h.stop();
+
+  const auto graph = datasets::readPoseGraph2D(dir / "graph.g2o");
+  REQUIRE(graph.vertices.size() == truth.size());
+  REQUIRE(graph.edges.size() == truth.size());
+  CHECK(graph.fixed == std::vector<std::int64_t>{0});
+  const auto published = h.published<msg::SubmapPoses>("submap_poses");
+  REQUIRE(!published.empty());
+  for (const auto& p : published.back()->getPoses()) {
+    const Eigen::Vector3d v = graph.vertices.at(p.getId());
+    CHECK(v.x() == Approx(p.getPose().getX()).margin(1e-12));
+    CHECK(v.y() == Approx(p.getPose().getY()).margin(1e-12));
+  }
+  // The loop closure, with its information (inverse covariance, 0.01 m sigma).
+  const auto& closure = graph.edges.back();
+  CHECK(closure.from == last);
+  CHECK(closure.to == 0);
+  CHECK(closure.information(0, 0) == Approx(1.0 / (0.01 * 0.01)));
+  Summary s;
+  h.actor().summarize(s);
+  CHECK(std::get<std::string>(s.at("graph_path")) == (dir / "graph.g2o").string());
+  std::filesystem::remove_all(dir);
+}
+
+TEST_CASE("graph_optimizer reports an unwritable graph file in its summary without throwing",
+          "[graph_optimizer]") {
+  GraphOptimizerActorOptions o;
+  o.g2o_file = "no_such_dir/graph.g2o";
+  const auto dir = test::scratchDir("graph_g2o_bad");
+  ActorHarness h(std::make_unique<GraphOptimizerActor>(o), dir.string());
+  pushSubmap(h, 0, Pose2());
+  pushSubmap(h, 1, Pose2(1, 0, 0));
+  pushConstraint(h, constraint(0, 1, Pose2(1, 0, 0), false));
+  h.runUntilIdle();
+  REQUIRE_NOTHROW(h.stop());
+  Summary s;
+  h.actor().summarize(s);
+  REQUIRE(s.count("graph_write_error") == 1);
+  CHECK(std::get<std::string>(s.at("graph_write_error")).find("no_such_dir") != std::string::npos);
+  std::filesystem::remove_all(dir);
 }
 
 TEST_CASE("graph_optimizer refuses bad options", "[graph_optimizer]") {

@@ -14,6 +14,10 @@
 //                                        moved with its submap: optimised origin ⊕ (chained
 //                                        origin⁻¹ ⊕ pose). A pose belongs to the first submap
 //                                        whose last scan is not older than it.
+// Writes (with an output directory, in stop()): graph.g2o (g2o_file), the final graph in g2o
+// format: VERTEX_SE2 per submap origin (id = submap id, optimised pose), EDGE_SE2 per hand-over
+// and fused revisit with its information matrix, FIX for the anchored first submap; it opens in
+// g2o_viewer and `tessera graph optimize`.
 // The optimiser runs in this actor's own handler, so the submap builder never waits for it
 // (constraints that arrive meanwhile queue in the reliable mailbox). Each constraint that can
 // move the optimum (a revisit, a fusion) triggers one optimisation, warm-started from the
@@ -41,6 +45,7 @@ struct GraphOptimizerActorOptions {
   double huber_delta = 1.0;
   std::string frame_id = "map";
   bool compose_trajectory = false;
+  std::string g2o_file = "graph.g2o";
 
   template <class V>
   void visit(V& v) {
@@ -52,6 +57,8 @@ struct GraphOptimizerActorOptions {
     v("huber_delta", huber_delta,
       "Huber scale on revisit (loop-closure) edges, whitened units; 0 = plain least squares");
     v("frame_id", frame_id, "frame of the published poses");
+    v("g2o_file", g2o_file,
+      "final pose graph written here, in the output directory, at stop (g2o); empty: none");
   }
 };
 
@@ -71,6 +78,7 @@ class GraphOptimizerActor final : public Actor {
   void optimizeAndPublish();
   void publishPoses(double chi2, int iterations);
   void publishComposedTrajectory();
+  void writeGraph();
 
   GraphOptimizerActorOptions options_;
   SubmapGraph graph_;
@@ -83,6 +91,7 @@ class GraphOptimizerActor final : public Actor {
   std::map<int, SubmapSpan> spans_;
   std::vector<std::pair<Nanos, common::Pose2>> trajectory_;
   Nanos last_stamp_ = 0;
+  std::string output_dir_, graph_path_, write_error_;
   std::uint64_t submaps_ = 0, constraints_ = 0, added_ = 0, fused_ = 0, duplicates_ = 0;
   std::uint64_t rejected_ = 0, optimizations_ = 0, published_ = 0, solver_failures_ = 0;
   double optimize_seconds_ = 0.0, last_chi2_ = 0.0;
