@@ -104,10 +104,15 @@ Row measureFloor(const Options& o) {
 // ---- runtime ----
 struct Shared {
   std::atomic<int> delivered{0};
-  std::atomic<const void*> published{nullptr};
+  // Set by the publisher before publish(); the publish (a mutex hand-off) orders it before the
+  // handlers' reads.
+  const void* published_payload = nullptr;
   std::atomic<std::uint64_t> copies{0};
   std::mutex lat_mutex;
   std::vector<double> latencies;
+  // A subscriber's reference to the latest sample, handed back to the publisher so that the
+  // last reference (and so the release of the buffer) stays on the publisher's thread.
+  std::shared_ptr<const MessageStorage> held;
   bool record = true;
 };
 
@@ -120,9 +125,10 @@ class Probe : public Actor {
           if (s_.record) {
             const Nanos now = steadyNow();
             const double us = static_cast<double>(now - m->getHeader().getStampNs()) * 1e-3;
-            if (m.storage()->address() != s_.published.load(std::memory_order_acquire)) ++s_.copies;
+            if (m->getPayload().begin() != s_.published_payload) ++s_.copies;
             std::lock_guard lock(s_.lat_mutex);
             s_.latencies.push_back(us);
+            if (!s_.held) s_.held = m.storage();
           }
           s_.delivered.fetch_add(1, std::memory_order_release);
         });
@@ -153,6 +159,7 @@ Row measureRuntime(const Options& o, std::size_t payload, int subscribers,
     // touched, so the cost of fresh versus recycled memory shows in throughput.
     auto bytes = loan->initPayload(static_cast<unsigned>(payload));
     std::memset(bytes.begin(), 0x5a, bytes.size());
+    shared.published_payload = bytes.begin();
     return loan;
   };
 
@@ -165,18 +172,22 @@ Row measureRuntime(const Options& o, std::size_t payload, int subscribers,
     expected += subscribers;
     // Then the gap, so every sample finds the subscribers idle and the machine quiet.
     std::this_thread::sleep_for(std::chrono::microseconds(o.gap_us));
-    // Stamped last, right before sealing and publishing: building the payload is not latency.
-    // The fence waits until the payload's stores are done (large memsets may use non-temporal
-    // stores that would otherwise drain inside the publish call and count as delivery).
+    // Stamped last, right before publishing (sealing included), as an actor publishes: building
+    // the payload is not latency. The fence waits until the payload's stores are done (large
+    // memsets may use non-temporal stores that would otherwise drain inside the publish call
+    // and count as delivery).
     std::atomic_thread_fence(std::memory_order_seq_cst);
     loan->getHeader().setStampNs(steadyNow());
-    auto sealed = std::move(loan).seal();
-    shared.published.store(sealed->address(), std::memory_order_release);
-    pub.publish(Message<msg::Blob>(sealed));
+    pub.publish(std::move(loan));
     spinUntil(shared.delivered, expected);
-    // The publisher's reference keeps the bytes alive until every subscriber has seen them,
-    // so the storage is released (and a pooled buffer re-zeroed) here, on the publisher.
-    waitReleased(sealed);
+    // Taking a subscriber's reference back keeps the last one here, so the storage is released
+    // (and a pooled buffer re-zeroed) on the publisher, as before the next sample is built.
+    std::shared_ptr<const MessageStorage> held;
+    {
+      std::lock_guard lock(shared.lat_mutex);
+      held = std::move(shared.held);
+    }
+    if (held) waitReleased(held);
   }
   Row r;
   r.transport = executor == RuntimeOptions::Executor::kThreadPool ? "inproc" : "inproc-tbb-arena";

@@ -209,14 +209,16 @@ StrandPool::StrandPool(int threads, std::function<void(Cell&)> drain) : drain_(s
   for (int i = 0; i < threads; ++i) threads_.emplace_back([this] { loop(); });
 }
 StrandPool::~StrandPool() {
+  std::vector<Sleeper*> wake;
   {
     std::lock_guard lock(mutex_);
     quit_ = true;
-    for (Sleeper* s : sleeping_) {
-      s->woken = true;
-      s->cv.notify_one();
-    }
-    sleeping_.clear();
+    wake.swap(sleeping_);
+  }
+  for (Sleeper* s : wake) {
+    s->handed = nullptr;
+    s->woken.store(1, std::memory_order_release);
+    s->woken.notify_one();
   }
   for (auto& t : threads_) t.join();
 }
@@ -224,15 +226,19 @@ void StrandPool::post(Cell& cell) {
   Sleeper* wake = nullptr;
   {
     std::lock_guard lock(mutex_);
-    ready_.push_back(&cell);
-    ready_count_.store(ready_.size(), std::memory_order_release);
-    if (!sleeping_.empty()) {
+    if (sleeping_.empty()) {
+      ready_.push_back(&cell);
+      ready_count_.store(ready_.size(), std::memory_order_release);
+    } else {
       wake = sleeping_.back();
       sleeping_.pop_back();
-      wake->woken = true;
     }
   }
-  if (wake) wake->cv.notify_one();
+  if (wake) {
+    wake->handed = &cell;
+    wake->woken.store(1, std::memory_order_release);
+    wake->woken.notify_one();
+  }
 }
 void StrandPool::loop() {
   Sleeper self;
@@ -249,9 +255,13 @@ void StrandPool::loop() {
       }
       lock.lock();
       if (!ready_.empty() || quit_) continue;
-      self.woken = false;
+      self.woken.store(0, std::memory_order_relaxed);
       sleeping_.push_back(&self);
-      self.cv.wait(lock, [&] { return self.woken; });
+      lock.unlock();
+      while (self.woken.load(std::memory_order_acquire) == 0) self.woken.wait(0);
+      if (self.handed == nullptr) return;  // the pool is shutting down
+      drain_(*self.handed);
+      lock.lock();
       continue;
     }
     Cell* cell = ready_.front();

@@ -116,10 +116,12 @@ struct Cell {
 
 namespace detail {
 /// Dedicated executor threads: a ready queue of strands; an idle thread sleeps on its own
-/// condition variable, so waking it costs one futex wake, like a bare hand-off. The most
-/// recently idled thread is woken first (LIFO): it is the one whose cache is warm and which,
-/// having just run, sits on a core other than a publisher that keeps running; with one shared
-/// condition variable the kernel woke the longest-idle thread instead.
+/// futex word, so waking it costs one futex wake, like a bare hand-off. A strand posted while a
+/// thread sleeps is handed to that thread directly (it never enters the ready queue), so the
+/// woken thread runs it without touching the pool's lock or queue, whose cache lines would
+/// each cross cores on the wake-up path. The most recently idled thread is woken first
+/// (LIFO): it is the one whose cache is warm and which, having just run, sits on a core other
+/// than a publisher that keeps running.
 class StrandPool {
  public:
   StrandPool(int threads, std::function<void(Cell&)> drain);
@@ -130,8 +132,8 @@ class StrandPool {
   void loop();
   std::function<void(Cell&)> drain_;
   struct Sleeper {
-    std::condition_variable cv;
-    bool woken = false;
+    std::atomic<std::uint32_t> woken{0};  // futex word: 0 asleep, 1 woken
+    Cell* handed = nullptr;               // the strand to run, set before woken; null: quit
   };
   std::mutex mutex_;
   std::deque<Cell*> ready_;
