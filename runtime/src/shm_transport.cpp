@@ -10,6 +10,7 @@
 #include <iceoryx_posh/runtime/posh_runtime.hpp>
 
 #include <capnp/serialize.h>
+#include <tbb/scalable_allocator.h>
 
 #include <cstring>
 #include <mutex>
@@ -20,15 +21,27 @@ namespace tessera {
 namespace {
 
 constexpr std::uint32_t kChunkMagic = 0x31525354;  // "TSR1"
-constexpr std::size_t kPrefixBytes = 16;           // magic, origin process, reserved
+constexpr std::size_t kPrefixBytes = 16;           // magic, origin, extent, check
 constexpr std::size_t kWord = sizeof(capnp::word);
 static_assert(kShmChunkOverhead == kPrefixBytes + kWord, "prefix + one-segment table");
 
 struct Prefix {
   std::uint32_t magic;
-  std::uint32_t origin;
-  std::uint64_t reserved;
+  std::uint32_t origin;  // process index of the sender
+  std::uint32_t extent;  // bytes from the payload start the chunk's last use may have written
+  std::uint32_t check;   // extentCheck(extent): the extent is trusted only when it matches
 };
+
+std::uint32_t extentCheck(std::uint32_t extent) {
+  return (extent ^ 0x5bd1e995u) * 0x9e3779b1u;
+}
+
+std::size_t capacityOf(const void* payload) {
+  const auto* header = iox::mepoo::ChunkHeader::fromUserPayload(payload);
+  const auto offset = static_cast<std::size_t>(static_cast<const std::byte*>(payload) -
+                                               reinterpret_cast<const std::byte*>(header));
+  return header->chunkSize() - offset;
+}
 
 iox::capro::ServiceDescription serviceOf(const std::string& topic) {
   // iceoryx ids hold at most 100 characters; topic names are far shorter in practice.
@@ -41,6 +54,40 @@ iox::capro::ServiceDescription serviceOf(const std::string& topic) {
 }
 
 }  // namespace
+
+namespace detail {
+
+std::size_t chunkExtent(const std::byte* payload, std::size_t capacity) {
+  Prefix p{};
+  std::memcpy(&p, payload, sizeof p);
+  if (p.magic == kChunkMagic && p.check == extentCheck(p.extent) && p.extent <= capacity)
+    return p.extent;
+  return capacity;
+}
+
+void recordChunkExtent(std::byte* payload, std::uint32_t origin, std::size_t extent) {
+  const auto e = static_cast<std::uint32_t>(extent);
+  const Prefix p{kChunkMagic, origin, e, extentCheck(e)};
+  std::memcpy(payload, &p, sizeof p);
+}
+
+std::size_t zeroChunkForBuilder(std::byte* payload, std::size_t capacity, std::size_t end,
+                                std::uint32_t origin) {
+  const std::size_t before = chunkExtent(payload, capacity);
+  if (before > kPrefixBytes) {
+    // A chunk of unknown history is zeroed throughout once; from then on only what each use
+    // wrote is.
+    const std::size_t zero_to = before == capacity ? capacity : std::min(before, end);
+    std::memset(payload + kPrefixBytes, 0, zero_to - kPrefixBytes);
+    const std::size_t rest = zero_to < before ? before : 0;
+    recordChunkExtent(payload, origin, std::max(end, rest));
+    return rest;
+  }
+  recordChunkExtent(payload, origin, end);
+  return 0;
+}
+
+}  // namespace detail
 
 // ------------------------------------------------------------------ exports
 
@@ -106,6 +153,7 @@ class ChunkLoan final : public detail::LoanStorage {
 
   std::shared_ptr<ShmExport> owner_;
   void* payload_;
+  std::size_t rest_ = 0;  // extent of an earlier use past what this builder may touch
   std::optional<Builder> builder_;
   kj::ArrayPtr<const kj::ArrayPtr<const capnp::word>> segments_;
 };
@@ -158,11 +206,13 @@ struct ShmExport final : TopicExport, std::enable_shared_from_this<ShmExport> {
 
 ChunkLoan::ChunkLoan(std::shared_ptr<ShmExport> owner, void* payload, std::size_t segment_words)
     : owner_(std::move(owner)), payload_(payload) {
-  auto* first =
-      reinterpret_cast<capnp::word*>(static_cast<std::byte*>(payload) + kShmChunkOverhead);
-  // Chunks are reused: zero exactly what the builder may hand out, not the whole chunk.
-  std::memset(static_cast<void*>(first), 0, segment_words * kWord);
-  builder_.emplace(kj::arrayPtr(first, segment_words));
+  auto* bytes = static_cast<std::byte*>(payload);
+  // Chunks are reused: of what the builder may hand out, zero only what an earlier use wrote.
+  rest_ = detail::zeroChunkForBuilder(bytes, capacityOf(payload),
+                                      kShmChunkOverhead + segment_words * kWord,
+                                      owner_->options.process_index);
+  builder_.emplace(
+      kj::arrayPtr(reinterpret_cast<capnp::word*>(bytes + kShmChunkOverhead), segment_words));
 }
 
 ChunkLoan::~ChunkLoan() noexcept {
@@ -175,11 +225,12 @@ ChunkLoan::~ChunkLoan() noexcept {
 
 bool ChunkLoan::finishInPlace(std::uint32_t origin) {
   auto* bytes = static_cast<std::byte*>(payload_);
-  const Prefix prefix{kChunkMagic, origin, 0};
-  std::memcpy(bytes, &prefix, sizeof(prefix));
+  // Not in place: the chunk goes back unsent, and the extent recorded at the loan stays.
   if (builder_->overflowed() || segments_.size() != 1) return false;
   const std::uint32_t table[2] = {0, static_cast<std::uint32_t>(segments_[0].size())};
   std::memcpy(bytes + kPrefixBytes, table, sizeof(table));
+  detail::recordChunkExtent(bytes, origin,
+                            std::max(kShmChunkOverhead + segments_[0].size() * kWord, rest_));
   return true;
 }
 
@@ -241,8 +292,9 @@ void ShmExport::send(const std::shared_ptr<const MessageStorage>& message) {
     std::this_thread::sleep_for(std::chrono::microseconds(attempt < 100 ? 10 : 1000));
   }
   auto* out = static_cast<std::byte*>(payload);
-  const Prefix prefix{kChunkMagic, options.process_index, 0};
-  std::memcpy(out, &prefix, sizeof(prefix));
+  // Written without zeroing: whatever an earlier use left past `bytes` stays recorded.
+  detail::recordChunkExtent(out, options.process_index,
+                            std::max(bytes, detail::chunkExtent(out, capacityOf(payload))));
   std::vector<std::uint32_t> table(table_words * 2, 0);
   table[0] = static_cast<std::uint32_t>(segments.size() - 1);
   for (std::size_t i = 0; i < segments.size(); ++i) {
@@ -280,8 +332,15 @@ class ChunkView final : public MessageStorage {
     options.traversalLimitInWords = std::max<std::uint64_t>(64 * words.size(), 1u << 20);
     reader_.emplace(words, options);  // checks the segment table against the chunk size
     const unsigned count = segmentCount(words);
-    segments_ = kj::heapArray<kj::ArrayPtr<const capnp::word>>(count);
-    for (unsigned i = 0; i < count; ++i) segments_[i] = reader_->getSegment(i);
+    // Messages built in place have one segment: no allocation for its table.
+    if (count == 1) {
+      first_ = reader_->getSegment(0);
+      segments_ = kj::arrayPtr(&first_, 1);
+    } else {
+      more_ = kj::heapArray<kj::ArrayPtr<const capnp::word>>(count);
+      for (unsigned i = 0; i < count; ++i) more_[i] = reader_->getSegment(i);
+      segments_ = more_.asPtr();
+    }
   }
   ~ChunkView() noexcept override {
     try {
@@ -295,7 +354,7 @@ class ChunkView final : public MessageStorage {
     return const_cast<capnp::FlatArrayMessageReader&>(*reader_).getRoot<capnp::AnyPointer>();
   }
   kj::ArrayPtr<const kj::ArrayPtr<const capnp::word>> segments() const override {
-    return segments_.asPtr();
+    return segments_;
   }
 
  private:
@@ -307,7 +366,9 @@ class ChunkView final : public MessageStorage {
   std::shared_ptr<ShmTransport::Impl::Import> import_;
   const void* payload_;
   std::optional<capnp::FlatArrayMessageReader> reader_;
-  kj::Array<kj::ArrayPtr<const capnp::word>> segments_;
+  kj::ArrayPtr<const capnp::word> first_;
+  kj::Array<kj::ArrayPtr<const capnp::word>> more_;
+  kj::ArrayPtr<const kj::ArrayPtr<const capnp::word>> segments_;
 };
 
 }  // namespace
@@ -389,12 +450,16 @@ void ShmTransport::startReceiving() {
       auto notes = waitset.wait();
       for (auto& i : impl->imports) {
         int deferred = 0;  // queued without running, in this batch
+        {
+          // A flag, not a count: once per wake-up is as exact as once per take, and cheaper.
+          std::lock_guard lock(i->mutex);
+          if (i->subscriber->hasMissedData()) ++impl->drops;
+        }
         for (;;) {
           const void* payload = nullptr;
           bool more = false;
           {
             std::lock_guard lock(i->mutex);
-            if (i->subscriber->hasMissedData()) ++impl->drops;
             auto r = i->subscriber->take();
             more = !r.has_error() && i->subscriber->hasData();
             if (r.has_error()) {
@@ -423,8 +488,11 @@ void ShmTransport::startReceiving() {
               static_cast<const std::byte*>(payload) + kPrefixBytes);
           std::shared_ptr<const MessageStorage> view;
           try {
-            view = std::make_shared<ChunkView>(i, payload,
-                                               kj::arrayPtr(words, (size - kPrefixBytes) / kWord));
+            // Views are freed on whichever thread drops the last reader: a scalable allocator
+            // keeps that cross-thread free off a shared malloc arena lock.
+            view =
+                std::allocate_shared<ChunkView>(tbb::scalable_allocator<ChunkView>(), i, payload,
+                                                kj::arrayPtr(words, (size - kPrefixBytes) / kWord));
           } catch (const kj::Exception& e) {
             // The view was not built, so its destructor will not release the chunk.
             std::fprintf(stderr, "warning: topic '%s': dropped a malformed message: %s\n",

@@ -88,6 +88,24 @@ class ShmTransport {
 
 /// Bytes of chunk prefix plus segment table in front of a single-segment message.
 constexpr std::size_t kShmChunkOverhead = 24;
+
+namespace detail {
+/// Chunk reuse without zeroing whole chunks. Every chunk's 16-byte prefix records, with a check
+/// value, how far from the payload start its last use may have written ("extent"); past that
+/// the chunk is zero. A chunk whose prefix does not check out (fresh memory, or written by
+/// something else) counts as written throughout its `capacity`.
+///
+/// zeroChunkForBuilder: makes bytes [16, end) of the payload zero, touching only what was
+/// written before, and records the extent pessimistically (the builder may write up to `end`;
+/// a process that dies while building leaves that). Returns the extent that remains past
+/// `end` (0 when the chunk is zero from `end` on), which recordChunkExtent must keep.
+std::size_t zeroChunkForBuilder(std::byte* payload, std::size_t capacity, std::size_t end,
+                                std::uint32_t origin);
+/// The extent the chunk had before this use (for a chunk written without zeroing).
+std::size_t chunkExtent(const std::byte* payload, std::size_t capacity);
+/// Writes the prefix: Tessera magic, the sending process, the extent and its check value.
+void recordChunkExtent(std::byte* payload, std::uint32_t origin, std::size_t extent);
+}  // namespace detail
 /// First-segment size used when a publisher gives no size hint.
 constexpr std::size_t kShmDefaultMessageBytes = 4096;
 
