@@ -16,6 +16,17 @@ struct Submap {
   scans @4 :UInt32;             # scans inserted
   travelledM @5 :Float64;       # [m] odometry path length inside the submap
   finished @6 :Bool;            # false: a snapshot of the submap still being built
+  # Finished submaps: the robot's smoothed pose at each scan in the submap, in the submap's
+  # frame (the final best particle's poses at its filter updates, moved by odometry between
+  # them). Consumers that used the online estimate of a scan (e.g. for a loop closure) replace
+  # it with this once the submap is done. Empty when the producer keeps no trajectory.
+  trajectory @7 :List(ScanPose);
+  struct ScanPose {
+    stampNs @0 :Int64;
+    x @1 :Float64;              # [m]
+    y @2 :Float64;              # [m]
+    theta @3 :Float64;          # [rad]
+  }
 }
 
 struct SubmapConstraint {

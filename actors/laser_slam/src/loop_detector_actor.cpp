@@ -254,12 +254,36 @@ void LoopDetectorActor::onSubmap(const Message<msg::Submap>& m) {
   last_end_ = std::max(last_end_, end);
   // This submap's own scans ran up to `end`: their closures can be expressed now.
   const common::Pose2 chained = s.chained;
+  const auto trajectory = m->getTrajectory();  // by increasing stamp
+  // The smoothed pose of the scan at `stamp` (stamps went through seconds: 1 us tolerance).
+  auto smoothed = [&](Nanos stamp, common::Pose2& out) {
+    std::size_t lo = 0, hi = trajectory.size();
+    while (lo < hi) {
+      const std::size_t mid = (lo + hi) / 2;
+      if (trajectory[static_cast<unsigned>(mid)].getStampNs() < stamp - 1000)
+        lo = mid + 1;
+      else
+        hi = mid;
+    }
+    if (lo == trajectory.size()) return false;
+    const auto p = trajectory[static_cast<unsigned>(lo)];
+    if (std::abs(p.getStampNs() - stamp) > 1000) return false;
+    out = {p.getX(), p.getY(), p.getTheta()};
+    return out.isFinite();
+  };
   std::vector<PendingClosure> still;
   for (const auto& c : pending_) {
-    if (c.stamp <= end && chained.isFinite())
-      publishClosure(c, id, chained);
-    else
+    if (c.stamp <= end && chained.isFinite()) {
+      common::Pose2 in_current;
+      if (smoothed(c.stamp, in_current)) {
+        if (c.matched != id) ++published_smoothed_;
+      } else {
+        in_current = chained.inverse() * c.robot_chained;  // the online estimate
+      }
+      publishClosure(c, id, in_current);
+    } else {
       still.push_back(c);
+    }
   }
   pending_ = std::move(still);
   if (s.grid.empty() || !chained.isFinite()) {
@@ -280,9 +304,8 @@ void LoopDetectorActor::onSubmap(const Message<msg::Submap>& m) {
 }
 
 void LoopDetectorActor::publishClosure(const PendingClosure& c, int current,
-                                       const common::Pose2& current_chained) {
+                                       const common::Pose2& in_current) {
   if (c.matched == current) return;
-  const common::Pose2 in_current = current_chained.inverse() * c.robot_chained;
   // The matched submap's origin seen from the current one's: robot-in-current ⊕ robot-in-matched⁻¹.
   const common::Pose2 relative = in_current * c.in_matched.inverse();
   Eigen::Matrix3d cov = relativeCovariance(in_current, c.in_matched, c.covariance);
@@ -341,6 +364,7 @@ void LoopDetectorActor::summarize(Summary& out) const {
   out["loop_match_s"] = match_seconds_;
   out["loops_accepted"] = i64(c.accepted);
   out["loops_published"] = i64(published_);
+  out["loops_published_smoothed"] = i64(published_smoothed_);
   out["loops_rejected_no_match"] = i64(c.no_match);
   out["loops_rejected_low_score"] = i64(c.low_score);
   out["loops_rejected_ambiguous"] = i64(c.ambiguous);

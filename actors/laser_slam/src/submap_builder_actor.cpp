@@ -168,8 +168,9 @@ void SubmapBuilderActor::publishPose(Nanos stamp, const common::Pose2& odometry)
 
 void SubmapBuilderActor::handOver(Nanos stamp) {
   appendBestTrajectory(finished_trajectory_);
+  const std::vector<Rbpf::StampedPose> smoothed = densify(rbpf_.bestTrajectory());
   const FinishedSubmap done = rbpf_.startSubmap();
-  publishSubmap(done, stamp);
+  publishSubmap(done, stamp, smoothed);
   auto loan = constraint_pub_.loan();
   setHeader(loan->initHeader(), stamp, options_.frame_id, constraint_pub_.nextSeq());
   loan->setFromId(static_cast<std::uint32_t>(done.id));
@@ -180,10 +181,11 @@ void SubmapBuilderActor::handOver(Nanos stamp) {
   submap_origin_ = submap_origin_ * done.next_in_this.pose;
 }
 
-void SubmapBuilderActor::publishSubmap(const FinishedSubmap& submap, Nanos stamp) {
+void SubmapBuilderActor::publishSubmap(const FinishedSubmap& submap, Nanos stamp,
+                                       const std::vector<Rbpf::StampedPose>& trajectory) {
   const common::OccupancyMap map = submap.grid.toOccupancyMap();
   const std::size_t cells = map.cells.size();
-  auto loan = submap_pub_.loan(cells + 1024);
+  auto loan = submap_pub_.loan(cells + 40 * trajectory.size() + 1024);
   setHeader(loan->initHeader(), stamp, options_.frame_id, submap_pub_.nextSeq());
   loan->setId(static_cast<std::uint32_t>(submap.id));
   auto grid = loan->initGrid();
@@ -198,6 +200,13 @@ void SubmapBuilderActor::publishSubmap(const FinishedSubmap& submap, Nanos stamp
   loan->setScans(static_cast<std::uint32_t>(submap.scans_inserted));
   loan->setTravelledM(submap.travelled_m);
   loan->setFinished(true);
+  auto poses = loan->initTrajectory(static_cast<unsigned>(trajectory.size()));
+  for (unsigned i = 0; i < trajectory.size(); ++i) {
+    poses[i].setStampNs(secondsToNanos(trajectory[i].stamp_s));
+    poses[i].setX(trajectory[i].pose.x);
+    poses[i].setY(trajectory[i].pose.y);
+    poses[i].setTheta(trajectory[i].pose.theta);
+  }
   submap_pub_.publish(std::move(loan));
   ++submaps_published_;
 }
@@ -213,7 +222,7 @@ void SubmapBuilderActor::stop() {
   // Upstream has stopped: no odometry will come for scans still waiting.
   pairing_.finish();
   if (!rbpf_.initialized()) return;
-  publishSubmap(rbpf_.currentSubmap(), last_stamp_);
+  publishSubmap(rbpf_.currentSubmap(), last_stamp_, densify(rbpf_.bestTrajectory()));
   std::vector<Rbpf::StampedPose> trajectory = finished_trajectory_;
   appendBestTrajectory(trajectory);
   for (const auto& p : densify(trajectory)) {

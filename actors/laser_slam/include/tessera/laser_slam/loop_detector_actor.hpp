@@ -15,7 +15,11 @@
 // Publishes:
 //   loop_constraints msg::SubmapConstraint  kind revisit, from the submap the robot was in to
 //                                       the matched one. A match is published when the robot's
-//                                       own submap is finished (its origin is known then).
+//                                       own submap is finished (its origin is known then), with
+//                                       the scan's smoothed pose in it from the finished submap's
+//                                       trajectory: the online estimate came from the particle
+//                                       that was best then, which need not be the one whose map
+//                                       the submap keeps.
 //
 // Search. Every `every_n_scans`-th scan with a pose is tried against the finished submaps whose
 // area (expanded by the window) holds the robot's estimate, nearest first, skipping the
@@ -140,7 +144,8 @@ class LoopDetectorActor final : public Actor {
   void onSubmapPoses(const Message<msg::SubmapPoses>& m);
   void onGroundTruth(const Message<msg::GroundTruthPose>& m);
   void tryScan(const Message<msg::LaserScan>& scan, const common::Pose2& robot_chained);
-  void publishClosure(const PendingClosure& c, int current, const common::Pose2& current_chained);
+  /// `in_current`: the robot's pose in the current submap at the match.
+  void publishClosure(const PendingClosure& c, int current, const common::Pose2& in_current);
   bool truthAt(Nanos stamp, common::Pose2& out) const;
   /// Search window for a submap: grows with the distance driven since it was finished.
   common::SearchWindow windowFor(const FinishedSubmap& s) const;
@@ -161,6 +166,7 @@ class LoopDetectorActor final : public Actor {
   common::Pose2 last_pose_;
   double driven_ = 0.0;
   std::uint64_t scans_seen_ = 0, scans_tried_ = 0, matches_run_ = 0, published_ = 0;
+  std::uint64_t published_smoothed_ = 0;  // of published_: with the submap's smoothed scan pose
   std::uint64_t truth_true_ = 0, truth_false_ = 0, truth_unknown_ = 0, submaps_rejected_ = 0;
   double match_seconds_ = 0.0;
 };

@@ -12,7 +12,8 @@
 //                                       odometry since in between), covariance = particle spread
 //   map_to_odom  msg::PoseStamped       every scan: the correction map ⊕ odom⁻¹
 //   submaps      msg::Submap            reliable consumers: each finished submap, and the last
-//                                       one (finished) in stop()
+//                                       one (finished) in stop(), with the smoothed pose of
+//                                       every scan in it (submap frame, as final_poses)
 //   constraints  msg::SubmapConstraint  at each hand-over: the new submap's origin in the old one
 //   final_poses  msg::PoseStamped       in stop(): one per scan, the best particle's pose at the
 //                                       filter update before it (trajectory tree, submap by
@@ -162,7 +163,9 @@ class SubmapBuilderActor final : public Actor {
   void process(const Message<msg::LaserScan>& scan, const common::Pose2& odom);
   void publishPose(Nanos stamp, const common::Pose2& odometry);
   void handOver(Nanos stamp);
-  void publishSubmap(const FinishedSubmap& submap, Nanos stamp);
+  /// `trajectory`: the submap's smoothed scan poses, in its own frame.
+  void publishSubmap(const FinishedSubmap& submap, Nanos stamp,
+                     const std::vector<Rbpf::StampedPose>& trajectory);
   /// The current submap's best trajectory, in the map frame, after `out`'s last stamp.
   std::vector<Rbpf::StampedPose> densify(const std::vector<Rbpf::StampedPose>& updates) const;
   void appendBestTrajectory(std::vector<Rbpf::StampedPose>& out) const;
