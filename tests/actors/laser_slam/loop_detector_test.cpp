@@ -29,6 +29,11 @@ struct ClosureRun {
 // pose). The robot, then in submap 1 whose chained origin is `origin1`, sends one scan taken at
 // the true pose of scan `probe`, with its online estimate exact. Submap 1 then finishes, with
 // `smoothed` as its trajectory entry for that scan when given.
+// Metres between the positions of two poses.
+double apart(const Pose2& a, const Pose2& b) {
+  return (a.translation() - b.translation()).norm();
+}
+
 ClosureRun runClosure(const std::optional<Pose2>& smoothed) {
   const auto sim = test::simulateRoomLoop();
   const Pose2 frame0 = sim.scans[0].truth;
@@ -102,10 +107,6 @@ ClosureRun runClosure(const std::optional<Pose2>& smoothed) {
   return run;
 }
 
-double distance(const Pose2& a, const Pose2& b) {
-  return std::hypot(a.x - b.x, a.y - b.y);
-}
-
 }  // namespace
 
 TEST_CASE("a loop closure uses the finished submap smoothed pose of its scan, else the online one",
@@ -120,7 +121,7 @@ TEST_CASE("a loop closure uses the finished submap smoothed pose of its scan, el
   REQUIRE(online.published == 1);
   CHECK(online.smoothed == 0);
   const Pose2 expect_online = online_in_1 * in_map.inverse();
-  CHECK(distance(online.relative, expect_online) < 0.05);
+  CHECK(apart(online.relative, expect_online) < 0.05);
 
   // The particle kept for submap 1 had the robot 0.3 m and 0.05 rad elsewhere at that scan.
   const Pose2 smoothed_in_1 = online_in_1 * Pose2(0.3, -0.1, 0.05);
@@ -128,9 +129,9 @@ TEST_CASE("a loop closure uses the finished submap smoothed pose of its scan, el
   REQUIRE(smoothed.published == 1);
   CHECK(smoothed.smoothed == 1);
   const Pose2 expect_smoothed = smoothed_in_1 * in_map.inverse();
-  CHECK(distance(smoothed.relative, expect_smoothed) < 0.05);
+  CHECK(apart(smoothed.relative, expect_smoothed) < 0.05);
   CHECK(std::abs(common::angleDiff(smoothed.relative.theta, expect_smoothed.theta)) < 0.02);
   // The two answers are told apart: they lie 0.13 m apart, each found within 0.05 m.
-  REQUIRE(distance(expect_smoothed, expect_online) > 0.12);
-  CHECK(distance(smoothed.relative, expect_online) > 0.07);
+  REQUIRE(apart(expect_smoothed, expect_online) > 0.12);
+  CHECK(apart(smoothed.relative, expect_online) > 0.07);
 }
