@@ -332,7 +332,10 @@ class Echo : public Actor {
       writeWire(loan->initPayload(kControlBytes).begin(), w);
       pong_.publish(std::move(loan));
     };
-    if (!logic_.handle(in, taken, copies, prepare, send, control)) quit_ = true;
+    if (!logic_.handle(in, taken, copies, prepare, send, control)) {
+      quit_ = true;
+      quit_.notify_all();
+    }
   }
 
   std::atomic<bool>& quit_;
@@ -449,7 +452,9 @@ int shmFollower(std::size_t max_chunk) {
   rt.start();
   transport.startReceiving();
   if (!transport.waitForPublishers(10s)) throw std::runtime_error("follower: no leader");
-  while (!quit.load()) std::this_thread::sleep_for(1ms);
+  // Blocks rather than polls: a thread waking every millisecond is a third party to every
+  // wake-up being measured.
+  quit.wait(false);
   transport.stopReceiving();
   rt.stop();
   return 0;

@@ -3,8 +3,10 @@
 #include <Eigen/Eigenvalues>
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <limits>
+#include <span>
 #include <stdexcept>
 #include <string>
 
@@ -106,7 +108,7 @@ struct Exclusion {
 };
 
 /// Depth-first branch and bound. `floor` is the least sum worth finding; best.sum < 0 = none yet.
-void descend(Search& search, std::vector<Node>& nodes, int level, std::int64_t floor, Node& best,
+void descend(Search& search, std::span<Node> nodes, int level, std::int64_t floor, Node& best,
              const Exclusion* exclusion) {
   std::sort(nodes.begin(), nodes.end(), [](const Node& a, const Node& b) { return a.sum > b.sum; });
   auto need = [&] { return std::max(floor, best.sum + 1); };
@@ -118,17 +120,17 @@ void descend(Search& search, std::vector<Node>& nodes, int level, std::int64_t f
       continue;
     }
     const int half = 1 << (level - 1);
-    std::vector<Node> children;
-    children.reserve(4);
+    std::array<Node, 4> children;  // on the stack: this runs for every expanded block
+    std::size_t count = 0;
     for (int b = 0; b < 2; ++b)
       for (int a = 0; a < 2; ++a) {
         const int cx = n.x + a * half, cy = n.y + b * half;
         if (cx > search.window() || cy > search.window()) continue;
         if (exclusion && exclusion->block(n.angle, cx, cy, half)) continue;
         const std::int64_t s = search.sum(level - 1, n.angle, cx, cy);
-        if (s >= need()) children.push_back({n.angle, cx, cy, s});
+        if (s >= need()) children[count++] = {n.angle, cx, cy, s};
       }
-    descend(search, children, level - 1, floor, best, exclusion);
+    descend(search, std::span<Node>(children.data(), count), level - 1, floor, best, exclusion);
   }
 }
 
