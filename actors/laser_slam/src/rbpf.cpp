@@ -91,6 +91,9 @@ Rbpf::Rbpf(RbpfOptions options) : options_(std::move(options)), matcher_(options
     require(std::isfinite(v) && v >= 0, "motion noise srr/srt/str/stt must be >= 0");
   // The grid validates its own options; fail here, at configuration, not at the first scan.
   common::TiledGrid probe(o.grid);
+  require(std::isfinite(o.handover_sigma_linear) && o.handover_sigma_linear >= 0 &&
+              std::isfinite(o.handover_sigma_angular) && o.handover_sigma_angular >= 0,
+          "handover_sigma_linear and handover_sigma_angular must be >= 0");
   require(o.coarse_kernel_radius >= 0, "coarse_kernel_radius must be >= 0 (0 disables)");
   require(o.coarse_beam_step >= 1, "coarse_beam_step must be >= 1");
   if (o.coarse_kernel_radius > 0) {
@@ -369,6 +372,9 @@ FinishedSubmap Rbpf::currentSubmap() const {
   Eigen::Matrix3d r = Eigen::Matrix3d::Identity();
   r.topLeftCorner<2, 2>() = particles_[static_cast<std::size_t>(best_)].pose.rotation();
   done.next_in_this.covariance += r * motionCovariance(since_update) * r.transpose();
+  const double lin = options_.handover_sigma_linear, ang = options_.handover_sigma_angular;
+  done.next_in_this.covariance.diagonal() +=
+      submap_travelled_ * Eigen::Vector3d(lin * lin, lin * lin, ang * ang);
   done.scans_inserted = submap_scans_;
   done.travelled_m = submap_travelled_;
   return done;

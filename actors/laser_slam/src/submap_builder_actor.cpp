@@ -55,6 +55,8 @@ RbpfOptions SubmapBuilderOptions::rbpf() const {
   o.seed = seed;
   o.parallel = parallel;
   o.sample_proposal = sample_proposal;
+  o.handover_sigma_linear = handover_sigma_linear;
+  o.handover_sigma_angular = handover_sigma_angular;
   o.grid.resolution = resolution;
   o.grid.track_hit_points = hit_points;
   o.grid.log_odds = {static_cast<float>(l_occ), static_cast<float>(l_free),

@@ -190,6 +190,30 @@ TEST_CASE("rbpf ignores empty, NaN and all-max-range scans and bad odometry", "[
   CHECK(rbpf.bestMap().knownCount() == known);
 }
 
+TEST_CASE("the hand-over covariance is the particle spread plus a floor growing with distance",
+          "[rbpf]") {
+  const auto sim = test::simulateRoomLoop();
+  auto handOver = [&](double lin, double ang) {
+    RbpfOptions o = fastOptions(8);
+    o.handover_sigma_linear = lin;
+    o.handover_sigma_angular = ang;
+    Rbpf rbpf(o);
+    for (std::size_t k = 0; k < 60; ++k)
+      rbpf.addScan(sim.scans[k].stamp_s, sim.range(sim.scans[k]), Pose2{}, sim.scans[k].odometry);
+    return rbpf.startSubmap();
+  };
+  const auto spread = handOver(0.0, 0.0);
+  const auto floored = handOver(0.03, 0.004);
+  REQUIRE(spread.travelled_m > 1.0);
+  // Same filter run (the floor changes nothing else), so the covariances differ by the floor.
+  CHECK(floored.next_in_this.pose.x == spread.next_in_this.pose.x);
+  const Eigen::Matrix3d added = floored.next_in_this.covariance - spread.next_in_this.covariance;
+  CHECK(added(0, 0) == Approx(0.03 * 0.03 * spread.travelled_m));
+  CHECK(added(1, 1) == Approx(0.03 * 0.03 * spread.travelled_m));
+  CHECK(added(2, 2) == Approx(0.004 * 0.004 * spread.travelled_m));
+  CHECK(added(0, 1) == 0.0);
+}
+
 TEST_CASE("rbpf rejects invalid options with the option name", "[rbpf]") {
   RbpfOptions o;
   o.particles = 0;
@@ -203,4 +227,7 @@ TEST_CASE("rbpf rejects invalid options with the option name", "[rbpf]") {
   o = {};
   o.grid.resolution = 0;
   CHECK_THROWS(Rbpf(o));
+  o = {};
+  o.handover_sigma_angular = -0.1;
+  CHECK_THROWS_WITH(Rbpf(o), Catch::Contains("handover_sigma"));
 }

@@ -76,6 +76,12 @@ struct RbpfOptions {
   /// Draw each particle's pose from the fitted proposal (Grisetti et al. 2007); false keeps the
   /// proposal's mean (GMapping's shortcut: less diversity, less jitter).
   bool sample_proposal = true;
+  /// Random-walk floor on the hand-over constraint's covariance: σ² · d is added per axis, d =
+  /// metres travelled in the submap ([m/√m] for x and y, [rad/√m] for θ). The particle spread
+  /// alone understates how far a submap's end may be off: resampling collapses it, and the
+  /// particles share most of their history.
+  double handover_sigma_linear = 0.02;
+  double handover_sigma_angular = 0.005;
 };
 
 /// A pose with its uncertainty, e.g. an inter-submap constraint.

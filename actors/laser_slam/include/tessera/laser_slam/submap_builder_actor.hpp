@@ -72,7 +72,8 @@ struct SubmapBuilderOptions {
   double match_min_fraction = 0.1;
   // Submaps.
   double submap_distance = 0.0;  // [m] travelled; 0 = never
-  int submap_scans = 0;          // inserted scans; 0 = never
+  double handover_sigma_linear = 0.02, handover_sigma_angular = 0.005;
+  int submap_scans = 0;  // inserted scans; 0 = never
   bool camera_trigger = false;
   // Plumbing.
   std::string frame_id = "map";
@@ -129,6 +130,10 @@ struct SubmapBuilderOptions {
       "otherwise the particle follows odometry");
     v("submap_distance", submap_distance, "start a new submap after this travel [m]; 0 = never");
     v("submap_scans", submap_scans, "start a new submap after this many inserted scans; 0 = never");
+    v("handover_sigma_linear", handover_sigma_linear,
+      "[m/sqrt(m)] hand-over covariance floor: variance += sigma^2 x metres travelled in the "
+      "submap (x, y)");
+    v("handover_sigma_angular", handover_sigma_angular, "[rad/sqrt(m)] the same for the heading");
     v("camera_trigger", camera_trigger,
       "subscribe to camera_events: entering a new camera's view starts a new submap");
     v("frame_id", frame_id, "global frame of the published poses");
