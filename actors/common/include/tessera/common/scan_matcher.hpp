@@ -78,6 +78,10 @@
 #include <stdexcept>
 #include <vector>
 
+#if defined(__SSE2__)
+#include <emmintrin.h>
+#endif
+
 namespace tessera::common {
 
 struct ScanMatcherOptions {
@@ -180,14 +184,70 @@ concept OccupancyRowGrid = requires(const Grid& g, std::uint32_t* rows) {
   g.occupancyRows(0, 0, 1, 0.0f, rows);
 };
 
-/// floor(t) for the matcher's cell arithmetic. The SSE2 baseline has no rounding instruction,
-/// and std::floor's generic sequence took a tenth of the matcher's time; truncation and one
-/// correction give the same value for |t| < 2³¹ (cell indices are ints anyway).
-inline double floorIndex(double t) {
-  if (!(std::abs(t) < 2147483648.0)) return std::floor(t);
-  const double i = static_cast<double>(static_cast<int>(t));  // toward zero
-  return i > t ? i - 1.0 : i;
+/// floor(t) for the matcher's cell arithmetic, as an int. The SSE2 baseline has no rounding
+/// instruction, and std::floor's generic sequence took a tenth of the matcher's time;
+/// truncation and a branch-free correction (cells are negative as often as not) give the same
+/// value. t is first clamped to ±2²⁹ cells, far beyond any map (27 000 km at 5 cm), so absurd
+/// poses give far-away cells rather than overflow.
+inline constexpr double kMaxCellIndex = 536870912.0;  // 2^29
+inline int floorIndex(double t) {
+  t = t < -kMaxCellIndex ? -kMaxCellIndex : t;
+  t = t > kMaxCellIndex ? kMaxCellIndex : t;
+  const int k = static_cast<int>(t);  // toward zero
+  return k - static_cast<int>(t < static_cast<double>(k));
 }
+
+/// One beam endpoint e (base frame) at poses k < n, each given as translation (x, y) and the
+/// cosine and sine of its heading: the cell of e in the map, relative to the cell whose centre
+/// is `centre0` (the nearest lattice point: floorIndex(q + ½), q = (p − centre0)/res in cell
+/// units, p = the pose applied to e), and e's offset from that cell's centre [m], in float.
+/// The arrays hold an even number of entries at least n (on SSE2 two poses go at a time, with
+/// the same operations in the same order as one at a time, hence the same values).
+inline void endpointCells(int n, const double* x, const double* y, const double* cos_h,
+                          const double* sin_h, double ex, double ey, const Eigen::Vector2d& centre0,
+                          double res, int* cell_x, int* cell_y, float* ux, float* uy) {
+  const double inv_res = 1.0 / res;
+#if defined(__SSE2__)
+  const __m128d vex = _mm_set1_pd(ex), vey = _mm_set1_pd(ey);
+  const __m128d c0x = _mm_set1_pd(centre0.x()), c0y = _mm_set1_pd(centre0.y());
+  const __m128d vinv = _mm_set1_pd(inv_res), vres = _mm_set1_pd(res), half = _mm_set1_pd(0.5);
+  const __m128d lo = _mm_set1_pd(-kMaxCellIndex), hi = _mm_set1_pd(kMaxCellIndex);
+  const __m128d one = _mm_set1_pd(1.0);
+  auto floor2 = [&](__m128d t) {  // floorIndex() of both lanes, as doubles
+    t = _mm_min_pd(_mm_max_pd(t, lo), hi);
+    const __m128d k = _mm_cvtepi32_pd(_mm_cvttpd_epi32(t));
+    return _mm_sub_pd(k, _mm_and_pd(_mm_cmplt_pd(t, k), one));
+  };
+  for (int k = 0; k < n; k += 2) {
+    const __m128d c = _mm_loadu_pd(cos_h + k), s = _mm_loadu_pd(sin_h + k);
+    // x + c·ex − s·ey and y + s·ex + c·ey, evaluated left to right as in scalar code.
+    const __m128d px =
+        _mm_sub_pd(_mm_add_pd(_mm_loadu_pd(x + k), _mm_mul_pd(c, vex)), _mm_mul_pd(s, vey));
+    const __m128d py =
+        _mm_add_pd(_mm_add_pd(_mm_loadu_pd(y + k), _mm_mul_pd(s, vex)), _mm_mul_pd(c, vey));
+    const __m128d qx = _mm_mul_pd(_mm_sub_pd(px, c0x), vinv);
+    const __m128d qy = _mm_mul_pd(_mm_sub_pd(py, c0y), vinv);
+    const __m128d fx = floor2(_mm_add_pd(qx, half)), fy = floor2(_mm_add_pd(qy, half));
+    _mm_storel_epi64(reinterpret_cast<__m128i*>(cell_x + k), _mm_cvttpd_epi32(fx));
+    _mm_storel_epi64(reinterpret_cast<__m128i*>(cell_y + k), _mm_cvttpd_epi32(fy));
+    _mm_storel_pi(reinterpret_cast<__m64*>(ux + k),
+                  _mm_cvtpd_ps(_mm_mul_pd(_mm_sub_pd(qx, fx), vres)));
+    _mm_storel_pi(reinterpret_cast<__m64*>(uy + k),
+                  _mm_cvtpd_ps(_mm_mul_pd(_mm_sub_pd(qy, fy), vres)));
+  }
+#else
+  for (int k = 0; k < n; ++k) {
+    const double c = cos_h[k], s = sin_h[k];
+    const double px = x[k] + c * ex - s * ey, py = y[k] + s * ex + c * ey;
+    const double qx = (px - centre0.x()) * inv_res, qy = (py - centre0.y()) * inv_res;
+    cell_x[k] = floorIndex(qx + 0.5);
+    cell_y[k] = floorIndex(qy + 0.5);
+    ux[k] = static_cast<float>((qx - cell_x[k]) * res);
+    uy[k] = static_cast<float>((qy - cell_y[k]) * res);
+  }
+#endif
+}
+
 /// Index of the lowest / highest set bit of a non-zero word: one instruction, where
 /// std::countr_zero / countl_zero add a test for zero on the x86-64 baseline.
 inline int lowestBit(std::uint32_t nonzero) {
@@ -438,15 +498,15 @@ void ScanMatcher::evaluateRows(const Grid& grid, const ScanPoints& points, const
   // The lattice is regular, so cells are found by arithmetic from one reference centre instead
   // of a worldToCell/cellCenter call pair per beam.
   const Eigen::Vector2d centre0 = grid.cellCenter(Eigen::Vector2i::Zero());
-  const double inv_res = 1.0 / res;
-  // The poses ordered by heading (stable), so that per beam the rotated endpoint and the
-  // free-check direction are computed once per heading: out[order[p]] is sorted pose p's.
+  // The poses ordered by heading (stable), so that per beam the free-check direction is found,
+  // and a cluster's free-check pass made, once per heading: out[order[p]] is sorted pose p's.
   int order[kMaxGroup];
   for (int p = 0; p < n; ++p) {
     int k = p;
     for (; k > 0 && poses[order[k - 1]].theta > poses[p].theta; --k) order[k] = order[k - 1];
     order[k] = p;
   }
+  // Padded to an even count for detail::endpointCells() with a copy of the last pose.
   double pose_x[kMaxGroup], pose_y[kMaxGroup], cos_p[kMaxGroup], sin_p[kMaxGroup];
   bool new_heading[kMaxGroup];
   for (int p = 0; p < n; ++p) {
@@ -456,6 +516,12 @@ void ScanMatcher::evaluateRows(const Grid& grid, const ScanPoints& points, const
     new_heading[p] = p == 0 || pose.theta != poses[order[p - 1]].theta;
     cos_p[p] = std::cos(pose.theta);
     sin_p[p] = std::sin(pose.theta);
+  }
+  if (n % 2 != 0) {
+    pose_x[n] = pose_x[n - 1];
+    pose_y[n] = pose_y[n - 1];
+    cos_p[n] = cos_p[n - 1];
+    sin_p[n] = sin_p[n - 1];
   }
   const Eigen::Vector2f o = points.origin;
   // Candidate bits of window rows: bit dx + r + 1 of a pose's row dy + r (bit 0 is the border).
@@ -477,29 +543,25 @@ void ScanMatcher::evaluateRows(const Grid& grid, const ScanPoints& points, const
     const double limit = (bx * bx + by * by) * quarter_inv_free2;  // (½·|b|/free_cells)²
     const bool check = free_check && limit > 0.0;
     auto component = [limit](double d) {  // floor(x + ½) for x = −free_cells·d/|b|
-      return d < 0.0 ? (d * d >= limit ? 1 : 0) : (d * d > limit ? -1 : 0);
+      // Branch-free: the signs of beam directions do not follow a pattern.
+      const double d2 = d * d;
+      return static_cast<int>((d < 0.0) & (d2 >= limit)) -
+             static_cast<int>(!(d < 0.0) & (d2 > limit));
     };
-    int cell_x[kMaxGroup], cell_y[kMaxGroup], back[kMaxGroup];
-    float ux[kMaxGroup], uy[kMaxGroup];
-    double cex = 0, sey = 0, sex = 0, cey = 0;  // the rotated endpoint's terms
+    // The free-check direction, once per heading.
+    int back[kMaxGroup];
     int heading_back = 4;
     for (int p = 0; p < n; ++p) {
-      if (new_heading[p]) {
-        const double c = cos_p[p], s = sin_p[p];
-        cex = c * ex, sey = s * ey, sex = s * ex, cey = c * ey;
-        heading_back =
-            check ? component(c * bx - s * by) + 1 + 3 * (component(s * bx + c * by) + 1) : 4;
-      }
-      const double px = pose_x[p] + cex - sey, py = pose_y[p] + sex + cey;  // map [m]
-      const double qx = (px - centre0.x()) * inv_res;
-      const double qy = (py - centre0.y()) * inv_res;
-      const double fx = detail::floorIndex(qx + 0.5), fy = detail::floorIndex(qy + 0.5);
-      cell_x[p] = static_cast<int>(fx);
-      cell_y[p] = static_cast<int>(fy);
-      ux[p] = static_cast<float>((qx - fx) * res);
-      uy[p] = static_cast<float>((qy - fy) * res);
+      if (new_heading[p])
+        heading_back = check ? component(cos_p[p] * bx - sin_p[p] * by) + 1 +
+                                   3 * (component(sin_p[p] * bx + cos_p[p] * by) + 1)
+                             : 4;
       back[p] = heading_back;
     }
+    int cell_x[kMaxGroup], cell_y[kMaxGroup];
+    float ux[kMaxGroup], uy[kMaxGroup];
+    detail::endpointCells(n, pose_x, pose_y, cos_p, sin_p, ex, ey, centre0, res, cell_x, cell_y, ux,
+                          uy);
     // Rows of the current cluster's windows plus a one-cell border, where the free-check cells
     // of the windows' edges lie (|back| ≤ 1 per axis here), and their candidate bits: the cells
     // above the threshold whose free-check cell is not, for the direction cand_back.
@@ -510,17 +572,8 @@ void ScanMatcher::evaluateRows(const Grid& grid, const ScanPoints& points, const
     // scans avoids a walk's unpredictable branches. A side without candidates yields an offset
     // beyond the window (d > R), which the minimum ignores.
     auto nearest = [&](const std::uint32_t* rows_in, int shift, float u_x, float u_y) {
-      std::uint32_t rows[2 * kMaxBitRadius + 1];
-      // Most rows of a window are empty (walls are thin), so only non-empty ones are scanned.
-      std::uint32_t nonempty = 0;
-      for (int i = 0; i <= 2 * r; ++i) {
-        rows[i] = (rows_in[i] >> shift) & window;
-        nonempty |= static_cast<std::uint32_t>(rows[i] != 0) << i;
-      }
       float best = big_r2;
-      for (; nonempty != 0; nonempty &= nonempty - 1) {
-        const int i = std::countr_zero(nonempty);
-        const std::uint32_t row = rows[i];
+      auto scanRow = [&](int i, std::uint32_t row) {
         // Sentinel bits make both scans branch-free: with no candidate right of e, right =
         // 31 (d > R as r ≤ 14); with none left, left = −1 − centre.
         const int right = detail::lowestBit((row >> centre) | 0x80000000u);           // dx ≥ 0
@@ -529,6 +582,17 @@ void ScanMatcher::evaluateRows(const Grid& grid, const ScanPoints& points, const
         const float rr = u_x - static_cast<float>(right) * resf;
         const float rl = u_x - static_cast<float>(left) * resf;
         best = std::min(best, std::min(rr * rr + ry * ry, rl * rl + ry * ry));
+      };
+      // Most rows of a window are empty (walls are thin), so only non-empty ones are scanned.
+      std::uint32_t rows[2 * kMaxBitRadius + 1];
+      std::uint32_t nonempty = 0;
+      for (int i = 0; i <= 2 * r; ++i) {
+        rows[i] = (rows_in[i] >> shift) & window;
+        nonempty |= static_cast<std::uint32_t>(rows[i] != 0) << i;
+      }
+      for (; nonempty != 0; nonempty &= nonempty - 1) {
+        const int i = std::countr_zero(nonempty);
+        scanRow(i, rows[i]);
       }
       return best;
     };
@@ -634,7 +698,10 @@ ScanMatcher::Eval ScanMatcher::evaluateBeams(const Grid& grid, const ScanPoints&
         const double bx = ex - o.x(), by = ey - o.y();
         const double limit = (bx * bx + by * by) * quarter_inv_free2;  // (½·|b|/free_cells)²
         auto component = [limit](double d) {  // floor(x + ½) for x = −free_cells·d/|b|
-          return d < 0.0 ? (d * d >= limit ? 1 : 0) : (d * d > limit ? -1 : 0);
+          // Branch-free: the signs of beam directions do not follow a pattern.
+          const double d2 = d * d;
+          return static_cast<int>((d < 0.0) & (d2 >= limit)) -
+                 static_cast<int>(!(d < 0.0) & (d2 > limit));
         };
         if (limit > 0.0) back = {component(c * bx - s * by), component(s * bx + c * by)};
       }
