@@ -529,6 +529,11 @@ void ScanMatcher::evaluateRows(const Grid& grid, const ScanPoints& points, const
   const int centre = r + 1;  // bit of dx = 0
   const std::uint32_t below = (std::uint32_t{1} << centre) - 1;
   const std::uint32_t all = n == 32 ? ~std::uint32_t{0} : (std::uint32_t{1} << n) - 1;
+  // Cell offsets [m] as floats, k·resolution for k in [−32, 32) (row and column offsets of the
+  // window, and the bit scans' sentinels): looked up rather than converted per row.
+  float offset_table[64];
+  for (int k = 0; k < 64; ++k) offset_table[k] = static_cast<float>(k - 32) * resf;
+  const float* offset = offset_table + 32;
 
   double d2_sum[kMaxGroup] = {}, score_sum[kMaxGroup] = {};
   int matched[kMaxGroup] = {};
@@ -578,9 +583,9 @@ void ScanMatcher::evaluateRows(const Grid& grid, const ScanPoints& points, const
         // 31 (d > R as r ≤ 14); with none left, left = −1 − centre.
         const int right = detail::lowestBit((row >> centre) | 0x80000000u);           // dx ≥ 0
         const int left = detail::highestBit(((row & below) << 1) | 1u) - 1 - centre;  // dx < 0
-        const float ry = u_y - static_cast<float>(i - r) * resf;
-        const float rr = u_x - static_cast<float>(right) * resf;
-        const float rl = u_x - static_cast<float>(left) * resf;
+        const float ry = u_y - offset[i - r];
+        const float rr = u_x - offset[right];
+        const float rl = u_x - offset[left];
         best = std::min(best, std::min(rr * rr + ry * ry, rl * rl + ry * ry));
       };
       // Most rows of a window are empty (walls are thin), so only non-empty ones are scanned.
