@@ -42,17 +42,19 @@ void traverse(const Eigen::Vector2d& a, const Eigen::Vector2d& b, bool include_e
     t_max_y = (boundary - a.y()) / d.y();
     t_delta_y = 1.0 / std::abs(d.y());
   }
+  // Branch-free steps: whether a diagonal ray steps in x or y next follows no pattern the
+  // branch predictor could learn. An axis that does not step adds 0 (its t_max is ≥ 0 or +inf,
+  // so its comparisons are unchanged).
   while (left_x + left_y > 0) {
     visit(cell);
-    if (left_y == 0 || (left_x > 0 && t_max_x < t_max_y)) {
-      cell.x() += step_x;
-      t_max_x += t_delta_x;
-      --left_x;
-    } else {
-      cell.y() += step_y;
-      t_max_y += t_delta_y;
-      --left_y;
-    }
+    const int sx = static_cast<int>(left_y == 0 || (left_x > 0 && t_max_x < t_max_y));
+    const int sy = 1 - sx;
+    cell.x() += sx * step_x;
+    cell.y() += sy * step_y;
+    t_max_x += sx != 0 ? t_delta_x : 0.0;
+    t_max_y += sy != 0 ? t_delta_y : 0.0;
+    left_x -= sx;
+    left_y -= sy;
   }
   if (include_end) visit(cell);
 }
@@ -193,10 +195,15 @@ void ScanRasterizer::collect(const CellBox& storage, ScanInsertResult& result,
   const auto w = static_cast<std::uint64_t>(window.width());
   const std::uint64_t area = w * static_cast<std::uint64_t>(window.height());
   seen_.assign((area + 63) / 64, 0);
-  auto visit = [&](const Eigen::Vector2i& c, bool hit) {
-    if (!window.contains(c)) {
-      ++result.clipped_cells;
-      return;
+  // Every visited cell lies in need_, so when the grid stores all of it (the usual case) the
+  // per-cell clipping test is skipped.
+  const bool may_clip = window.min != need_.min || window.max != need_.max;
+  auto visitIn = [&]<bool kClip>(const Eigen::Vector2i& c, bool hit) {
+    if constexpr (kClip) {
+      if (!window.contains(c)) {
+        ++result.clipped_cells;
+        return;
+      }
     }
     const std::uint64_t index = static_cast<std::uint64_t>(c.y() - window.min.y()) * w +
                                 static_cast<std::uint64_t>(c.x() - window.min.x());
@@ -205,6 +212,10 @@ void ScanRasterizer::collect(const CellBox& storage, ScanInsertResult& result,
     if ((word & bit) != 0) return;
     word |= bit;
     updates_.push_back({c, hit});
+  };
+  auto visit = [&](const Eigen::Vector2i& c, bool hit) {
+    may_clip ? visitIn.template operator()<true>(c, hit)
+             : visitIn.template operator()<false>(c, hit);
   };
   // Hits first: a cell some beam ends in is occupied even if other beams cross it, so grazing
   // beams do not erase thin walls.
@@ -220,9 +231,12 @@ void ScanRasterizer::collect(const CellBox& storage, ScanInsertResult& result,
     }
   }
   // Free space along every beam, up to the endpoint cell (excluded for hits).
-  for (const Beam& b : beams_)
-    traverse(origin_, b.end, /*include_end=*/!b.hit,
-             [&](const Eigen::Vector2i& c) { visit(c, false); });
+  auto freeSpace = [&]<bool kClip>() {
+    for (const Beam& b : beams_)
+      traverse(origin_, b.end, /*include_end=*/!b.hit,
+               [&](const Eigen::Vector2i& c) { visitIn.template operator()<kClip>(c, false); });
+  };
+  may_clip ? freeSpace.template operator()<true>() : freeSpace.template operator()<false>();
 }
 
 }  // namespace tessera::common::detail

@@ -5,9 +5,14 @@
 #include <algorithm>
 #include <bit>
 #include <cmath>
+#include <limits>
 #include <stdexcept>
 #include <string>
 #include <utility>
+
+#if defined(__SSE2__)
+#include <emmintrin.h>
+#endif
 
 namespace tessera::common {
 namespace {
@@ -261,18 +266,56 @@ void TiledGrid::updateHitPoints(const detail::ScanRasterizer& rasterizer) {
 }
 
 namespace {
-/// Row `row` of the occupancy bits of `cells` (one tile).
-std::uint32_t occupancyRowOf(const std::int16_t* cells, int row, float threshold,
+/// The occupancy predicate of occupancyRows() in fixed point: a known cell v is above
+/// `threshold` iff v > above, and an unknown one (read as 0) iff unknown_occupied.
+struct FixedThreshold {
+  std::int16_t above;
+  bool unknown_occupied;
+};
+FixedThreshold fixedThreshold(float threshold) {
+  // v·(1/1024) is exact in float for every int16 v, so logOdds > threshold is the exact
+  // comparison v > 1024·threshold (exact in double), i.e. v > floor(1024·threshold) for
+  // integers; clamped, a bound beyond the int16 range keeps its meaning.
+  const double bound = std::floor(static_cast<double>(threshold) * TiledGrid::kLogOddsScale);
+  const double lo = std::numeric_limits<std::int16_t>::min();
+  const double hi = std::numeric_limits<std::int16_t>::max();
+  if (std::isnan(bound)) return {std::numeric_limits<std::int16_t>::max(), false};  // never above
+  return {static_cast<std::int16_t>(std::clamp(bound, lo, hi)), 0.0f > threshold};
+}
+
+/// Row `row` of the occupancy bits of `cells` (one tile): bit x set iff logOdds of cell x of
+/// the row > threshold (the same predicate as logOdds(c) > threshold, exactly).
+std::uint32_t occupancyRowOf(const std::int16_t* cells, int row, FixedThreshold t,
                              std::int16_t unknown) {
   cells += row * TiledGrid::kTileSide;
+#if defined(__SSE2__)
+  // Eight cells per compare; packing the 16-bit masks to bytes keeps their order, so byte
+  // masks of 16 cells are 16 consecutive bits.
+  const __m128i above = _mm_set1_epi16(t.above);
+  const __m128i unknown_v = _mm_set1_epi16(unknown);
+  auto mask8 = [&](int k) {
+    const __m128i v = _mm_loadu_si128(reinterpret_cast<const __m128i*>(cells + 8 * k));
+    const __m128i gt = _mm_cmpgt_epi16(v, above);
+    const __m128i unk = _mm_cmpeq_epi16(v, unknown_v);
+    // The unknown value is the int16 minimum, which is never above a bound ≥ that minimum, so
+    // only the occupied-unknown case needs the mask.
+    return t.unknown_occupied ? _mm_or_si128(gt, unk) : gt;
+  };
+  const auto low =
+      static_cast<std::uint32_t>(_mm_movemask_epi8(_mm_packs_epi16(mask8(0), mask8(1))));
+  const auto high =
+      static_cast<std::uint32_t>(_mm_movemask_epi8(_mm_packs_epi16(mask8(2), mask8(3))));
+  static_assert(TiledGrid::kTileSide == 32);
+  return low | (high << 16);
+#else
   std::uint32_t bits = 0;
   for (int x = 0; x < TiledGrid::kTileSide; ++x) {
-    // The same value and comparison as logOdds(c) > threshold, so the bits agree exactly.
     const std::int16_t v = cells[x];
-    const float l = v == unknown ? 0.0f : static_cast<float>(v) * (1.0f / TiledGrid::kLogOddsScale);
-    bits |= static_cast<std::uint32_t>(l > threshold) << x;
+    const bool occupied = v == unknown ? t.unknown_occupied : v > t.above;
+    bits |= static_cast<std::uint32_t>(occupied) << x;
   }
   return bits;
+#endif
 }
 }  // namespace
 
@@ -287,20 +330,20 @@ const std::atomic<std::uint32_t>* TiledGrid::occupancySlow(const Tile& t, float 
   thread_local std::atomic<std::uint32_t> scratch_rows[2][kTileSide];
   std::atomic<std::uint32_t>* scratch = scratch_rows[which];
   const std::uint64_t key = occupancyKey(threshold);
+  const FixedThreshold fixed = fixedThreshold(threshold);
   std::uint64_t seen = 0;
   // Only a stale cache is claimed: one filler at a time, and a cache kept for another
   // threshold is left to its user rather than fought over.
   if (t.occ_key.compare_exchange_strong(seen, kFilling, std::memory_order_acquire)) {
     for (int row = 0; row < kTileSide; ++row)
-      t.occ_rows[row].store(occupancyRowOf(t.cells, row, threshold, kUnknown),
+      t.occ_rows[row].store(occupancyRowOf(t.cells, row, fixed, kUnknown),
                             std::memory_order_relaxed);
     t.occ_key.store(key, std::memory_order_release);  // publishes the rows to acquiring readers
     return t.occ_rows;
   }
   if (seen == key) return t.occ_rows;  // filled by another thread meanwhile
   for (int row = 0; row < kTileSide; ++row)
-    scratch[row].store(occupancyRowOf(t.cells, row, threshold, kUnknown),
-                       std::memory_order_relaxed);
+    scratch[row].store(occupancyRowOf(t.cells, row, fixed, kUnknown), std::memory_order_relaxed);
   return scratch;
 }
 

@@ -851,3 +851,142 @@ TEST_CASE("a wall in the neighbouring tile is seen from a tile whose bits are ca
   CHECK(expected > 0.0);  // one cell away: within the radius-1 window
   CHECK(m.score(grid, p, Pose2()) == expected);
 }
+
+TEST_CASE("endpoint cells of several poses equal the scalar floor arithmetic", "[scan_matcher]") {
+  // detail::endpointCells takes two poses at a time on SSE2 and replaces std::floor: every
+  // cell and offset must still be what floor(q + 1/2) gives, including negative cells and
+  // endpoints exactly on a rounding boundary.
+  std::mt19937_64 rng(23);
+  std::uniform_real_distribution<double> xy(-60.0, 60.0), th(-kPi, kPi), e(-30.0, 30.0);
+  std::uniform_int_distribution<int> boundary(-1000, 1000);
+  const double res = 0.05;
+  const Eigen::Vector2d centre0(0.5 * res, 0.5 * res);
+  int on_boundary = 0;
+  for (int trial = 0; trial < 2000; ++trial) {
+    const int n = 1 + trial % 7;  // odd and even counts
+    double x[8], y[8], c[8], s[8];
+    for (int k = 0; k < 8; ++k) {
+      const double theta = trial % 3 == 0 ? 0.0 : th(rng);
+      x[k] = xy(rng);
+      y[k] = xy(rng);
+      c[k] = std::cos(theta);
+      s[k] = std::sin(theta);
+    }
+    double ex = e(rng), ey = e(rng);
+    if (trial % 3 == 0) {
+      // Heading 0: put the endpoint of pose 0 on a cell boundary (q + 1/2 an integer).
+      ex = (boundary(rng) - 0.5) * res + centre0.x() - x[0];
+      ey = (boundary(rng) - 0.5) * res + centre0.y() - y[0];
+    }
+    int cell_x[8], cell_y[8];
+    float ux[8], uy[8];
+    tessera::common::detail::endpointCells(n, x, y, c, s, ex, ey, centre0, res, cell_x, cell_y, ux,
+                                           uy);
+    for (int k = 0; k < n; ++k) {
+      const double px = x[k] + c[k] * ex - s[k] * ey, py = y[k] + s[k] * ex + c[k] * ey;
+      const double qx = (px - centre0.x()) * (1.0 / res), qy = (py - centre0.y()) * (1.0 / res);
+      const double fx = std::floor(qx + 0.5), fy = std::floor(qy + 0.5);
+      if (fx == qx + 0.5 || fy == qy + 0.5) ++on_boundary;
+      INFO("trial " << trial << " pose " << k);
+      REQUIRE(cell_x[k] == static_cast<int>(fx));
+      REQUIRE(cell_y[k] == static_cast<int>(fy));
+      REQUIRE(ux[k] == static_cast<float>((qx - fx) * res));
+      REQUIRE(uy[k] == static_cast<float>((qy - fy) * res));
+    }
+  }
+  CHECK(on_boundary > 100);
+}
+
+namespace {
+/// The hill climbing of ScanMatcher::match() written out plainly, one score() call per move and
+/// only the move back skipped: match() must land on the same pose, score and evaluation count.
+MatchResult plainHillClimb(const ScanMatcher& m, const TiledGrid& grid, const ScanPoints& points,
+                           const Pose2& initial) {
+  const ScanMatcherOptions& o = m.options();
+  MatchResult r;
+  Pose2 pose = initial;
+  double best = m.score(grid, points, pose);
+  int evaluations = 1, halvings = 0, back = -1;
+  double linear = o.linear_step, angular = o.angular_step;
+  while (evaluations < o.max_iterations) {
+    const Pose2 moves[6] = {
+        {pose.x + linear, pose.y, pose.theta},  {pose.x - linear, pose.y, pose.theta},
+        {pose.x, pose.y + linear, pose.theta},  {pose.x, pose.y - linear, pose.theta},
+        {pose.x, pose.y, pose.theta + angular}, {pose.x, pose.y, pose.theta - angular}};
+    int chosen = -1;
+    for (int k = 0; k < 6 && evaluations < o.max_iterations; ++k) {
+      ++evaluations;
+      if (k == back) continue;
+      const double score = m.score(grid, points, moves[k]);
+      if (score > best) {
+        best = score;
+        chosen = k;
+      }
+    }
+    back = -1;
+    if (chosen >= 0) {
+      pose = moves[chosen];
+      back = chosen ^ 1;
+    } else {
+      if (++halvings > o.refinements) break;
+      linear *= 0.5;
+      angular *= 0.5;
+    }
+  }
+  r.pose = pose;
+  r.score = best;
+  r.evaluations = evaluations;
+  return r;
+}
+}  // namespace
+
+TEST_CASE("matching and proposal fits on a tiled grid equal one pose at a time",
+          "[scan_matcher][occupancy_rows]") {
+  // match() and fitProposal() score their poses together, in clusters of nearby endpoints, and
+  // skip moves onto poses scored before. Wide steps and kernels split the clusters, many
+  // proposal samples fill several groups; everything must equal scoring one pose at a time
+  // (plain hill climbing on score(), the cell-by-cell walk's likelihoods).
+  const World world = room();
+  const Laser laser;
+  const TiledGrid grid = mapOf(world, laser, roomMappingPoses(), 3, TiledGrid());
+  const CellByCell walk(grid);
+  std::mt19937_64 rng(29);
+  const std::vector<Pose2> truths = roomMappingPoses();
+  int matched = 0;
+  for (int radius : {1, 2, 4, 14})
+    for (double step : {0.05, 0.6}) {
+      ScanMatcherOptions o;
+      o.kernel_radius = radius;
+      o.linear_step = step;
+      o.angular_step = step;
+      o.beam_step = 3;
+      o.compute_covariance = false;
+      o.proposal_linear = step / 2;
+      o.proposal_steps = radius == 2 ? 3 : 1;  // 343 samples: eleven groups
+      const ScanMatcher m(o);
+      for (std::size_t t = 0; t < 3; ++t) {
+        const Pose2& truth = truths[(t * 3 + static_cast<std::size_t>(radius)) % truths.size()];
+        const ScanPoints points =
+            m.prepare(laser.view(simulate(world, laser, truth, rng)), laser.mount);
+        const Pose2 start(truth.x + 0.07, truth.y - 0.06, truth.theta + 0.04);
+        INFO("radius " << radius << ", step " << step << ", pose " << t);
+        const MatchResult a = m.match(grid, points, start);
+        const MatchResult b = plainHillClimb(m, grid, points, start);
+        REQUIRE(a.pose.x == b.pose.x);
+        REQUIRE(a.pose.y == b.pose.y);
+        REQUIRE(a.pose.theta == b.pose.theta);
+        REQUIRE(a.score == b.score);
+        REQUIRE(a.evaluations == b.evaluations);
+        if (a.success) ++matched;
+        const Eigen::Matrix3d prior = Eigen::Vector3d(0.01, 0.01, 0.003).asDiagonal();
+        const ProposalFit fa = m.fitProposal(grid, points, a.pose, start, prior);
+        const ProposalFit fb = m.fitProposal(walk, points, a.pose, start, prior);
+        REQUIRE(fa.log_eta == fb.log_eta);
+        REQUIRE(fa.mean.x == fb.mean.x);
+        REQUIRE(fa.mean.y == fb.mean.y);
+        REQUIRE(fa.mean.theta == fb.mean.theta);
+        REQUIRE(fa.covariance == fb.covariance);
+      }
+    }
+  CHECK(matched > 12);
+}

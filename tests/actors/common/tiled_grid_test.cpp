@@ -719,7 +719,10 @@ TEST_CASE("TiledGrid occupancy rows follow the cells through updates and copies"
   TiledGrid grid(tiledOptions(0.05));
   insertAll(grid, randomScans(31, 12, {0.0, 0.0}, 2.0));
   // Thresholds alternate on the same tiles: each tile caches one, the other is computed.
-  for (float threshold : {0.0f, 0.5f, -0.3f, 0.0f}) {
+  // Also thresholds on a fixed-point step (0.5 = 512/1024), at −0, and beyond the stored range
+  // (nothing or every known cell above; unknown cells read 0).
+  for (float threshold : {0.0f, 0.5f, -0.3f, 0.0f, -0.0f, 40.0f, -40.0f,
+                          std::numeric_limits<float>::infinity(), -1e-6f}) {
     INFO("threshold " << threshold);
     CHECK(occupancyRowsMatchCells(grid, threshold, 1));
   }
