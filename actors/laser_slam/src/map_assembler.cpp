@@ -1,6 +1,7 @@
 #include <tessera/laser_slam/map_assembler.hpp>
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <limits>
 #include <stdexcept>
@@ -10,9 +11,15 @@ namespace tessera::laser_slam {
 namespace {
 
 // Log-odds of a ROS percentage, kept away from ±inf at 0 and 100.
-float logOddsOf(std::int8_t v) {
+// Sums of log-odds in fixed point, 2 bytes per global cell (a float sum held the largest
+// buffer of a run): 1/1024 resolution, saturating at ±32, where p is 1 to 14 digits anyway.
+constexpr double kFixedScale = 1024.0;
+constexpr std::int16_t kUnknownSum = std::numeric_limits<std::int16_t>::min();
+constexpr int kMaxSum = std::numeric_limits<std::int16_t>::max();
+
+std::int16_t logOddsOf(std::int8_t v) {
   const double p = std::clamp(v / 100.0, 0.01, 0.99);
-  return static_cast<float>(std::log(p / (1.0 - p)));
+  return static_cast<std::int16_t>(std::lround(std::log(p / (1.0 - p)) * kFixedScale));
 }
 
 }  // namespace
@@ -79,8 +86,10 @@ common::OccupancyMap MapAssembler::assemble() const {
   out.width = static_cast<int>(std::ceil((hi.x() - corner.x()) / res));
   out.height = static_cast<int>(std::ceil((hi.y() - corner.y()) / res));
   const std::size_t n = static_cast<std::size_t>(out.width) * static_cast<std::size_t>(out.height);
-  std::vector<float> sum(n, 0.0f);
-  std::vector<bool> known(n, false);
+  std::vector<std::int16_t> sum(n, kUnknownSum);
+  std::array<std::int16_t, 101> log_odds{};
+  for (int v = 0; v <= 100; ++v)
+    log_odds[static_cast<std::size_t>(v)] = logOddsOf(static_cast<std::int8_t>(v));
   for (const Entry* e : drawn) {
     // Walk the global cells under this submap's footprint; sample the submap at each centre.
     const common::Pose2 to_map = e->pose * e->grid.origin;
@@ -112,15 +121,16 @@ common::OccupancyMap MapAssembler::assemble() const {
         const std::int8_t v = e->grid.at(gc, gr);
         if (v < 0) continue;
         const std::size_t k = static_cast<std::size_t>(r) * out.width + c;
-        sum[k] += logOddsOf(v);
-        known[k] = true;
+        const int add = log_odds[static_cast<std::size_t>(std::min<int>(v, 100))];
+        const int before = sum[k] == kUnknownSum ? 0 : sum[k];
+        sum[k] = static_cast<std::int16_t>(std::clamp(before + add, -kMaxSum, kMaxSum));
       }
     }
   }
   out.cells.assign(n, common::OccupancyMap::kUnknown);
   for (std::size_t k = 0; k < n; ++k) {
-    if (!known[k]) continue;
-    const double p = 1.0 - 1.0 / (1.0 + std::exp(static_cast<double>(sum[k])));
+    if (sum[k] == kUnknownSum) continue;
+    const double p = 1.0 - 1.0 / (1.0 + std::exp(static_cast<double>(sum[k]) / kFixedScale));
     out.cells[k] = static_cast<std::int8_t>(std::lround(100.0 * p));
   }
   return out;
