@@ -381,6 +381,29 @@ class ScanMatcher {
   std::vector<double> sampleLogLikelihood(const Grid& grid, const ScanPoints& points,
                                           const Pose2& centre, const detail::SampleGrid& g) const;
 
+  /// Per-evaluation constants of the score kernel and free check, for grid resolution `res` and
+  /// kernel radius r [cells].
+  struct KernelTerms {
+    float resf, big_r2;  // resolution; squared kernel reach R = (r + ½) cells [m²]
+    bool free_check;
+    double free_cells, quarter_inv_free2;  // free-check offset [cells]; ¼ / free_cells²
+    // Score kernel rescaled so that d = 0 gives 1 and d = R gives 0.
+    float inv_two_sigma2, kernel_floor, kernel_scale;
+  };
+  KernelTerms kernelTerms(double res, int r) const {
+    KernelTerms k;
+    k.resf = static_cast<float>(res);
+    const float big_r = (static_cast<float>(r) + 0.5f) * k.resf;
+    k.big_r2 = big_r * big_r;
+    k.free_check = options_.free_check_offset >= 0.0;
+    k.free_cells = std::max(options_.free_check_offset / res, std::numbers::sqrt2);
+    k.quarter_inv_free2 = 0.25 / (k.free_cells * k.free_cells);
+    k.inv_two_sigma2 = static_cast<float>(1.0 / (2.0 * options_.sigma * options_.sigma));
+    k.kernel_floor = std::exp(-k.big_r2 * k.inv_two_sigma2);
+    k.kernel_scale = 1.0f / (1.0f - k.kernel_floor);
+    return k;
+  }
+
   ScanMatcherOptions options_;
   // The (2r+1)² kernel offsets, nearest to the centre cell first: the search stops as soon as
   // no remaining offset can beat the best distance found, which for a beam on a wall is after a
@@ -482,18 +505,12 @@ void ScanMatcher::evaluateRows(const Grid& grid, const ScanPoints& points, const
                                int n, Eval* out) const {
   const double res = grid.resolution();
   const int r = kRadius > 0 ? kRadius : options_.kernel_radius;
-  const float resf = static_cast<float>(res);
-  const float big_r = (static_cast<float>(r) + 0.5f) * resf;
-  const float big_r2 = big_r * big_r;
-  const float threshold = options_.occupied_threshold;
-  const bool free_check = options_.free_check_offset >= 0.0;
-  const double free_cells =
-      std::max(options_.free_check_offset / res, std::numbers::sqrt2);  // in cells
-  const double quarter_inv_free2 = 0.25 / (free_cells * free_cells);
-  // Score kernel rescaled so that d = 0 gives 1 and d = R gives 0.
-  const float inv_two_sigma2 = static_cast<float>(1.0 / (2.0 * options_.sigma * options_.sigma));
-  const float kernel_floor = std::exp(-big_r2 * inv_two_sigma2);
-  const float kernel_scale = 1.0f / (1.0f - kernel_floor);
+  const KernelTerms kt = kernelTerms(res, r);
+  const float resf = kt.resf, big_r2 = kt.big_r2, threshold = options_.occupied_threshold;
+  const bool free_check = kt.free_check;
+  const double quarter_inv_free2 = kt.quarter_inv_free2;
+  const float inv_two_sigma2 = kt.inv_two_sigma2, kernel_floor = kt.kernel_floor,
+              kernel_scale = kt.kernel_scale;
 
   // The lattice is regular, so cells are found by arithmetic from one reference centre instead
   // of a worldToCell/cellCenter call pair per beam.
@@ -664,18 +681,12 @@ ScanMatcher::Eval ScanMatcher::evaluateBeams(const Grid& grid, const ScanPoints&
   if (points.empty() || !pose.isFinite()) return out;
   const double res = grid.resolution();
   const int r = options_.kernel_radius;
-  const float resf = static_cast<float>(res);
-  const float big_r = (static_cast<float>(r) + 0.5f) * resf;
-  const float big_r2 = big_r * big_r;
-  const float threshold = options_.occupied_threshold;
-  const bool free_check = options_.free_check_offset >= 0.0;
-  const double free_cells =
-      std::max(options_.free_check_offset / res, std::numbers::sqrt2);  // in cells
-  const double quarter_inv_free2 = 0.25 / (free_cells * free_cells);
-  // Score kernel rescaled so that d = 0 gives 1 and d = R gives 0.
-  const float inv_two_sigma2 = static_cast<float>(1.0 / (2.0 * options_.sigma * options_.sigma));
-  const float kernel_floor = std::exp(-big_r2 * inv_two_sigma2);
-  const float kernel_scale = 1.0f / (1.0f - kernel_floor);
+  const KernelTerms kt = kernelTerms(res, r);
+  const float resf = kt.resf, big_r2 = kt.big_r2, threshold = options_.occupied_threshold;
+  const bool free_check = kt.free_check;
+  const double quarter_inv_free2 = kt.quarter_inv_free2;
+  const float inv_two_sigma2 = kt.inv_two_sigma2, kernel_floor = kt.kernel_floor,
+              kernel_scale = kt.kernel_scale;
 
   // The lattice is regular, so cells are found by arithmetic from one reference centre instead
   // of a worldToCell/cellCenter call pair per beam.
@@ -714,7 +725,7 @@ ScanMatcher::Eval ScanMatcher::evaluateBeams(const Grid& grid, const ScanPoints&
       const double bx = ex - o.x(), by = ey - o.y();
       const double norm = std::sqrt(bx * bx + by * by);
       if (norm > 0.0) {
-        const double k = -free_cells / norm;  // against the beam
+        const double k = -kt.free_cells / norm;  // against the beam
         back = {static_cast<int>(std::floor(k * (c * bx - s * by) + 0.5)),
                 static_cast<int>(std::floor(k * (s * bx + c * by) + 0.5))};
       }
