@@ -104,6 +104,14 @@ void writeWire(void* p, const Wire& w) {
   std::memcpy(p, &w, sizeof w);
 }
 
+/// Stamps the Wire at `p` with the steady clock now, as the last thing before sending it.
+Nanos stampWire(void* p) {
+  Wire w = readWire(p);
+  w.stamp = steadyNow();
+  writeWire(p, w);
+  return w.stamp;
+}
+
 // Written into every payload like a real producer would (an image, a scan): every page touched.
 void fillPayload(void* p, std::size_t bytes, Kind kind, std::int64_t value = 0) {
   std::memset(p, 0x5a, bytes);
@@ -592,12 +600,9 @@ class RawLeader final : public LeaderLink {
     end_.prepare(bytes, kind, value);
   }
   Nanos send() override {
-    void* p = end_.current();
-    Wire w = readWire(p);
-    w.stamp = steadyNow();
-    writeWire(p, w);
+    const Nanos stamp = stampWire(end_.current());
     end_.publish();
-    return w.stamp;
+    return stamp;
   }
   std::pair<Wire, Nanos> receive() override {
     std::pair<Wire, Nanos> out;
@@ -719,12 +724,9 @@ class UdsLeader final : public LeaderLink {
     sender_.prepare(bytes, kind, value);
   }
   Nanos send() override {
-    void* p = sender_.current();
-    Wire w = readWire(p);
-    w.stamp = steadyNow();
-    writeWire(p, w);
+    const Nanos stamp = stampWire(sender_.current());
     sender_.send();
-    return w.stamp;
+    return stamp;
   }
   std::pair<Wire, Nanos> receive() override { return reader_.next(); }
 
