@@ -12,6 +12,7 @@
 #include <cmath>
 #include <iostream>
 #include <iterator>
+#include <ranges>
 #include <stdexcept>
 
 namespace tessera::laser_slam {
@@ -257,16 +258,12 @@ void LoopDetectorActor::onSubmap(const Message<msg::Submap>& m) {
   const auto trajectory = m->getTrajectory();  // by increasing stamp
   // The smoothed pose of the scan at `stamp` (stamps went through seconds: 1 us tolerance).
   auto smoothed = [&](Nanos stamp, common::Pose2& out) {
-    std::size_t lo = 0, hi = trajectory.size();
-    while (lo < hi) {
-      const std::size_t mid = (lo + hi) / 2;
-      if (trajectory[static_cast<unsigned>(mid)].getStampNs() < stamp - 1000)
-        lo = mid + 1;
-      else
-        hi = mid;
-    }
-    if (lo == trajectory.size()) return false;
-    const auto p = trajectory[static_cast<unsigned>(lo)];
+    // Cap'n Proto 0.9 list iterators are not random access: search the indices.
+    const auto indices = std::views::iota(0u, trajectory.size());
+    const auto at = std::ranges::partition_point(
+        indices, [&](unsigned k) { return trajectory[k].getStampNs() < stamp - 1000; });
+    if (at == indices.end()) return false;
+    const auto p = trajectory[*at];
     if (std::abs(p.getStampNs() - stamp) > 1000) return false;
     out = {p.getX(), p.getY(), p.getTheta()};
     return out.isFinite();

@@ -506,11 +506,7 @@ void ScanMatcher::evaluateRows(const Grid& grid, const ScanPoints& points, const
   const double res = grid.resolution();
   const int r = kRadius > 0 ? kRadius : options_.kernel_radius;
   const KernelTerms kt = kernelTerms(res, r);
-  const float resf = kt.resf, big_r2 = kt.big_r2, threshold = options_.occupied_threshold;
-  const bool free_check = kt.free_check;
-  const double quarter_inv_free2 = kt.quarter_inv_free2;
-  const float inv_two_sigma2 = kt.inv_two_sigma2, kernel_floor = kt.kernel_floor,
-              kernel_scale = kt.kernel_scale;
+  const float threshold = options_.occupied_threshold;
 
   // The lattice is regular, so cells are found by arithmetic from one reference centre instead
   // of a worldToCell/cellCenter call pair per beam.
@@ -549,7 +545,7 @@ void ScanMatcher::evaluateRows(const Grid& grid, const ScanPoints& points, const
   // Cell offsets [m] as floats, k·resolution for k in [−32, 32) (row and column offsets of the
   // window, and the bit scans' sentinels): looked up rather than converted per row.
   float offset_table[64];
-  for (int k = 0; k < 64; ++k) offset_table[k] = static_cast<float>(k - 32) * resf;
+  for (int k = 0; k < 64; ++k) offset_table[k] = static_cast<float>(k - 32) * kt.resf;
   const float* offset = offset_table + 32;
 
   double d2_sum[kMaxGroup] = {}, score_sum[kMaxGroup] = {};
@@ -562,8 +558,8 @@ void ScanMatcher::evaluateRows(const Grid& grid, const ScanPoints& points, const
     // round(−free_cells·d/|b|) is −1, 0 or 1, decided by comparing squares: no square root or
     // division per beam. back is kept as (back_x + 1) + 3·(back_y + 1), 4 = none.
     const double bx = ex - o.x(), by = ey - o.y();
-    const double limit = (bx * bx + by * by) * quarter_inv_free2;  // (½·|b|/free_cells)²
-    const bool check = free_check && limit > 0.0;
+    const double limit = (bx * bx + by * by) * kt.quarter_inv_free2;  // (½·|b|/free_cells)²
+    const bool check = kt.free_check && limit > 0.0;
     auto component = [limit](double d) {  // floor(x + ½) for x = −free_cells·d/|b|
       // Branch-free: the signs of beam directions do not follow a pattern.
       const double d2 = d * d;
@@ -594,7 +590,7 @@ void ScanMatcher::evaluateRows(const Grid& grid, const ScanPoints& points, const
     // scans avoids a walk's unpredictable branches. A side without candidates yields an offset
     // beyond the window (d > R), which the minimum ignores.
     auto nearest = [&](const std::uint32_t* rows_in, int shift, float u_x, float u_y) {
-      float best = big_r2;
+      float best = kt.big_r2;
       auto scanRow = [&](int i, std::uint32_t row) {
         // Sentinel bits make both scans branch-free: with no candidate right of e, right =
         // 31 (d > R as r ≤ 14); with none left, left = −1 − centre.
@@ -657,12 +653,13 @@ void ScanMatcher::evaluateRows(const Grid& grid, const ScanPoints& points, const
       }
     }
     for (int p = 0; p < n; ++p) {
-      if (best[p] < big_r2) ++matched[p];
+      if (best[p] < kt.big_r2) ++matched[p];
       d2_sum[p] += best[p];
       // An unmatched beam adds exactly 0 to the score, so its exp() is skipped.
       if constexpr (kScore)
-        if (best[p] < big_r2)
-          score_sum[p] += (std::exp(-best[p] * inv_two_sigma2) - kernel_floor) * kernel_scale;
+        if (best[p] < kt.big_r2)
+          score_sum[p] +=
+              (std::exp(-best[p] * kt.inv_two_sigma2) - kt.kernel_floor) * kt.kernel_scale;
     }
   }
   for (int p = 0; p < n; ++p) {
@@ -682,11 +679,7 @@ ScanMatcher::Eval ScanMatcher::evaluateBeams(const Grid& grid, const ScanPoints&
   const double res = grid.resolution();
   const int r = options_.kernel_radius;
   const KernelTerms kt = kernelTerms(res, r);
-  const float resf = kt.resf, big_r2 = kt.big_r2, threshold = options_.occupied_threshold;
-  const bool free_check = kt.free_check;
-  const double quarter_inv_free2 = kt.quarter_inv_free2;
-  const float inv_two_sigma2 = kt.inv_two_sigma2, kernel_floor = kt.kernel_floor,
-              kernel_scale = kt.kernel_scale;
+  const float threshold = options_.occupied_threshold;
 
   // The lattice is regular, so cells are found by arithmetic from one reference centre instead
   // of a worldToCell/cellCenter call pair per beam.
@@ -710,9 +703,9 @@ ScanMatcher::Eval ScanMatcher::evaluateBeams(const Grid& grid, const ScanPoints&
     if constexpr (kBits) {
       // Here free_cells < 1.5, so each component of back = round(−free_cells·d/|b|) is −1, 0
       // or 1, decided by comparing squares: no square root or division per beam.
-      if (free_check) {
+      if (kt.free_check) {
         const double bx = ex - o.x(), by = ey - o.y();
-        const double limit = (bx * bx + by * by) * quarter_inv_free2;  // (½·|b|/free_cells)²
+        const double limit = (bx * bx + by * by) * kt.quarter_inv_free2;  // (½·|b|/free_cells)²
         auto component = [limit](double d) {  // floor(x + ½) for x = −free_cells·d/|b|
           // Branch-free: the signs of beam directions do not follow a pattern.
           const double d2 = d * d;
@@ -721,7 +714,7 @@ ScanMatcher::Eval ScanMatcher::evaluateBeams(const Grid& grid, const ScanPoints&
         };
         if (limit > 0.0) back = {component(c * bx - s * by), component(s * bx + c * by)};
       }
-    } else if (free_check) {
+    } else if (kt.free_check) {
       const double bx = ex - o.x(), by = ey - o.y();
       const double norm = std::sqrt(bx * bx + by * by);
       if (norm > 0.0) {
@@ -730,7 +723,7 @@ ScanMatcher::Eval ScanMatcher::evaluateBeams(const Grid& grid, const ScanPoints&
                 static_cast<int>(std::floor(k * (s * bx + c * by) + 0.5))};
       }
     }
-    const bool check_back = free_check && back != Eigen::Vector2i::Zero();
+    const bool check_back = kt.free_check && back != Eigen::Vector2i::Zero();
     // kBits: candidate bits of the window, row dy + r, bit dx + r + 1 (bit 0 is the border).
     std::uint32_t occ[kBits ? 2 * kMaxBitRadius + 3 : 1];
     std::uint32_t cand_rows[kBits && kHitPoints ? 2 * kMaxBitRadius + 1 : 1];
@@ -765,21 +758,21 @@ ScanMatcher::Eval ScanMatcher::evaluateBeams(const Grid& grid, const ScanPoints&
     };
     // Nearest offsets first (the endpoint's own cell leads): at a good pose the first few
     // cells hold the answer, and the lower bound then ends the walk without touching the rest.
-    float best = big_r2;
+    float best = kt.big_r2;
     const float u_norm = std::sqrt(ux * ux + uy * uy);
     if (any_candidate == 0) {
       // Nothing in the window: d = R without a walk.
     } else if constexpr (kHitPoints) {
       // A hit point may lie anywhere in its cell, so the bound is the distance to the nearest
       // remaining cell square rather than centre (at most √½ cell less).
-      const float half = 0.5f * resf;
+      const float half = 0.5f * kt.resf;
       for (const KernelOffset& k : kernel_) {
-        const float lower = k.square_floor * resf - u_norm;
+        const float lower = k.square_floor * kt.resf - u_norm;
         if (lower > 0.0f && lower * lower >= best) break;
         // Distance from e to the cell's square: no hit point of the cell can be nearer, so a
         // cell that cannot improve on best is skipped before any lookup.
-        const float bx = std::max(std::abs(ux - static_cast<float>(k.dx) * resf) - half, 0.0f);
-        const float by = std::max(std::abs(uy - static_cast<float>(k.dy) * resf) - half, 0.0f);
+        const float bx = std::max(std::abs(ux - static_cast<float>(k.dx) * kt.resf) - half, 0.0f);
+        const float by = std::max(std::abs(uy - static_cast<float>(k.dy) * kt.resf) - half, 0.0f);
         if (bx * bx + by * by >= best || !candidate(k.dx, k.dy)) continue;
         const Eigen::Vector2d h = grid.hitPoint(Eigen::Vector2i(cell.x() + k.dx, cell.y() + k.dy));
         const float rx = static_cast<float>(px - h.x()), ry = static_cast<float>(py - h.y());
@@ -787,20 +780,20 @@ ScanMatcher::Eval ScanMatcher::evaluateBeams(const Grid& grid, const ScanPoints&
       }
     } else {
       for (const KernelOffset& k : kernel_) {
-        const float lower = k.distance * resf - u_norm;
+        const float lower = k.distance * kt.resf - u_norm;
         if (lower > 0.0f && lower * lower >= best) break;
-        const float rx = ux - static_cast<float>(k.dx) * resf;
-        const float ry = uy - static_cast<float>(k.dy) * resf;
+        const float rx = ux - static_cast<float>(k.dx) * kt.resf;
+        const float ry = uy - static_cast<float>(k.dy) * kt.resf;
         const float d2 = rx * rx + ry * ry;
         if (d2 < best && candidate(k.dx, k.dy)) best = d2;
       }
     }
-    if (best < big_r2) ++out.matched;
+    if (best < kt.big_r2) ++out.matched;
     d2_sum += best;
     // An unmatched beam adds exactly 0 to the score, so its exp() is skipped.
     if constexpr (kScore)
-      if (best < big_r2)
-        score_sum += (std::exp(-best * inv_two_sigma2) - kernel_floor) * kernel_scale;
+      if (best < kt.big_r2)
+        score_sum += (std::exp(-best * kt.inv_two_sigma2) - kt.kernel_floor) * kt.kernel_scale;
   }
   out.score = score_sum;
   out.log_likelihood = -d2_sum / (2.0 * options_.likelihood_sigma * options_.likelihood_sigma *
