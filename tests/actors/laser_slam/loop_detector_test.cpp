@@ -135,3 +135,15 @@ TEST_CASE("a loop closure uses the finished submap smoothed pose of its scan, el
   REQUIRE(apart(expect_smoothed, expect_online) > 0.12);
   CHECK(apart(smoothed.relative, expect_online) > 0.07);
 }
+
+TEST_CASE("a non-finite smoothed scan pose falls back to the online estimate", "[loop_detector]") {
+  const auto sim = test::simulateRoomLoop();
+  const Pose2 in_map = sim.scans[0].truth.inverse() * sim.scans[60].truth;
+  const Pose2 origin1(1.0, 0.5, 0.2);
+  const Pose2 expect_online = (origin1.inverse() * in_map) * in_map.inverse();
+  const ClosureRun run = runClosure(Pose2(std::nan(""), 0.0, 0.0));
+  REQUIRE(run.published == 1);
+  CHECK(run.smoothed == 0);
+  CHECK(run.relative.isFinite());
+  CHECK(apart(run.relative, expect_online) < 0.05);
+}
