@@ -189,6 +189,10 @@ struct Runtime::Impl {
   /// Runs up to a budget of `cell`'s items on this thread if nobody else does (then schedules
   /// the rest); false when another thread holds its strand.
   bool drainIfFree(detail::Cell& cell);
+  /// Runs `message` on `cell` on this thread at once when its strand is free and its inbox
+  /// empty (nothing to keep order with); false, with `message` untouched, otherwise.
+  bool runNow(detail::Cell& cell, std::int32_t slot,
+              std::shared_ptr<const MessageStorage>& message);
   /// Runs up to `budget` items of `cell`; caller holds cell.strand.
   std::size_t drainLocked(detail::Cell& cell, std::size_t budget);
   void dispatch(detail::Cell& cell, detail::Item& item);

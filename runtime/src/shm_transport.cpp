@@ -450,11 +450,6 @@ void ShmTransport::startReceiving() {
       auto notes = waitset.wait();
       for (auto& i : impl->imports) {
         int deferred = 0;  // queued without running, in this batch
-        {
-          // A flag, not a count: once per wake-up is as exact as once per take, and cheaper.
-          std::lock_guard lock(i->mutex);
-          if (i->subscriber->hasMissedData()) ++impl->drops;
-        }
         for (;;) {
           const void* payload = nullptr;
           bool more = false;
@@ -513,6 +508,12 @@ void ShmTransport::startReceiving() {
           if (impl->options.received != nullptr) impl->options.received->fetch_add(1);
         }
         if (deferred > 0) i->deliver(nullptr, false, ImportDelivery::kRunHere);
+        {
+          // A flag, not a count: once per wake-up is as exact as once per take, and cheaper.
+          // Checked after delivery, off the path between the wake-up and the handler.
+          std::lock_guard lock(i->mutex);
+          if (i->subscriber->hasMissedData()) ++impl->drops;
+        }
       }
     }
   });

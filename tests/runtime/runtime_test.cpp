@@ -252,3 +252,50 @@ TEST_CASE("callAt timers fire once at their time and can chain from inside a cal
   CHECK(report.stop_reason == "all inputs finished");
   CHECK(report.actors[0].timer_calls == times.size());
 }
+
+namespace {
+/// Records the seq of every Blob on "in" and the thread that handled it.
+class ThreadRecorder : public Actor {
+ public:
+  void configure(ActorContext& ctx) override {
+    ctx.subscribe<msg::Blob>("in", MailboxPolicy::reliable(16),
+                             [this](const Message<msg::Blob>& m) {
+                               seqs.push_back(m->getHeader().getSeq());
+                               threads.push_back(std::this_thread::get_id());
+                             });
+  }
+  std::vector<std::uint64_t> seqs;
+  std::vector<std::thread::id> threads;
+};
+
+std::shared_ptr<const MessageStorage> blobWithSeq(std::uint64_t seq) {
+  Loan<msg::Blob> loan;
+  setHeader(loan->initHeader(), 0, "t", seq);
+  return std::move(loan).seal();
+}
+}  // namespace
+
+TEST_CASE("an imported message runs at once on the receiving thread when its actor is idle",
+          "[runtime]") {
+  RuntimeOptions o = threadedOptions();
+  o.clock = ClockKind::kWall;
+  Runtime rt(o);
+  auto& rec = static_cast<ThreadRecorder&>(rt.add("rec", std::make_unique<ThreadRecorder>()));
+  const ImportFn deliver = rt.importTopic("in", messageTypeOf<msg::Blob>());
+  rt.configure();
+  rt.start();
+
+  deliver(blobWithSeq(0), false, ImportDelivery::kRunHere);
+  REQUIRE(rec.seqs == std::vector<std::uint64_t>{0});
+  CHECK(rec.threads[0] == std::this_thread::get_id());
+  // Handed straight to the handler: it never waited in the inbox.
+  CHECK(rt.report().actors[0].max_queue_depth == 0);
+
+  // Messages already queued keep their place: the next one runs after them.
+  deliver(blobWithSeq(1), false, ImportDelivery::kDefer);
+  deliver(blobWithSeq(2), false, ImportDelivery::kDefer);
+  deliver(blobWithSeq(3), false, ImportDelivery::kRunHere);
+  CHECK(rec.seqs == std::vector<std::uint64_t>{0, 1, 2, 3});
+  CHECK(rt.report().actors[0].messages_in == 4);
+  rt.stop();
+}
