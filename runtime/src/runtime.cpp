@@ -288,12 +288,17 @@ void Runtime::Impl::drainTask(Cell& cell) {
 bool Runtime::Impl::drainIfFree(Cell& cell) {
   if (!cell.strand.try_lock()) return false;
   drainLocked(cell, 64);
+  releaseStrand(cell);
+  return true;
+}
+
+void Runtime::Impl::releaseStrand(Cell& cell) {
   cell.strand.unlock();
+  // A message that arrived meanwhile found the strand taken and relies on its holder to look.
   std::unique_lock lock(cell.mutex);
   const bool more = !cell.queue.empty();
   lock.unlock();
   if (more) schedule(cell);
-  return true;
 }
 
 bool Runtime::Impl::runNow(Cell& cell, std::int32_t slot,
@@ -320,12 +325,7 @@ bool Runtime::Impl::runNow(Cell& cell, std::int32_t slot,
   item.message.reset();
   detail::t_running.pop_back();
   releaseWork(1);
-  cell.strand.unlock();
-  // A message that arrived meanwhile found the strand taken and relies on its holder to look.
-  std::unique_lock lock(cell.mutex);
-  const bool more = !cell.queue.empty();
-  lock.unlock();
-  if (more) schedule(cell);
+  releaseStrand(cell);
   return true;
 }
 

@@ -189,6 +189,8 @@ struct Runtime::Impl {
   /// Runs up to a budget of `cell`'s items on this thread if nobody else does (then schedules
   /// the rest); false when another thread holds its strand.
   bool drainIfFree(detail::Cell& cell);
+  /// Lets go of `cell`'s strand and schedules a drain if items arrived while it was held.
+  void releaseStrand(detail::Cell& cell);
   /// Runs `message` on `cell` on this thread at once when its strand is free and its inbox
   /// empty (nothing to keep order with); false, with `message` untouched, otherwise.
   bool runNow(detail::Cell& cell, std::int32_t slot,
