@@ -65,14 +65,22 @@ constexpr std::array<std::size_t, 4> kSizes{64, std::size_t{4} << 10, std::size_
 constexpr std::size_t kStreamBytes = 64;
 // First exchanges of every size (cold chunks, page faults) are not counted.
 constexpr int kWarmup = 5;
-// iceoryx runtime names of the children.
+// iceoryx runtime names of the children; each round's get the round's number appended (a name
+// is registered once per RouDi).
 constexpr char kShmLeaderName[] = "tessera_bench_ipc_leader";
 constexpr char kShmFollowerName[] = "tessera_bench_ipc_follower";
 constexpr char kRawLeaderName[] = "tessera_bench_ipc_raw_leader";
 constexpr char kRawFollowerName[] = "tessera_bench_ipc_raw_follower";
+std::string roundName(const char* base, int round) {
+  return std::string(base) + "_" + std::to_string(round);
+}
 
 struct Options {
   int samples = 1000;
+  /// The process transports take turns in this many rounds (fresh processes each), so a
+  /// change of the machine's state over the run (other load, a slower phase of the VM) affects
+  /// all of them alike and their ratios stay meaningful.
+  int rounds = 5;
   int gap_us = 1000;
   double stream_seconds = 1.0;
   bool json = false;
@@ -132,10 +140,22 @@ struct SizeResult {
   std::uint64_t copies = 0;
 };
 
-/// What the leader measured; lives in memory shared with the bench process.
+/// Most ping-pongs per size one round records (--samples / --rounds).
+constexpr int kMaxRoundSamples = 5000;
+
+/// One round's samples of one payload size.
+struct RoundSamples {
+  std::array<float, 2 * kMaxRoundSamples> one_way{};  // [us], both directions of each exchange
+  std::array<float, kMaxRoundSamples> round_trip{};   // [us]
+  int count = 0;                                      // exchanges recorded
+  std::uint64_t copies = 0;
+};
+
+/// What the leader measured in one round; lives in memory shared with the bench process.
 struct TransportResult {
-  std::array<SizeResult, kSizes.size()> sizes{};
-  double msgs_per_s = 0;
+  std::array<RoundSamples, kSizes.size()> sizes{};
+  std::int64_t streamed = 0;  // 64 B messages the follower counted while streaming
+  double stream_s = 0;        // [s] from the first streamed message to the follower's count
   bool complete = false;
   std::array<char, 256> leader_error{}, follower_error{};  // what ended a child, if anything
 };
@@ -179,8 +199,7 @@ class LeaderLink {
 /// One ping-pong of `bytes`; adds its one-way (both directions) and round-trip samples unless
 /// warming up, and the messages either side copied to `copies`.
 void pingPong(LeaderLink& link, std::size_t bytes, const Options& o, bool record,
-              std::vector<double>& one_way, std::vector<double>& round_trip,
-              std::uint64_t& follower_copies, std::uint64_t& copies) {
+              RoundSamples& samples, std::uint64_t& follower_copies) {
   const std::uint64_t own_copies = link.copies();
   link.build(kControlBytes, Kind::kPrepare, static_cast<std::int64_t>(bytes));
   link.send();
@@ -199,32 +218,25 @@ void pingPong(LeaderLink& link, std::size_t bytes, const Options& o, bool record
                              std::to_string(static_cast<int>(pong.kind)) + ", " +
                              std::to_string(pong.bytes) + " bytes)");
   }
-  copies += (link.copies() - own_copies) + (pong.copies - follower_copies);
+  samples.copies += (link.copies() - own_copies) + (pong.copies - follower_copies);
   follower_copies = pong.copies;
   if (!record) return;
-  one_way.push_back(static_cast<double>(pong.value) * 1e-3);
-  one_way.push_back(static_cast<double>(taken - pong.stamp) * 1e-3);
-  round_trip.push_back(static_cast<double>(taken - sent) * 1e-3);
+  const auto n = static_cast<std::size_t>(samples.count++);
+  samples.one_way[2 * n] = static_cast<float>(static_cast<double>(pong.value) * 1e-3);
+  samples.one_way[2 * n + 1] = static_cast<float>(static_cast<double>(taken - pong.stamp) * 1e-3);
+  samples.round_trip[n] = static_cast<float>(static_cast<double>(taken - sent) * 1e-3);
 }
 
+/// One round: `o.samples` ping-pongs per size, then `o.stream_seconds` of streaming.
 void lead(LeaderLink& link, const Options& o, TransportResult& out) {
+  if (o.samples > kMaxRoundSamples) throw std::logic_error("bench ipc: round too long");
   // Sizes take turns, so a drift of the machine over the run (other load, a slower phase of
   // the VM) affects every size alike and the size ratios stay meaningful.
-  constexpr std::size_t n = kSizes.size();
-  std::array<std::vector<double>, n> one_way, round_trip;
   std::uint64_t follower_copies = 0;
   for (int i = 0; i < o.samples + kWarmup; ++i) {
-    for (std::size_t k = 0; k < n; ++k) {
-      pingPong(link, kSizes[k], o, i >= kWarmup, one_way[k], round_trip[k], follower_copies,
-               out.sizes[k].copies);
+    for (std::size_t k = 0; k < kSizes.size(); ++k) {
+      pingPong(link, kSizes[k], o, i >= kWarmup, out.sizes[k], follower_copies);
     }
-  }
-  for (std::size_t k = 0; k < n; ++k) {
-    auto& r = out.sizes[k];
-    r.p50_us = percentile(one_way[k], 0.5);
-    r.p99_us = percentile(one_way[k], 0.99);
-    r.rtt_p50_us = percentile(round_trip[k], 0.5);
-    r.rtt_p99_us = percentile(round_trip[k], 0.99);
   }
 
   // Streaming: as fast as the blocking path takes them, then the count from the follower.
@@ -244,7 +256,8 @@ void lead(LeaderLink& link, const Options& o, TransportResult& out) {
     throw std::runtime_error("leader: follower counted " + std::to_string(count.value) + " of " +
                              std::to_string(sent) + " streamed messages");
   }
-  out.msgs_per_s = static_cast<double>(sent) / (static_cast<double>(taken - start) * 1e-9);
+  out.streamed = sent;
+  out.stream_s = static_cast<double>(taken - start) * 1e-9;
   link.build(kControlBytes, Kind::kQuit);
   link.send();
   out.complete = true;
@@ -458,8 +471,8 @@ ShmTransportOptions shmOptions(const std::string& name, std::uint32_t index,
   return so;
 }
 
-int shmFollower(std::size_t max_chunk) {
-  ShmTransport transport(shmOptions(kShmFollowerName, 1, max_chunk));
+int shmFollower(std::size_t max_chunk, int round) {
+  ShmTransport transport(shmOptions(roundName(kShmFollowerName, round), 1, max_chunk));
   Runtime rt(benchRuntimeOptions(1));
   std::atomic<bool> quit{false};
   rt.add("echo", std::make_unique<Echo>(quit, &transport));
@@ -476,8 +489,8 @@ int shmFollower(std::size_t max_chunk) {
   return 0;
 }
 
-void shmLeader(std::size_t max_chunk, const Options& o, TransportResult& out) {
-  ShmTransport transport(shmOptions(kShmLeaderName, 0, max_chunk));
+void shmLeader(std::size_t max_chunk, const Options& o, TransportResult& out, int round) {
+  ShmTransport transport(shmOptions(roundName(kShmLeaderName, round), 0, max_chunk));
   Runtime rt(benchRuntimeOptions(1));
   auto& catcher = static_cast<Catcher&>(rt.add("catcher", std::make_unique<Catcher>()));
   transport.attach(rt, {blobTopic("ping", true), blobTopic("pong", false)});
@@ -614,8 +627,9 @@ class RawLeader final : public LeaderLink {
   RawEnd end_;
 };
 
-int rawFollower() {
-  iox::runtime::PoshRuntime::initRuntime(iox::RuntimeName_t(kRawFollowerName));
+int rawFollower(int round) {
+  const std::string name = roundName(kRawFollowerName, round);
+  iox::runtime::PoshRuntime::initRuntime(iox::RuntimeName_t(iox::cxx::TruncateToCapacity, name));
   RawEnd end("pong", "ping");
   end.waitConnected(10s);
   FollowerLogic logic;
@@ -630,8 +644,9 @@ int rawFollower() {
   return 0;
 }
 
-void rawLeader(const Options& o, TransportResult& out) {
-  iox::runtime::PoshRuntime::initRuntime(iox::RuntimeName_t(kRawLeaderName));
+void rawLeader(const Options& o, TransportResult& out, int round) {
+  const std::string name = roundName(kRawLeaderName, round);
+  iox::runtime::PoshRuntime::initRuntime(iox::RuntimeName_t(iox::cxx::TruncateToCapacity, name));
   RawLeader link;
   lead(link, o, out);
 }
@@ -911,8 +926,9 @@ class PairRun {
   PairRun(const PairRun&) = delete;
   PairRun& operator=(const PairRun&) = delete;
 
-  /// Lets both children start, waits for them and returns the leader's result.
-  TransportResult run(const Options& o) {
+  /// Lets both children start, waits for them and returns the leader's result (valid while
+  /// this lives).
+  const TransportResult& run(const Options& o) {
     const char go[2] = {1, 1};
     if (::write(gate_[1], go, sizeof go) != static_cast<ssize_t>(sizeof go)) {
       throw std::runtime_error("bench ipc: " + name_ + ": cannot start the children");
@@ -924,7 +940,7 @@ class PairRun {
                                       (o.gap_us + 10000) / 1000000);
     const std::string failure = pair_.wait(timeout);
     InterruptGuard::check();
-    TransportResult r = shared_.get();
+    const TransportResult& r = shared_.get();
     if (!failure.empty() || !r.complete) {
       throw std::runtime_error(
           "bench ipc: " + name_ + ": " +
@@ -1032,11 +1048,32 @@ std::vector<Target> evaluate(const std::vector<Row>& rows) {
   return t;
 }
 
-void addRows(std::vector<Row>& rows, const std::string& transport, const TransportResult& r,
-             bool has_copies) {
+/// One row per size from the samples of every round of `transport`, pooled.
+void addRows(std::vector<Row>& rows, const std::string& transport,
+             const std::vector<const TransportResult*>& rounds, bool has_copies) {
+  std::int64_t streamed = 0;
+  double stream_s = 0;
+  for (const auto* r : rounds) {
+    streamed += r->streamed;
+    stream_s += r->stream_s;
+  }
   for (std::size_t k = 0; k < kSizes.size(); ++k) {
-    Row row{transport, kSizes[k], r.sizes[k], std::nullopt, has_copies};
-    if (kSizes[k] == kStreamBytes) row.msgs_per_s = r.msgs_per_s;
+    std::vector<double> one_way, round_trip;
+    SizeResult size;
+    for (const auto* r : rounds) {
+      const RoundSamples& s = r->sizes[k];
+      one_way.insert(one_way.end(), s.one_way.begin(), s.one_way.begin() + 2 * s.count);
+      round_trip.insert(round_trip.end(), s.round_trip.begin(), s.round_trip.begin() + s.count);
+      size.copies += s.copies;
+    }
+    size.p50_us = percentile(one_way, 0.5);
+    size.p99_us = percentile(one_way, 0.99);
+    size.rtt_p50_us = percentile(round_trip, 0.5);
+    size.rtt_p99_us = percentile(round_trip, 0.99);
+    Row row{transport, kSizes[k], size, std::nullopt, has_copies};
+    if (kSizes[k] == kStreamBytes && stream_s > 0) {
+      row.msgs_per_s = static_cast<double>(streamed) / stream_s;
+    }
     rows.push_back(row);
   }
 }
@@ -1047,6 +1084,7 @@ void print(const std::vector<Row>& rows, const std::vector<Target>& targets, con
     j["machine"] = machineDescription();
     j["gap_us"] = o.gap_us;
     j["samples"] = o.samples;
+    j["rounds"] = o.rounds;
     for (const auto& r : rows) {
       j["results"].push_back(
           {{"transport", r.transport},
@@ -1072,8 +1110,8 @@ void print(const std::vector<Row>& rows, const std::vector<Target>& targets, con
   std::cout << "machine: " << machineDescription() << "\n"
             << "one-way latency: stamp before publish -> take in the other process (both "
                "directions pooled), "
-            << o.samples << " ping-pongs per size, gap " << o.gap_us
-            << " us; round trip: ping stamp -> pong take\n\n";
+            << o.samples << " ping-pongs per size in " << o.rounds << " rounds taking turns, gap "
+            << o.gap_us << " us; round trip: ping stamp -> pong take\n\n";
   std::cout << std::left << std::setw(13) << "transport" << std::right << std::setw(10)
             << "payload B" << std::setw(10) << "p50 us" << std::setw(10) << "p99 us"
             << std::setw(12) << "rtt p50 us" << std::setw(12) << "rtt p99 us" << std::setw(12)
@@ -1097,58 +1135,91 @@ void print(const std::vector<Row>& rows, const std::vector<Target>& targets, con
   }
 }
 
+/// A connected Unix-domain socket pair, closed when this goes.
+class SocketPair {
+ public:
+  SocketPair() {
+    if (::socketpair(AF_UNIX, SOCK_STREAM | SOCK_CLOEXEC, 0, fds) != 0) {
+      throw std::runtime_error(std::string("bench ipc: socketpair: ") + std::strerror(errno));
+    }
+  }
+  ~SocketPair() {
+    ::close(fds[0]);
+    ::close(fds[1]);
+  }
+  SocketPair(const SocketPair&) = delete;
+  SocketPair& operator=(const SocketPair&) = delete;
+  int fds[2] = {-1, -1};
+};
+
 void runBench(const Options& o) {
   if (o.samples < 1) throw ConfigError("bench ipc: --samples must be at least 1");
+  if (o.rounds < 1) throw ConfigError("bench ipc: --rounds must be at least 1");
   if (o.gap_us < 0) throw ConfigError("bench ipc: --gap-us must not be negative");
   if (o.stream_seconds <= 0) throw ConfigError("bench ipc: --stream-seconds must be positive");
+  // What one round of one transport does.
+  Options round = o;
+  round.samples = (o.samples + o.rounds - 1) / o.rounds;
+  round.stream_seconds = o.stream_seconds / o.rounds;
+  if (round.samples > kMaxRoundSamples) {
+    throw ConfigError("bench ipc: at most " + std::to_string(kMaxRoundSamples) +
+                      " samples per round; raise --rounds");
+  }
   InterruptGuard interrupts;
   std::vector<Row> rows;
   {
     const auto pools = benchPools();
     std::size_t max_chunk = 0;
     for (const auto& p : pools) max_chunk = std::max(max_chunk, p.chunk_bytes);
-    PairRun shm(
-        "iceoryx", [&](TransportResult& r) { shmLeader(max_chunk, o, r); },
-        [&] { return shmFollower(max_chunk); }, {kShmLeaderName, kShmFollowerName});
-    PairRun raw(
-        "iceoryx_raw", [&](TransportResult& r) { rawLeader(o, r); }, [] { return rawFollower(); },
-        {kRawLeaderName, kRawFollowerName});
+    // Every child is forked here, before RouDi's threads exist (see PairRun).
+    std::vector<std::unique_ptr<SocketPair>> sockets;
+    std::array<std::vector<std::unique_ptr<PairRun>>, 3> pairs;  // ours, raw, uds
+    for (int r = 0; r < o.rounds; ++r) {
+      pairs[0].push_back(std::make_unique<PairRun>(
+          "iceoryx", [&, r](TransportResult& out) { shmLeader(max_chunk, round, out, r); },
+          [&, r] { return shmFollower(max_chunk, r); },
+          std::vector<std::string>{roundName(kShmLeaderName, r), roundName(kShmFollowerName, r)}));
+      pairs[1].push_back(std::make_unique<PairRun>(
+          "iceoryx_raw", [&, r](TransportResult& out) { rawLeader(round, out, r); },
+          [r] { return rawFollower(r); },
+          std::vector<std::string>{roundName(kRawLeaderName, r), roundName(kRawFollowerName, r)}));
+      const int* fds = sockets.emplace_back(std::make_unique<SocketPair>())->fds;
+      // Each child closes the other end, so a dead peer shows as a closed socket.
+      pairs[2].push_back(std::make_unique<PairRun>(
+          "uds",
+          [&round, fds](TransportResult& out) {
+            ::close(fds[1]);
+            UdsLeader link(fds[0]);
+            lead(link, round, out);
+          },
+          [fds] {
+            ::close(fds[0]);
+            return udsFollower(fds[1]);
+          }));
+    }
     // RouDi prints its start-up to stdout, which belongs to the report (one JSON object).
     StdoutToStderr quiet;
     RouDiHost roudi(RouDiHostOptions{pools});
     if (roudi.maxChunkBytes() != max_chunk) throw std::logic_error("bench ipc: pool sizes");
-    addRows(rows, "iceoryx", shm.run(o), true);
-    addRows(rows, "iceoryx_raw", raw.run(o), false);
+    std::array<std::vector<const TransportResult*>, 3> results;
+    for (int r = 0; r < o.rounds; ++r) {
+      for (std::size_t t = 0; t < pairs.size(); ++t) {
+        results[t].push_back(&pairs[t][static_cast<std::size_t>(r)]->run(round));
+      }
+    }
+    addRows(rows, "iceoryx", results[0], true);
+    addRows(rows, "iceoryx_raw", results[1], false);
+    addRows(rows, "uds", results[2], false);
   }
-  int fds[2];
-  if (::socketpair(AF_UNIX, SOCK_STREAM | SOCK_CLOEXEC, 0, fds) != 0) {
-    throw std::runtime_error(std::string("bench ipc: socketpair: ") + std::strerror(errno));
+  // In-process: no other process involved; its rounds run back to back.
+  std::vector<std::unique_ptr<TransportResult>> inproc;
+  for (int r = 0; r < o.rounds; ++r) {
+    inprocRun(round, *inproc.emplace_back(std::make_unique<TransportResult>()));
+    InterruptGuard::check();
   }
-  try {
-    // Each child closes the other end, so a dead peer shows as a closed socket.
-    PairRun uds(
-        "uds",
-        [&](TransportResult& r) {
-          ::close(fds[1]);
-          UdsLeader link(fds[0]);
-          lead(link, o, r);
-        },
-        [&] {
-          ::close(fds[0]);
-          return udsFollower(fds[1]);
-        });
-    addRows(rows, "uds", uds.run(o), false);
-  } catch (...) {
-    ::close(fds[0]);
-    ::close(fds[1]);
-    throw;
-  }
-  ::close(fds[0]);
-  ::close(fds[1]);
-  TransportResult inproc;
-  inprocRun(o, inproc);
-  InterruptGuard::check();
-  addRows(rows, "inproc", inproc, false);
+  std::vector<const TransportResult*> inproc_rounds;
+  for (const auto& r : inproc) inproc_rounds.push_back(r.get());
+  addRows(rows, "inproc", inproc_rounds, false);
   // Table order: by transport then size, as measured.
   print(rows, evaluate(rows), o);
 }
@@ -1162,6 +1233,8 @@ void addBenchIpcCommand(CLI::App& bench, int& result) {
       "iceoryx, a Unix socket and in-process");
   auto o = std::make_shared<Options>();
   cmd->add_option("--samples", o->samples, "ping-pongs per transport and payload size");
+  cmd->add_option("--rounds", o->rounds,
+                  "rounds in which the transports take turns (samples are split over them)");
   cmd->add_option("--gap-us", o->gap_us, "idle gap between ping-pongs [us]");
   cmd->add_option("--stream-seconds", o->stream_seconds, "duration of each 64 B streaming run [s]");
   cmd->add_flag("--json", o->json, "print exactly one JSON object on stdout");

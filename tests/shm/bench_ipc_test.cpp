@@ -14,12 +14,13 @@ using tessera::test::runCli;
 TEST_CASE("bench ipc prints one JSON object with rows for every transport and size", "[shm]") {
   const auto dir = std::filesystem::temp_directory_path() / "tessera_bench_ipc_test";
   std::filesystem::create_directories(dir);
-  const auto run = runCli("bench ipc --samples 50 --stream-seconds 0.2 --json", dir);
+  const auto run = runCli("bench ipc --samples 50 --rounds 2 --stream-seconds 0.2 --json", dir);
   INFO(run.err);
   REQUIRE(run.exit_code == 0);
   const auto j = nlohmann::json::parse(run.out);  // throws unless stdout is exactly JSON
   CHECK(j["machine"].is_string());
   CHECK(j["samples"] == 50);
+  CHECK(j["rounds"] == 2);
 
   std::set<std::pair<std::string, std::size_t>> seen;
   for (const auto& row : j["results"]) {
@@ -55,6 +56,23 @@ TEST_CASE("bench ipc prints one JSON object with rows for every transport and si
   }
   // Nothing left behind: RouDi's shared memory and the children's runtime locks are gone.
   CHECK_FALSE(std::filesystem::exists("/dev/shm/iceoryx_mgmt"));
-  CHECK_FALSE(std::filesystem::exists("/tmp/tessera_bench_ipc_leader.lock"));
+  for (const auto& entry : std::filesystem::directory_iterator("/tmp")) {
+    const std::string name = entry.path().filename().string();
+    INFO(name);
+    CHECK_FALSE((name.rfind("tessera_bench_ipc_", 0) == 0 && entry.path().extension() == ".lock"));
+  }
+  std::filesystem::remove_all(dir);
+}
+
+TEST_CASE("bench ipc rejects rounds it cannot run before starting anything", "[shm]") {
+  const auto dir = std::filesystem::temp_directory_path() / "tessera_bench_ipc_rounds_test";
+  std::filesystem::create_directories(dir);
+  const auto none = runCli("bench ipc --rounds 0", dir);
+  CHECK(none.exit_code != 0);
+  CHECK(none.err.find("--rounds must be at least 1") != std::string::npos);
+  const auto too_long = runCli("bench ipc --samples 100000 --rounds 1", dir);
+  CHECK(too_long.exit_code != 0);
+  CHECK(too_long.err.find("samples per round; raise --rounds") != std::string::npos);
+  CHECK_FALSE(std::filesystem::exists("/dev/shm/iceoryx_mgmt"));
   std::filesystem::remove_all(dir);
 }
