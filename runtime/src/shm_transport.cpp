@@ -13,6 +13,9 @@
 #include <tbb/scalable_allocator.h>
 
 #include <cstring>
+#if defined(__SSE2__)
+#include <emmintrin.h>
+#endif
 #include <mutex>
 #include <thread>
 
@@ -53,6 +56,27 @@ iox::capro::ServiceDescription serviceOf(const std::string& topic) {
   return {"tessera", iox::capro::IdString_t(iox::cxx::TruncateToCapacity, topic.c_str()), "capnp"};
 }
 
+/// memset(p, 0, n), but a large span is written with streaming stores, past the caches: the
+/// builder overwrites most of it at once, and a second full pass of dirty lines through the
+/// caches evicts what the next wake-up needs (a 4 MiB message took ~5 us longer to deliver).
+void zeroBytes(std::byte* p, std::size_t n) {
+  constexpr std::size_t kStreamFrom = std::size_t{256} << 10;
+#if defined(__SSE2__)
+  if (n >= kStreamFrom) {
+    const std::size_t head = (16 - reinterpret_cast<std::uintptr_t>(p) % 16) % 16;
+    std::memset(p, 0, head);
+    const __m128i zero = _mm_setzero_si128();
+    auto* v = reinterpret_cast<__m128i*>(p + head);
+    const std::size_t blocks = (n - head) / 16;
+    for (std::size_t i = 0; i < blocks; ++i) _mm_stream_si128(v + i, zero);
+    std::memset(p + head + blocks * 16, 0, n - head - blocks * 16);
+    _mm_sfence();  // streaming stores are weakly ordered: done before the builder writes
+    return;
+  }
+#endif
+  std::memset(p, 0, n);
+}
+
 }  // namespace
 
 namespace detail {
@@ -78,7 +102,7 @@ std::size_t zeroChunkForBuilder(std::byte* payload, std::size_t capacity, std::s
     // A chunk of unknown history is zeroed throughout once; from then on only what each use
     // wrote is.
     const std::size_t zero_to = before == capacity ? capacity : std::min(before, end);
-    std::memset(payload + kPrefixBytes, 0, zero_to - kPrefixBytes);
+    zeroBytes(payload + kPrefixBytes, zero_to - kPrefixBytes);
     const std::size_t rest = zero_to < before ? before : 0;
     recordChunkExtent(payload, origin, std::max(end, rest));
     return rest;

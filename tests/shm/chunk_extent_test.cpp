@@ -82,3 +82,22 @@ TEST_CASE("a prefix whose check value does not match counts as unknown history",
   recordChunkExtent(chunk.data(), 0, kCapacity + 8);
   CHECK(chunkExtent(chunk.data(), kCapacity) == kCapacity);
 }
+
+TEST_CASE("a large span is zeroed exactly, whatever its alignment", "[shm][chunk_extent]") {
+  // Spans this large take the streaming-store path; its unaligned head and tail must be exact.
+  constexpr std::size_t kLarge = (std::size_t{1} << 20) + 100;
+  for (std::size_t offset : {0u, 1u, 8u, 13u}) {
+    INFO("offset " << offset);
+    std::vector<std::byte> buffer(kLarge + 64, std::byte{0x77});
+    std::byte* chunk = buffer.data() + offset;
+    const std::size_t end = kLarge - 37;
+    zeroChunkForBuilder(chunk, kLarge, end, 1);  // unknown history: zeroed throughout
+    CHECK(zeroIn(buffer, offset + 16, offset + kLarge));
+    CHECK(buffer[offset + kLarge] == std::byte{0x77});  // not one byte past the chunk
+    CHECK(chunkExtent(chunk, kLarge) == end);
+    // Reused: only the recorded extent is zeroed again.
+    scribble(buffer, offset + 16, offset + end);
+    zeroChunkForBuilder(chunk, kLarge, end, 1);
+    CHECK(zeroIn(buffer, offset + 16, offset + kLarge));
+  }
+}
