@@ -156,6 +156,19 @@ RouDiHost::RouDiHost(RouDiHostOptions options) : impl_(std::make_unique<Impl>())
                            options.monitor_processes ? iox::roudi::MonitoringMode::ON
                                                      : iox::roudi::MonitoringMode::OFF,
                            false});
+  // iceoryx 2.0 creates its segments for the user's group (plus ACL entries); a deployment is
+  // one user's processes, so narrow them to the owner. Processes open them after this.
+  namespace fs = std::filesystem;
+  for (const auto& path :
+       {fs::path("/dev/shm") / iox::roudi::SHM_NAME, fs::path("/dev/shm") / groupName()}) {
+    std::error_code ec;
+    fs::permissions(path, fs::perms::owner_read | fs::perms::owner_write, fs::perm_options::replace,
+                    ec);
+    if (ec) {
+      throw std::runtime_error("cannot limit shared memory " + path.string() +
+                               " to its owner: " + ec.message());
+    }
+  }
 }
 
 RouDiHost::~RouDiHost() {

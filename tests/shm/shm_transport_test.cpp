@@ -207,3 +207,20 @@ TEST_CASE("the RouDi host removes shared memory left by a crashed run", "[shm]")
   CHECK(std::find(removed.begin(), removed.end(), stale.string()) != removed.end());
   CHECK_FALSE(std::filesystem::exists(stale));  // and RouDi cleaned its own on exit
 }
+
+TEST_CASE("the RouDi host limits its shared memory to the current user", "[shm]") {
+  REQUIRE_FALSE(rouDiRunning());
+  RouDiHost roudi(smallPools());
+  namespace fs = std::filesystem;
+  int segments = 0;
+  for (const auto& entry : fs::directory_iterator("/dev/shm")) {
+    const std::string name = entry.path().filename().string();
+    if (name.rfind("tessera_sync_", 0) == 0) continue;  // launcher control blocks: 0600 already
+    INFO(name);
+    ++segments;
+    const auto perms = fs::status(entry.path()).permissions();
+    CHECK((perms & (fs::perms::group_all | fs::perms::others_all)) == fs::perms::none);
+    CHECK((perms & fs::perms::owner_read) != fs::perms::none);
+  }
+  CHECK(segments >= 2);  // management and data segments
+}

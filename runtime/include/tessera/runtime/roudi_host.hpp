@@ -4,8 +4,8 @@
 // Start-up first checks for a RouDi already running on this machine (iceoryx 2.0 allows one per
 // machine: its lock file is taken) and fails with a clear error if so; otherwise it removes the
 // shared memory and sockets a crashed earlier run left behind and reports what it removed.
-// Shared memory is created readable and writable only by the current user's group (iceoryx
-// segments are per group; Debian gives each user a private group).
+// Shared memory is readable and writable only by the current user: iceoryx creates its segments
+// for the user's group, and start-up narrows them to the owner before any process opens them.
 //
 // Memory pools: iceoryx hands out fixed-size chunks from pools; memPoolsFor() sizes them from
 // what the deployment declares: for each topic, its largest message and how many messages can
