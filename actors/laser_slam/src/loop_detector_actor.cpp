@@ -305,16 +305,21 @@ void LoopDetectorActor::publishClosure(const PendingClosure& c, int current,
   if (c.matched == current) return;
   // The matched submap's origin seen from the current one's: robot-in-current ⊕ robot-in-matched⁻¹.
   const common::Pose2 relative = in_current * c.in_matched.inverse();
+  const Eigen::Vector3d floor(options_.sigma_floor_linear * options_.sigma_floor_linear,
+                              options_.sigma_floor_linear * options_.sigma_floor_linear,
+                              options_.sigma_floor_angular * options_.sigma_floor_angular);
   Eigen::Matrix3d cov = relativeCovariance(in_current, c.in_matched, c.covariance);
-  cov.diagonal() += Eigen::Vector3d(options_.sigma_floor_linear * options_.sigma_floor_linear,
-                                    options_.sigma_floor_linear * options_.sigma_floor_linear,
-                                    options_.sigma_floor_angular * options_.sigma_floor_angular);
+  cov.diagonal() += floor;
+  Eigen::Matrix3d match_cov = c.covariance;
+  match_cov.diagonal() += floor;
   auto loan = loop_pub_.loan();
   setHeader(loan->initHeader(), c.stamp, "map", loop_pub_.nextSeq());
   loan->setFromId(static_cast<std::uint32_t>(current));
   loan->setToId(static_cast<std::uint32_t>(c.matched));
   writePose(loan->initRelative(), PoseXYT{relative.x, relative.y, relative.theta}, &cov);
   loan->setKind(msg::SubmapConstraint::Kind::REVISIT);
+  writePose(loan->initScanInTo(), PoseXYT{c.in_matched.x, c.in_matched.y, c.in_matched.theta},
+            &match_cov);
   loop_pub_.publish(std::move(loan));
   ++published_;
 }

@@ -8,6 +8,8 @@
 
 #include "../scan_messages.hpp"
 
+#include <Eigen/LU>
+
 #include <catch2/catch.hpp>
 
 #include <algorithm>
@@ -23,6 +25,9 @@ struct ClosureRun {
   int published = 0;
   std::int64_t smoothed = 0;
   Pose2 relative;
+  bool has_scan = false;
+  Pose2 scan_in_matched;  // scanInTo: the match itself
+  Eigen::Matrix3d scan_covariance = Eigen::Matrix3d::Zero();
 };
 
 // Submap 0 is mapped from the room's first scans at their true poses (its frame = the first
@@ -100,6 +105,12 @@ ClosureRun runClosure(const std::optional<Pose2>& smoothed) {
   if (!out.empty()) {
     const auto r = out.back()->getRelative();
     run.relative = Pose2(r.getX(), r.getY(), r.getTheta());
+    run.has_scan = out.back()->hasScanInTo();
+    if (run.has_scan) {
+      const auto m = out.back()->getScanInTo();
+      run.scan_in_matched = Pose2(m.getX(), m.getY(), m.getTheta());
+      if (!readCovariance(m, run.scan_covariance)) run.scan_covariance.setConstant(-1);
+    }
   }
   Summary s;
   h.actor().summarize(s);
@@ -134,6 +145,28 @@ TEST_CASE("a loop closure uses the finished submap smoothed pose of its scan, el
   // The two answers are told apart: they lie 0.13 m apart, each found within 0.05 m.
   REQUIRE(apart(expect_smoothed, expect_online) > 0.12);
   CHECK(apart(smoothed.relative, expect_online) > 0.07);
+}
+
+TEST_CASE("a loop closure also carries the scan pose in the matched submap with its covariance",
+          "[loop_detector][scan_graph]") {
+  const auto sim = test::simulateRoomLoop();
+  // The robot in submap 0 (the matched one) at the probe scan: what the match must find, the
+  // same whichever pose in its own submap the closure was expressed with.
+  const Pose2 in_map = sim.scans[0].truth.inverse() * sim.scans[60].truth;
+  for (const auto& smoothed : {std::optional<Pose2>{}, std::optional<Pose2>{Pose2(1, 2, 0.3)}}) {
+    const ClosureRun run = runClosure(smoothed);
+    REQUIRE(run.published == 1);
+    REQUIRE(run.has_scan);
+    CHECK(apart(run.scan_in_matched, in_map) < 0.05);
+    CHECK(std::abs(common::angleDiff(run.scan_in_matched.theta, in_map.theta)) < 0.02);
+    // Symmetric, positive definite, and at least the published floors (0.05 m, 0.02 rad).
+    REQUIRE(run.scan_covariance.allFinite());
+    CHECK((run.scan_covariance - run.scan_covariance.transpose()).norm() < 1e-12);
+    CHECK(run.scan_covariance(0, 0) >= 0.05 * 0.05);
+    CHECK(run.scan_covariance(1, 1) >= 0.05 * 0.05);
+    CHECK(run.scan_covariance(2, 2) >= 0.02 * 0.02);
+    CHECK(run.scan_covariance.determinant() > 0);
+  }
 }
 
 TEST_CASE("a non-finite smoothed scan pose falls back to the online estimate", "[loop_detector]") {

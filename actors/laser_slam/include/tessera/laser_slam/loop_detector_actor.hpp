@@ -19,7 +19,9 @@
 //                                       the scan's smoothed pose in it from the finished submap's
 //                                       trajectory: the online estimate came from the particle
 //                                       that was best then, which need not be the one whose map
-//                                       the submap keeps.
+//                                       the submap keeps. scanInTo carries the match itself (the
+//                                       scan's pose in the matched submap, with its covariance)
+//                                       for a scan-level graph.
 //
 // Search. Every `every_n_scans`-th scan with a pose is tried against the finished submaps whose
 // area (expanded by the window) holds the robot's estimate, nearest first, skipping the
