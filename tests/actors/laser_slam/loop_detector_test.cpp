@@ -5,6 +5,7 @@
 #include <tessera/messages/types.hpp>
 #include <tessera/messages/views.hpp>
 #include <tessera/runtime/harness.hpp>
+#include <tessera/runtime/options.hpp>
 
 #include "../scan_messages.hpp"
 
@@ -15,6 +16,7 @@
 #include <algorithm>
 #include <cmath>
 #include <optional>
+#include <vector>
 
 using namespace tessera;
 using common::Pose2;
@@ -28,6 +30,7 @@ struct ClosureRun {
   bool has_scan = false;
   Pose2 scan_in_matched;  // scanInTo: the match itself
   Eigen::Matrix3d scan_covariance = Eigen::Matrix3d::Zero();
+  std::vector<int> matched;  // the submap of each published closure
 };
 
 // Submap 0 is mapped from the room's first scans at their true poses (its frame = the first
@@ -39,7 +42,9 @@ double apart(const Pose2& a, const Pose2& b) {
   return (a.translation() - b.translation()).norm();
 }
 
-ClosureRun runClosure(const std::optional<Pose2>& smoothed) {
+// `copies` finished submaps hold the same map (ids 0..copies-1); the robot's own is `copies`.
+ClosureRun runClosure(const std::optional<Pose2>& smoothed, int copies = 1,
+                      int closures_per_scan = 1) {
   const auto sim = test::simulateRoomLoop();
   const Pose2 frame0 = sim.scans[0].truth;
   common::OccupancyGrid grid;
@@ -50,20 +55,22 @@ ClosureRun runClosure(const std::optional<Pose2>& smoothed) {
   laser_slam::LoopDetectorOptions o;
   o.skip_recent = 0;  // submap 0 is the most recent finished one
   o.every_n_scans = 1;
+  o.closures_per_scan = closures_per_scan;
   ActorHarness h(std::make_unique<laser_slam::LoopDetectorActor>(o));
-  h.push<msg::Submap>("submaps", [&](auto& b) {
-    setHeader(b.initHeader(), test::stampOf(1.0), "map", 0);
-    b.setId(0);
-    auto g = b.initGrid();
-    g.setResolution(static_cast<float>(map.resolution));
-    g.setWidth(static_cast<std::uint32_t>(map.width));
-    g.setHeight(static_cast<std::uint32_t>(map.height));
-    writePose(g.initOrigin(), PoseXYT{map.origin.x, map.origin.y, map.origin.theta});
-    auto cells = mutableViewInt8(g.initCells(static_cast<unsigned>(map.cells.size())));
-    std::copy(map.cells.begin(), map.cells.end(), cells.begin());
-    writePose(b.initGlobalPose(), PoseXYT{0, 0, 0});
-    b.setFinished(true);
-  });
+  for (int id = 0; id < copies; ++id)
+    h.push<msg::Submap>("submaps", [&](auto& b) {
+      setHeader(b.initHeader(), test::stampOf(1.0 + 0.1 * id), "map", 0);
+      b.setId(static_cast<std::uint32_t>(id));
+      auto g = b.initGrid();
+      g.setResolution(static_cast<float>(map.resolution));
+      g.setWidth(static_cast<std::uint32_t>(map.width));
+      g.setHeight(static_cast<std::uint32_t>(map.height));
+      writePose(g.initOrigin(), PoseXYT{map.origin.x, map.origin.y, map.origin.theta});
+      auto cells = mutableViewInt8(g.initCells(static_cast<unsigned>(map.cells.size())));
+      std::copy(map.cells.begin(), map.cells.end(), cells.begin());
+      writePose(b.initGlobalPose(), PoseXYT{0, 0, 0});
+      b.setFinished(true);
+    });
   h.runUntilIdle();
 
   const std::size_t probe = 60;
@@ -79,7 +86,7 @@ ClosureRun runClosure(const std::optional<Pose2>& smoothed) {
   const Pose2 origin1(1.0, 0.5, 0.2);
   h.push<msg::Submap>("submaps", [&](auto& b) {
     setHeader(b.initHeader(), test::stampOf(6.0), "map", 0);
-    b.setId(1);
+    b.setId(static_cast<std::uint32_t>(copies));
     auto g = b.initGrid();
     g.setResolution(0.05f);
     g.setWidth(1);
@@ -102,6 +109,7 @@ ClosureRun runClosure(const std::optional<Pose2>& smoothed) {
   ClosureRun run;
   const auto out = h.published<msg::SubmapConstraint>("loop_constraints");
   run.published = static_cast<int>(out.size());
+  for (const auto& c : out) run.matched.push_back(static_cast<int>(c->getToId()));
   if (!out.empty()) {
     const auto r = out.back()->getRelative();
     run.relative = Pose2(r.getX(), r.getY(), r.getTheta());
@@ -167,6 +175,27 @@ TEST_CASE("a loop closure also carries the scan pose in the matched submap with 
     CHECK(run.scan_covariance(2, 2) >= 0.02 * 0.02);
     CHECK(run.scan_covariance.determinant() > 0);
   }
+}
+
+TEST_CASE("closures_per_scan publishes the verified matches of one scan against several submaps",
+          "[loop_detector][scan_graph]") {
+  // Two finished submaps hold the room: the scan matches both.
+  const ClosureRun best = runClosure(std::nullopt, 2, 1);
+  CHECK(best.published == 1);
+  const ClosureRun both = runClosure(std::nullopt, 2, 2);
+  REQUIRE(both.published == 2);
+  std::vector<int> matched = both.matched;
+  std::sort(matched.begin(), matched.end());
+  CHECK(matched == std::vector<int>{0, 1});
+  // The best one is the one published alone.
+  CHECK(std::find(both.matched.begin(), both.matched.end(), best.matched.at(0)) !=
+        both.matched.end());
+  // More than there are candidates to search is a configuration error.
+  laser_slam::LoopDetectorOptions o;
+  o.closures_per_scan = o.max_candidates + 1;
+  CHECK_THROWS_AS(laser_slam::LoopDetectorActor(o), ConfigError);
+  o.closures_per_scan = 0;
+  CHECK_THROWS_AS(laser_slam::LoopDetectorActor(o), ConfigError);
 }
 
 TEST_CASE("a non-finite smoothed scan pose falls back to the online estimate", "[loop_detector]") {
