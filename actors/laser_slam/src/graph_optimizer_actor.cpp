@@ -215,6 +215,7 @@ bool GraphOptimizerActor::optimizeScanGraph() {
     const auto s = scan_graph_.optimize(graph_.poses());
     scan_seconds_ = s.seconds;
     scan_chi2_ = s.final_chi2;
+    scan_iterations_ = s.iterations;
     scan_optimized_ = true;
   } catch (const pose_graph::GraphError& e) {
     // stop() must not throw: the submap-level result stands.
@@ -301,6 +302,7 @@ void GraphOptimizerActor::summarize(Summary& out) const {
     out["scan_graph_poses_composed"] = i64(scan_composed_);
     out["scan_graph_s"] = scan_seconds_;
     out["scan_graph_chi2"] = scan_chi2_;
+    out["scan_graph_iterations"] = std::int64_t{scan_iterations_};
   }
   if (!graph_path_.empty()) out["graph_path"] = graph_path_;
   if (!write_error_.empty()) out["graph_write_error"] = write_error_;

@@ -140,6 +140,7 @@ class GraphOptimizerActor final : public Actor {
   double optimize_seconds_ = 0.0, last_chi2_ = 0.0;
   std::uint64_t scan_rejected_ = 0, scan_composed_ = 0;
   double scan_seconds_ = 0.0, scan_chi2_ = 0.0;
+  int scan_iterations_ = 0;
 };
 
 }  // namespace tessera::laser_slam
