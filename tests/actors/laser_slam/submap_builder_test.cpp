@@ -39,6 +39,17 @@ Pose2 poseOf(msg::Pose2D::Reader p) {
   return {p.getX(), p.getY(), p.getTheta()};
 }
 
+/// The first n scans of the room loop with their odometry, one at a time, then stop().
+void feedAndStop(ActorHarness& h, const test::SimScans& sim, std::size_t n) {
+  for (std::size_t k = 0; k < n; ++k) {
+    const Nanos t = stampOf(sim.scans[k].stamp_s);
+    pushOdometry(h, t, sim.scans[k].odometry);
+    pushScan(h, t, sim, sim.scans[k].ranges);
+    h.runUntilIdle();
+  }
+  h.stop();
+}
+
 }  // namespace
 
 TEST_CASE("submap builder publishes a pose per scan, hand-over constraints and submaps",
@@ -48,13 +59,7 @@ TEST_CASE("submap builder publishes a pose per scan, hand-over constraints and s
   o.submap_scans = 25;
   ActorHarness h(std::make_unique<SubmapBuilderActor>(o));
   const std::size_t n = 160;
-  for (std::size_t k = 0; k < n; ++k) {
-    const Nanos t = stampOf(sim.scans[k].stamp_s);
-    pushOdometry(h, t, sim.scans[k].odometry);
-    pushScan(h, t, sim, sim.scans[k].ranges);
-    h.runUntilIdle();
-  }
-  h.stop();
+  feedAndStop(h, sim, n);
   const auto poses = h.published<msg::PoseStamped>("pose");
   REQUIRE(poses.size() == n);
   CHECK(h.publishedCount("map_to_odom") == n);
@@ -111,13 +116,7 @@ SmoothedRun smoothedRun(const test::SimScans& sim, std::size_t n, bool interpola
   o.submap_scans = 25;
   o.interpolate_updates = interpolate;
   ActorHarness h(std::make_unique<SubmapBuilderActor>(o));
-  for (std::size_t k = 0; k < n; ++k) {
-    const Nanos t = stampOf(sim.scans[k].stamp_s);
-    pushOdometry(h, t, sim.scans[k].odometry);
-    pushScan(h, t, sim, sim.scans[k].ranges);
-    h.runUntilIdle();
-  }
-  h.stop();
+  feedAndStop(h, sim, n);
   SmoothedRun run;
   for (const auto& p : h.published<msg::PoseStamped>("final_poses")) {
     run.poses.push_back(poseOf(p->getPose()));
