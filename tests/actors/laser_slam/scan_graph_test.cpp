@@ -67,10 +67,14 @@ std::pair<ScanLoopInput, SubmapConstraintInput> closure(std::int64_t stamp = 8 *
 }
 
 // Plain least squares: the closures below disagree with the chain by many sigmas on purpose,
-// which the default Huber loss would (rightly) discount.
+// which the default Huber loss would (rightly) discount. Tight intra-submap edges and the
+// hand-over kept: the submaps carry their scans, so what a closure moves is easy to tell.
 ScanGraphOptions plain() {
   ScanGraphOptions o;
   o.optimizer.ceres.huber_delta = 0;
+  o.intra_sigma_linear = 0.05;
+  o.intra_sigma_angular = 0.01;
+  o.shared_handovers = true;
   return o;
 }
 
@@ -135,11 +139,36 @@ TEST_CASE("scan graph: a closure on one scan pulls the scan and its submap towar
   CHECK(g.submapPoses().at(0).x == Approx(0).margin(1e-9));
 
   // The same closure under the Huber loss moves things less: 20 sigmas off, it is discounted.
-  ScanGraph robust = twoSubmaps(ScanGraphOptions{});
+  ScanGraphOptions huber = plain();
+  huber.optimizer.ceres.huber_delta = ScanGraphOptions{}.optimizer.ceres.huber_delta;
+  ScanGraph robust = twoSubmaps(huber);
   REQUIRE(robust.addLoop(loop, fallback));
   robust.optimize(kStart);
   CHECK(scanAt(robust, 8).y < closed.y - 0.05);
   CHECK(scanAt(robust, 8).y > 0.01);
+}
+
+TEST_CASE("scan graph defaults: loose intra-submap edges let a closure bend the submap trajectory",
+          "[scan_graph]") {
+  ScanGraph tight = twoSubmaps();
+  ScanGraph loose = twoSubmaps(ScanGraphOptions{});
+  // Submaps 0 and 1 share the scan at t = 4 s: by default their hand-over is left out.
+  tight.optimize(kStart);
+  loose.optimize(kStart);
+  CHECK(tight.edges() == 19);  // 10 intra-submap, 8 chain, the hand-over
+  CHECK(loose.edges() == 18);
+  // A moderate disagreement (0.1 m, 5 sigmas: inside the Huber scale region it still pulls).
+  auto [loop, fallback] = closure();
+  loop.pose = Pose2(8, 0.1, 0);
+  ScanGraph tight_closed = twoSubmaps(), loose_closed = twoSubmaps(ScanGraphOptions{});
+  REQUIRE(tight_closed.addLoop(loop, fallback));
+  REQUIRE(loose_closed.addLoop(loop, fallback));
+  tight_closed.optimize(kStart);
+  loose_closed.optimize(kStart);
+  const double tight_y = scanAt(tight_closed, 8).y, loose_y = scanAt(loose_closed, 8).y;
+  INFO("closed scan y: tight " << tight_y << ", loose " << loose_y);
+  CHECK(loose_y > tight_y);
+  CHECK(loose_y > 0.05);
 }
 
 TEST_CASE("scan graph: without chain edges only the closed scan and its submap move",
@@ -313,7 +342,10 @@ TEST_CASE("graph_optimizer with scan_graph takes the final trajectory from the s
   laser_slam::GraphOptimizerActorOptions o;
   o.compose_trajectory = true;
   o.scan_graph = true;
-  o.scan_huber_delta = 0;
+  o.scan_huber_delta = 0;  // as plain(): the submaps carry their scans
+  o.scan_sigma_linear = 0.05;
+  o.scan_sigma_angular = 0.01;
+  o.scan_shared_handovers = true;
   ActorHarness h(std::make_unique<laser_slam::GraphOptimizerActor>(o));
   pushSubmap(h, 0, Pose2(), straight(0));
   pushConstraint(h, 4 * kSecond, handOver());

@@ -58,13 +58,13 @@ struct GraphOptimizerActorOptions {
   std::string g2o_file = "graph.g2o";
   bool scan_graph = false;
   int scan_node_every = 1;
-  double scan_sigma_linear = 0.05;
-  double scan_sigma_angular = 0.01;
+  double scan_sigma_linear = 0.5;
+  double scan_sigma_angular = 0.1;
   double chain_sigma_linear = 0.02;
   double chain_sigma_angular = 0.005;
   int scan_ceres_iterations = 50;
   double scan_huber_delta = 1.0;
-  bool scan_shared_handovers = true;
+  bool scan_shared_handovers = false;
 
   template <class V>
   void visit(V& v) {
