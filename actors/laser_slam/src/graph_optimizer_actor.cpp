@@ -118,7 +118,8 @@ void GraphOptimizerActor::onConstraint(const Message<msg::SubmapConstraint>& m) 
     ++rejected_;
     return;
   }
-  switch (graph_.addConstraint(c)) {
+  const SubmapGraph::Outcome outcome = graph_.addConstraint(c);
+  switch (outcome) {
     case SubmapGraph::Outcome::kAdded:
       ++added_;
       break;
@@ -136,13 +137,13 @@ void GraphOptimizerActor::onConstraint(const Message<msg::SubmapConstraint>& m) 
       return;
   }
   if (!graph_.lastError().empty()) std::cerr << "[graph_optimizer] " << graph_.lastError() << "\n";
-  if (options_.scan_graph) addToScanGraph(m, c);
+  if (options_.scan_graph && outcome != SubmapGraph::Outcome::kDuplicate) addToScanGraph(m, c);
   if (graph_.needsOptimization()) optimizeAndPublish();
 }
 
 void GraphOptimizerActor::addToScanGraph(const Message<msg::SubmapConstraint>& m,
                                          const SubmapConstraintInput& c) {
-  // Exact repeats were counted as duplicates above and never get here twice.
+  // Exact repeats were counted as duplicates and are not passed here.
   bool ok = true;
   if (c.revisit && m->hasScanInTo()) {
     ScanLoopInput loop;

@@ -358,6 +358,7 @@ TEST_CASE("graph_optimizer with scan_graph takes the final trajectory from the s
     });
   const auto [loop, fallback] = closure();
   pushConstraint(h, 8 * kSecond, fallback, &loop);
+  pushConstraint(h, 8 * kSecond, fallback, &loop);  // re-sent: a duplicate, not a second edge
   // A closure whose scan pose lost its covariance: kept between submaps, and counted.
   auto [loop2, fallback2] = closure(7 * kSecond);
   loop2.pose = Pose2(7, 0.3, 0);
@@ -380,6 +381,7 @@ TEST_CASE("graph_optimizer with scan_graph takes the final trajectory from the s
   CHECK(count(s, "scan_graph_optimized") == 1);
   CHECK(count(s, "scan_graph_scan_nodes") == 9);
   CHECK(count(s, "scan_graph_loops_on_scans") == 1);
+  CHECK(count(s, "constraints_duplicate") == 1);
   CHECK(count(s, "scan_graph_rejected") == 1);
   CHECK(count(s, "scan_graph_poses_composed") == 0);
 }

@@ -32,7 +32,7 @@
 // submap-level optimum and is optimised once; the final submap_poses and trajectory_final come
 // from it (a trajectory pose whose scan is in no submap's trajectory is moved with its submap as
 // without it). The online optimisations, and so the loop detector's search centres, are the
-// submap-level ones either way.
+// submap-level ones either way, and graph.g2o holds the submap-level graph.
 #pragma once
 
 #include <tessera/msg/submap.capnp.h>
