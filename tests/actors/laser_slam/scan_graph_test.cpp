@@ -148,7 +148,7 @@ TEST_CASE("scan graph: a closure on one scan pulls the scan and its submap towar
   CHECK(scanAt(robust, 8).y > 0.01);
 }
 
-TEST_CASE("scan graph defaults: loose intra-submap edges let a closure bend the submap trajectory",
+TEST_CASE("scan graph defaults: loose intra-submap edges let a closure pull its scan further",
           "[scan_graph]") {
   ScanGraph tight = twoSubmaps();
   ScanGraph loose = twoSubmaps(ScanGraphOptions{});
