@@ -40,6 +40,11 @@ struct SubmapConstraint {
     handOver @0;                # the robot's pose in i when j started (SPEC §A)
     revisit @1;                 # a relocalisation in an existing submap (camera, loop closure)
   }
+  # Revisits found by matching one scan (loop detector): the robot's pose at the header's stamp
+  # in submap j's frame, i.e. the match itself, with its covariance (x, y, theta in frame j).
+  # A scan-level graph attaches that scan to submap j with it. Unset for hand-overs and for
+  # revisits not made from a scan.
+  scanInTo @5 :Common.Pose2D;
 }
 
 # The global level's answer: every submap's optimised origin in the map frame (SPEC §A).

@@ -22,6 +22,8 @@ const LoopDetectorOptions& checked(const LoopDetectorOptions& o) {
   auto positive = [](double v) { return std::isfinite(v) && v > 0; };
   auto non_negative = [](double v) { return std::isfinite(v) && v >= 0; };
   if (o.every_n_scans < 1) throw ConfigError("loop_detector: every_n_scans must be >= 1");
+  if (o.closures_per_scan < 1 || o.closures_per_scan > o.max_candidates)
+    throw ConfigError("loop_detector: closures_per_scan must be in [1, max_candidates]");
   if (o.skip_recent < 0) throw ConfigError("loop_detector: skip_recent must be >= 0");
   if (o.max_candidates < 1) throw ConfigError("loop_detector: max_candidates must be >= 1");
   if (!positive(o.window_linear) || !positive(o.window_linear_max) ||
@@ -193,9 +195,7 @@ void LoopDetectorActor::tryScan(const Message<msg::LaserScan>& scan,
   if (points.empty()) return;
 
   const auto start = std::chrono::steady_clock::now();
-  bool have_best = false;
-  PendingClosure best;
-  double best_score = 0.0;
+  std::vector<std::pair<double, PendingClosure>> accepted;  // by score
   for (const auto& c : candidates) {
     const auto& s = submaps_[c.index];
     const common::SearchWindow window = windowFor(s);
@@ -205,29 +205,38 @@ void LoopDetectorActor::tryScan(const Message<msg::LaserScan>& scan,
                                 std::max(window.angular, 1e-3) / 3);
     const Eigen::Matrix3d prior = sigma.cwiseAbs2().asDiagonal();
     const auto verdict = verifier_.verify(result, c.local, prior);
-    if (!verdict.accepted || (have_best && result.score <= best_score)) continue;
-    have_best = true;
-    best_score = result.score;
-    best = {scan->getHeader().getStampNs(), s.id, result.pose, robot_chained, result.covariance};
+    if (!verdict.accepted) continue;
+    accepted.push_back(
+        {result.score,
+         {scan->getHeader().getStampNs(), s.id, result.pose, robot_chained, result.covariance}});
   }
   match_seconds_ += std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-  if (!have_best) return;
-  if (options_.score_ground_truth) {
-    const auto& s = *std::find_if(submaps_.begin(), submaps_.end(),
-                                  [&](const auto& x) { return x.id == best.matched; });
-    common::Pose2 now, origin;
-    if (truthAt(best.stamp, now) && truthAt(s.start, origin)) {
-      const common::Pose2 truth = origin.inverse() * now;
-      const bool ok = std::hypot(truth.x - best.in_matched.x, truth.y - best.in_matched.y) <=
-                          options_.truth_tolerance_linear &&
-                      std::abs(common::angleDiff(truth.theta, best.in_matched.theta)) <=
-                          options_.truth_tolerance_angular;
-      ++(ok ? truth_true_ : truth_false_);
-    } else {
-      ++truth_unknown_;
-    }
+  // Best first (the nearer submap on a tie). Closures beyond the best tie the scan to further
+  // submaps; a scan-level graph uses each, a submap-level one fuses them.
+  std::stable_sort(accepted.begin(), accepted.end(),
+                   [](const auto& a, const auto& b) { return a.first > b.first; });
+  if (accepted.size() > static_cast<std::size_t>(options_.closures_per_scan))
+    accepted.resize(static_cast<std::size_t>(options_.closures_per_scan));
+  for (const auto& [score, closure] : accepted) {
+    if (options_.score_ground_truth) scoreClosure(closure);
+    pending_.push_back(closure);
   }
-  pending_.push_back(best);
+}
+
+void LoopDetectorActor::scoreClosure(const PendingClosure& c) {
+  const auto& s = *std::find_if(submaps_.begin(), submaps_.end(),
+                                [&](const auto& x) { return x.id == c.matched; });
+  common::Pose2 now, origin;
+  if (truthAt(c.stamp, now) && truthAt(s.start, origin)) {
+    const common::Pose2 truth = origin.inverse() * now;
+    const bool ok = std::hypot(truth.x - c.in_matched.x, truth.y - c.in_matched.y) <=
+                        options_.truth_tolerance_linear &&
+                    std::abs(common::angleDiff(truth.theta, c.in_matched.theta)) <=
+                        options_.truth_tolerance_angular;
+    ++(ok ? truth_true_ : truth_false_);
+  } else {
+    ++truth_unknown_;
+  }
 }
 
 common::SearchWindow LoopDetectorActor::windowFor(const FinishedSubmap& s) const {
@@ -305,16 +314,21 @@ void LoopDetectorActor::publishClosure(const PendingClosure& c, int current,
   if (c.matched == current) return;
   // The matched submap's origin seen from the current one's: robot-in-current ⊕ robot-in-matched⁻¹.
   const common::Pose2 relative = in_current * c.in_matched.inverse();
+  const Eigen::Vector3d floor(options_.sigma_floor_linear * options_.sigma_floor_linear,
+                              options_.sigma_floor_linear * options_.sigma_floor_linear,
+                              options_.sigma_floor_angular * options_.sigma_floor_angular);
   Eigen::Matrix3d cov = relativeCovariance(in_current, c.in_matched, c.covariance);
-  cov.diagonal() += Eigen::Vector3d(options_.sigma_floor_linear * options_.sigma_floor_linear,
-                                    options_.sigma_floor_linear * options_.sigma_floor_linear,
-                                    options_.sigma_floor_angular * options_.sigma_floor_angular);
+  cov.diagonal() += floor;
+  Eigen::Matrix3d match_cov = c.covariance;
+  match_cov.diagonal() += floor;
   auto loan = loop_pub_.loan();
   setHeader(loan->initHeader(), c.stamp, "map", loop_pub_.nextSeq());
   loan->setFromId(static_cast<std::uint32_t>(current));
   loan->setToId(static_cast<std::uint32_t>(c.matched));
   writePose(loan->initRelative(), PoseXYT{relative.x, relative.y, relative.theta}, &cov);
   loan->setKind(msg::SubmapConstraint::Kind::REVISIT);
+  writePose(loan->initScanInTo(), PoseXYT{c.in_matched.x, c.in_matched.y, c.in_matched.theta},
+            &match_cov);
   loop_pub_.publish(std::move(loan));
   ++published_;
 }

@@ -257,7 +257,26 @@ std::vector<Rbpf::StampedPose> SubmapBuilderActor::densify(
     }
     if (!have_update) continue;
     const Rbpf::StampedPose& base = updates[k - 1];
-    out.push_back({stamp, base.pose * (scan_odometry_[scan].second.inverse() * odom)});
+    const common::Pose2& base_odom = scan_odometry_[scan].second;
+    common::Pose2 pose = base.pose * (base_odom.inverse() * odom);
+    if (options_.interpolate_updates && k < updates.size()) {
+      // The next update's scan: its correction (map ⊕ odometry⁻¹) is where the odometry drift
+      // since this update was found; blend toward it by time instead of jumping there.
+      std::size_t next = scan;
+      while (next + 1 < scan_odometry_.size() &&
+             scan_odometry_[next + 1].first <= updates[k].stamp_s + 1e-6)
+        ++next;
+      const double span = scan_odometry_[next].first - scan_odometry_[scan].first;
+      if (next > scan && span > 0) {
+        const common::Pose2 from = base.pose * base_odom.inverse();
+        const common::Pose2 to = updates[k].pose * scan_odometry_[next].second.inverse();
+        const double f = (stamp - scan_odometry_[scan].first) / span;
+        const common::Pose2 correction(from.x + f * (to.x - from.x), from.y + f * (to.y - from.y),
+                                       from.theta + f * common::angleDiff(to.theta, from.theta));
+        pose = correction * odom;
+      }
+    }
+    out.push_back({stamp, pose});
   }
   return out;
 }

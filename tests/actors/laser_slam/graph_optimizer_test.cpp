@@ -8,6 +8,7 @@
 #include <tessera/runtime/options.hpp>
 
 #include "../../shared_data.hpp"
+#include "submap_messages.hpp"
 
 #include <tessera/datasets/pose_graph_io.hpp>
 
@@ -151,18 +152,7 @@ TEST_CASE("invalid constraints are rejected with the reason and the pending queu
 namespace {
 
 void pushSubmap(ActorHarness& h, int id, const Pose2& guess) {
-  h.push<msg::Submap>("submaps", [&](auto& b) {
-    setHeader(b.initHeader(), 1000 + id, "map", 0);
-    b.setId(static_cast<std::uint32_t>(id));
-    auto g = b.initGrid();
-    g.setResolution(0.1f);
-    g.setWidth(2);
-    g.setHeight(2);
-    writePose(g.initOrigin(), PoseXYT{0, 0, 0});
-    g.initCells(4);
-    writePose(b.initGlobalPose(), PoseXYT{guess.x, guess.y, guess.theta});
-    b.setFinished(true);
-  });
+  h.push<msg::Submap>("submaps", [&](auto& b) { test::fillSubmap(b, id, guess, 1000 + id); });
 }
 
 void pushConstraint(ActorHarness& h, const SubmapConstraintInput& c, bool with_covariance = true) {

@@ -5,14 +5,18 @@
 #include <tessera/messages/types.hpp>
 #include <tessera/messages/views.hpp>
 #include <tessera/runtime/harness.hpp>
+#include <tessera/runtime/options.hpp>
 
 #include "../scan_messages.hpp"
+
+#include <Eigen/LU>
 
 #include <catch2/catch.hpp>
 
 #include <algorithm>
 #include <cmath>
 #include <optional>
+#include <vector>
 
 using namespace tessera;
 using common::Pose2;
@@ -23,6 +27,10 @@ struct ClosureRun {
   int published = 0;
   std::int64_t smoothed = 0;
   Pose2 relative;
+  bool has_scan = false;
+  Pose2 scan_in_matched;  // scanInTo: the match itself
+  Eigen::Matrix3d scan_covariance = Eigen::Matrix3d::Zero();
+  std::vector<int> matched;  // the submap of each published closure
 };
 
 // Submap 0 is mapped from the room's first scans at their true poses (its frame = the first
@@ -34,7 +42,9 @@ double apart(const Pose2& a, const Pose2& b) {
   return (a.translation() - b.translation()).norm();
 }
 
-ClosureRun runClosure(const std::optional<Pose2>& smoothed) {
+// `copies` finished submaps hold the same map (ids 0..copies-1); the robot's own is `copies`.
+ClosureRun runClosure(const std::optional<Pose2>& smoothed, int copies = 1,
+                      int closures_per_scan = 1) {
   const auto sim = test::simulateRoomLoop();
   const Pose2 frame0 = sim.scans[0].truth;
   common::OccupancyGrid grid;
@@ -45,20 +55,22 @@ ClosureRun runClosure(const std::optional<Pose2>& smoothed) {
   laser_slam::LoopDetectorOptions o;
   o.skip_recent = 0;  // submap 0 is the most recent finished one
   o.every_n_scans = 1;
+  o.closures_per_scan = closures_per_scan;
   ActorHarness h(std::make_unique<laser_slam::LoopDetectorActor>(o));
-  h.push<msg::Submap>("submaps", [&](auto& b) {
-    setHeader(b.initHeader(), test::stampOf(1.0), "map", 0);
-    b.setId(0);
-    auto g = b.initGrid();
-    g.setResolution(static_cast<float>(map.resolution));
-    g.setWidth(static_cast<std::uint32_t>(map.width));
-    g.setHeight(static_cast<std::uint32_t>(map.height));
-    writePose(g.initOrigin(), PoseXYT{map.origin.x, map.origin.y, map.origin.theta});
-    auto cells = mutableViewInt8(g.initCells(static_cast<unsigned>(map.cells.size())));
-    std::copy(map.cells.begin(), map.cells.end(), cells.begin());
-    writePose(b.initGlobalPose(), PoseXYT{0, 0, 0});
-    b.setFinished(true);
-  });
+  for (int id = 0; id < copies; ++id)
+    h.push<msg::Submap>("submaps", [&](auto& b) {
+      setHeader(b.initHeader(), test::stampOf(1.0 + 0.1 * id), "map", 0);
+      b.setId(static_cast<std::uint32_t>(id));
+      auto g = b.initGrid();
+      g.setResolution(static_cast<float>(map.resolution));
+      g.setWidth(static_cast<std::uint32_t>(map.width));
+      g.setHeight(static_cast<std::uint32_t>(map.height));
+      writePose(g.initOrigin(), PoseXYT{map.origin.x, map.origin.y, map.origin.theta});
+      auto cells = mutableViewInt8(g.initCells(static_cast<unsigned>(map.cells.size())));
+      std::copy(map.cells.begin(), map.cells.end(), cells.begin());
+      writePose(b.initGlobalPose(), PoseXYT{0, 0, 0});
+      b.setFinished(true);
+    });
   h.runUntilIdle();
 
   const std::size_t probe = 60;
@@ -74,7 +86,7 @@ ClosureRun runClosure(const std::optional<Pose2>& smoothed) {
   const Pose2 origin1(1.0, 0.5, 0.2);
   h.push<msg::Submap>("submaps", [&](auto& b) {
     setHeader(b.initHeader(), test::stampOf(6.0), "map", 0);
-    b.setId(1);
+    b.setId(static_cast<std::uint32_t>(copies));
     auto g = b.initGrid();
     g.setResolution(0.05f);
     g.setWidth(1);
@@ -97,9 +109,16 @@ ClosureRun runClosure(const std::optional<Pose2>& smoothed) {
   ClosureRun run;
   const auto out = h.published<msg::SubmapConstraint>("loop_constraints");
   run.published = static_cast<int>(out.size());
+  for (const auto& c : out) run.matched.push_back(static_cast<int>(c->getToId()));
   if (!out.empty()) {
     const auto r = out.back()->getRelative();
     run.relative = Pose2(r.getX(), r.getY(), r.getTheta());
+    run.has_scan = out.back()->hasScanInTo();
+    if (run.has_scan) {
+      const auto m = out.back()->getScanInTo();
+      run.scan_in_matched = Pose2(m.getX(), m.getY(), m.getTheta());
+      if (!readCovariance(m, run.scan_covariance)) run.scan_covariance.setConstant(-1);
+    }
   }
   Summary s;
   h.actor().summarize(s);
@@ -134,6 +153,49 @@ TEST_CASE("a loop closure uses the finished submap smoothed pose of its scan, el
   // The two answers are told apart: they lie 0.13 m apart, each found within 0.05 m.
   REQUIRE(apart(expect_smoothed, expect_online) > 0.12);
   CHECK(apart(smoothed.relative, expect_online) > 0.07);
+}
+
+TEST_CASE("a loop closure also carries the scan pose in the matched submap with its covariance",
+          "[loop_detector][scan_graph]") {
+  const auto sim = test::simulateRoomLoop();
+  // The robot in submap 0 (the matched one) at the probe scan: what the match must find, the
+  // same whichever pose in its own submap the closure was expressed with.
+  const Pose2 in_map = sim.scans[0].truth.inverse() * sim.scans[60].truth;
+  for (const auto& smoothed : {std::optional<Pose2>{}, std::optional<Pose2>{Pose2(1, 2, 0.3)}}) {
+    const ClosureRun run = runClosure(smoothed);
+    REQUIRE(run.published == 1);
+    REQUIRE(run.has_scan);
+    CHECK(apart(run.scan_in_matched, in_map) < 0.05);
+    CHECK(std::abs(common::angleDiff(run.scan_in_matched.theta, in_map.theta)) < 0.02);
+    // Symmetric, positive definite, and at least the published floors (0.05 m, 0.02 rad).
+    REQUIRE(run.scan_covariance.allFinite());
+    CHECK((run.scan_covariance - run.scan_covariance.transpose()).norm() < 1e-12);
+    CHECK(run.scan_covariance(0, 0) >= 0.05 * 0.05);
+    CHECK(run.scan_covariance(1, 1) >= 0.05 * 0.05);
+    CHECK(run.scan_covariance(2, 2) >= 0.02 * 0.02);
+    CHECK(run.scan_covariance.determinant() > 0);
+  }
+}
+
+TEST_CASE("closures_per_scan publishes the verified matches of one scan against several submaps",
+          "[loop_detector][scan_graph]") {
+  // Two finished submaps hold the room: the scan matches both.
+  const ClosureRun best = runClosure(std::nullopt, 2, 1);
+  CHECK(best.published == 1);
+  const ClosureRun both = runClosure(std::nullopt, 2, 2);
+  REQUIRE(both.published == 2);
+  std::vector<int> matched = both.matched;
+  std::sort(matched.begin(), matched.end());
+  CHECK(matched == std::vector<int>{0, 1});
+  // The best one is the one published alone.
+  CHECK(std::find(both.matched.begin(), both.matched.end(), best.matched.at(0)) !=
+        both.matched.end());
+  // More than there are candidates to search is a configuration error.
+  laser_slam::LoopDetectorOptions o;
+  o.closures_per_scan = o.max_candidates + 1;
+  CHECK_THROWS_AS(laser_slam::LoopDetectorActor(o), ConfigError);
+  o.closures_per_scan = 0;
+  CHECK_THROWS_AS(laser_slam::LoopDetectorActor(o), ConfigError);
 }
 
 TEST_CASE("a non-finite smoothed scan pose falls back to the online estimate", "[loop_detector]") {

@@ -19,11 +19,14 @@
 //                                       the scan's smoothed pose in it from the finished submap's
 //                                       trajectory: the online estimate came from the particle
 //                                       that was best then, which need not be the one whose map
-//                                       the submap keeps.
+//                                       the submap keeps. scanInTo carries the match itself (the
+//                                       scan's pose in the matched submap, with its covariance)
+//                                       for a scan-level graph.
 //
 // Search. Every `every_n_scans`-th scan with a pose is tried against the finished submaps whose
 // area (expanded by the window) holds the robot's estimate, nearest first, skipping the
-// `skip_recent` most recent ones (linked to the current one by hand-overs already). The window
+// `skip_recent` most recent ones (linked to the current one by hand-overs already). Of the
+// verified matches, the best `closures_per_scan` are published. The window
 // grows with the distance driven since the submap was finished (odometry-style drift):
 // linear = min(window_linear_max, window_linear + window_growth · d), angular likewise.
 // Verification (LoopClosureVerifier): score, ambiguity (second best / best), how well the scan
@@ -55,6 +58,7 @@ struct LoopDetectorOptions {
   int every_n_scans = 5;
   int skip_recent = 1;
   int max_candidates = 3;
+  int closures_per_scan = 1;
   double window_linear = 1.0;
   double window_growth = 0.01;
   double window_linear_max = 3.0;
@@ -83,6 +87,9 @@ struct LoopDetectorOptions {
     v("every_n_scans", every_n_scans, "try every n-th scan (>= 1)");
     v("skip_recent", skip_recent, "most recent finished submaps not searched (>= 0)");
     v("max_candidates", max_candidates, "submaps searched per scan, nearest first (>= 1)");
+    v("closures_per_scan", closures_per_scan,
+      "verified matches of one scan published, best first (1..max_candidates): more than one "
+      "ties the scan to several submaps (for a scan-level graph)");
     v("window_linear", window_linear, "[m] search half-width right after a submap is finished");
     v("window_growth", window_growth, "[m per m driven] growth of the half-width");
     v("window_linear_max", window_linear_max, "[m] largest half-width");
@@ -147,6 +154,8 @@ class LoopDetectorActor final : public Actor {
   /// `in_current`: the robot's pose in the current submap at the match.
   void publishClosure(const PendingClosure& c, int current, const common::Pose2& in_current);
   bool truthAt(Nanos stamp, common::Pose2& out) const;
+  /// With score_ground_truth: counts the closure as true or false.
+  void scoreClosure(const PendingClosure& c);
   /// Search window for a submap: grows with the distance driven since it was finished.
   common::SearchWindow windowFor(const FinishedSubmap& s) const;
 

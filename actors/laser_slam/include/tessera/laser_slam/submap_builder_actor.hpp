@@ -18,7 +18,12 @@
 //   final_poses  msg::PoseStamped       in stop(): one per scan, the best particle's pose at the
 //                                       filter update before it (trajectory tree, submap by
 //                                       submap, map frame) moved by the odometry since: the
-//                                       smoothed estimate (write trajectory_final.tum)
+//                                       smoothed estimate (write trajectory_final.tum). With
+//                                       interpolate_updates, the odometry correction of a scan
+//                                       between two updates is blended by time from the first
+//                                       update's to the next one's, so the drift found at an
+//                                       update is spread over the scans before it (the same for
+//                                       the submaps' trajectories).
 //
 // The map frame is the first submap's frame; later submaps are placed by chaining hand-over
 // constraints (the graph optimiser moves them later). Scans wait (bounded) for an odometry pose
@@ -75,6 +80,7 @@ struct SubmapBuilderOptions {
   double handover_sigma_linear = 0.02, handover_sigma_angular = 0.005;
   int submap_scans = 0;  // inserted scans; 0 = never
   bool camera_trigger = false;
+  bool interpolate_updates = false;
   // Plumbing.
   std::string frame_id = "map";
   int scan_queue = 8;
@@ -136,6 +142,9 @@ struct SubmapBuilderOptions {
     v("handover_sigma_angular", handover_sigma_angular, "[rad/sqrt(m)] the same for the heading");
     v("camera_trigger", camera_trigger,
       "subscribe to camera_events: entering a new camera's view starts a new submap");
+    v("interpolate_updates", interpolate_updates,
+      "smoothed trajectory (final_poses, submap trajectories): blend each scan's odometry "
+      "correction between the updates around it instead of holding the earlier one's");
     v("frame_id", frame_id, "global frame of the published poses");
     v("scan_queue", scan_queue, "scan mailbox size (keep-latest)");
     v("odom_queue", odom_queue, "odometry mailbox size (keep-latest)");
