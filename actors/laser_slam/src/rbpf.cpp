@@ -96,6 +96,10 @@ Rbpf::Rbpf(RbpfOptions options) : options_(std::move(options)), matcher_(options
           "handover_sigma_linear and handover_sigma_angular must be >= 0");
   require(o.coarse_kernel_radius >= 0, "coarse_kernel_radius must be >= 0 (0 disables)");
   require(o.coarse_beam_step >= 1, "coarse_beam_step must be >= 1");
+  require(std::isfinite(o.recovery_sigma) && o.recovery_sigma >= 0,
+          "recovery_sigma must be >= 0 (0 disables)");
+  require(std::isfinite(o.recovery_angular_step) && o.recovery_angular_step > 0,
+          "recovery_angular_step must be > 0 [rad]");
   if (o.coarse_kernel_radius > 0) {
     common::ScanMatcherOptions coarse = o.matcher;
     coarse.kernel_radius = o.coarse_kernel_radius;
@@ -211,7 +215,7 @@ std::size_t Rbpf::updateParticles(const common::ScanPoints& points,
   const Eigen::Matrix3d local_cov = motionCovariance(odom_delta);
   const double divisor = options_.weight_divisor > 0 ? options_.weight_divisor
                                                      : static_cast<double>(particles_.size());
-  std::atomic<std::uint64_t> failures{0}, coarse_evals{0}, fine_evals{0};
+  std::atomic<std::uint64_t> failures{0}, coarse_evals{0}, fine_evals{0}, recoveries{0};
   const auto update = [&](std::size_t i) {
     Particle& p = particles_[i];
     std::mt19937_64 rng = streamFor(options_.seed, update_index_, i);
@@ -221,6 +225,9 @@ std::size_t Rbpf::updateParticles(const common::ScanPoints& points,
     r.topLeftCorner<2, 2>() = p.pose.rotation();
     const Eigen::Matrix3d prior_cov = r * local_cov * r.transpose();
 
+    // The stage the recovery search runs: the coarse one, or the fine one when disabled.
+    const common::ScanMatcher& coarse_stage = coarse_matcher_ ? *coarse_matcher_ : matcher_;
+    const common::ScanPoints& coarse_pts = coarse_matcher_ ? coarse_points : points;
     Pose2 start = prior;
     bool matched = false;
     if (coarse_matcher_) {
@@ -230,9 +237,45 @@ std::size_t Rbpf::updateParticles(const common::ScanPoints& points,
       if (coarse.success) start = coarse.pose;
       matched = coarse.success;
     }
-    const common::MatchResult match = matcher_.match(*p.map, points, start);
+    common::MatchResult match = matcher_.match(*p.map, points, start);
     fine_evals.fetch_add(static_cast<std::uint64_t>(match.evaluations), std::memory_order_relaxed);
     matched = matched || match.success;
+    if (!matched && options_.recovery_sigma > 0) {
+      // The prior mean lies outside the matcher's basin (odometry off by more than the coarse
+      // kernel reaches, typically a heading error after turning on the spot). Drawing from the
+      // motion model instead would insert this scan at a random pose and corrupt the map, so
+      // search the prior's support first: headings recovery_angular_step apart, each also
+      // shifted along x and y; the best coarse score goes on to the fine stage.
+      const Eigen::Vector3d reach = options_.recovery_sigma * prior_cov.diagonal().cwiseSqrt();
+      const int nt =
+          std::min(static_cast<int>(reach.z() / options_.recovery_angular_step), kMaxRecoverySteps);
+      const double lx = 0.5 * reach.x(), ly = 0.5 * reach.y();
+      const Pose2 shifts[5] = {{0, 0, 0}, {lx, 0, 0}, {-lx, 0, 0}, {0, ly, 0}, {0, -ly, 0}};
+      double best_score = -1.0;
+      Pose2 best_pose = prior;
+      std::uint64_t evals = 0;
+      for (int k = -nt; k <= nt; ++k)
+        for (const Pose2& d : shifts) {
+          if (k == 0 && d.x == 0 && d.y == 0) continue;  // the prior mean: tried above
+          const Pose2 from{prior.x + d.x, prior.y + d.y,
+                           prior.theta + k * options_.recovery_angular_step};
+          const common::MatchResult c = coarse_stage.match(*p.map, coarse_pts, from);
+          evals += static_cast<std::uint64_t>(c.evaluations);
+          if (c.success && c.score > best_score) {
+            best_score = c.score;
+            best_pose = c.pose;
+          }
+        }
+      coarse_evals.fetch_add(evals, std::memory_order_relaxed);
+      if (best_score >= 0) {
+        recoveries.fetch_add(1, std::memory_order_relaxed);
+        start = best_pose;
+        matched = true;
+        match = matcher_.match(*p.map, points, start);
+        fine_evals.fetch_add(static_cast<std::uint64_t>(match.evaluations),
+                             std::memory_order_relaxed);
+      }
+    }
     // The fine stage refines the coarse pose; when it cannot (too few beams within its narrow
     // kernel), the coarse pose is still better than the odometry prior.
     const Pose2 mode = match.success ? match.pose : start;
@@ -256,6 +299,7 @@ std::size_t Rbpf::updateParticles(const common::ScanPoints& points,
   stats_.match_failures += failures.load();
   stats_.coarse_evaluations += coarse_evals.load();
   stats_.fine_evaluations += fine_evals.load();
+  stats_.match_recoveries += recoveries.load();
   return failures.load();
 }
 

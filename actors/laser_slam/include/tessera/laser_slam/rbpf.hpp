@@ -7,6 +7,8 @@
 //      motion-noise model (srr, srt, str, stt as in GMapping);
 //   2. scan-match the new scan against the particle's own map from the prior mean: a coarse
 //      stage (wide kernel, every n-th beam) brings the pose into the basin of the fine stage;
+//      when both fail from the prior mean, the coarse stage is retried from starts spread over
+//      the prior (recovery_sigma) before giving up;
 //   3. improved proposal: fit a Gaussian to p(z|m,x)·p(x|x',u) sampled around the matched mode,
 //      draw the new pose from it, and multiply the weight by its normaliser η (divided by
 //      weight_divisor, as GMapping flattens its weights); when both stages fail (too few beams
@@ -51,6 +53,9 @@ struct MotionNoise {
   double stt = 0.2;  ///< [rad/rad] rotation error per radian turned
 };
 
+/// Cap on the heading starts per side of the recovery search (RbpfOptions::recovery_sigma).
+inline constexpr int kMaxRecoverySteps = 10;
+
 struct RbpfOptions {
   int particles = 30;
   double resample_threshold = 0.5;  ///< resample when N_eff < this · particles (0..1]
@@ -71,6 +76,13 @@ struct RbpfOptions {
   /// stage starts where it ends. coarse_kernel_radius 0 disables the stage.
   int coarse_kernel_radius = 4;
   int coarse_beam_step = 4;
+  /// When matching from the prior mean fails in both stages, the coarse stage is retried from
+  /// starts within ±recovery_sigma prior standard deviations (heading every
+  /// recovery_angular_step, at most kMaxRecoverySteps per side, each also shifted by half the
+  /// reach along x and y); the best-scoring success goes on to the fine stage. 0 disables: the
+  /// particle then follows the motion model and inserts its scan at the sampled pose.
+  double recovery_sigma = 2.0;
+  double recovery_angular_step = 0.05;  ///< [rad]
   std::uint64_t seed = 1;  ///< results are reproducible for a seed, whatever the thread count
   bool parallel = true;    ///< particles on TBB worker threads (false: one thread)
   /// Draw each particle's pose from the fitted proposal (Grisetti et al. 2007); false keeps the
@@ -113,6 +125,8 @@ struct RbpfStats {
   std::uint64_t updates = 0;  ///< filter updates (including the first scan)
   std::uint64_t resamples = 0;
   std::uint64_t match_failures = 0;  ///< particle updates that fell back to the motion model
+  /// particle updates whose match from the prior mean failed and the wider search recovered
+  std::uint64_t match_recoveries = 0;
   std::uint64_t particle_updates = 0;
   std::uint64_t coarse_evaluations = 0;  ///< scan scores computed by the coarse stage
   std::uint64_t fine_evaluations = 0;    ///< by the fine stage

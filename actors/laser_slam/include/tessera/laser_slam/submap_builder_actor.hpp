@@ -63,6 +63,8 @@ struct SubmapBuilderOptions {
   int match_kernel_radius = 1;
   int coarse_kernel_radius = 4;
   int coarse_beam_step = 4;
+  double recovery_sigma = 2.0;
+  double recovery_angular_step = 0.05;
   double match_sigma = 0.05;
   double match_likelihood_sigma = 0.075;
   double match_likelihood_gain = 3.0;
@@ -70,6 +72,9 @@ struct SubmapBuilderOptions {
   double match_angular_step = 0.05;
   int match_refinements = 5;
   double match_min_fraction = 0.1;
+  double match_no_hit_distance = 0.27;
+  double match_proposal_linear = 0.02;
+  double match_proposal_angular = 0.01;
   // Submaps.
   double submap_distance = 0.0;  // [m] travelled; 0 = never
   double handover_sigma_linear = 0.02, handover_sigma_angular = 0.005;
@@ -118,6 +123,11 @@ struct SubmapBuilderOptions {
     v("coarse_kernel_radius", coarse_kernel_radius,
       "coarse matching stage: cells searched around each endpoint (wider basin); 0 disables");
     v("coarse_beam_step", coarse_beam_step, "coarse matching stage uses every n-th beam");
+    v("recovery_sigma", recovery_sigma,
+      "when matching from the odometry prior fails, retry the coarse stage from starts within "
+      "this many prior standard deviations; 0 disables");
+    v("recovery_angular_step", recovery_angular_step,
+      "heading spacing of the recovery search's starts [rad]");
     v("match_sigma", match_sigma, "score kernel width [m]");
     v("match_likelihood_sigma", match_likelihood_sigma, "likelihood kernel width [m]");
     v("match_likelihood_gain", match_likelihood_gain,
@@ -125,6 +135,14 @@ struct SubmapBuilderOptions {
     v("match_linear_step", match_linear_step, "initial hill-climbing step [m]");
     v("match_angular_step", match_angular_step, "initial hill-climbing step [rad]");
     v("match_refinements", match_refinements, "hill-climbing step halvings");
+    v("match_no_hit_distance", match_no_hit_distance,
+      "[m] a beam with no obstacle within the kernel costs as much in the likelihood as one "
+      "whose obstacle is this far away (0 = the kernel's reach): makes particles whose map "
+      "disagrees with the scan lose weight");
+    v("match_proposal_linear", match_proposal_linear,
+      "[m] proposal fit: spacing of the pose samples in x and y around the matched pose");
+    v("match_proposal_angular", match_proposal_angular,
+      "[rad] proposal fit: spacing of the pose samples in heading around the matched pose");
     v("match_min_fraction", match_min_fraction,
       "a match succeeds when at least this fraction of the beams lands near an obstacle; "
       "otherwise the particle follows odometry");
