@@ -70,6 +70,7 @@ RbpfOptions SubmapBuilderOptions::rbpf() const {
   o.coarse_beam_step = coarse_beam_step;
   o.recovery_sigma = recovery_sigma;
   o.recovery_angular_step = recovery_angular_step;
+  o.track_between_updates = track_between_updates;
   o.matcher.sigma = match_sigma;
   o.matcher.likelihood_sigma = match_likelihood_sigma;
   o.matcher.likelihood_gain = match_likelihood_gain;
@@ -276,6 +277,10 @@ void SubmapBuilderActor::summarize(Summary& out) const {
   out["resamples"] = i64(s.resamples);
   out["match_failures"] = i64(s.match_failures);
   out["match_recoveries"] = i64(s.match_recoveries);
+  if (s.tracked_scans > 0) {
+    out["tracked_scans"] = i64(s.tracked_scans);
+    out["tracking_failures"] = i64(s.tracking_failures);
+  }
   out["particle_updates"] = i64(s.particle_updates);
   out["coarse_evaluations"] = i64(s.coarse_evaluations);
   out["fine_evaluations"] = i64(s.fine_evaluations);

@@ -134,6 +134,44 @@ TEST_CASE("a heading slip beyond the matcher basin is recovered from the odometr
   CHECK(worst_on < 0.12);
 }
 
+TEST_CASE("tracking between updates keeps the online pose on the scans instead of odometry",
+          "[rbpf]") {
+  // Wide gates, as on a real log: between updates the online pose would follow odometry with
+  // its 4 % rotation and 3 % distance errors.
+  const auto sim = test::simulateRoomLoop();
+  const auto run = [&](bool track) {
+    RbpfOptions o = fastOptions(5);
+    o.linear_update = 1.0;
+    o.angular_update = 0.5;
+    o.track_between_updates = track;
+    Rbpf rbpf(o);
+    const Pose2 start = sim.scans.front().truth;
+    double sum = 0, heading = 0;
+    for (const auto& s : sim.scans) {
+      rbpf.addScan(s.stamp_s, sim.range(s), Pose2{}, s.odometry);
+      const Pose2 truth = common::between(start, s.truth);
+      sum += translationError(rbpf.pose(), truth);
+      heading += std::abs(common::angleDiff(rbpf.pose().theta, truth.theta));
+    }
+    const double n = static_cast<double>(sim.scans.size());
+    return std::make_tuple(sum / n, heading / n, rbpf.stats());
+  };
+  const auto [odom_mean, odom_heading, odom_stats] = run(false);
+  const auto [track_mean, track_heading, track_stats] = run(true);
+  INFO("mean error on odometry between updates " << odom_mean << " m / " << odom_heading
+                                                 << " rad, tracked " << track_mean << " m / "
+                                                 << track_heading << " rad");
+  CHECK(odom_stats.tracked_scans == 0);
+  CHECK(track_stats.tracked_scans + track_stats.updates == sim.scans.size());
+  // Scans whose match does not beat the odometry prediction keep it; the others move it.
+  CHECK(track_stats.tracking_failures < track_stats.tracked_scans);
+  // The filter itself is unchanged: same updates, same best trajectory.
+  CHECK(track_stats.updates == odom_stats.updates);
+  CHECK(track_stats.resamples == odom_stats.resamples);
+  CHECK(track_heading < 0.8 * odom_heading);
+  CHECK(track_mean < odom_mean);
+}
+
 TEST_CASE("particles copied by resampling share their map tiles", "[rbpf]") {
   const auto sim = test::simulateRoomLoop();
   RbpfOptions o = fastOptions(20);

@@ -83,6 +83,12 @@ struct RbpfOptions {
   /// particle then follows the motion model and inserts its scan at the sampled pose.
   double recovery_sigma = 2.0;
   double recovery_angular_step = 0.05;  ///< [rad]
+  /// Between filter updates, match each usable scan (the coarse stage's beams, fine kernel)
+  /// against the best particle's map, from the last tracked pose moved by the odometry since:
+  /// the online estimate pose() then follows the scans instead of the raw odometry (which over
+  /// a 1 m / 0.5 rad gate drifts by degrees). Particles, maps and weights are unchanged; a scan
+  /// that fails to match leaves the estimate on odometry.
+  bool track_between_updates = false;
   std::uint64_t seed = 1;  ///< results are reproducible for a seed, whatever the thread count
   bool parallel = true;    ///< particles on TBB worker threads (false: one thread)
   /// Draw each particle's pose from the fitted proposal (Grisetti et al. 2007); false keeps the
@@ -131,7 +137,9 @@ struct RbpfStats {
   std::uint64_t coarse_evaluations = 0;  ///< scan scores computed by the coarse stage
   std::uint64_t fine_evaluations = 0;    ///< by the fine stage
   std::uint64_t unusable_scans = 0;
-  std::uint64_t invalid_odometry = 0;  ///< non-finite odometry poses ignored
+  std::uint64_t tracked_scans = 0;      ///< scans matched between updates (tracking on)
+  std::uint64_t tracking_failures = 0;  ///< of those, left on odometry (no better match)
+  std::uint64_t invalid_odometry = 0;   ///< non-finite odometry poses ignored
 };
 
 /// Systematic (low-variance) resampling: n = weights.size() draws at u0 + k/n, k = 0..n-1, on
@@ -153,7 +161,8 @@ class Rbpf {
   /// True once the first usable scan has been inserted.
   bool initialized() const { return initialized_; }
   /// Online estimate of base_link in the current submap at the last scan: the best particle's
-  /// pose at the last update composed with the odometry travelled since.
+  /// pose at the last update composed with the odometry travelled since (with
+  /// track_between_updates: with the scan-matched motion since).
   common::Pose2 pose() const;
   /// Best particle's pose and the weighted spread of all particles around it, at the last
   /// update (in the current submap).
@@ -214,6 +223,12 @@ class Rbpf {
   void insertScan(const common::RangeScan& scan, const common::Pose2& mount);
   Eigen::Matrix3d motionCovariance(const common::Pose2& delta) const;
   int bestIndex() const;
+  /// Between updates: moves the online estimate by the odometry since the last tracked scan and
+  /// matches `scan` against the best map there (track_between_updates).
+  void trackScan(const common::RangeScan& scan, const common::Pose2& mount,
+                 const common::ScanPoints& points, const common::Pose2& odometry);
+  /// Restarts between-update tracking at the best particle's pose and the odometry there.
+  void resetTracking(const common::Pose2& odometry);
 
   RbpfOptions options_;
   common::ScanMatcher matcher_;
@@ -229,7 +244,11 @@ class Rbpf {
   double update_stamp_s_ = 0.0;
   double travelled_since_update_ = 0.0;
   double turned_since_update_ = 0.0;
-  int best_ = 0;                    // best particle at the last update
+  int best_ = 0;  // best particle at the last update
+  // Online estimate at the last tracked scan and the odometry there (= the best particle and
+  // update_odometry_ when tracking is off or nothing was tracked since the update).
+  common::Pose2 tracked_;
+  common::Pose2 tracked_odometry_;
   std::uint64_t update_index_ = 0;  // seeds the per-particle random streams
 
   // The last usable scan, kept so startSubmap() can seed the next submap with it.

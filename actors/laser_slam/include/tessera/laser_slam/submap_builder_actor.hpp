@@ -9,7 +9,9 @@
 //                                                              starts a new submap
 // Publishes:
 //   pose         msg::PoseStamped       every scan: base_link in map (best particle at updates,
-//                                       odometry since in between), covariance = particle spread
+//                                       in between scans matched against its map, or odometry
+//                                       with track_between_updates false), covariance =
+//                                       particle spread
 //   map_to_odom  msg::PoseStamped       every scan: the correction map ⊕ odom⁻¹
 //   submaps      msg::Submap            reliable consumers: each finished submap, and the last
 //                                       one (finished) in stop(), with the smoothed pose of
@@ -65,6 +67,7 @@ struct SubmapBuilderOptions {
   int coarse_beam_step = 4;
   double recovery_sigma = 2.0;
   double recovery_angular_step = 0.05;
+  bool track_between_updates = true;
   double match_sigma = 0.05;
   double match_likelihood_sigma = 0.075;
   double match_likelihood_gain = 3.0;
@@ -128,6 +131,9 @@ struct SubmapBuilderOptions {
       "this many prior standard deviations; 0 disables");
     v("recovery_angular_step", recovery_angular_step,
       "heading spacing of the recovery search's starts [rad]");
+    v("track_between_updates", track_between_updates,
+      "between filter updates, match each scan against the best particle's map so the online "
+      "pose follows the scans rather than the odometry");
     v("match_sigma", match_sigma, "score kernel width [m]");
     v("match_likelihood_sigma", match_likelihood_sigma, "likelihood kernel width [m]");
     v("match_likelihood_gain", match_likelihood_gain,
