@@ -86,8 +86,9 @@ struct RbpfOptions {
   /// Between filter updates, match each usable scan (the coarse stage's beams, fine kernel)
   /// against the best particle's map, from the last tracked pose moved by the odometry since:
   /// the online estimate pose() then follows the scans instead of the raw odometry (which over
-  /// a 1 m / 0.5 rad gate drifts by degrees). Particles, maps and weights are unchanged; a scan
-  /// that fails to match leaves the estimate on odometry.
+  /// a 1 m / 0.5 rad gate drifts by degrees). A match is kept only when its likelihood (all
+  /// beams) times the motion prior beats the odometry prediction's; otherwise the prediction
+  /// stands. Particles, maps, weights and the best trajectory are unchanged.
   bool track_between_updates = false;
   std::uint64_t seed = 1;  ///< results are reproducible for a seed, whatever the thread count
   bool parallel = true;    ///< particles on TBB worker threads (false: one thread)
