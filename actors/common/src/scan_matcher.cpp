@@ -36,6 +36,8 @@ ScanMatcher::ScanMatcher(ScanMatcherOptions o) : options_(o) {
   check(positive(o.sigma), "sigma must be > 0 m");
   check(positive(o.likelihood_sigma), "likelihood_sigma must be > 0 m");
   check(positive(o.likelihood_gain), "likelihood_gain must be > 0");
+  check(std::isfinite(o.no_hit_distance) && o.no_hit_distance >= 0.0 && o.no_hit_distance < 1e3,
+        "no_hit_distance must be in [0, 1000) m");
   check(std::isfinite(o.occupied_threshold), "occupied_threshold must be finite");
   check(!std::isnan(o.free_check_offset) && o.free_check_offset < 1e6,
         "free_check_offset must be a number of metres");

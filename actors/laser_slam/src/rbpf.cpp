@@ -49,6 +49,13 @@ Pose2 sampleGaussian(const Pose2& mean, const Eigen::Matrix3d& cov, std::mt19937
   return {mean.x + d.x(), mean.y + d.y(), mean.theta + d.z()};
 }
 
+/// A covariance over (x, y, θ) stated in the robot frame at `frame`, expressed in the map.
+Eigen::Matrix3d inMapFrame(const Eigen::Matrix3d& local, const Pose2& frame) {
+  Eigen::Matrix3d r = Eigen::Matrix3d::Identity();
+  r.topLeftCorner<2, 2>() = frame.rotation();
+  return r * local * r.transpose();
+}
+
 }  // namespace
 
 std::vector<std::size_t> systematicResample(const std::vector<double>& weights, double u0) {
@@ -96,6 +103,10 @@ Rbpf::Rbpf(RbpfOptions options) : options_(std::move(options)), matcher_(options
           "handover_sigma_linear and handover_sigma_angular must be >= 0");
   require(o.coarse_kernel_radius >= 0, "coarse_kernel_radius must be >= 0 (0 disables)");
   require(o.coarse_beam_step >= 1, "coarse_beam_step must be >= 1");
+  require(std::isfinite(o.recovery_sigma) && o.recovery_sigma >= 0,
+          "recovery_sigma must be >= 0 (0 disables)");
+  require(std::isfinite(o.recovery_angular_step) && o.recovery_angular_step > 0,
+          "recovery_angular_step must be > 0 [rad]");
   if (o.coarse_kernel_radius > 0) {
     common::ScanMatcherOptions coarse = o.matcher;
     coarse.kernel_radius = o.coarse_kernel_radius;
@@ -160,7 +171,10 @@ RbpfStep Rbpf::addScan(double stamp_s, const common::RangeScan& scan, const Pose
       travelled_since_update_ >= options_.linear_update ||
       turned_since_update_ >= options_.angular_update ||
       (options_.temporal_update > 0 && stamp_s - update_stamp_s_ >= options_.temporal_update);
-  if (!gate) return step;
+  if (!gate) {
+    if (options_.track_between_updates) trackScan(scan, mount, points, odometry);
+    return step;
+  }
 
   ++update_index_;
   const common::ScanPoints coarse_points =
@@ -180,6 +194,7 @@ RbpfStep Rbpf::addScan(double stamp_s, const common::RangeScan& scan, const Pose
     p.node = std::make_shared<TrajectoryNode>(TrajectoryNode{stamp_s, p.pose, std::move(p.node)});
   best_ = bestIndex();
   update_odometry_ = odometry;
+  resetTracking(odometry);
   update_stamp_s_ = stamp_s;
   travelled_since_update_ = 0.0;
   turned_since_update_ = 0.0;
@@ -198,6 +213,7 @@ void Rbpf::initialize(double stamp_s, const common::RangeScan& scan, const Pose2
   initialized_ = true;
   best_ = 0;
   update_odometry_ = odometry;
+  resetTracking(odometry);
   update_stamp_s_ = stamp_s;
   travelled_since_update_ = 0.0;
   turned_since_update_ = 0.0;
@@ -211,16 +227,17 @@ std::size_t Rbpf::updateParticles(const common::ScanPoints& points,
   const Eigen::Matrix3d local_cov = motionCovariance(odom_delta);
   const double divisor = options_.weight_divisor > 0 ? options_.weight_divisor
                                                      : static_cast<double>(particles_.size());
-  std::atomic<std::uint64_t> failures{0}, coarse_evals{0}, fine_evals{0};
+  std::atomic<std::uint64_t> failures{0}, coarse_evals{0}, fine_evals{0}, recoveries{0};
   const auto update = [&](std::size_t i) {
     Particle& p = particles_[i];
     std::mt19937_64 rng = streamFor(options_.seed, update_index_, i);
     const Pose2 prior = p.pose * odom_delta;
     // The odometry noise is stated in the robot frame at the previous pose.
-    Eigen::Matrix3d r = Eigen::Matrix3d::Identity();
-    r.topLeftCorner<2, 2>() = p.pose.rotation();
-    const Eigen::Matrix3d prior_cov = r * local_cov * r.transpose();
+    const Eigen::Matrix3d prior_cov = inMapFrame(local_cov, p.pose);
 
+    // The stage the recovery search runs: the coarse one, or the fine one when disabled.
+    const common::ScanMatcher& coarse_stage = coarse_matcher_ ? *coarse_matcher_ : matcher_;
+    const common::ScanPoints& coarse_pts = coarse_matcher_ ? coarse_points : points;
     Pose2 start = prior;
     bool matched = false;
     if (coarse_matcher_) {
@@ -230,9 +247,45 @@ std::size_t Rbpf::updateParticles(const common::ScanPoints& points,
       if (coarse.success) start = coarse.pose;
       matched = coarse.success;
     }
-    const common::MatchResult match = matcher_.match(*p.map, points, start);
+    common::MatchResult match = matcher_.match(*p.map, points, start);
     fine_evals.fetch_add(static_cast<std::uint64_t>(match.evaluations), std::memory_order_relaxed);
     matched = matched || match.success;
+    if (!matched && options_.recovery_sigma > 0) {
+      // The prior mean lies outside the matcher's basin (odometry off by more than the coarse
+      // kernel reaches, typically a heading error after turning on the spot). Drawing from the
+      // motion model instead would insert this scan at a random pose and corrupt the map, so
+      // search the prior's support first: headings recovery_angular_step apart, each also
+      // shifted along x and y; the best coarse score goes on to the fine stage.
+      const Eigen::Vector3d reach = options_.recovery_sigma * prior_cov.diagonal().cwiseSqrt();
+      const int nt =
+          std::min(static_cast<int>(reach.z() / options_.recovery_angular_step), kMaxRecoverySteps);
+      const double lx = 0.5 * reach.x(), ly = 0.5 * reach.y();
+      const Pose2 shifts[5] = {{0, 0, 0}, {lx, 0, 0}, {-lx, 0, 0}, {0, ly, 0}, {0, -ly, 0}};
+      double best_score = -1.0;
+      Pose2 best_pose = prior;
+      std::uint64_t evals = 0;
+      for (int k = -nt; k <= nt; ++k)
+        for (const Pose2& d : shifts) {
+          if (k == 0 && d.x == 0 && d.y == 0) continue;  // the prior mean: tried above
+          const Pose2 from{prior.x + d.x, prior.y + d.y,
+                           prior.theta + k * options_.recovery_angular_step};
+          const common::MatchResult c = coarse_stage.match(*p.map, coarse_pts, from);
+          evals += static_cast<std::uint64_t>(c.evaluations);
+          if (c.success && c.score > best_score) {
+            best_score = c.score;
+            best_pose = c.pose;
+          }
+        }
+      coarse_evals.fetch_add(evals, std::memory_order_relaxed);
+      if (best_score >= 0) {
+        recoveries.fetch_add(1, std::memory_order_relaxed);
+        start = best_pose;
+        matched = true;
+        match = matcher_.match(*p.map, points, start);
+        fine_evals.fetch_add(static_cast<std::uint64_t>(match.evaluations),
+                             std::memory_order_relaxed);
+      }
+    }
     // The fine stage refines the coarse pose; when it cannot (too few beams within its narrow
     // kernel), the coarse pose is still better than the odometry prior.
     const Pose2 mode = match.success ? match.pose : start;
@@ -256,6 +309,7 @@ std::size_t Rbpf::updateParticles(const common::ScanPoints& points,
   stats_.match_failures += failures.load();
   stats_.coarse_evaluations += coarse_evals.load();
   stats_.fine_evaluations += fine_evals.load();
+  stats_.match_recoveries += recoveries.load();
   return failures.load();
 }
 
@@ -341,10 +395,40 @@ int Rbpf::bestIndex() const {
   return best;
 }
 
+void Rbpf::trackScan(const common::RangeScan& scan, const Pose2& mount,
+                     const common::ScanPoints& points, const Pose2& odometry) {
+  const Pose2 moved = common::between(tracked_odometry_, odometry);
+  const Pose2 predicted = tracked_ * moved;
+  const common::ScanPoints beams = coarse_matcher_ ? coarse_matcher_->prepare(scan, mount) : points;
+  const common::TiledGrid& map = bestMap();
+  const common::MatchResult m = matcher_.match(map, beams, predicted);
+  ++stats_.tracked_scans;
+  // The match is taken only when it beats the prediction in likelihood × motion prior: along a
+  // corridor, or where the scan sees past the map, hill climbing on the score alone slides the
+  // pose back onto mapped ground, scan after scan, since no update re-anchors it.
+  bool better = false;
+  if (m.success) {
+    const Eigen::Matrix3d cov = inMapFrame(motionCovariance(moved), tracked_);
+    const Eigen::Vector3d d(m.pose.x - predicted.x, m.pose.y - predicted.y,
+                            common::angleDiff(m.pose.theta, predicted.theta));
+    const double log_prior = -0.5 * d.dot(cov.ldlt().solve(d));
+    // On every beam: the subset is enough to find the match, not to judge it.
+    better = matcher_.logLikelihood(map, points, m.pose) + log_prior >
+             matcher_.logLikelihood(map, points, predicted);
+  }
+  if (!better) ++stats_.tracking_failures;
+  tracked_ = better ? m.pose : predicted;
+  tracked_odometry_ = odometry;
+}
+
+void Rbpf::resetTracking(const Pose2& odometry) {
+  tracked_ = particles_[static_cast<std::size_t>(best_)].pose;
+  tracked_odometry_ = odometry;
+}
+
 Pose2 Rbpf::pose() const {
   if (!initialized_) return {};
-  return particles_[static_cast<std::size_t>(best_)].pose *
-         common::between(update_odometry_, last_odometry_);
+  return tracked_ * common::between(tracked_odometry_, last_odometry_);
 }
 
 PoseWithCovariance Rbpf::poseWithCovariance() const {
@@ -369,9 +453,8 @@ FinishedSubmap Rbpf::currentSubmap() const {
   done.next_in_this = poseWithCovariance();
   done.next_in_this.pose = pose();
   // Odometry since the last update adds its own uncertainty to the particle spread.
-  Eigen::Matrix3d r = Eigen::Matrix3d::Identity();
-  r.topLeftCorner<2, 2>() = particles_[static_cast<std::size_t>(best_)].pose.rotation();
-  done.next_in_this.covariance += r * motionCovariance(since_update) * r.transpose();
+  done.next_in_this.covariance +=
+      inMapFrame(motionCovariance(since_update), particles_[static_cast<std::size_t>(best_)].pose);
   const double lin = options_.handover_sigma_linear, ang = options_.handover_sigma_angular;
   done.next_in_this.covariance.diagonal() +=
       submap_travelled_ * Eigen::Vector3d(lin * lin, lin * lin, ang * ang);
@@ -396,6 +479,7 @@ FinishedSubmap Rbpf::startSubmap() {
   for (auto& p : particles_) p = Particle{Pose2{}, uniform, 0.0, map, node};
   best_ = 0;
   update_odometry_ = last_odometry_;
+  resetTracking(last_odometry_);
   update_stamp_s_ = last_stamp_s_;
   travelled_since_update_ = 0.0;
   turned_since_update_ = 0.0;

@@ -68,6 +68,9 @@ RbpfOptions SubmapBuilderOptions::rbpf() const {
   o.matcher.kernel_radius = match_kernel_radius;
   o.coarse_kernel_radius = coarse_kernel_radius;
   o.coarse_beam_step = coarse_beam_step;
+  o.recovery_sigma = recovery_sigma;
+  o.recovery_angular_step = recovery_angular_step;
+  o.track_between_updates = track_between_updates;
   o.matcher.sigma = match_sigma;
   o.matcher.likelihood_sigma = match_likelihood_sigma;
   o.matcher.likelihood_gain = match_likelihood_gain;
@@ -75,6 +78,9 @@ RbpfOptions SubmapBuilderOptions::rbpf() const {
   o.matcher.angular_step = match_angular_step;
   o.matcher.refinements = match_refinements;
   o.matcher.min_score_fraction = match_min_fraction;
+  o.matcher.proposal_linear = match_proposal_linear;
+  o.matcher.no_hit_distance = match_no_hit_distance;
+  o.matcher.proposal_angular = match_proposal_angular;
   o.matcher.compute_covariance = false;  // the filter fits its own proposal covariance
   return o;
 }
@@ -289,6 +295,11 @@ void SubmapBuilderActor::summarize(Summary& out) const {
   out["particles"] = static_cast<std::int64_t>(rbpf_.particleCount());
   out["resamples"] = i64(s.resamples);
   out["match_failures"] = i64(s.match_failures);
+  out["match_recoveries"] = i64(s.match_recoveries);
+  if (s.tracked_scans > 0) {
+    out["tracked_scans"] = i64(s.tracked_scans);
+    out["tracking_failures"] = i64(s.tracking_failures);
+  }
   out["particle_updates"] = i64(s.particle_updates);
   out["coarse_evaluations"] = i64(s.coarse_evaluations);
   out["fine_evaluations"] = i64(s.fine_evaluations);

@@ -193,6 +193,10 @@ TEST_CASE("ScanMatcher rejects invalid options", "[scan_matcher]") {
   CHECK_THROWS_AS(ScanMatcher(with([](auto& o) { o.proposal_steps = 0; })), std::invalid_argument);
   CHECK_THROWS_AS(ScanMatcher(with([](auto& o) { o.free_check_offset = kNaN; })),
                   std::invalid_argument);
+  CHECK_THROWS_AS(ScanMatcher(with([](auto& o) { o.no_hit_distance = -0.1; })),
+                  std::invalid_argument);
+  CHECK_THROWS_AS(ScanMatcher(with([](auto& o) { o.no_hit_distance = kNaN; })),
+                  std::invalid_argument);
 }
 
 TEST_CASE("prepare keeps valid beams as base-frame endpoints", "[scan_matcher]") {
@@ -283,6 +287,55 @@ TEST_CASE("score is continuous in translation and zero beyond the kernel", "[sca
   CHECK(matcher.logLikelihood(grid, beam, Pose2(1.025, 1.025, 0.0), &matched) ==
         Approx(0.0).margin(1e-9));
   CHECK(matched == 1);
+}
+
+TEST_CASE("an unmatched beam costs as much as one whose obstacle lies no_hit_distance away",
+          "[scan_matcher]") {
+  FakeGrid grid(0.05);
+  grid.set(20, 20, 2.0f);  // one obstacle cell, centre (1.025, 1.025)
+  const ScanPoints beam = onePoint({-5.0f, 1.025f}, {0.0f, 0.0f});
+  const Pose2 on(1.025, 1.025, 0.0), off(1.025 + 0.08, 1.025, 0.0);  // off: d > R = 0.075
+  const double two_var_gain = 2 * 0.075 * 0.075 * 3.0;
+  ScanMatcherOptions o;
+  o.no_hit_distance = 0.5;
+  const ScanMatcher far(o);
+  o.no_hit_distance = 0.05;  // below R: R applies, as by default
+  const ScanMatcher near(o);
+  CHECK(far.logLikelihood(grid, beam, off) == Approx(-0.5 * 0.5 / two_var_gain).epsilon(1e-5));
+  CHECK(near.logLikelihood(grid, beam, off) == Approx(-0.075 * 0.075 / two_var_gain).epsilon(1e-5));
+  CHECK(far.logLikelihood(grid, beam, on) == Approx(0.0).margin(1e-9));  // matched: unchanged
+  CHECK(far.score(grid, beam, off) == 0.0);
+
+  // A whole scan, on both evaluation paths (cell by cell and occupancy rows): every unmatched
+  // beam costs (D² − R²)/(2σ²·gain) more, matched beams the same, so a pose half a metre off
+  // loses far more likelihood against the true one.
+  const World world = room();
+  const Laser laser;
+  const OccupancyGrid cells = mapOf(world, laser, roomMappingPoses());
+  const TiledGrid tiles = mapOf(world, laser, roomMappingPoses(), 1, TiledGrid());
+  const ScanMatcher plain;
+  std::mt19937_64 rng(3);
+  const Pose2 truth = roomMappingPoses()[1];
+  const ScanPoints p = plain.prepare(laser.view(simulate(world, laser, truth, rng)), laser.mount);
+  REQUIRE(p.size() > 100);
+  const Pose2 shifted(truth.x + 0.5, truth.y - 0.2, truth.theta + 0.1);
+  const double extra = (0.5 * 0.5 - 0.075 * 0.075) / two_var_gain;
+  for (const Pose2& at : {truth, shifted}) {
+    int matched = 0;
+    const double ll_cells = plain.logLikelihood(cells, p, at, &matched);
+    const double unmatched = static_cast<double>(p.size()) - matched;
+    CHECK(far.logLikelihood(cells, p, at) == Approx(ll_cells - unmatched * extra).epsilon(1e-9));
+    int matched_tiles = 0;
+    const double ll_tiles = plain.logLikelihood(tiles, p, at, &matched_tiles);
+    CHECK(matched_tiles == matched);
+    CHECK(far.logLikelihood(tiles, p, at) == Approx(ll_tiles - unmatched * extra).epsilon(1e-9));
+  }
+  const double gap_plain =
+      plain.logLikelihood(cells, p, truth) - plain.logLikelihood(cells, p, shifted);
+  const double gap_far = far.logLikelihood(cells, p, truth) - far.logLikelihood(cells, p, shifted);
+  INFO("log-likelihood gap truth vs 0.5 m off: " << gap_plain << " plain, " << gap_far
+                                                 << " with no_hit_distance 0.5 m");
+  CHECK(gap_far > 10 * gap_plain);
 }
 
 TEST_CASE("free check rejects obstacles seen through an occupied cell", "[scan_matcher]") {

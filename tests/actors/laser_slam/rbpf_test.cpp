@@ -89,6 +89,89 @@ TEST_CASE("rbpf tracks a simulated robot whose odometry drifts", "[rbpf]") {
   CHECK(trajectory.size() == rbpf.stats().updates);
 }
 
+TEST_CASE("a heading slip beyond the matcher basin is recovered from the odometry prior",
+          "[rbpf]") {
+  // A wheel spins while the robot turns on the spot: from one scan on, odometry reports 0.8 rad
+  // more rotation than the robot made. The next update's prior is off by that much, beyond what
+  // the coarse stage reaches from the prior mean but within the recovery search (the prior's
+  // heading spread grows with the reported rotation).
+  auto sim = test::simulateRoomLoop();
+  std::size_t slip = 0;  // the first scan after 30 while turning in place
+  for (std::size_t k = 30; k < sim.scans.size() && slip == 0; ++k)
+    if (sim.scans[k].truth.theta != sim.scans[k - 1].truth.theta &&
+        sim.scans[k].truth.x == sim.scans[k - 1].truth.x)
+      slip = k;
+  REQUIRE(slip > 0);
+  const Pose2 at = sim.scans[slip - 1].odometry;
+  for (std::size_t k = slip; k < sim.scans.size(); ++k)
+    sim.scans[k].odometry = at * Pose2(0, 0, 0.8) * common::between(at, sim.scans[k].odometry);
+
+  const auto run = [&](double recovery_sigma) {
+    RbpfOptions o = fastOptions(5);
+    o.recovery_sigma = recovery_sigma;
+    Rbpf rbpf(o);
+    const Pose2 start = sim.scans.front().truth;
+    double worst = 0;
+    for (const auto& s : sim.scans) {
+      rbpf.addScan(s.stamp_s, sim.range(s), Pose2{}, s.odometry);
+      worst = std::max(worst, translationError(rbpf.pose(), common::between(start, s.truth)));
+    }
+    return std::make_pair(worst, rbpf.stats());
+  };
+  const auto [worst_off, stats_off] = run(0.0);
+  const auto [worst_on, stats_on] = run(RbpfOptions{}.recovery_sigma);
+  INFO("without recovery: worst " << worst_off << " m, " << stats_off.match_failures
+                                  << " failures; with: worst " << worst_on << " m, "
+                                  << stats_on.match_failures << " failures, "
+                                  << stats_on.match_recoveries << " recoveries");
+  // Without the search every particle fails and inserts its scan at a pose drawn from the
+  // motion model, which corrupts its map.
+  CHECK(stats_off.match_failures >= 5);
+  CHECK(stats_off.match_recoveries == 0);
+  CHECK(worst_off > 0.3);
+  CHECK(stats_on.match_recoveries >= 5);
+  CHECK(stats_on.match_failures < stats_off.match_failures);
+  CHECK(worst_on < 0.12);
+}
+
+TEST_CASE("tracking between updates keeps the online pose on the scans instead of odometry",
+          "[rbpf]") {
+  // Wide gates, as on a real log: between updates the online pose would follow odometry with
+  // its 4 % rotation and 3 % distance errors.
+  const auto sim = test::simulateRoomLoop();
+  const auto run = [&](bool track) {
+    RbpfOptions o = fastOptions(5);
+    o.linear_update = 1.0;
+    o.angular_update = 0.5;
+    o.track_between_updates = track;
+    Rbpf rbpf(o);
+    const Pose2 start = sim.scans.front().truth;
+    double sum = 0, heading = 0;
+    for (const auto& s : sim.scans) {
+      rbpf.addScan(s.stamp_s, sim.range(s), Pose2{}, s.odometry);
+      const Pose2 truth = common::between(start, s.truth);
+      sum += translationError(rbpf.pose(), truth);
+      heading += std::abs(common::angleDiff(rbpf.pose().theta, truth.theta));
+    }
+    const double n = static_cast<double>(sim.scans.size());
+    return std::make_tuple(sum / n, heading / n, rbpf.stats());
+  };
+  const auto [odom_mean, odom_heading, odom_stats] = run(false);
+  const auto [track_mean, track_heading, track_stats] = run(true);
+  INFO("mean error on odometry between updates " << odom_mean << " m / " << odom_heading
+                                                 << " rad, tracked " << track_mean << " m / "
+                                                 << track_heading << " rad");
+  CHECK(odom_stats.tracked_scans == 0);
+  CHECK(track_stats.tracked_scans + track_stats.updates == sim.scans.size());
+  // Scans whose match does not beat the odometry prediction keep it; the others move it.
+  CHECK(track_stats.tracking_failures < track_stats.tracked_scans);
+  // The filter itself is unchanged: same updates, same best trajectory.
+  CHECK(track_stats.updates == odom_stats.updates);
+  CHECK(track_stats.resamples == odom_stats.resamples);
+  CHECK(track_heading < 0.8 * odom_heading);
+  CHECK(track_mean < odom_mean);
+}
+
 TEST_CASE("particles copied by resampling share their map tiles", "[rbpf]") {
   const auto sim = test::simulateRoomLoop();
   RbpfOptions o = fastOptions(20);

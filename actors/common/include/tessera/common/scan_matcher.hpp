@@ -22,7 +22,8 @@
 //                    (1 for a beam exactly on a cell centre, 0 for an unmatched beam, so the
 //                    score reads as "beams matched, weighted by closeness")
 //   log-likelihood = Σ_beams −d²/(2·likelihood_sigma²) / likelihood_gain
-//                    (an unmatched beam costs −R²/(2·likelihood_sigma²)/likelihood_gain)
+//                    (an unmatched beam costs −D²/(2·likelihood_sigma²)/likelihood_gain with
+//                    D = max(R, no_hit_distance): by default as if its obstacle were R away)
 // A beam is "matched" when d < R.
 //
 // Grid: any type providing `double resolution() const`, `Eigen::Vector2i worldToCell(const
@@ -93,6 +94,15 @@ struct ScanMatcherOptions {
   /// The log-likelihood is divided by this (GMapping's lgain): beams are not independent, so
   /// their product is overconfident; flattening it keeps particle weights from collapsing.
   double likelihood_gain = 3.0;
+  /// [m] An unmatched beam (no candidate within R) costs in the log-likelihood what a beam whose
+  /// obstacle lies this far away would (D above; values below R mean R, so the default 0 keeps
+  /// the likelihood continuous). The window only sees R = (kernel_radius + ½) cells, and a scan
+  /// that is off by more than that loses beams to "unmatched" at barely more cost than a beam
+  /// matched at the window's edge: the likelihood then hardly tells a pose 0.5 m off from a good
+  /// one. A larger D is the distance at which the Gaussian beam model meets an outlier floor
+  /// (GMapping's no-hit term amounts to about 0.7 m); it makes every unmatched beam count. Score
+  /// and hill climbing are unaffected.
+  double no_hit_distance = 0.0;
   float occupied_threshold = 0.0f;  ///< log-odds above which a cell counts as an obstacle
   /// [m] the free-check cell lies this far before the candidate along the beam. The effective
   /// offset is max(free_check_offset, √2·resolution) — √2·resolution is the shortest that
@@ -389,6 +399,7 @@ class ScanMatcher {
     double free_cells, quarter_inv_free2;  // free-check offset [cells]; ¼ / free_cells²
     // Score kernel rescaled so that d = 0 gives 1 and d = R gives 0.
     float inv_two_sigma2, kernel_floor, kernel_scale;
+    double no_hit_extra;  // D² − R² [m²]: added to d² for each unmatched beam
   };
   KernelTerms kernelTerms(double res, int r) const {
     KernelTerms k;
@@ -401,6 +412,8 @@ class ScanMatcher {
     k.inv_two_sigma2 = static_cast<float>(1.0 / (2.0 * options_.sigma * options_.sigma));
     k.kernel_floor = std::exp(-k.big_r2 * k.inv_two_sigma2);
     k.kernel_scale = 1.0f / (1.0f - k.kernel_floor);
+    k.no_hit_extra =
+        std::max(options_.no_hit_distance * options_.no_hit_distance - double{k.big_r2}, 0.0);
     return k;
   }
 
@@ -665,8 +678,10 @@ void ScanMatcher::evaluateRows(const Grid& grid, const ScanPoints& points, const
   for (int p = 0; p < n; ++p) {
     Eval& e = out[order[p]];
     e.score = score_sum[p];
-    e.log_likelihood = -d2_sum[p] / (2.0 * options_.likelihood_sigma * options_.likelihood_sigma *
-                                     options_.likelihood_gain);
+    const double unmatched = static_cast<double>(points.endpoints.size()) - matched[p];
+    e.log_likelihood =
+        -(d2_sum[p] + unmatched * kt.no_hit_extra) /
+        (2.0 * options_.likelihood_sigma * options_.likelihood_sigma * options_.likelihood_gain);
     e.matched = matched[p];
   }
 }
@@ -796,8 +811,10 @@ ScanMatcher::Eval ScanMatcher::evaluateBeams(const Grid& grid, const ScanPoints&
         score_sum += (std::exp(-best * kt.inv_two_sigma2) - kt.kernel_floor) * kt.kernel_scale;
   }
   out.score = score_sum;
-  out.log_likelihood = -d2_sum / (2.0 * options_.likelihood_sigma * options_.likelihood_sigma *
-                                  options_.likelihood_gain);
+  const double unmatched = static_cast<double>(points.endpoints.size()) - out.matched;
+  out.log_likelihood =
+      -(d2_sum + unmatched * kt.no_hit_extra) /
+      (2.0 * options_.likelihood_sigma * options_.likelihood_sigma * options_.likelihood_gain);
   return out;
 }
 

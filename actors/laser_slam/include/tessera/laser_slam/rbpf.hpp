@@ -7,6 +7,8 @@
 //      motion-noise model (srr, srt, str, stt as in GMapping);
 //   2. scan-match the new scan against the particle's own map from the prior mean: a coarse
 //      stage (wide kernel, every n-th beam) brings the pose into the basin of the fine stage;
+//      when both fail from the prior mean, the coarse stage is retried from starts spread over
+//      the prior (recovery_sigma) before giving up;
 //   3. improved proposal: fit a Gaussian to p(z|m,x)·p(x|x',u) sampled around the matched mode,
 //      draw the new pose from it, and multiply the weight by its normaliser η (divided by
 //      weight_divisor, as GMapping flattens its weights); when both stages fail (too few beams
@@ -51,6 +53,9 @@ struct MotionNoise {
   double stt = 0.2;  ///< [rad/rad] rotation error per radian turned
 };
 
+/// Cap on the heading starts per side of the recovery search (RbpfOptions::recovery_sigma).
+inline constexpr int kMaxRecoverySteps = 10;
+
 struct RbpfOptions {
   int particles = 30;
   double resample_threshold = 0.5;  ///< resample when N_eff < this · particles (0..1]
@@ -71,6 +76,20 @@ struct RbpfOptions {
   /// stage starts where it ends. coarse_kernel_radius 0 disables the stage.
   int coarse_kernel_radius = 4;
   int coarse_beam_step = 4;
+  /// When matching from the prior mean fails in both stages, the coarse stage is retried from
+  /// starts within ±recovery_sigma prior standard deviations (heading every
+  /// recovery_angular_step, at most kMaxRecoverySteps per side, each also shifted by half the
+  /// reach along x and y); the best-scoring success goes on to the fine stage. 0 disables: the
+  /// particle then follows the motion model and inserts its scan at the sampled pose.
+  double recovery_sigma = 2.0;
+  double recovery_angular_step = 0.05;  ///< [rad]
+  /// Between filter updates, match each usable scan (the coarse stage's beams, fine kernel)
+  /// against the best particle's map, from the last tracked pose moved by the odometry since:
+  /// the online estimate pose() then follows the scans instead of the raw odometry (which over
+  /// a 1 m / 0.5 rad gate drifts by degrees). A match is kept only when its likelihood (all
+  /// beams) times the motion prior beats the odometry prediction's; otherwise the prediction
+  /// stands. Particles, maps, weights and the best trajectory are unchanged.
+  bool track_between_updates = false;
   std::uint64_t seed = 1;  ///< results are reproducible for a seed, whatever the thread count
   bool parallel = true;    ///< particles on TBB worker threads (false: one thread)
   /// Draw each particle's pose from the fitted proposal (Grisetti et al. 2007); false keeps the
@@ -113,11 +132,15 @@ struct RbpfStats {
   std::uint64_t updates = 0;  ///< filter updates (including the first scan)
   std::uint64_t resamples = 0;
   std::uint64_t match_failures = 0;  ///< particle updates that fell back to the motion model
+  /// particle updates whose match from the prior mean failed and the wider search recovered
+  std::uint64_t match_recoveries = 0;
   std::uint64_t particle_updates = 0;
   std::uint64_t coarse_evaluations = 0;  ///< scan scores computed by the coarse stage
   std::uint64_t fine_evaluations = 0;    ///< by the fine stage
   std::uint64_t unusable_scans = 0;
-  std::uint64_t invalid_odometry = 0;  ///< non-finite odometry poses ignored
+  std::uint64_t tracked_scans = 0;      ///< scans matched between updates (tracking on)
+  std::uint64_t tracking_failures = 0;  ///< of those, left on odometry (no better match)
+  std::uint64_t invalid_odometry = 0;   ///< non-finite odometry poses ignored
 };
 
 /// Systematic (low-variance) resampling: n = weights.size() draws at u0 + k/n, k = 0..n-1, on
@@ -139,7 +162,8 @@ class Rbpf {
   /// True once the first usable scan has been inserted.
   bool initialized() const { return initialized_; }
   /// Online estimate of base_link in the current submap at the last scan: the best particle's
-  /// pose at the last update composed with the odometry travelled since.
+  /// pose at the last update composed with the odometry travelled since (with
+  /// track_between_updates: with the scan-matched motion since).
   common::Pose2 pose() const;
   /// Best particle's pose and the weighted spread of all particles around it, at the last
   /// update (in the current submap).
@@ -200,6 +224,12 @@ class Rbpf {
   void insertScan(const common::RangeScan& scan, const common::Pose2& mount);
   Eigen::Matrix3d motionCovariance(const common::Pose2& delta) const;
   int bestIndex() const;
+  /// Between updates: moves the online estimate by the odometry since the last tracked scan and
+  /// matches `scan` against the best map there (track_between_updates).
+  void trackScan(const common::RangeScan& scan, const common::Pose2& mount,
+                 const common::ScanPoints& points, const common::Pose2& odometry);
+  /// Restarts between-update tracking at the best particle's pose and the odometry there.
+  void resetTracking(const common::Pose2& odometry);
 
   RbpfOptions options_;
   common::ScanMatcher matcher_;
@@ -215,7 +245,11 @@ class Rbpf {
   double update_stamp_s_ = 0.0;
   double travelled_since_update_ = 0.0;
   double turned_since_update_ = 0.0;
-  int best_ = 0;                    // best particle at the last update
+  int best_ = 0;  // best particle at the last update
+  // Online estimate at the last tracked scan and the odometry there (= the best particle and
+  // update_odometry_ when tracking is off or nothing was tracked since the update).
+  common::Pose2 tracked_;
+  common::Pose2 tracked_odometry_;
   std::uint64_t update_index_ = 0;  // seeds the per-particle random streams
 
   // The last usable scan, kept so startSubmap() can seed the next submap with it.

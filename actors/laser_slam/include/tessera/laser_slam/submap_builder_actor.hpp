@@ -9,7 +9,9 @@
 //                                                              starts a new submap
 // Publishes:
 //   pose         msg::PoseStamped       every scan: base_link in map (best particle at updates,
-//                                       odometry since in between), covariance = particle spread
+//                                       in between scans matched against its map, or odometry
+//                                       with track_between_updates false), covariance =
+//                                       particle spread
 //   map_to_odom  msg::PoseStamped       every scan: the correction map ⊕ odom⁻¹
 //   submaps      msg::Submap            reliable consumers: each finished submap, and the last
 //                                       one (finished) in stop(), with the smoothed pose of
@@ -68,6 +70,9 @@ struct SubmapBuilderOptions {
   int match_kernel_radius = 1;
   int coarse_kernel_radius = 4;
   int coarse_beam_step = 4;
+  double recovery_sigma = 2.0;
+  double recovery_angular_step = 0.05;
+  bool track_between_updates = true;
   double match_sigma = 0.05;
   double match_likelihood_sigma = 0.075;
   double match_likelihood_gain = 3.0;
@@ -75,6 +80,9 @@ struct SubmapBuilderOptions {
   double match_angular_step = 0.05;
   int match_refinements = 5;
   double match_min_fraction = 0.1;
+  double match_no_hit_distance = 0.27;
+  double match_proposal_linear = 0.02;
+  double match_proposal_angular = 0.01;
   // Submaps.
   double submap_distance = 0.0;  // [m] travelled; 0 = never
   double handover_sigma_linear = 0.02, handover_sigma_angular = 0.005;
@@ -124,6 +132,14 @@ struct SubmapBuilderOptions {
     v("coarse_kernel_radius", coarse_kernel_radius,
       "coarse matching stage: cells searched around each endpoint (wider basin); 0 disables");
     v("coarse_beam_step", coarse_beam_step, "coarse matching stage uses every n-th beam");
+    v("recovery_sigma", recovery_sigma,
+      "when matching from the odometry prior fails, retry the coarse stage from starts within "
+      "this many prior standard deviations; 0 disables");
+    v("recovery_angular_step", recovery_angular_step,
+      "heading spacing of the recovery search's starts [rad]");
+    v("track_between_updates", track_between_updates,
+      "between filter updates, match each scan against the best particle's map so the online "
+      "pose follows the scans rather than the odometry");
     v("match_sigma", match_sigma, "score kernel width [m]");
     v("match_likelihood_sigma", match_likelihood_sigma, "likelihood kernel width [m]");
     v("match_likelihood_gain", match_likelihood_gain,
@@ -131,6 +147,14 @@ struct SubmapBuilderOptions {
     v("match_linear_step", match_linear_step, "initial hill-climbing step [m]");
     v("match_angular_step", match_angular_step, "initial hill-climbing step [rad]");
     v("match_refinements", match_refinements, "hill-climbing step halvings");
+    v("match_no_hit_distance", match_no_hit_distance,
+      "[m] a beam with no obstacle within the kernel costs as much in the likelihood as one "
+      "whose obstacle is this far away (0 = the kernel's reach): makes particles whose map "
+      "disagrees with the scan lose weight");
+    v("match_proposal_linear", match_proposal_linear,
+      "[m] proposal fit: spacing of the pose samples in x and y around the matched pose");
+    v("match_proposal_angular", match_proposal_angular,
+      "[rad] proposal fit: spacing of the pose samples in heading around the matched pose");
     v("match_min_fraction", match_min_fraction,
       "a match succeeds when at least this fraction of the beams lands near an obstacle; "
       "otherwise the particle follows odometry");
