@@ -68,8 +68,14 @@ struct Worker {
 /// The launcher's side of the control block: moves time, detects quiescence, ends the run.
 class DeploymentClock {
  public:
-  DeploymentClock(SyncBlock& block, int processes, bool sim, double sim_rate, Nanos limit)
-      : block_(block), n_(processes), sim_(sim), rate_(sim_rate), limit_(limit) {}
+  DeploymentClock(SyncBlock& block, int processes, std::vector<int> stage_owners, bool sim,
+                  double sim_rate, Nanos limit)
+      : block_(block),
+        n_(processes),
+        stage_owners_(std::move(stage_owners)),
+        sim_(sim),
+        rate_(sim_rate),
+        limit_(limit) {}
 
   void markDead(int index) {
     std::lock_guard lock(mutex_);
@@ -145,10 +151,12 @@ class DeploymentClock {
       block_.grant_seq.fetch_add(1);
       return;
     }
-    // Stopping: process k stops once k-1 has stopped and everything it sent was handled.
+    // Stopping: stage k runs once stage k-1 is done and everything it sent was handled; one
+    // more turn after the last stage lets every process leave.
     const auto turn = block_.stop_turn.load();
-    if (turn >= static_cast<std::uint64_t>(n_)) return;
-    if (turn > 0 && !dead_[turn - 1] && block_.slots[turn - 1].stopped.load() == 0) return;
+    const auto stages = static_cast<std::uint64_t>(stage_owners_.size());
+    if (turn > stages) return;
+    if (turn > 0 && !dead_[stage_owners_[turn - 1]] && block_.stages_done.load() < turn) return;
     if (!quiescent(false)) return;
     block_.stop_turn = turn + 1;
   }
@@ -195,11 +203,13 @@ class DeploymentClock {
     std::memcpy(block_.reason, reason.data(), std::min(reason.size(), sizeof(block_.reason) - 1));
     block_.end_time = end_time;
     block_.stop_turn = 0;
+    block_.stages_done = 0;
     block_.command = command;
   }
 
   SyncBlock& block_;
   int n_;
+  std::vector<int> stage_owners_;  // process of each stop stage
   bool sim_;
   double rate_;
   Nanos limit_;
@@ -348,7 +358,9 @@ int launch(const LaunchArgs& a) {
   const std::string sync_name = "/tessera_sync_" + std::to_string(::getpid());
   SyncMemory sync(sync_name, true);
   const bool sim = profile.clock == ClockKind::kSimulated;
-  DeploymentClock clock(sync.block(), static_cast<int>(plan.processes.size()), sim,
+  std::vector<int> stage_owners;
+  for (const auto& s : plan.stop_stages) stage_owners.push_back(s.process);
+  DeploymentClock clock(sync.block(), static_cast<int>(plan.processes.size()), stage_owners, sim,
                         profile.sim_rate,
                         profile.max_duration_s > 0 ? secondsToNanos(profile.max_duration_s)
                                                    : std::numeric_limits<Nanos>::max());
@@ -536,7 +548,7 @@ int worker(const WorkerArgs& a) {
   const int index = plan.indexOf(a.process);
   if (index < 0) throw ConfigError("worker: no process '" + a.process + "' in " + a.profile);
   SyncMemory sync(a.sync, false);
-  WorkerCoordinator coordinator(sync.block(), index);
+  WorkerCoordinator coordinator(sync.block(), index, plan.stop_stages);
   setIceoryxLogLevel(a.shm_log);
   ShmTransportOptions so;
   so.runtime_name = "tessera_" + a.process + "_" + std::to_string(a.incarnation);
@@ -560,7 +572,7 @@ int worker(const WorkerArgs& a) {
   }
   runtime->installSignalHandlers();
   if (!coordinator.readyAndWait()) {
-    coordinator.stopped();
+    coordinator.slot().stopped = 1;  // nothing ran: nothing to stop
     if (coordinator.orphaned()) leaveOrphaned("before the run started");
     return 130;
   }

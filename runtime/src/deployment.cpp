@@ -108,6 +108,16 @@ DeploymentPlan planDeployment(const Profile& profile) {
     remaining.erase(pick);
   }
 
+  std::map<std::string, int> process_of;
+  for (const auto& a : profile.actors) process_of[a.name] = plan.indexOf(a.process);
+  for (const auto& actor : rt->stopOrder()) {
+    const int p = process_of.at(actor);
+    if (plan.stop_stages.empty() || plan.stop_stages.back().process != p) {
+      plan.stop_stages.push_back({p, {}});
+    }
+    plan.stop_stages.back().actors.push_back(actor);
+  }
+
   for (const auto& [name, w] : topics) {
     std::set<std::string> involved(w.publishers.begin(), w.publishers.end());
     for (const auto& [sub, policy] : w.subscribers) involved.insert(sub);
@@ -187,8 +197,8 @@ class Backoff {
 };
 }  // namespace
 
-WorkerCoordinator::WorkerCoordinator(SyncBlock& block, int index)
-    : block_(block), index_(index), launcher_(::getppid()) {
+WorkerCoordinator::WorkerCoordinator(SyncBlock& block, int index, std::vector<StopStage> stages)
+    : block_(block), index_(index), launcher_(::getppid()), stages_(std::move(stages)) {
   auto& s = slot();
   s.idle = 0;
   s.stopped = 0;
@@ -278,21 +288,40 @@ RunCoordinator::Decision WorkerCoordinator::poll(const LocalState& state,
   return {Verdict::kWork, 0, {}};
 }
 
-void WorkerCoordinator::awaitStopTurn(const std::function<bool()>& busy) {
+std::vector<std::string> WorkerCoordinator::awaitStopTurn(const std::function<bool()>& busy) {
   auto& s = slot();
   if (block_.command.load() == 0) s.wants_stop = 1;  // a local stop (signal, fatal error)
+  while (next_stage_ < stages_.size() && stages_[next_stage_].process != index_) ++next_stage_;
+  // After its last stage the process still handles what later stages send it (a cycle of
+  // actors), until every stage is done and the launcher lets it leave.
+  const std::size_t turn = std::min(next_stage_, stages_.size());  // the last: leave
   Backoff b;
-  while (block_.command.load() == 0 ||
-         block_.stop_turn.load() <= static_cast<std::uint64_t>(index_)) {
+  while (block_.command.load() == 0 || block_.stop_turn.load() <= turn) {
+    if (orphaned()) {
+      // Nobody grants turns any more: stop what is left here at once (outputs get written).
+      std::vector<std::string> rest;
+      for (; next_stage_ < stages_.size(); ++next_stage_) {
+        if (stages_[next_stage_].process != index_) continue;
+        rest.insert(rest.end(), stages_[next_stage_].actors.begin(),
+                    stages_[next_stage_].actors.end());
+      }
+      s.stopped = 1;
+      return rest;
+    }
     const auto received = s.received.load();
     publishIdle(!busy(), received);
     b.pause();
   }
+  if (next_stage_ >= stages_.size()) {
+    s.stopped = 1;
+    return {};
+  }
+  return stages_[next_stage_++].actors;
 }
 
 void WorkerCoordinator::stopped() {
   publishIdle(true, slot().received.load());  // stopActors() drained everything
-  slot().stopped = 1;
+  block_.stages_done = next_stage_;
 }
 
 }  // namespace tessera

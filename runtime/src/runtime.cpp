@@ -687,8 +687,8 @@ bool Runtime::fireDueTimers(Nanos limit) {
   return true;
 }
 
-void Runtime::Impl::stopActors() {
-  for (auto i : stopOrder()) {
+void Runtime::Impl::stopActors(const std::vector<std::uint32_t>& order) {
+  for (auto i : order) {
     if (options.manual) {
       while (stepOne()) {
       }
@@ -717,7 +717,7 @@ void Runtime::Impl::stopActors() {
 void Runtime::stop() {
   if (!impl_->started || impl_->stopped) return;
   impl_->stopped = true;
-  impl_->stopActors();
+  impl_->stopActors(impl_->stopOrder());
   impl_->final_report = impl_->makeReport();
   impl_->pool.reset();
   impl_->arena.reset();
@@ -904,9 +904,24 @@ RunReport Runtime::run() {
   if (rt.options.show_progress) printProgress(rt, true);
   // Stop sources first; everything they queued is handled before downstream actors stop.
   rt.stopped = true;
-  if (coordinator != nullptr) coordinator->awaitStopTurn([&] { return rt.pending.load() != 0; });
-  rt.stopActors();
-  if (coordinator != nullptr) coordinator->stopped();
+  if (coordinator == nullptr) {
+    rt.stopActors(rt.stopOrder());
+  } else {
+    // The deployment interleaves the processes' actors in one stop order: a process may stop
+    // some actors, then others of another process, then more of its own.
+    for (;;) {
+      const auto names = coordinator->awaitStopTurn([&] { return rt.pending.load() != 0; });
+      if (names.empty()) break;
+      std::vector<std::uint32_t> order;
+      for (const auto& name : names) {
+        for (std::uint32_t i = 0; i < rt.cells.size(); ++i) {
+          if (rt.cells[i]->name == name) order.push_back(i);
+        }
+      }
+      rt.stopActors(order);
+      coordinator->stopped();
+    }
+  }
   rt.final_report = rt.makeReport();
   rt.pool.reset();
   rt.arena.reset();
@@ -936,6 +951,12 @@ std::vector<std::string> Runtime::subscriptionsOf(const std::string& actor) cons
     return out;
   }
   throw std::invalid_argument("no actor named '" + actor + "'");
+}
+
+std::vector<std::string> Runtime::stopOrder() const {
+  std::vector<std::string> out;
+  for (auto i : impl_->stopOrder()) out.push_back(impl_->cells[i]->name);
+  return out;
 }
 
 std::vector<std::string> Runtime::publicationsOf(const std::string& actor) const {

@@ -202,7 +202,7 @@ struct Runtime::Impl {
   void waitIdle();
   bool stepOne();
   std::vector<std::uint32_t> stopOrder() const;
-  void stopActors();
+  void stopActors(const std::vector<std::uint32_t>& order);
   void queueTimer(std::size_t index);
   RunReport makeReport() const;
   void requestStop(const std::string& reason);

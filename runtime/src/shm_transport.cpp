@@ -111,6 +111,15 @@ std::size_t zeroChunkForBuilder(std::byte* payload, std::size_t capacity, std::s
   return 0;
 }
 
+std::uint64_t SendGaps::account(std::uint64_t publisher, std::uint64_t sequence) {
+  auto& next = next_[publisher];  // a port numbers its sends from 0
+  // A number behind the expected one cannot come from a live port (iceoryx numbers each send
+  // of a port once): count the message alone rather than a wrapped gap.
+  const std::uint64_t missed = sequence >= next ? sequence - next : 0;
+  next = sequence + 1;
+  return missed + 1;
+}
+
 }  // namespace detail
 
 // ------------------------------------------------------------------ exports
@@ -341,6 +350,7 @@ struct ShmTransport::Impl::Import {
   ImportFn deliver;
   std::mutex mutex;  // take and release from different threads
   std::optional<iox::popo::UntypedSubscriber> subscriber;
+  detail::SendGaps gaps;  // receiving thread only
 };
 
 namespace {
@@ -493,6 +503,15 @@ void ShmTransport::startReceiving() {
           }
           const auto* header = iox::mepoo::ChunkHeader::fromUserPayload(payload);
           const std::size_t size = header->userPayloadSize();
+          // The sender counted every message once per importing process, including those a
+          // full keep_latest queue here discarded before this thread could take them (the
+          // newest always arrives): account for those too, or the deployment's clock would
+          // wait for them for ever.
+          const std::uint64_t accounted = i->gaps.account(
+              static_cast<std::uint64_t>(header->originId()), header->sequenceNumber());
+          if (accounted > 1 && impl->options.received != nullptr) {
+            impl->options.received->fetch_add(accounted - 1);
+          }
           Prefix prefix{};
           if (size >= kShmChunkOverhead) std::memcpy(&prefix, payload, sizeof(prefix));
           if (size < kShmChunkOverhead || prefix.magic != kChunkMagic) {
@@ -516,8 +535,12 @@ void ShmTransport::startReceiving() {
             // The view was not built, so its destructor will not release the chunk.
             std::fprintf(stderr, "warning: topic '%s': dropped a malformed message: %s\n",
                          i->topic.name.c_str(), e.getDescription().cStr());
-            std::lock_guard lock(i->mutex);
-            i->subscriber->release(payload);
+            {
+              std::lock_guard lock(i->mutex);
+              i->subscriber->release(payload);
+            }
+            // Handled (dropped): the sender counted it, so must the in-flight accounting.
+            if (impl->options.received != nullptr) impl->options.received->fetch_add(1);
             continue;
           }
           const bool loopback = prefix.origin == impl->options.process_index && i->topic.loopback();

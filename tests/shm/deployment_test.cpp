@@ -69,3 +69,30 @@ TEST_CASE("the memory pools cover every declared message bound", "[deployment]")
   for (const auto& p : pools) total += p.chunk_bytes * p.count;
   CHECK(total <= (std::size_t{4} << 30));
 }
+
+TEST_CASE("a deployment with topics both ways between processes stops its actors in stages",
+          "[deployment]") {
+  // The SLAM builder in main feeds the optimiser in global, whose stop-time output feeds the
+  // writers back in main: main stops its upstream actors, then global, then the rest of main.
+  const auto plan = planDeployment(
+      loadProfile(std::string(TESSERA_SOURCE_DIR) + "/apps/profiles/sim_slam_global.yaml",
+                  {"sim.process=robot", "loops.process=global", "optimizer.process=global"}));
+  REQUIRE(plan.processes == std::vector<std::string>{"robot", "main", "global"});
+  std::vector<std::string> order;
+  std::vector<int> owners;
+  for (const auto& s : plan.stop_stages) {
+    owners.push_back(s.process);
+    order.insert(order.end(), s.actors.begin(), s.actors.end());
+  }
+  CHECK(owners == std::vector<int>{0, 1, 2, 1});
+  CHECK(order.size() == 10);  // every actor once
+  auto at = [&](const std::string& a) {
+    return std::find(order.begin(), order.end(), a) - order.begin();
+  };
+  CHECK(at("sim") < at("slam"));
+  CHECK(at("slam") < at("optimizer"));
+  CHECK(at("loops") < at("optimizer"));
+  CHECK(at("optimizer") < at("final_trajectory_writer"));
+  CHECK(at("optimizer") < at("assembler"));
+  CHECK(at("assembler") < at("map_writer"));
+}

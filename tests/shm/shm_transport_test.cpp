@@ -9,6 +9,7 @@
 #include <catch2/catch.hpp>
 
 #include <filesystem>
+#include <fstream>
 
 using namespace tessera;
 using namespace std::chrono_literals;
@@ -223,4 +224,61 @@ TEST_CASE("the RouDi host limits its shared memory to the current user", "[shm]"
     CHECK((perms & fs::perms::owner_read) != fs::perms::none);
   }
   CHECK(segments >= 2);  // management and data segments
+}
+
+TEST_CASE("messages a full keep_latest queue discarded still count as received for the clock",
+          "[shm]") {
+  // A deployment's clock waits until every message counted as sent was counted as received.
+  // The receiving thread here starts only after all 20 were sent, so a queue of 1 discards 19
+  // of them before they are taken; they must be accounted for all the same.
+  const auto pools = smallPools();
+  const auto max_chunk = maxChunk(pools);
+  const auto sent_flag = std::filesystem::temp_directory_path() / "tessera_test_gaps_sent";
+  std::filesystem::remove(sent_flag);
+  constexpr int kCount = 20;
+  test::Children children;
+  auto rx = children.spawn([&] {
+    std::atomic<std::uint64_t> received{0};
+    ShmTransportOptions so;
+    so.runtime_name = "tessera_test_gaps_rx";
+    so.process_index = 1;
+    so.max_chunk_bytes = max_chunk;
+    so.received = &received;
+    ShmTransport transport(so);
+    RuntimeOptions ro;
+    ro.clock = ClockKind::kWall;
+    ro.threads = 1;
+    ro.show_progress = false;
+    Runtime rt(ro);
+    auto& rec = static_cast<test::Recorder&>(
+        rt.add("rx", std::make_unique<test::Recorder>(MailboxPolicy::keepLatest(1), 0us),
+               {{"in", "gaps"}}));
+    transport.attach(rt, {topic("gaps", false, true, MailboxPolicy::keepLatest(1))});
+    rt.configure();
+    rt.start();
+    if (!transport.waitForPublishers(10s)) return 5;
+    const auto deadline = std::chrono::steady_clock::now() + 20s;
+    while (!std::filesystem::exists(sent_flag) && std::chrono::steady_clock::now() < deadline)
+      std::this_thread::sleep_for(5ms);
+    transport.startReceiving();
+    while (received.load() < kCount && std::chrono::steady_clock::now() < deadline)
+      std::this_thread::sleep_for(5ms);
+    std::this_thread::sleep_for(100ms);  // nothing more may be counted
+    rt.stop();
+    transport.stopReceiving();
+    std::printf("rx: %zu handled, %llu accounted\n", rec.seqs.size(),
+                static_cast<unsigned long long>(received.load()));
+    if (rec.seqs.empty()) return 2;
+    return received.load() == kCount ? 0 : 3;
+  });
+  auto tx = children.spawn([&] {
+    const int code = send("gaps", MailboxPolicy::keepLatest(1), kCount, 64, max_chunk, 1000ms);
+    std::ofstream(sent_flag) << "sent\n";
+    return code;
+  });
+  RouDiHost roudi(pools);
+  children.open();
+  CHECK(children.wait(tx) == 0);
+  CHECK(children.wait(rx) == 0);
+  std::filesystem::remove(sent_flag);
 }

@@ -2,7 +2,7 @@
 //
 // planDeployment() reads the profile's wiring once (every actor configured in a throw-away
 // runtime) and decides, per process, which topics leave it (exports), which arrive (imports),
-// the order processes stop in (publishers before subscribers, like actors in one process) and
+// the order actors stop in (publishers before subscribers, like actors in one process) and
 // how much shared memory the topics need.
 //
 // The launcher and its worker processes share a small control block (POSIX shared memory,
@@ -10,7 +10,8 @@
 // messages it sent and received; the launcher's DeploymentClock moves simulated time only
 // when every worker is idle and every sent message was received (so a multi-process run is
 // as deterministic as a single-process one), ends the run when every input finished, and lets
-// processes stop one after the other. WorkerCoordinator is the worker's side of that block.
+// the processes stop their actors stage by stage in one deployment-wide order (each stage once
+// everything the previous one sent was handled). WorkerCoordinator is the worker's side.
 #pragma once
 
 #include <tessera/runtime/profile.hpp>
@@ -27,9 +28,20 @@
 
 namespace tessera {
 
+/// Consecutive actors of one process in the deployment's stop order.
+struct StopStage {
+  int process = 0;  // index in DeploymentPlan::processes
+  std::vector<std::string> actors;
+};
+
 struct DeploymentPlan {
-  /// Process names in stop order (upstream first); a process's index in this list is its id.
+  /// Process names, upstream first; a process's index in this list is its id.
   std::vector<std::string> processes;
+  /// Every actor of the deployment in one stop order (publishers before their subscribers, as
+  /// in one process), cut where the process changes. With topics both ways between two
+  /// processes a process has several stages: its upstream actors stop, then the other
+  /// process's, then its downstream ones, so every message sent in stop() is still handled.
+  std::vector<StopStage> stop_stages;
   std::map<std::string, std::vector<std::string>> actors;  // process -> actor names
   std::map<std::string, std::vector<ShmTopic>> topics;     // process -> crossing topics
   std::vector<ChunkDemand> demands;                        // shared-memory demand per topic
@@ -63,7 +75,8 @@ struct SyncBlock {
   std::atomic<std::int64_t> grant_time;
   std::atomic<std::uint64_t> command;  // 0 run, 1 finish, 2 stop
   std::atomic<std::int64_t> end_time;
-  std::atomic<std::uint64_t> stop_turn;  // processes with index < stop_turn may stop
+  std::atomic<std::uint64_t> stop_turn;    // stop stages with index < stop_turn may run
+  std::atomic<std::uint64_t> stages_done;  // stop stages finished (their owner sets it)
   char reason[240];
   SyncSlot slots[kMaxDeploymentProcesses];
 };
@@ -87,10 +100,11 @@ class SyncMemory {
 /// A worker's side: implements the runtime's RunCoordinator over its slot.
 class WorkerCoordinator final : public RunCoordinator {
  public:
-  WorkerCoordinator(SyncBlock& block, int index);
+  /// `stages`: the deployment's stop stages (DeploymentPlan::stop_stages).
+  WorkerCoordinator(SyncBlock& block, int index, std::vector<StopStage> stages);
   Decision idle(const LocalState& state, const std::function<bool()>& busy) override;
   Decision poll(const LocalState& state, const std::function<bool()>& busy) override;
-  void awaitStopTurn(const std::function<bool()>& busy) override;
+  std::vector<std::string> awaitStopTurn(const std::function<bool()>& busy) override;
   void stopped() override;
   /// Announces this worker attached and connected, then waits for the launcher's go (false when
   /// the launcher asked to stop instead).
@@ -108,6 +122,8 @@ class WorkerCoordinator final : public RunCoordinator {
   bool orphaned_ = false;
   std::uint64_t checks_ = 0;
   std::uint64_t last_grant_ = 0;
+  std::vector<StopStage> stages_;
+  std::size_t next_stage_ = 0;  // stages before this one are done or not this process's
 };
 
 }  // namespace tessera

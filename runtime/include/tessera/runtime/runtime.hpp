@@ -121,6 +121,9 @@ class Runtime {
   /// Topics an actor subscribes to / publishes (global names), after configure().
   std::vector<std::string> subscriptionsOf(const std::string& actor) const;
   std::vector<std::string> publicationsOf(const std::string& actor) const;
+  /// Actor names in the order they stop (publishers before their subscribers, cycles broken by
+  /// registration order), after configure().
+  std::vector<std::string> stopOrder() const;
   std::vector<std::string> topicsOfType(MessageType type) const;
   /// Message type a topic carries (after configure()); throws for an unknown topic.
   MessageType topicType(const std::string& topic) const;

@@ -27,6 +27,7 @@
 #include <cstdint>
 #include <memory>
 #include <string>
+#include <unordered_map>
 #include <vector>
 
 namespace tessera {
@@ -50,7 +51,8 @@ struct ShmTransportOptions {
   std::size_t max_chunk_bytes = 0;  // largest chunk payload RouDi offers
   std::chrono::milliseconds roudi_wait{10000};
   /// Counters for in-flight accounting (may be null): incremented per message sent, times
-  /// importing processes; and per message received, after it was queued locally.
+  /// importing processes; and per message received, after it was queued locally, or known
+  /// lost on the way (discarded by a full keep_latest queue, dropped as malformed).
   std::atomic<std::uint64_t>* sent = nullptr;
   std::atomic<std::uint64_t>* received = nullptr;
 };
@@ -105,6 +107,22 @@ std::size_t zeroChunkForBuilder(std::byte* payload, std::size_t capacity, std::s
 std::size_t chunkExtent(const std::byte* payload, std::size_t capacity);
 /// Writes the prefix: Tessera magic, the sending process, the extent and its check value.
 void recordChunkExtent(std::byte* payload, std::uint32_t origin, std::size_t extent);
+
+/// In-flight accounting on the receiving side of one topic. A sender counts every message once
+/// per importing process, but a keep_latest queue that is full discards its oldest message
+/// before the receiving thread takes it (it is busy delivering another topic into a full
+/// reliable mailbox, say). iceoryx numbers each publisher port's sends 0, 1, 2, ... and the
+/// newest message is never the one discarded, so a gap in the numbers of the messages taken
+/// is exactly what was lost (or sent before this process subscribed).
+class SendGaps {
+ public:
+  /// The message numbered `sequence` from publisher port `publisher` was taken: returns how
+  /// many sent messages it accounts for (1 plus those lost before it).
+  std::uint64_t account(std::uint64_t publisher, std::uint64_t sequence);
+
+ private:
+  std::unordered_map<std::uint64_t, std::uint64_t> next_;  // port -> next expected number
+};
 }  // namespace detail
 /// First-segment size used when a publisher gives no size hint.
 constexpr std::size_t kShmDefaultMessageBytes = 4096;

@@ -20,6 +20,7 @@
 #include <functional>
 #include <memory>
 #include <string>
+#include <vector>
 
 namespace tessera {
 
@@ -69,10 +70,13 @@ class RunCoordinator {
   virtual Decision idle(const LocalState& state, const std::function<bool()>& busy) = 0;
   /// Wall clock: called about every 20 ms; busy() tells whether work is queued; kWork: go on.
   virtual Decision poll(const LocalState& state, const std::function<bool()>& busy) = 0;
-  /// Blocks until this process may stop its actors (upstream processes stop first); busy()
-  /// tells whether messages still arrive meanwhile.
-  virtual void awaitStopTurn(const std::function<bool()>& busy) = 0;
-  /// This process's actors have stopped and their last messages are sent.
+  /// Blocks until this process may stop its next actors and returns their names in stop order.
+  /// The deployment stops all actors in one order, publishers before their subscribers across
+  /// processes too, so a process may get several turns. Empty: no turn left (every process
+  /// has stopped all its actors, or the run must end at once). busy() tells whether messages
+  /// still arrive meanwhile.
+  virtual std::vector<std::string> awaitStopTurn(const std::function<bool()>& busy) = 0;
+  /// The actors of the last turn have stopped and their last messages are sent.
   virtual void stopped() = 0;
 };
 
