@@ -583,7 +583,7 @@ int worker(const WorkerArgs& a) {
   std::cerr << report.table();
   std::cerr << "shared memory: " << stats.sent << " sent, " << stats.received << " received, "
             << stats.copies << " copied into a larger chunk, " << stats.drops
-            << " discard events\n";
+            << " discarded by full keep_latest queues\n";
   if (!a.out.empty()) {
     auto j = summaryJson(profile, report);
     j["shm_sent"] = stats.sent;

@@ -509,8 +509,9 @@ void ShmTransport::startReceiving() {
           // wait for them for ever.
           const std::uint64_t accounted = i->gaps.account(
               static_cast<std::uint64_t>(header->originId()), header->sequenceNumber());
-          if (accounted > 1 && impl->options.received != nullptr) {
-            impl->options.received->fetch_add(accounted - 1);
+          if (accounted > 1) {
+            impl->drops += accounted - 1;
+            if (impl->options.received != nullptr) impl->options.received->fetch_add(accounted - 1);
           }
           Prefix prefix{};
           if (size >= kShmChunkOverhead) std::memcpy(&prefix, payload, sizeof(prefix));
@@ -555,12 +556,6 @@ void ShmTransport::startReceiving() {
           if (impl->options.received != nullptr) impl->options.received->fetch_add(1);
         }
         if (deferred > 0) i->deliver(nullptr, false, ImportDelivery::kRunHere);
-        {
-          // A flag, not a count: once per wake-up is as exact as once per take, and cheaper.
-          // Checked after delivery, off the path between the wake-up and the handler.
-          std::lock_guard lock(i->mutex);
-          if (i->subscriber->hasMissedData()) ++impl->drops;
-        }
       }
     }
   });

@@ -60,7 +60,7 @@ struct ShmTransportOptions {
 struct ShmStats {
   std::uint64_t sent = 0, received = 0;
   std::uint64_t copies = 0;          // messages copied into a chunk (did not fit their loan)
-  std::uint64_t drops = 0;           // keep_latest discards reported by iceoryx
+  std::uint64_t drops = 0;           // messages a full keep_latest queue discarded
   std::uint64_t heap_fallbacks = 0;  // loans built on the heap (all chunks of a publisher busy)
 };
 
