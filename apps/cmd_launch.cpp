@@ -65,160 +65,6 @@ struct Worker {
   int status = 0;
 };
 
-/// The launcher's side of the control block: moves time, detects quiescence, ends the run.
-class DeploymentClock {
- public:
-  DeploymentClock(SyncBlock& block, int processes, std::vector<int> stage_owners, bool sim,
-                  double sim_rate, Nanos limit)
-      : block_(block),
-        n_(processes),
-        stage_owners_(std::move(stage_owners)),
-        sim_(sim),
-        rate_(sim_rate),
-        limit_(limit) {}
-
-  void markDead(int index) {
-    std::lock_guard lock(mutex_);
-    dead_[index] = true;
-    any_death_ = true;
-  }
-  void markAlive(int index) {
-    std::lock_guard lock(mutex_);
-    dead_[index] = false;
-  }
-  void requestStop(const std::string& reason) {
-    std::lock_guard lock(mutex_);
-    if (block_.command.load() == 0) issue(2, reason, 0);
-  }
-  bool allStopped() {
-    std::lock_guard lock(mutex_);
-    for (int i = 0; i < n_; ++i) {
-      if (!dead_[i] && block_.slots[i].stopped.load() == 0) return false;
-    }
-    return true;
-  }
-  std::string reason() const {
-    return std::string(block_.reason, strnlen(block_.reason, sizeof(block_.reason)));
-  }
-
-  /// One round of the protocol; called in a loop by the clock thread.
-  void step() {
-    std::lock_guard lock(mutex_);
-    if (block_.go.load() == 0) {
-      for (int i = 0; i < n_; ++i) {
-        if (!dead_[i] && block_.slots[i].ready.load() == 0) return;
-      }
-      start_wall_ = steadyNow();
-      block_.go = 1;
-      return;
-    }
-    if (block_.command.load() == 0) {
-      for (int i = 0; i < n_; ++i) {
-        if (!dead_[i] && block_.slots[i].wants_stop.load() != 0) {
-          issue(2, "process stopped by itself (signal or actor error)", 0);
-          return;
-        }
-      }
-      if (!quiescent(true)) return;
-      std::int64_t finite = 0, finished = 0;
-      Nanos due = std::numeric_limits<Nanos>::max();
-      for (int i = 0; i < n_; ++i) {
-        if (dead_[i]) continue;
-        finite += block_.slots[i].finite.load();
-        finished += block_.slots[i].finished.load();
-        due = std::min<Nanos>(due, block_.slots[i].next_due.load());
-      }
-      if (finite > 0 && finished >= finite) {
-        issue(1, "all inputs finished", 0);
-        return;
-      }
-      if (!sim_) return;
-      if (due == std::numeric_limits<Nanos>::max()) {
-        issue(1, "nothing left to do (no timers, all mailboxes empty)", 0);
-        return;
-      }
-      if (due > limit_) {
-        issue(1, "reached max_duration_s", limit_);
-        return;
-      }
-      if (rate_ > 0) {
-        if (first_due_ < 0) first_due_ = due;
-        const Nanos target =
-            start_wall_ + static_cast<Nanos>(static_cast<double>(due - first_due_) / rate_);
-        if (steadyNow() < target) return;
-      }
-      block_.grant_time = due;
-      block_.grant_seq.fetch_add(1);
-      return;
-    }
-    // Stopping: stage k runs once stage k-1 is done and everything it sent was handled; one
-    // more turn after the last stage lets every process leave.
-    const auto turn = block_.stop_turn.load();
-    const auto stages = static_cast<std::uint64_t>(stage_owners_.size());
-    if (turn > stages) return;
-    if (turn > 0 && !dead_[stage_owners_[turn - 1]] && block_.stages_done.load() < turn) return;
-    if (!quiescent(false)) return;
-    block_.stop_turn = turn + 1;
-  }
-
- private:
-  struct Snapshot {
-    std::uint64_t gen, sent, received;
-  };
-  bool wave(bool running, std::vector<Snapshot>& out, std::uint64_t& sent, std::uint64_t& recv) {
-    out.assign(n_, {});
-    sent = recv = 0;
-    bool ok = true;
-    for (int i = 0; i < n_; ++i) {
-      auto& s = block_.slots[i];
-      const auto g1 = s.gen.load();
-      const bool idle = s.idle.load() == 1;
-      const auto r = s.received.load();
-      const auto sn = s.sent.load();
-      const bool fresh = s.recv_at_idle.load() == r;
-      const bool granted = !running || s.grant_seen.load() == block_.grant_seq.load();
-      const auto g2 = s.gen.load();
-      sent += sn;
-      recv += r;
-      out[i] = {g1, sn, r};
-      if (dead_[i]) continue;
-      ok = ok && idle && fresh && granted && g1 == g2;
-    }
-    return ok;
-  }
-  bool quiescent(bool running) {
-    std::vector<Snapshot> a, b;
-    std::uint64_t sa, ra, sb, rb;
-    if (!wave(running, a, sa, ra)) return false;
-    if (!wave(running, b, sb, rb)) return false;
-    for (int i = 0; i < n_; ++i) {
-      if (a[i].gen != b[i].gen || a[i].sent != b[i].sent || a[i].received != b[i].received)
-        return false;
-    }
-    // After a death the counts cannot balance (messages to the dead process were never taken).
-    return any_death_ || sa == ra;
-  }
-  void issue(std::uint64_t command, const std::string& reason, Nanos end_time) {
-    std::memset(block_.reason, 0, sizeof(block_.reason));
-    std::memcpy(block_.reason, reason.data(), std::min(reason.size(), sizeof(block_.reason) - 1));
-    block_.end_time = end_time;
-    block_.stop_turn = 0;
-    block_.stages_done = 0;
-    block_.command = command;
-  }
-
-  SyncBlock& block_;
-  int n_;
-  std::vector<int> stage_owners_;  // process of each stop stage
-  bool sim_;
-  double rate_;
-  Nanos limit_;
-  Nanos start_wall_ = 0, first_due_ = -1;
-  bool dead_[kMaxDeploymentProcesses] = {};
-  bool any_death_ = false;
-  std::mutex mutex_;
-};
-
 struct LaunchArgs {
   std::string profile;
   std::vector<std::string> sets;
@@ -403,6 +249,7 @@ int launch(const LaunchArgs& a) {
 
   const Nanos start = steadyNow();
   int handled_interrupts = 0;
+  Nanos stopping_since = 0, next_stop_report = 0;
   bool failed = false;
   std::string failure;
   for (;;) {
@@ -443,19 +290,18 @@ int launch(const LaunchArgs& a) {
       const bool clean = WIFEXITED(status) &&
                          (WEXITSTATUS(status) == 0 || WEXITSTATUS(status) == 130) &&
                          sync.block().slots[w.index].stopped.load() == 1;
+      clock.markGone(w.index);
       if (clean) continue;
-      clock.markDead(w.index);
       std::cerr << "[launch] process '" << w.process << "' (pid " << w.pid << ") "
                 << describeStatus(status) << "\n";
       const bool ending = sync.block().command.load() != 0;
       if (w.restart && !sim && !ending) {
         ++w.incarnation;
-        sync.block().slots[w.index].stopped = 0;
+        clock.markRestarted(w.index);
         std::cerr << "[launch] restarting '" << w.process << "' (restart " << w.incarnation
                   << ")\n";
         spawnWorker(a, path, w, sync_name, roudi.maxChunkBytes(), out_dir);
         say("started '" + w.process + "' (pid " + std::to_string(w.pid) + ")");
-        clock.markAlive(w.index);
         any_running = true;
       } else if (!ending) {
         failed = true;
@@ -471,6 +317,24 @@ int launch(const LaunchArgs& a) {
       }
     }
     if (!any_running) break;
+    if (sync.block().command.load() != 0) {
+      // A stop that hangs (a process stuck in a handler) says what it waits for.
+      const Nanos now = steadyNow();
+      if (stopping_since == 0) {
+        stopping_since = now;
+        next_stop_report = now + 10 * kNanosPerSecond;
+      } else if (now >= next_stop_report) {
+        next_stop_report = now + 10 * kNanosPerSecond;
+        std::string names;
+        for (const int i : clock.holdingUpStop()) names += " '" + workers[i].process + "'";
+        std::cerr << "[launch] still stopping after " << (now - stopping_since) / kNanosPerSecond
+                  << " s (stop turn " << sync.block().stop_turn.load() << " of "
+                  << stage_owners.size() + 1 << "); "
+                  << (names.empty() ? std::string("waiting for the processes to leave")
+                                    : "waiting for" + names)
+                  << "\n";
+      }
+    }
   }
   quit = true;
   clock_thread.join();

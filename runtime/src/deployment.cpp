@@ -324,4 +324,162 @@ void WorkerCoordinator::stopped() {
   block_.stages_done = next_stage_;
 }
 
+// ------------------------------------------------------------------ the launcher's clock
+
+DeploymentClock::DeploymentClock(SyncBlock& block, int processes, std::vector<int> stage_owners,
+                                 bool sim, double sim_rate, Nanos limit)
+    : block_(block),
+      n_(processes),
+      stage_owners_(std::move(stage_owners)),
+      sim_(sim),
+      rate_(sim_rate),
+      limit_(limit) {}
+
+void DeploymentClock::markGone(int index) {
+  std::lock_guard lock(mutex_);
+  gone_[index] = true;
+  unbalanced_ = true;
+}
+
+void DeploymentClock::markRestarted(int index) {
+  std::lock_guard lock(mutex_);
+  auto& s = block_.slots[index];
+  s.ready = 0;
+  s.idle = 0;
+  s.stopped = 0;
+  s.wants_stop = 0;
+  s.gen.fetch_add(1);
+  gone_[index] = false;
+}
+
+void DeploymentClock::requestStop(const std::string& reason) {
+  std::lock_guard lock(mutex_);
+  if (block_.command.load() == 0) issue(2, reason, 0);
+}
+
+std::vector<int> DeploymentClock::holdingUpStop() {
+  std::lock_guard lock(mutex_);
+  std::vector<int> out;
+  const auto turn = block_.stop_turn.load();
+  if (block_.command.load() == 0 || turn > stage_owners_.size()) return out;
+  if (turn > 0) {
+    const int owner = stage_owners_[turn - 1];
+    if (!gone_[owner] && block_.stages_done.load() < turn) return {owner};
+  }
+  for (int i = 0; i < n_; ++i) {
+    const auto& s = block_.slots[i];
+    if (!gone_[i] && (s.idle.load() != 1 || s.recv_at_idle.load() != s.received.load())) {
+      out.push_back(i);
+    }
+  }
+  return out;
+}
+
+std::string DeploymentClock::reason() const {
+  return std::string(block_.reason, strnlen(block_.reason, sizeof(block_.reason)));
+}
+
+void DeploymentClock::step() {
+  std::lock_guard lock(mutex_);
+  if (block_.go.load() == 0) {
+    for (int i = 0; i < n_; ++i) {
+      if (!gone_[i] && block_.slots[i].ready.load() == 0) return;
+    }
+    start_wall_ = steadyNow();
+    block_.go = 1;
+    return;
+  }
+  if (block_.command.load() == 0) {
+    for (int i = 0; i < n_; ++i) {
+      if (!gone_[i] && block_.slots[i].wants_stop.load() != 0) {
+        issue(2, "process stopped by itself (signal or actor error)", 0);
+        return;
+      }
+    }
+    if (!quiescent(true)) return;
+    std::int64_t finite = 0, finished = 0;
+    Nanos due = std::numeric_limits<Nanos>::max();
+    for (int i = 0; i < n_; ++i) {
+      if (gone_[i]) continue;
+      finite += block_.slots[i].finite.load();
+      finished += block_.slots[i].finished.load();
+      due = std::min<Nanos>(due, block_.slots[i].next_due.load());
+    }
+    if (finite > 0 && finished >= finite) {
+      issue(1, "all inputs finished", 0);
+      return;
+    }
+    if (!sim_) return;
+    if (due == std::numeric_limits<Nanos>::max()) {
+      issue(1, "nothing left to do (no timers, all mailboxes empty)", 0);
+      return;
+    }
+    if (due > limit_) {
+      issue(1, "reached max_duration_s", limit_);
+      return;
+    }
+    if (rate_ > 0) {
+      if (first_due_ < 0) first_due_ = due;
+      const Nanos target =
+          start_wall_ + static_cast<Nanos>(static_cast<double>(due - first_due_) / rate_);
+      if (steadyNow() < target) return;
+    }
+    block_.grant_time = due;
+    block_.grant_seq.fetch_add(1);
+    return;
+  }
+  // Stopping: stage k runs once stage k-1 is done and everything it sent was handled; one more
+  // turn after the last stage lets every process leave.
+  const auto turn = block_.stop_turn.load();
+  const auto stages = static_cast<std::uint64_t>(stage_owners_.size());
+  if (turn > stages) return;
+  if (turn > 0 && !gone_[stage_owners_[turn - 1]] && block_.stages_done.load() < turn) return;
+  if (!quiescent(false)) return;
+  block_.stop_turn = turn + 1;
+}
+
+bool DeploymentClock::wave(bool running, std::vector<Snapshot>& out, std::uint64_t& sent,
+                           std::uint64_t& recv) {
+  out.assign(n_, {});
+  sent = recv = 0;
+  bool ok = true;
+  for (int i = 0; i < n_; ++i) {
+    auto& s = block_.slots[i];
+    const auto g1 = s.gen.load();
+    const bool idle = s.idle.load() == 1;
+    const auto r = s.received.load();
+    const auto sn = s.sent.load();
+    const bool fresh = s.recv_at_idle.load() == r;
+    const bool granted = !running || s.grant_seen.load() == block_.grant_seq.load();
+    const auto g2 = s.gen.load();
+    sent += sn;
+    recv += r;
+    out[i] = {g1, sn, r};
+    if (gone_[i]) continue;
+    ok = ok && idle && fresh && granted && g1 == g2;
+  }
+  return ok;
+}
+
+bool DeploymentClock::quiescent(bool running) {
+  std::vector<Snapshot> a, b;
+  std::uint64_t sa, ra, sb, rb;
+  if (!wave(running, a, sa, ra)) return false;
+  if (!wave(running, b, sb, rb)) return false;
+  for (int i = 0; i < n_; ++i) {
+    if (a[i].gen != b[i].gen || a[i].sent != b[i].sent || a[i].received != b[i].received)
+      return false;
+  }
+  return unbalanced_ || sa == ra;
+}
+
+void DeploymentClock::issue(std::uint64_t command, const std::string& reason, Nanos end_time) {
+  std::memset(block_.reason, 0, sizeof(block_.reason));
+  std::memcpy(block_.reason, reason.data(), std::min(reason.size(), sizeof(block_.reason) - 1));
+  block_.end_time = end_time;
+  block_.stop_turn = 0;
+  block_.stages_done = 0;
+  block_.command = command;
+}
+
 }  // namespace tessera

@@ -4,6 +4,11 @@
 #include <catch2/catch.hpp>
 
 #include <algorithm>
+#include <atomic>
+#include <chrono>
+#include <limits>
+#include <memory>
+#include <thread>
 
 using namespace tessera;
 
@@ -95,4 +100,55 @@ TEST_CASE("a deployment with topics both ways between processes stops its actors
   CHECK(at("optimizer") < at("final_trajectory_writer"));
   CHECK(at("optimizer") < at("assembler"));
   CHECK(at("assembler") < at("map_writer"));
+}
+
+TEST_CASE("a restarted process that leaves before it runs does not hold up the stop",
+          "[deployment]") {
+  // A worker restarted just before Ctrl-C finds the run already stopping and leaves without
+  // running; its stop stage must be skipped, not waited for.
+  const std::vector<StopStage> stages = {{0, {"sim"}}, {1, {"mapper", "map_writer"}}};
+  auto block = std::make_unique<SyncBlock>();
+  DeploymentClock clock(*block, 2, {0, 1}, /*sim=*/false, 0, std::numeric_limits<Nanos>::max());
+  WorkerCoordinator robot(*block, 0, stages), mapping(*block, 1, stages);
+  robot.slot().ready = 1;
+  mapping.slot().ready = 1;
+  clock.step();
+  REQUIRE(block->go.load() == 1);
+
+  std::atomic<bool> left{false};
+  std::vector<std::string> mapping_stage;
+  std::thread mapping_thread([&] {
+    const auto not_busy = [] { return false; };
+    RunCoordinator::LocalState state;
+    state.next_due = std::numeric_limits<Nanos>::max();
+    while (mapping.idle(state, not_busy).verdict == RunCoordinator::Verdict::kWork) {
+    }
+    mapping_stage = mapping.awaitStopTurn(not_busy);
+    mapping.stopped();
+    mapping.awaitStopTurn(not_busy);  // the turn to leave
+    left = true;
+  });
+
+  // The robot is killed and restarted; the stop comes before the new one is ready.
+  robot.slot().idle = 1;  // what the dead incarnation left behind
+  clock.markGone(0);
+  clock.markRestarted(0);
+  CHECK(robot.slot().idle.load() == 0);
+  WorkerCoordinator again(*block, 0, stages);
+  clock.requestStop("interrupted");
+  CHECK_FALSE(again.readyAndWait());
+  again.slot().stopped = 1;  // what a worker does when it leaves without running
+  clock.markGone(0);         // the launcher saw it exit
+
+  const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(10);
+  while (!left.load() && std::chrono::steady_clock::now() < deadline) {
+    clock.step();
+    std::this_thread::sleep_for(std::chrono::microseconds(200));
+  }
+  const bool stopped_in_time = left.load();
+  if (!stopped_in_time) block->stop_turn = 1000;  // release the thread
+  mapping_thread.join();
+  CHECK(stopped_in_time);
+  CHECK(mapping_stage == std::vector<std::string>{"mapper", "map_writer"});
+  CHECK(clock.reason() == "interrupted");
 }

@@ -158,8 +158,9 @@ TEST_CASE("a launched profile writes the same outputs as the same profile run in
       tessera::test::runCli("run sim_mapping --quiet --out " + (dir / "run").string(), dir);
   REQUIRE(run.exit_code == 0);
   Launch launch({"sim_mapping", "--out", (dir / "launch").string()}, dir);
-  REQUIRE(launch.wait(120s) == 0);
+  const int rc = launch.wait(120s);
   INFO(launch.output());
+  REQUIRE(rc == 0);
   CHECK(launch.output().find("stopped: all inputs finished") != std::string::npos);
   for (const char* f :
        {"map.pgm", "map.yaml", "trajectory.tum", "odometry.tum", "ground_truth.tum"}) {
@@ -190,8 +191,9 @@ void checkSlamLaunchMatchesOneProcess(const std::string& name,
     args.push_back(s);
   }
   Launch launch(args, dir);
-  REQUIRE(launch.wait(180s) == 0);
+  const int rc = launch.wait(180s);
   INFO(launch.output());
+  REQUIRE(rc == 0);
   CHECK(launch.output().find("stopped: all inputs finished") != std::string::npos);
   for (const char* f : {"map.pgm", "trajectory.tum"}) {
     INFO(f);
@@ -240,19 +242,17 @@ TEST_CASE("Ctrl-C stops a launched deployment cleanly and its outputs are writte
   REQUIRE(!launch.waitFor(R"(started 'mapping')").empty());
   std::this_thread::sleep_for(1500ms);
   ::kill(launch.pid(), SIGINT);
-  CHECK(launch.wait(60s) == 130);
+  const int rc = launch.wait(60s);
   INFO(launch.output());
+  CHECK(rc == 130);
   CHECK(launch.output().find("stopped: interrupted") != std::string::npos);
   CHECK(fs::exists(dir / "out" / "map.pgm"));
   CHECK(Launch::reapAll(10s));
   CHECK(shmClean());
 }
 
-TEST_CASE("a killed worker is reported and restarted while the other process keeps receiving",
-          "[launch]") {
-  const auto dir = freshDir("launch_restart");
-  // Wall clock: the robot streams in real time, the mapper is fed by whichever robot is alive.
-  std::ofstream(dir / "wall.yaml") << R"(name: wall_mapping
+// Wall clock: the robot streams in real time, the mapper is fed by whichever robot is alive.
+constexpr const char* kWallMapping = R"(name: wall_mapping
 clock: wall
 restart: [robot]
 actors:
@@ -268,23 +268,52 @@ actors:
     type: map_writer
     process: mapping
 )";
-  Launch launch({(dir / "wall.yaml").string(), "--out", (dir / "out").string()}, dir);
+
+namespace {
+/// Lets a launched kWallMapping run for `run_for`, kills its robot process with SIGKILL and
+/// waits until the launcher restarts it.
+void killRobotAndAwaitRestart(Launch& launch, std::chrono::milliseconds run_for) {
   const std::string robot = launch.waitFor(R"(started 'robot' \(pid (\d+)\))");
   REQUIRE(!robot.empty());
   REQUIRE(!launch.waitFor(R"(started 'mapping')").empty());
-  std::this_thread::sleep_for(1500ms);
+  std::this_thread::sleep_for(run_for);
   ::kill(std::stoi(robot), SIGKILL);
   CHECK(!launch.waitFor(R"(process 'robot' \(pid \d+\) was killed by SIGKILL)", 10s).empty());
-  CHECK(!launch.waitFor(R"(restarting 'robot')", 10s).empty());
+  REQUIRE(!launch.waitFor(R"(restarting 'robot')", 10s).empty());
+}
+}  // namespace
+
+TEST_CASE("a killed worker is reported and restarted while the other process keeps receiving",
+          "[launch]") {
+  const auto dir = freshDir("launch_restart");
+  std::ofstream(dir / "wall.yaml") << kWallMapping;
+  Launch launch({(dir / "wall.yaml").string(), "--out", (dir / "out").string()}, dir);
+  killRobotAndAwaitRestart(launch, 1500ms);
   std::this_thread::sleep_for(2500ms);
   ::kill(launch.pid(), SIGINT);
-  CHECK(launch.wait(60s) == 130);
+  const int rc = launch.wait(60s);
   INFO(launch.output());
+  CHECK(rc == 130);
   const auto summary = nlohmann::json::parse(readFile(dir / "out" / "summary.json"));
   CHECK(summary["processes"]["robot"]["restarts"] == 1);
   CHECK(summary["processes"]["mapping"]["restarts"] == 0);
   // About 15 scans before the kill; more arrived only from the restarted robot.
   CHECK(summary["actors"]["mapper"]["messages_in"].get<int>() > 25);
+  CHECK(fs::exists(dir / "out" / "map.pgm"));
+  CHECK(shmClean());
+}
+
+TEST_CASE("Ctrl-C while a restarted process is still starting stops the deployment", "[launch]") {
+  // The new robot finds the run already stopping and leaves without running: the launcher must
+  // not wait for its stop stage.
+  const auto dir = freshDir("launch_restart_interrupt");
+  std::ofstream(dir / "wall.yaml") << kWallMapping;
+  Launch launch({(dir / "wall.yaml").string(), "--out", (dir / "out").string()}, dir);
+  killRobotAndAwaitRestart(launch, 1000ms);
+  ::kill(launch.pid(), SIGINT);
+  const int rc = launch.wait(60s);
+  INFO(launch.output());
+  CHECK(rc == 130);
   CHECK(fs::exists(dir / "out" / "map.pgm"));
   CHECK(shmClean());
 }
@@ -310,8 +339,9 @@ TEST_CASE("when the launcher and its RouDi die the workers stop and the next lau
   CHECK_FALSE(shmClean());  // RouDi had no chance to remove its shared memory
   const auto again = freshDir("launch_roudi_death_again");
   Launch launch({"sim_mapping", "--set", "max_duration_s=20"}, again);
-  CHECK(launch.wait(60s) == 0);
+  const int rc = launch.wait(60s);
   INFO(launch.output());
+  CHECK(rc == 0);
   CHECK(
       launch.output().find("removed stale shared memory of a crashed run: /dev/shm/iceoryx_mgmt") !=
       std::string::npos);

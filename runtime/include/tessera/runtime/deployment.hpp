@@ -14,6 +14,7 @@
 // everything the previous one sent was handled). WorkerCoordinator is the worker's side.
 #pragma once
 
+#include <tessera/runtime/clock.hpp>
 #include <tessera/runtime/profile.hpp>
 #include <tessera/runtime/roudi_host.hpp>
 #include <tessera/runtime/shm_transport.hpp>
@@ -23,6 +24,7 @@
 #include <cstdint>
 #include <map>
 #include <memory>
+#include <mutex>
 #include <string>
 #include <vector>
 
@@ -124,6 +126,50 @@ class WorkerCoordinator final : public RunCoordinator {
   std::uint64_t last_grant_ = 0;
   std::vector<StopStage> stages_;
   std::size_t next_stage_ = 0;  // stages before this one are done or not this process's
+};
+
+/// The launcher's side of the control block: starts the run once every worker is ready, moves
+/// simulated time while the deployment is quiescent, ends the run, and grants the stop stages
+/// in turn. step() runs in a loop on one thread; the other methods may be called from another.
+class DeploymentClock {
+ public:
+  /// `stage_owners`: the process of each stop stage (DeploymentPlan::stop_stages); `limit`: the
+  /// simulated time at which the run ends.
+  DeploymentClock(SyncBlock& block, int processes, std::vector<int> stage_owners, bool sim,
+                  double sim_rate, Nanos limit);
+  /// One round of the protocol.
+  void step();
+  /// The process left (it crashed, or exited): the protocol goes on without it. What was sent
+  /// to it can no longer be received, so sent and received counts stop having to balance.
+  void markGone(int index);
+  /// A new incarnation of a gone process is about to start: its slot is reset, so nothing the
+  /// old one left there (idle, stopped) is taken for the new one's state.
+  void markRestarted(int index);
+  /// While stopping: the processes the next stop turn waits for (the owner of an unfinished
+  /// stage, or a process still busy), to say so when a stop takes long.
+  std::vector<int> holdingUpStop();
+  /// Stops the run (command 2) unless it is already ending.
+  void requestStop(const std::string& reason);
+  std::string reason() const;
+
+ private:
+  struct Snapshot {
+    std::uint64_t gen, sent, received;
+  };
+  bool wave(bool running, std::vector<Snapshot>& out, std::uint64_t& sent, std::uint64_t& recv);
+  bool quiescent(bool running);
+  void issue(std::uint64_t command, const std::string& reason, Nanos end_time);
+
+  SyncBlock& block_;
+  int n_;
+  std::vector<int> stage_owners_;
+  bool sim_;
+  double rate_;
+  Nanos limit_;
+  Nanos start_wall_ = 0, first_due_ = -1;
+  bool gone_[kMaxDeploymentProcesses] = {};
+  bool unbalanced_ = false;
+  std::mutex mutex_;
 };
 
 }  // namespace tessera
