@@ -46,9 +46,10 @@ TEST_CASE("bench ipc prints one JSON object with rows for every transport and si
     }
   }
 
-  for (const char* target :
-       {"iceoryx_over_raw_p50_worst", "iceoryx_p50_4MiB_over_64B", "uds_over_iceoryx_p50_1MiB",
-        "uds_over_iceoryx_p50_4MiB", "iceoryx_msgs_per_s_64B"}) {
+  for (const char* target : {"iceoryx_over_raw_p50_worst", "iceoryx_p50_4MiB_over_64B",
+                             "uds_over_iceoryx_p50_1MiB", "uds_over_iceoryx_p50_4MiB",
+                             "iceoryx_over_raw_rtt_p50_worst", "uds_over_iceoryx_rtt_p50_1MiB",
+                             "uds_over_iceoryx_rtt_p50_4MiB", "iceoryx_msgs_per_s_64B"}) {
     INFO(target);
     REQUIRE(j["targets"].contains(target));
     CHECK(j["targets"][target]["value"].get<double>() > 0);
