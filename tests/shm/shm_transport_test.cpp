@@ -40,21 +40,31 @@ ShmTopic topic(const std::string& name, bool exported, bool imported, MailboxPol
   return t;
 }
 
+/// The receiving process's transport: process 1 of the test deployment.
+ShmTransportOptions receiverOptions(const std::string& runtime_name, std::size_t max_chunk) {
+  ShmTransportOptions so;
+  so.runtime_name = runtime_name;
+  so.process_index = 1;
+  so.max_chunk_bytes = max_chunk;
+  return so;
+}
+
+/// A wall-clock runtime with one worker thread, quiet.
+RuntimeOptions wallReceiverRuntime() {
+  RuntimeOptions ro;
+  ro.clock = ClockKind::kWall;
+  ro.threads = 1;
+  ro.show_progress = false;
+  return ro;
+}
+
 /// Receiving process: records every Blob on `topic` until `expected` arrived (or 20 s), then
 /// checks order. Returns 0 when complete and in order, 2 when messages are missing, 3 when out
 /// of order, 4 when the bytes were not read in place.
 int receive(const std::string& topic_name, MailboxPolicy policy, int expected,
             std::chrono::microseconds work, std::size_t max_chunk, bool expect_all) {
-  ShmTransportOptions so;
-  so.runtime_name = "tessera_test_rx";
-  so.process_index = 1;
-  so.max_chunk_bytes = max_chunk;
-  ShmTransport transport(so);
-  RuntimeOptions ro;
-  ro.clock = ClockKind::kWall;
-  ro.threads = 1;
-  ro.show_progress = false;
-  Runtime rt(ro);
+  ShmTransport transport(receiverOptions("tessera_test_rx", max_chunk));
+  Runtime rt(wallReceiverRuntime());
   auto& rec = static_cast<test::Recorder&>(
       rt.add("rx", std::make_unique<test::Recorder>(policy, work), {{"in", topic_name}}));
   transport.attach(rt, {topic(topic_name, false, true, policy)});
@@ -239,17 +249,10 @@ TEST_CASE("messages a full keep_latest queue discarded still count as received f
   test::Children children;
   auto rx = children.spawn([&] {
     std::atomic<std::uint64_t> received{0};
-    ShmTransportOptions so;
-    so.runtime_name = "tessera_test_gaps_rx";
-    so.process_index = 1;
-    so.max_chunk_bytes = max_chunk;
+    ShmTransportOptions so = receiverOptions("tessera_test_gaps_rx", max_chunk);
     so.received = &received;
     ShmTransport transport(so);
-    RuntimeOptions ro;
-    ro.clock = ClockKind::kWall;
-    ro.threads = 1;
-    ro.show_progress = false;
-    Runtime rt(ro);
+    Runtime rt(wallReceiverRuntime());
     auto& rec = static_cast<test::Recorder&>(
         rt.add("rx", std::make_unique<test::Recorder>(MailboxPolicy::keepLatest(1), 0us),
                {{"in", "gaps"}}));
