@@ -25,7 +25,6 @@
 #include <iomanip>
 #include <iostream>
 #include <limits>
-#include <mutex>
 #include <thread>
 
 namespace tessera::app {
