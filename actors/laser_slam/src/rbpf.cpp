@@ -107,6 +107,9 @@ Rbpf::Rbpf(RbpfOptions options) : options_(std::move(options)), matcher_(options
           "recovery_sigma must be >= 0 (0 disables)");
   require(std::isfinite(o.recovery_angular_step) && o.recovery_angular_step > 0,
           "recovery_angular_step must be > 0 [rad]");
+  require(std::isfinite(o.min_overlap_fraction) && o.min_overlap_fraction >= 0 &&
+              o.min_overlap_fraction <= 1,
+          "min_overlap_fraction must be in [0, 1]");
   if (o.coarse_kernel_radius > 0) {
     common::ScanMatcherOptions coarse = o.matcher;
     coarse.kernel_radius = o.coarse_kernel_radius;
@@ -289,6 +292,11 @@ std::size_t Rbpf::updateParticles(const common::ScanPoints& points,
     // The fine stage refines the coarse pose; when it cannot (too few beams within its narrow
     // kernel), the coarse pose is still better than the odometry prior.
     const Pose2 mode = match.success ? match.pose : start;
+    // Too little overlap with the map to trust (RbpfOptions::min_overlap_fraction).
+    if (matched && static_cast<double>(match.matched_beams) <
+                       options_.min_overlap_fraction * static_cast<double>(points.size())) {
+      matched = false;
+    }
     const common::ProposalFit fit = matcher_.fitProposal(*p.map, points, mode, prior, prior_cov);
     if (matched) {
       p.pose = options_.sample_proposal ? sampleGaussian(fit.mean, fit.covariance, rng) : fit.mean;

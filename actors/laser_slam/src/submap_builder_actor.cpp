@@ -70,6 +70,7 @@ RbpfOptions SubmapBuilderOptions::rbpf() const {
   o.coarse_beam_step = coarse_beam_step;
   o.recovery_sigma = recovery_sigma;
   o.recovery_angular_step = recovery_angular_step;
+  o.min_overlap_fraction = min_overlap_fraction;
   o.track_between_updates = track_between_updates;
   o.matcher.sigma = match_sigma;
   o.matcher.likelihood_sigma = match_likelihood_sigma;

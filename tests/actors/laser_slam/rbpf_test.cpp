@@ -134,6 +134,38 @@ TEST_CASE("a heading slip beyond the matcher basin is recovered from the odometr
   CHECK(worst_on < 0.12);
 }
 
+TEST_CASE("a match with too few beams on the map falls back to the motion model", "[rbpf]") {
+  // After the map is built, one update's scan keeps only every 6th beam on the walls; the rest
+  // end halfway, in space the map knows to be free (as when the robot enters unmapped space
+  // and only a few beams see known walls). 31 of 181 beams agree: enough for the matcher's own
+  // 10 % floor, not for min_overlap_fraction 0.2.
+  const auto sim = test::simulateRoomLoop();
+  const auto run = [&](double min_overlap, std::size_t keep) {
+    RbpfOptions o = fastOptions(5);
+    o.min_overlap_fraction = min_overlap;
+    Rbpf rbpf(o);
+    std::uint64_t failures_in_weak_update = 0;
+    bool weak_done = false;
+    for (std::size_t k = 0; k < sim.scans.size(); ++k) {
+      test::SimScan s = sim.scans[k];
+      const bool weak = k >= 40 && !weak_done;
+      if (weak)
+        for (std::size_t b = 0; b < s.ranges.size(); ++b)
+          if (b % keep != 0) s.ranges[b] *= 0.5f;
+      const std::uint64_t before = rbpf.stats().match_failures;
+      const auto step = rbpf.addScan(s.stamp_s, sim.range(s), Pose2{}, s.odometry);
+      if (weak && step.updated) {
+        failures_in_weak_update = rbpf.stats().match_failures - before;
+        weak_done = true;
+      }
+    }
+    REQUIRE(weak_done);
+    return failures_in_weak_update;
+  };
+  CHECK(run(0.0, 6) == 0);  // every particle trusts its 31-beam match
+  CHECK(run(0.2, 6) == 5);  // every particle follows the motion model instead
+}
+
 TEST_CASE("tracking between updates keeps the online pose on the scans instead of odometry",
           "[rbpf]") {
   // Wide gates, as on a real log: between updates the online pose would follow odometry with
@@ -313,4 +345,7 @@ TEST_CASE("rbpf rejects invalid options with the option name", "[rbpf]") {
   o = {};
   o.handover_sigma_angular = -0.1;
   CHECK_THROWS_WITH(Rbpf(o), Catch::Contains("handover_sigma"));
+  o = {};
+  o.min_overlap_fraction = 1.5;
+  CHECK_THROWS_WITH(Rbpf(o), Catch::Contains("min_overlap_fraction"));
 }

@@ -83,6 +83,11 @@ struct RbpfOptions {
   /// particle then follows the motion model and inserts its scan at the sampled pose.
   double recovery_sigma = 2.0;
   double recovery_angular_step = 0.05;  ///< [rad]
+  /// A match whose fine stage finds fewer than this fraction of the scan's beams on the map is
+  /// not trusted: the particle follows the motion model instead. Entering unmapped space, a
+  /// handful of beams can agree with a wall at a wrong heading, and one such particle winning
+  /// the weights turns the whole filter (seen on Intel at t = 911 s). 0 disables.
+  double min_overlap_fraction = 0.0;
   /// Between filter updates, match each usable scan (the coarse stage's beams, fine kernel)
   /// against the best particle's map, from the last tracked pose moved by the odometry since:
   /// the online estimate pose() then follows the scans instead of the raw odometry (which over

@@ -72,6 +72,7 @@ struct SubmapBuilderOptions {
   int coarse_beam_step = 4;
   double recovery_sigma = 2.0;
   double recovery_angular_step = 0.05;
+  double min_overlap_fraction = 0.0;
   bool track_between_updates = true;
   double match_sigma = 0.05;
   double match_likelihood_sigma = 0.075;
@@ -137,6 +138,9 @@ struct SubmapBuilderOptions {
       "this many prior standard deviations; 0 disables");
     v("recovery_angular_step", recovery_angular_step,
       "heading spacing of the recovery search's starts [rad]");
+    v("min_overlap_fraction", min_overlap_fraction,
+      "a match with fewer than this fraction of the scan's beams on the map is not trusted: "
+      "the particle follows the motion model; 0 disables");
     v("track_between_updates", track_between_updates,
       "between filter updates, match each scan against the best particle's map so the online "
       "pose follows the scans rather than the odometry");
