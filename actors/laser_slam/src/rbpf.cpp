@@ -58,6 +58,31 @@ Eigen::Matrix3d inMapFrame(const Eigen::Matrix3d& local, const Pose2& frame) {
 
 }  // namespace
 
+std::size_t selectBestParticle(std::span<const Pose2> poses, std::span<const double> weights,
+                               std::span<const double> tie_break, double sigma_linear,
+                               double sigma_angular) {
+  const std::size_t n = poses.size();
+  std::vector<double> support(n, 0.0);
+  if (sigma_linear > 0 && sigma_angular > 0) {
+    for (std::size_t i = 0; i < n; ++i)
+      for (std::size_t j = 0; j < n; ++j) {
+        const double dx = (poses[i].x - poses[j].x) / sigma_linear;
+        const double dy = (poses[i].y - poses[j].y) / sigma_linear;
+        const double dt = common::angleDiff(poses[i].theta, poses[j].theta) / sigma_angular;
+        support[i] += weights[j] * std::exp(-0.5 * (dx * dx + dy * dy + dt * dt));
+      }
+  }
+  // Supports within a relative 1e-9 are ties (copies of one particle, or the disabled kernel).
+  std::size_t best = 0;
+  for (std::size_t i = 1; i < n; ++i) {
+    const double tol = 1e-9 * std::max(support[i], support[best]);
+    if (support[i] > support[best] + tol ||
+        (support[i] >= support[best] - tol && tie_break[i] > tie_break[best]))
+      best = i;
+  }
+  return best;
+}
+
 std::vector<std::size_t> systematicResample(const std::vector<double>& weights, double u0) {
   const std::size_t n = weights.size();
   std::vector<std::size_t> out;
@@ -107,6 +132,10 @@ Rbpf::Rbpf(RbpfOptions options) : options_(std::move(options)), matcher_(options
           "recovery_sigma must be >= 0 (0 disables)");
   require(std::isfinite(o.recovery_angular_step) && o.recovery_angular_step > 0,
           "recovery_angular_step must be > 0 [rad]");
+  require(std::isfinite(o.best_support_linear) && o.best_support_linear >= 0,
+          "best_support_linear must be >= 0 [m] (0: highest accumulated weight alone)");
+  require(std::isfinite(o.best_support_angular) && o.best_support_angular >= 0,
+          "best_support_angular must be >= 0 [rad] (0: highest accumulated weight alone)");
   require(std::isfinite(o.min_overlap_fraction) && o.min_overlap_fraction >= 0 &&
               o.min_overlap_fraction <= 1,
           "min_overlap_fraction must be in [0, 1]");
@@ -298,13 +327,17 @@ std::size_t Rbpf::updateParticles(const common::ScanPoints& points,
       matched = false;
     }
     const common::ProposalFit fit = matcher_.fitProposal(*p.map, points, mode, prior, prior_cov);
+    double log_eta = fit.log_eta;
     if (matched) {
       p.pose = options_.sample_proposal ? sampleGaussian(fit.mean, fit.covariance, rng) : fit.mean;
     } else {
       failures.fetch_add(1, std::memory_order_relaxed);
       p.pose = sampleGaussian(prior, prior_cov, rng);
+      // The weight judges the pose drawn, not the mode the match was not trusted to find:
+      // otherwise the draw that wins the weights is a random one.
+      log_eta = matcher_.fitProposal(*p.map, points, p.pose, prior, prior_cov).log_eta;
     }
-    const double inc = (std::isfinite(fit.log_eta) ? fit.log_eta : -1e6) / divisor;
+    const double inc = (std::isfinite(log_eta) ? log_eta : -1e6) / divisor;
     p.log_weight += inc;
     p.log_score += inc;
   };
@@ -395,12 +428,16 @@ void Rbpf::insertScan(const common::RangeScan& scan, const Pose2& mount) {
 }
 
 int Rbpf::bestIndex() const {
-  int best = 0;
-  for (int i = 1; i < particleCount(); ++i)
-    if (particles_[static_cast<std::size_t>(i)].log_score >
-        particles_[static_cast<std::size_t>(best)].log_score)
-      best = i;
-  return best;
+  const std::size_t n = particles_.size();
+  std::vector<Pose2> poses(n);
+  std::vector<double> w(n), scores(n);
+  for (std::size_t i = 0; i < n; ++i) {
+    poses[i] = particles_[i].pose;
+    w[i] = std::exp(particles_[i].log_weight);  // normalised by the update
+    scores[i] = particles_[i].log_score;
+  }
+  return static_cast<int>(selectBestParticle(poses, w, scores, options_.best_support_linear,
+                                             options_.best_support_angular));
 }
 
 void Rbpf::trackScan(const common::RangeScan& scan, const Pose2& mount,
@@ -505,6 +542,13 @@ std::vector<Rbpf::StampedPose> Rbpf::bestTrajectory() const {
   for (auto n = particles_[static_cast<std::size_t>(best_)].node; n; n = n->parent)
     out.push_back({n->stamp_s, n->pose});
   std::reverse(out.begin(), out.end());
+  return out;
+}
+
+std::vector<Pose2> Rbpf::particlePoses() const {
+  std::vector<Pose2> out;
+  out.reserve(particles_.size());
+  for (const auto& p : particles_) out.push_back(p.pose);
   return out;
 }
 

@@ -71,6 +71,8 @@ RbpfOptions SubmapBuilderOptions::rbpf() const {
   o.recovery_sigma = recovery_sigma;
   o.recovery_angular_step = recovery_angular_step;
   o.min_overlap_fraction = min_overlap_fraction;
+  o.best_support_linear = best_support_linear;
+  o.best_support_angular = best_support_angular;
   o.track_between_updates = track_between_updates;
   o.matcher.sigma = match_sigma;
   o.matcher.likelihood_sigma = match_likelihood_sigma;

@@ -68,6 +68,28 @@ TEST_CASE("systematic resampling draws each particle in proportion to its weight
   CHECK(wmean == Approx(0.64).margin(0.1));   // the analytic posterior mean, 0.8·1/(1+0.25)
 }
 
+TEST_CASE("the best particle is the best-supported hypothesis, not the single heaviest", "[rbpf]") {
+  // Hypothesis A: three particles within a few cm; hypothesis B: one particle 0.8 m away that
+  // alone outweighs each of A's (0.34 against 0.22) but not all three together.
+  const std::vector<Pose2> poses{
+      {0.8, 0.0, 0.0}, {0.0, 0.0, 0.0}, {0.03, 0.01, 0.01}, {-0.02, 0.02, -0.01}};
+  const std::vector<double> weights{0.34, 0.22, 0.22, 0.22};
+  const std::vector<double> scores{-1.0, -3.0, -2.0, -4.0};
+  const std::size_t best = laser_slam::selectBestParticle(poses, weights, scores, 0.1, 0.05);
+  CHECK(best != 0);
+  CHECK(best <= 3);
+  // Without the kernel, the highest accumulated log weight decides.
+  CHECK(laser_slam::selectBestParticle(poses, weights, scores, 0.0, 0.05) == 0);
+  // Copies left by resampling tie: the highest accumulated log weight among them, else the
+  // first.
+  const std::vector<Pose2> copies(3, Pose2{1.0, 2.0, 0.5});
+  const std::vector<double> equal(3, 1.0 / 3.0);
+  CHECK(laser_slam::selectBestParticle(copies, equal, std::vector<double>{-2, -1, -3}, 0.1, 0.05) ==
+        1);
+  CHECK(laser_slam::selectBestParticle(copies, equal, std::vector<double>(3, -1.0), 0.1, 0.05) ==
+        0);
+}
+
 TEST_CASE("rbpf tracks a simulated robot whose odometry drifts", "[rbpf]") {
   const auto sim = test::simulateRoomLoop();
   Rbpf rbpf(fastOptions(10));
@@ -164,6 +186,50 @@ TEST_CASE("a match with too few beams on the map falls back to the motion model"
   };
   CHECK(run(0.0, 6) == 0);  // every particle trusts its 31-beam match
   CHECK(run(0.2, 6) == 5);  // every particle follows the motion model instead
+}
+
+TEST_CASE("particles that fall back to the motion model are weighted at the pose they drew",
+          "[rbpf]") {
+  // The first update after the first scan, with the weak scan of the test above: every particle
+  // falls back and draws from a wide motion model, and the 31 beams that see known walls must
+  // decide between the draws. Weighted at the untrusted match instead, the heaviest draw would
+  // be a random one.
+  const auto sim = test::simulateRoomLoop();
+  const Pose2 start = sim.scans.front().truth;
+  int heaviest_was_closest = 0;
+  const int runs = 8;
+  for (int seed = 1; seed <= runs; ++seed) {
+    RbpfOptions o = fastOptions(10);
+    o.min_overlap_fraction = 0.2;
+    o.motion = {0.5, 0.5, 0.5, 0.5};
+    o.seed = static_cast<std::uint64_t>(seed);
+    Rbpf rbpf(o);
+    for (std::size_t k = 0; k < sim.scans.size(); ++k) {
+      test::SimScan s = sim.scans[k];
+      if (k > 0)
+        for (std::size_t b = 0; b < s.ranges.size(); ++b)
+          if (b % 6 != 0) s.ranges[b] *= 0.5f;
+      const auto step = rbpf.addScan(s.stamp_s, sim.range(s), Pose2{}, s.odometry);
+      if (k == 0 || !step.updated) continue;
+      REQUIRE(rbpf.stats().match_failures == 10);
+      REQUIRE_FALSE(step.resampled);
+      const Pose2 truth = common::between(start, s.truth);
+      const auto error = [&](const Pose2& p) {
+        return translationError(p, truth) + 0.5 * std::abs(common::angleDiff(p.theta, truth.theta));
+      };
+      const auto poses = rbpf.particlePoses();
+      const auto weights = rbpf.weights();
+      std::size_t closest = 0, heaviest = 0;
+      for (std::size_t i = 1; i < poses.size(); ++i) {
+        if (error(poses[i]) < error(poses[closest])) closest = i;
+        if (weights[i] > weights[heaviest]) heaviest = i;
+      }
+      heaviest_was_closest += heaviest == closest ? 1 : 0;
+      break;
+    }
+  }
+  // Chance alone would pick the closest of ten draws about once in ten runs.
+  CHECK(heaviest_was_closest >= runs / 2);
 }
 
 TEST_CASE("tracking between updates keeps the online pose on the scans instead of odometry",
@@ -348,4 +414,10 @@ TEST_CASE("rbpf rejects invalid options with the option name", "[rbpf]") {
   o = {};
   o.min_overlap_fraction = 1.5;
   CHECK_THROWS_WITH(Rbpf(o), Catch::Contains("min_overlap_fraction"));
+  o = {};
+  o.best_support_linear = -0.1;
+  CHECK_THROWS_WITH(Rbpf(o), Catch::Contains("best_support_linear"));
+  o = {};
+  o.best_support_angular = std::numeric_limits<double>::quiet_NaN();
+  CHECK_THROWS_WITH(Rbpf(o), Catch::Contains("best_support_angular"));
 }

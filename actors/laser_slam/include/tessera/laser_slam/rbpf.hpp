@@ -40,6 +40,7 @@
 #include <cstdint>
 #include <memory>
 #include <optional>
+#include <span>
 #include <vector>
 
 namespace tessera::laser_slam {
@@ -88,6 +89,14 @@ struct RbpfOptions {
   /// handful of beams can agree with a wall at a wrong heading, and one such particle winning
   /// the weights turns the whole filter (seen on Intel at t = 911 s). 0 disables.
   double min_overlap_fraction = 0.0;
+  /// The best particle (online pose, best map, submap hand-overs) is the one with the most
+  /// posterior weight near its pose: a Gaussian kernel of these widths over the weighted
+  /// particles, ties (resampled copies) to the highest accumulated log weight. When the cloud
+  /// splits into hypotheses, the single heaviest particle is a near coin toss between them;
+  /// the best-supported hypothesis is what the posterior favours. 0 (either): the highest
+  /// accumulated log weight alone, as GMapping picks.
+  double best_support_linear = 0.0;   ///< [m]
+  double best_support_angular = 0.0;  ///< [rad]
   /// Between filter updates, match each usable scan (the coarse stage's beams, fine kernel)
   /// against the best particle's map, from the last tracked pose moved by the odometry since:
   /// the online estimate pose() then follows the scans instead of the raw odometry (which over
@@ -153,6 +162,14 @@ struct RbpfStats {
 /// Every index i is drawn floor(n·w_i) or ceil(n·w_i) times. Weights need not sum to 1.
 std::vector<std::size_t> systematicResample(const std::vector<double>& weights, double u0);
 
+/// Index of the particle with the most weight near its pose: support_i = Σ_j w_j ·
+/// exp(-½ (|Δxy|² / σ_linear² + Δθ² / σ_angular²)). Supports within 1e-9 (relative) tie, and
+/// ties go to the highest tie_break (the first of equals). σ = 0 (either): tie_break alone.
+/// The spans have one entry per particle; weights need not be normalised.
+std::size_t selectBestParticle(std::span<const common::Pose2> poses,
+                               std::span<const double> weights, std::span<const double> tie_break,
+                               double sigma_linear, double sigma_angular);
+
 class Rbpf {
  public:
   /// Throws std::invalid_argument naming the offending option.
@@ -200,6 +217,8 @@ class Rbpf {
   int particleCount() const { return static_cast<int>(particles_.size()); }
   /// Normalised weights (sum 1), for tests and diagnostics.
   std::vector<double> weights() const;
+  /// Every particle's pose at the last update (current submap frame), for tests and diagnostics.
+  std::vector<common::Pose2> particlePoses() const;
   /// Distinct map objects the particles hold (copies made by resampling share one until they
   /// diverge), for tests and diagnostics.
   int distinctMaps() const;

@@ -73,6 +73,7 @@ struct SubmapBuilderOptions {
   double recovery_sigma = 2.0;
   double recovery_angular_step = 0.05;
   double min_overlap_fraction = 0.0;
+  double best_support_linear = 0.0, best_support_angular = 0.0;
   bool track_between_updates = true;
   double match_sigma = 0.05;
   double match_likelihood_sigma = 0.075;
@@ -141,6 +142,11 @@ struct SubmapBuilderOptions {
     v("min_overlap_fraction", min_overlap_fraction,
       "a match with fewer than this fraction of the scan's beams on the map is not trusted: "
       "the particle follows the motion model; 0 disables");
+    v("best_support_linear", best_support_linear,
+      "best particle = most posterior weight within a Gaussian kernel of this width [m] around "
+      "its pose; 0: highest accumulated weight alone");
+    v("best_support_angular", best_support_angular,
+      "angular width of that kernel [rad]; 0: highest accumulated weight alone");
     v("track_between_updates", track_between_updates,
       "between filter updates, match each scan against the best particle's map so the online "
       "pose follows the scans rather than the odometry");
