@@ -646,7 +646,16 @@ void Runtime::start() {
   for (auto& c : impl_->cells) c->actor->start();
   impl_->started = true;
   if (!impl_->options.manual) {
-    for (auto& c : impl_->cells) impl_->schedule(*c);  // messages queued before start
+    // Messages queued before start. Only actors that have some: a drain of an empty inbox would
+    // hold the strand for a moment, and a message imported then could not run at once.
+    for (auto& c : impl_->cells) {
+      bool queued = false;
+      {
+        std::lock_guard lock(c->mutex);
+        queued = !c->queue.empty();
+      }
+      if (queued) impl_->schedule(*c);
+    }
   }
 }
 

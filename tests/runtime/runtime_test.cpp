@@ -5,6 +5,9 @@
 
 #include <catch2/catch.hpp>
 
+#include <chrono>
+#include <condition_variable>
+#include <mutex>
 #include <thread>
 
 using namespace tessera;
@@ -254,18 +257,33 @@ TEST_CASE("callAt timers fire once at their time and can chain from inside a cal
 }
 
 namespace {
-/// Records the seq of every Blob on "in" and the thread that handled it.
+/// Records the seq of every Blob on "in" and the thread that handled it. Handlers may run on
+/// an executor thread while the test reads, so the records are read through waitFor().
 class ThreadRecorder : public Actor {
  public:
   void configure(ActorContext& ctx) override {
     ctx.subscribe<msg::Blob>("in", MailboxPolicy::reliable(16),
                              [this](const Message<msg::Blob>& m) {
-                               seqs.push_back(m->getHeader().getSeq());
-                               threads.push_back(std::this_thread::get_id());
+                               {
+                                 std::lock_guard lock(mutex_);
+                                 seqs_.push_back(m->getHeader().getSeq());
+                                 threads_.push_back(std::this_thread::get_id());
+                               }
+                               recorded_.notify_all();
                              });
   }
-  std::vector<std::uint64_t> seqs;
-  std::vector<std::thread::id> threads;
+  /// The seqs and threads once `n` messages were handled (or what there is after 10 s).
+  std::pair<std::vector<std::uint64_t>, std::vector<std::thread::id>> waitFor(std::size_t n) {
+    std::unique_lock lock(mutex_);
+    recorded_.wait_for(lock, std::chrono::seconds(10), [&] { return seqs_.size() >= n; });
+    return {seqs_, threads_};
+  }
+
+ private:
+  std::mutex mutex_;
+  std::condition_variable recorded_;
+  std::vector<std::uint64_t> seqs_;
+  std::vector<std::thread::id> threads_;
 };
 
 std::shared_ptr<const MessageStorage> blobWithSeq(std::uint64_t seq) {
@@ -286,16 +304,18 @@ TEST_CASE("an imported message runs at once on the receiving thread when its act
   rt.start();
 
   deliver(blobWithSeq(0), false, ImportDelivery::kRunHere);
-  REQUIRE(rec.seqs == std::vector<std::uint64_t>{0});
-  CHECK(rec.threads[0] == std::this_thread::get_id());
+  const auto [first_seqs, first_threads] = rec.waitFor(1);
+  REQUIRE(first_seqs == std::vector<std::uint64_t>{0});
+  CHECK(first_threads[0] == std::this_thread::get_id());
   // Handed straight to the handler: it never waited in the inbox.
   CHECK(rt.report().actors[0].max_queue_depth == 0);
 
-  // Messages already queued keep their place: the next one runs after them.
+  // Messages already queued keep their place: the next one runs after them (here, or on the
+  // executor thread still busy with them).
   deliver(blobWithSeq(1), false, ImportDelivery::kDefer);
   deliver(blobWithSeq(2), false, ImportDelivery::kDefer);
   deliver(blobWithSeq(3), false, ImportDelivery::kRunHere);
-  CHECK(rec.seqs == std::vector<std::uint64_t>{0, 1, 2, 3});
+  CHECK(rec.waitFor(4).first == std::vector<std::uint64_t>{0, 1, 2, 3});
   CHECK(rt.report().actors[0].messages_in == 4);
   rt.stop();
 }

@@ -326,10 +326,11 @@ std::size_t Rbpf::updateParticles(const common::ScanPoints& points,
                        options_.min_overlap_fraction * static_cast<double>(points.size())) {
       matched = false;
     }
-    const common::ProposalFit fit = matcher_.fitProposal(*p.map, points, mode, prior, prior_cov);
-    double log_eta = fit.log_eta;
+    double log_eta = 0.0;
     if (matched) {
+      const common::ProposalFit fit = matcher_.fitProposal(*p.map, points, mode, prior, prior_cov);
       p.pose = options_.sample_proposal ? sampleGaussian(fit.mean, fit.covariance, rng) : fit.mean;
+      log_eta = fit.log_eta;
     } else {
       failures.fetch_add(1, std::memory_order_relaxed);
       p.pose = sampleGaussian(prior, prior_cov, rng);
