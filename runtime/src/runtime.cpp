@@ -2,6 +2,7 @@
 
 #include <tessera/runtime/process_stats.hpp>
 
+#include <pthread.h>
 #include <unistd.h>
 
 #include <algorithm>
@@ -212,7 +213,13 @@ void Runtime::Impl::schedule(Cell& cell) {
 
 namespace detail {
 StrandPool::StrandPool(int threads, std::function<void(Cell&)> drain) : drain_(std::move(drain)) {
-  for (int i = 0; i < threads; ++i) threads_.emplace_back([this] { loop(); });
+  for (int i = 0; i < threads; ++i) {
+    threads_.emplace_back([this, i] {
+      // Named so that top -H, gdb and perf sched show which thread is the pool's.
+      pthread_setname_np(pthread_self(), ("tessera-pool-" + std::to_string(i)).c_str());
+      loop();
+    });
+  }
 }
 StrandPool::~StrandPool() {
   std::vector<Sleeper*> wake;

@@ -10,6 +10,7 @@
 #include <iceoryx_posh/runtime/posh_runtime.hpp>
 
 #include <capnp/serialize.h>
+#include <pthread.h>
 #include <tbb/scalable_allocator.h>
 
 #include <cstring>
@@ -473,6 +474,7 @@ void ShmTransport::startReceiving() {
   impl_->quit = false;
   impl_->wake.emplace();
   impl_->receiver = std::thread([impl = impl_.get()] {
+    pthread_setname_np(pthread_self(), "tessera-shm-rx");
     iox::popo::WaitSet<> waitset;
     for (auto& i : impl->imports) {
       waitset.attachState(*i->subscriber, iox::popo::SubscriberState::HAS_DATA).or_else([&](auto) {

@@ -7,7 +7,10 @@
 
 #include <chrono>
 #include <condition_variable>
+#include <filesystem>
+#include <fstream>
 #include <mutex>
+#include <string>
 #include <thread>
 
 using namespace tessera;
@@ -318,4 +321,28 @@ TEST_CASE("an imported message runs at once on the receiving thread when its act
   CHECK(rec.waitFor(4).first == std::vector<std::uint64_t>{0, 1, 2, 3});
   CHECK(rt.report().actors[0].messages_in == 4);
   rt.stop();
+}
+
+TEST_CASE("the thread pool's threads are named for top -H, gdb and perf", "[runtime]") {
+  auto poolThreads = [] {
+    int named = 0;
+    for (const auto& task : std::filesystem::directory_iterator("/proc/self/task")) {
+      std::ifstream comm(task.path() / "comm");
+      std::string name;
+      std::getline(comm, name);
+      if (name.rfind("tessera-pool-", 0) == 0) ++named;
+    }
+    return named;
+  };
+  const int before = poolThreads();
+  {
+    Runtime rt(threadedOptions());
+    rt.add("src", std::make_unique<CountingSource>(3, 1));
+    rt.start();
+    // The threads name themselves as they start: wait for both, within reason.
+    for (int i = 0; i < 200 && poolThreads() < before + 2; ++i)
+      std::this_thread::sleep_for(std::chrono::milliseconds(5));
+    CHECK(poolThreads() == before + 2);
+    rt.stop();
+  }
 }
