@@ -259,10 +259,34 @@ std::size_t Rbpf::updateParticles(const common::ScanPoints& points,
   const Eigen::Matrix3d local_cov = motionCovariance(odom_delta);
   const double divisor = options_.weight_divisor > 0 ? options_.weight_divisor
                                                      : static_cast<double>(particles_.size());
+  const std::size_t n = particles_.size();
+  // Copies of one parent (after resampling, or all particles at the start) have the same pose
+  // and share its map, so their matches and proposal fits are the same: each group's is found
+  // once, by its first member, and only the draws differ. Outputs equal a pass per particle.
+  std::vector<std::size_t> source(n);
+  std::vector<std::size_t> sources;
+  for (std::size_t i = 0; i < n; ++i) {
+    source[i] = i;
+    for (std::size_t s : sources) {
+      const Particle& a = particles_[s];
+      const Particle& b = particles_[i];
+      if (a.map == b.map && a.pose.x == b.pose.x && a.pose.y == b.pose.y &&
+          a.pose.theta == b.pose.theta) {
+        source[i] = s;
+        break;
+      }
+    }
+    if (source[i] == i) sources.push_back(i);
+  }
+  struct Proposal {
+    bool matched = false;
+    common::ProposalFit fit;  // when matched
+  };
+  std::vector<Proposal> proposals(n);
   std::atomic<std::uint64_t> failures{0}, coarse_evals{0}, fine_evals{0}, recoveries{0};
-  const auto update = [&](std::size_t i) {
-    Particle& p = particles_[i];
-    std::mt19937_64 rng = streamFor(options_.seed, update_index_, i);
+  const auto propose = [&](std::size_t k) {
+    const std::size_t i = sources[k];
+    const Particle& p = particles_[i];
     const Pose2 prior = p.pose * odom_delta;
     // The odometry noise is stated in the robot frame at the previous pose.
     const Eigen::Matrix3d prior_cov = inMapFrame(local_cov, p.pose);
@@ -326,13 +350,23 @@ std::size_t Rbpf::updateParticles(const common::ScanPoints& points,
                        options_.min_overlap_fraction * static_cast<double>(points.size())) {
       matched = false;
     }
+    Proposal& out = proposals[i];
+    out.matched = matched;
+    if (matched) out.fit = matcher_.fitProposal(*p.map, points, mode, prior, prior_cov);
+  };
+  const auto draw = [&](std::size_t i) {
+    Particle& p = particles_[i];
+    const Proposal& proposal = proposals[source[i]];
+    std::mt19937_64 rng = streamFor(options_.seed, update_index_, i);
     double log_eta = 0.0;
-    if (matched) {
-      const common::ProposalFit fit = matcher_.fitProposal(*p.map, points, mode, prior, prior_cov);
+    if (proposal.matched) {
+      const common::ProposalFit& fit = proposal.fit;
       p.pose = options_.sample_proposal ? sampleGaussian(fit.mean, fit.covariance, rng) : fit.mean;
       log_eta = fit.log_eta;
     } else {
       failures.fetch_add(1, std::memory_order_relaxed);
+      const Pose2 prior = p.pose * odom_delta;
+      const Eigen::Matrix3d prior_cov = inMapFrame(local_cov, p.pose);
       p.pose = sampleGaussian(prior, prior_cov, rng);
       // The weight judges the pose drawn, not the mode the match was not trusted to find:
       // otherwise the draw that wins the weights is a random one.
@@ -342,12 +376,15 @@ std::size_t Rbpf::updateParticles(const common::ScanPoints& points,
     p.log_weight += inc;
     p.log_score += inc;
   };
+  // Every proposal is found before any particle moves: copies read their source's pose.
   if (options_.parallel) {
-    tbb::parallel_for(std::size_t{0}, particles_.size(), update);
+    tbb::parallel_for(std::size_t{0}, sources.size(), propose);
+    tbb::parallel_for(std::size_t{0}, n, draw);
   } else {
-    for (std::size_t i = 0; i < particles_.size(); ++i) update(i);
+    for (std::size_t k = 0; k < sources.size(); ++k) propose(k);
+    for (std::size_t i = 0; i < n; ++i) draw(i);
   }
-  stats_.particle_updates += particles_.size();
+  stats_.particle_updates += n;
   stats_.match_failures += failures.load();
   stats_.coarse_evaluations += coarse_evals.load();
   stats_.fine_evaluations += fine_evals.load();

@@ -307,6 +307,31 @@ TEST_CASE("particles copied by resampling share their map tiles", "[rbpf]") {
   CHECK(tiles < 20 * rbpf2.stats().updates * map_tiles / 2);
 }
 
+TEST_CASE("copies of one particle are matched once and still draw their own poses", "[rbpf]") {
+  const auto sim = test::simulateRoomLoop();
+  // All particles start as copies of one: the first update matches them all from one pose.
+  Rbpf one(fastOptions(1)), ten(fastOptions(10));
+  std::size_t k = 0;
+  for (; k < sim.scans.size() && ten.stats().updates < 2; ++k) {
+    one.addScan(sim.scans[k].stamp_s, sim.range(sim.scans[k]), Pose2{}, sim.scans[k].odometry);
+    ten.addScan(sim.scans[k].stamp_s, sim.range(sim.scans[k]), Pose2{}, sim.scans[k].odometry);
+  }
+  REQUIRE(ten.stats().updates == 2);
+  REQUIRE(one.stats().updates == 2);
+  CHECK(ten.stats().particle_updates == 10);
+  CHECK(ten.stats().fine_evaluations == one.stats().fine_evaluations);
+  CHECK(ten.stats().coarse_evaluations == one.stats().coarse_evaluations);
+  // Particle 0 draws from the same random stream in both filters, so lands on the same pose.
+  const auto poses = ten.particlePoses();
+  const Pose2 p0 = one.particlePoses()[0];
+  CHECK(poses[0].x == p0.x);
+  CHECK(poses[0].y == p0.y);
+  CHECK(poses[0].theta == p0.theta);
+  int distinct = 0;
+  for (std::size_t i = 1; i < poses.size(); ++i) distinct += poses[i].x != poses[0].x;
+  CHECK(distinct == 9);
+}
+
 TEST_CASE("a submap hand-over publishes the robot pose in the old submap", "[rbpf]") {
   const auto sim = test::simulateRoomLoop();
   Rbpf rbpf(fastOptions(8));
