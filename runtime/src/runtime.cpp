@@ -239,6 +239,7 @@ void StrandPool::post(Cell& cell) {
   Sleeper* wake = nullptr;
   {
     std::lock_guard lock(mutex_);
+    post_rate_.post(steadyNow());
     if (sleeping_.empty()) {
       ready_.push_back(&cell);
       ready_count_.store(ready_.size(), std::memory_order_release);
@@ -262,7 +263,7 @@ void StrandPool::loop() {
       // Under a steady stream the next strand arrives within microseconds: poll briefly before
       // paying for a futex sleep and wake-up (yielding, so a publisher on this core still runs).
       lock.unlock();
-      const Nanos spin_until = steadyNow() + kSpinNanos;
+      const Nanos spin_until = steadyNow() + (post_rate_.steady() ? kSpinNanos : 0);
       while (ready_count_.load(std::memory_order_acquire) == 0 && steadyNow() < spin_until) {
         std::this_thread::yield();
       }

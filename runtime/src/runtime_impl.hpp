@@ -115,6 +115,27 @@ struct Cell {
 }  // namespace detail
 
 namespace detail {
+/// Whether work is being posted faster than `window` apart on average (a moving average of the
+/// intervals between posts): only then is an idle executor thread's poll for the next post
+/// likely to pay. Under long handlers (a filter update with its own parallel work) a poll would
+/// only take a core from that work. post() needs external locking; steady() may race with it.
+class PostRate {
+ public:
+  explicit PostRate(Nanos window) : window_(window) {}
+  void post(Nanos now) {
+    const Nanos since = last_ == 0 ? 0 : now - last_;
+    last_ = now;
+    const Nanos mean = mean_.load(std::memory_order_relaxed);
+    mean_.store(mean + (since - mean) / 8, std::memory_order_relaxed);
+  }
+  bool steady() const { return mean_.load(std::memory_order_relaxed) < window_; }
+
+ private:
+  Nanos window_;
+  Nanos last_ = 0;
+  std::atomic<Nanos> mean_{0};
+};
+
 /// Dedicated executor threads: a ready queue of strands; an idle thread sleeps on its own
 /// futex word, so waking it costs one futex wake, like a bare hand-off. A strand posted while a
 /// thread sleeps is handed to that thread directly (it never enters the ready queue), so the
@@ -139,6 +160,7 @@ class StrandPool {
   std::deque<Cell*> ready_;
   std::atomic<std::size_t> ready_count_{0};  // ready_.size(), readable without the mutex
   static constexpr Nanos kSpinNanos = 20'000;
+  PostRate post_rate_{kSpinNanos};  // posted under mutex_
   std::vector<Sleeper*> sleeping_;  // most recently idled last
   bool quit_ = false;
   std::vector<std::thread> threads_;
