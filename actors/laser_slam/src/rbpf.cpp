@@ -279,6 +279,8 @@ std::size_t Rbpf::updateParticles(const common::ScanPoints& points,
     if (source[i] == i) sources.push_back(i);
   }
   struct Proposal {
+    Pose2 prior;  // the motion model's mean and covariance (map frame)
+    Eigen::Matrix3d prior_cov;
     bool matched = false;
     common::ProposalFit fit;  // when matched
   };
@@ -351,6 +353,8 @@ std::size_t Rbpf::updateParticles(const common::ScanPoints& points,
       matched = false;
     }
     Proposal& out = proposals[i];
+    out.prior = prior;
+    out.prior_cov = prior_cov;
     out.matched = matched;
     if (matched) out.fit = matcher_.fitProposal(*p.map, points, mode, prior, prior_cov);
   };
@@ -365,12 +369,11 @@ std::size_t Rbpf::updateParticles(const common::ScanPoints& points,
       log_eta = fit.log_eta;
     } else {
       failures.fetch_add(1, std::memory_order_relaxed);
-      const Pose2 prior = p.pose * odom_delta;
-      const Eigen::Matrix3d prior_cov = inMapFrame(local_cov, p.pose);
-      p.pose = sampleGaussian(prior, prior_cov, rng);
+      p.pose = sampleGaussian(proposal.prior, proposal.prior_cov, rng);
       // The weight judges the pose drawn, not the mode the match was not trusted to find:
       // otherwise the draw that wins the weights is a random one.
-      log_eta = matcher_.fitProposal(*p.map, points, p.pose, prior, prior_cov).log_eta;
+      log_eta =
+          matcher_.fitProposal(*p.map, points, p.pose, proposal.prior, proposal.prior_cov).log_eta;
     }
     const double inc = (std::isfinite(log_eta) ? log_eta : -1e6) / divisor;
     p.log_weight += inc;
