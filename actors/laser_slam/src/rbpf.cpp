@@ -263,21 +263,10 @@ std::size_t Rbpf::updateParticles(const common::ScanPoints& points,
   // Copies of one parent (after resampling, or all particles at the start) have the same pose
   // and share its map, so their matches and proposal fits are the same: each group's is found
   // once, by its first member, and only the draws differ. Outputs equal a pass per particle.
-  std::vector<std::size_t> source(n);
+  const std::vector<std::size_t> source = copySources();
   std::vector<std::size_t> sources;
-  for (std::size_t i = 0; i < n; ++i) {
-    source[i] = i;
-    for (std::size_t s : sources) {
-      const Particle& a = particles_[s];
-      const Particle& b = particles_[i];
-      if (a.map == b.map && a.pose.x == b.pose.x && a.pose.y == b.pose.y &&
-          a.pose.theta == b.pose.theta) {
-        source[i] = s;
-        break;
-      }
-    }
+  for (std::size_t i = 0; i < n; ++i)
     if (source[i] == i) sources.push_back(i);
-  }
   struct Proposal {
     Pose2 prior;  // the motion model's mean and covariance (map frame)
     Eigen::Matrix3d prior_cov;
@@ -423,6 +412,24 @@ void Rbpf::resample() {
   particles_ = std::move(next);
 }
 
+std::vector<std::size_t> Rbpf::copySources() const {
+  const std::size_t n = particles_.size();
+  std::vector<std::size_t> source(n);
+  for (std::size_t i = 0; i < n; ++i) {
+    source[i] = i;
+    const Particle& b = particles_[i];
+    for (std::size_t s = 0; s < i; ++s) {
+      const Particle& a = particles_[s];
+      if (source[s] == s && a.map == b.map && a.pose.x == b.pose.x && a.pose.y == b.pose.y &&
+          a.pose.theta == b.pose.theta) {
+        source[i] = s;
+        break;
+      }
+    }
+  }
+  return source;
+}
+
 void Rbpf::insertScan(const common::RangeScan& scan, const Pose2& mount) {
   // Particles that hold the same map at the same pose (copies from resampling) insert once and
   // keep sharing; a map also held at another pose is copied first (tiles shared, copy on write).
@@ -433,17 +440,17 @@ void Rbpf::insertScan(const common::RangeScan& scan, const Pose2& mount) {
   };
   std::vector<Group> groups;
   std::map<const common::TiledGrid*, int> groups_per_map;
+  const std::vector<std::size_t> source = copySources();
+  std::vector<std::size_t> group_of(particles_.size());
   for (std::size_t i = 0; i < particles_.size(); ++i) {
     const Particle& p = particles_[i];
-    auto it = std::find_if(groups.begin(), groups.end(), [&](const Group& g) {
-      return g.map == p.map && g.pose.x == p.pose.x && g.pose.y == p.pose.y &&
-             g.pose.theta == p.pose.theta;
-    });
-    if (it == groups.end()) {
+    if (source[i] == i) {
+      group_of[i] = groups.size();
       groups.push_back({p.map, p.pose, {i}});
       ++groups_per_map[p.map.get()];
     } else {
-      it->members.push_back(i);
+      group_of[i] = group_of[source[i]];
+      groups[group_of[i]].members.push_back(i);
     }
   }
   for (auto& g : groups) {

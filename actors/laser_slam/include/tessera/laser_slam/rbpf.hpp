@@ -240,6 +240,9 @@ class Rbpf {
   void initialize(double stamp_s, const common::RangeScan& scan, const common::Pose2& mount,
                   const common::Pose2& odometry);
   /// Returns how many particles fell back to the motion model.
+  /// For each particle, the first particle holding the same map at the same pose (itself when
+  /// none does): copies made by resampling, whose matches and insertions are the same.
+  std::vector<std::size_t> copySources() const;
   std::size_t updateParticles(const common::ScanPoints& points,
                               const common::ScanPoints& coarse_points,
                               const common::Pose2& odom_delta);
