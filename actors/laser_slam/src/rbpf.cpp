@@ -104,7 +104,23 @@ std::vector<std::size_t> systematicResample(const std::vector<double>& weights, 
   return out;
 }
 
-Rbpf::Rbpf(RbpfOptions options) : options_(std::move(options)), matcher_(options_.matcher) {
+namespace {
+// Invalid values are left out here, so that the constructor's checks name the option.
+common::ScanMatcherOptions trackingMatcherOptions(const RbpfOptions& o) {
+  common::ScanMatcherOptions t = o.matcher;
+  if (std::isfinite(o.track_linear_step) && o.track_linear_step > 0)
+    t.linear_step = o.track_linear_step;
+  if (std::isfinite(o.track_angular_step) && o.track_angular_step > 0)
+    t.angular_step = o.track_angular_step;
+  if (o.track_refinements > 0) t.refinements = o.track_refinements;
+  return t;
+}
+}  // namespace
+
+Rbpf::Rbpf(RbpfOptions options)
+    : options_(std::move(options)),
+      matcher_(options_.matcher),
+      tracking_matcher_(trackingMatcherOptions(options_)) {
   const auto& o = options_;
   require(o.particles >= 1 && o.particles <= 100000,
           "particles must be in [1, 100000] (got " + std::to_string(o.particles) + ")");
@@ -136,6 +152,10 @@ Rbpf::Rbpf(RbpfOptions options) : options_(std::move(options)), matcher_(options
           "best_support_linear must be >= 0 [m] (0: highest accumulated weight alone)");
   require(std::isfinite(o.best_support_angular) && o.best_support_angular >= 0,
           "best_support_angular must be >= 0 [rad] (0: highest accumulated weight alone)");
+  require(std::isfinite(o.track_linear_step) && o.track_linear_step >= 0 &&
+              std::isfinite(o.track_angular_step) && o.track_angular_step >= 0,
+          "track_linear_step and track_angular_step must be >= 0 (0: the fine matcher's)");
+  require(o.track_refinements >= 0, "track_refinements must be >= 0 (0: the fine matcher's)");
   require(std::isfinite(o.min_overlap_fraction) && o.min_overlap_fraction >= 0 &&
               o.min_overlap_fraction <= 1,
           "min_overlap_fraction must be in [0, 1]");
@@ -494,8 +514,9 @@ void Rbpf::trackScan(const common::RangeScan& scan, const Pose2& mount,
   const Pose2 predicted = tracked_ * moved;
   const common::ScanPoints beams = coarse_matcher_ ? coarse_matcher_->prepare(scan, mount) : points;
   const common::TiledGrid& map = bestMap();
-  const common::MatchResult m = matcher_.match(map, beams, predicted);
+  const common::MatchResult m = tracking_matcher_.match(map, beams, predicted);
   ++stats_.tracked_scans;
+  stats_.tracking_evaluations += static_cast<std::uint64_t>(m.evaluations);
   // The match is taken only when it beats the prediction in likelihood × motion prior: along a
   // corridor, or where the scan sees past the map, hill climbing on the score alone slides the
   // pose back onto mapped ground, scan after scan, since no update re-anchors it.

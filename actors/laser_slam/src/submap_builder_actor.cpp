@@ -74,6 +74,9 @@ RbpfOptions SubmapBuilderOptions::rbpf() const {
   o.best_support_linear = best_support_linear;
   o.best_support_angular = best_support_angular;
   o.track_between_updates = track_between_updates;
+  o.track_linear_step = track_linear_step;
+  o.track_angular_step = track_angular_step;
+  o.track_refinements = track_refinements;
   o.matcher.sigma = match_sigma;
   o.matcher.likelihood_sigma = match_likelihood_sigma;
   o.matcher.likelihood_gain = match_likelihood_gain;
@@ -302,6 +305,7 @@ void SubmapBuilderActor::summarize(Summary& out) const {
   if (s.tracked_scans > 0) {
     out["tracked_scans"] = i64(s.tracked_scans);
     out["tracking_failures"] = i64(s.tracking_failures);
+    out["tracking_evaluations"] = i64(s.tracking_evaluations);
   }
   out["particle_updates"] = i64(s.particle_updates);
   out["coarse_evaluations"] = i64(s.coarse_evaluations);

@@ -271,6 +271,38 @@ TEST_CASE("tracking between updates keeps the online pose on the scans instead o
   CHECK(track_mean < odom_mean);
 }
 
+TEST_CASE("tracking climbs from its own smaller steps with fewer evaluations", "[rbpf]") {
+  const auto sim = test::simulateRoomLoop();
+  const auto run = [&](double linear, double angular, int refinements) {
+    RbpfOptions o = fastOptions(5);
+    o.linear_update = 1.0;
+    o.angular_update = 0.5;
+    o.track_between_updates = true;
+    o.track_linear_step = linear;
+    o.track_angular_step = angular;
+    o.track_refinements = refinements;
+    Rbpf rbpf(o);
+    const Pose2 start = sim.scans.front().truth;
+    double sum = 0;
+    for (const auto& s : sim.scans) {
+      rbpf.addScan(s.stamp_s, sim.range(s), Pose2{}, s.odometry);
+      sum += translationError(rbpf.pose(), common::between(start, s.truth));
+    }
+    return std::make_pair(sum / static_cast<double>(sim.scans.size()), rbpf.stats());
+  };
+  const auto [fine_mean, fine_stats] = run(0, 0, 0);  // the fine matcher's 5 cm, 5 halvings
+  const auto [small_mean, small_stats] = run(0.025, 0.025, 3);
+  INFO("tracking evaluations " << fine_stats.tracking_evaluations << " -> "
+                               << small_stats.tracking_evaluations << ", mean error " << fine_mean
+                               << " -> " << small_mean << " m");
+  REQUIRE(fine_stats.tracked_scans > 50);
+  // The filter is the same; only the between-update matches change.
+  CHECK(small_stats.tracked_scans == fine_stats.tracked_scans);
+  CHECK(small_stats.resamples == fine_stats.resamples);
+  CHECK(small_stats.tracking_evaluations < 0.85 * fine_stats.tracking_evaluations);
+  CHECK(small_mean < 1.1 * fine_mean);
+}
+
 TEST_CASE("particles copied by resampling share their map tiles", "[rbpf]") {
   const auto sim = test::simulateRoomLoop();
   RbpfOptions o = fastOptions(20);
@@ -446,4 +478,13 @@ TEST_CASE("rbpf rejects invalid options with the option name", "[rbpf]") {
   o = {};
   o.best_support_angular = std::numeric_limits<double>::quiet_NaN();
   CHECK_THROWS_WITH(Rbpf(o), Catch::Contains("best_support_angular"));
+  o = {};
+  o.track_linear_step = -0.01;
+  CHECK_THROWS_WITH(Rbpf(o), Catch::Contains("track_linear_step"));
+  o = {};
+  o.track_angular_step = std::numeric_limits<double>::infinity();
+  CHECK_THROWS_WITH(Rbpf(o), Catch::Contains("track_angular_step"));
+  o = {};
+  o.track_refinements = -1;
+  CHECK_THROWS_WITH(Rbpf(o), Catch::Contains("track_refinements"));
 }

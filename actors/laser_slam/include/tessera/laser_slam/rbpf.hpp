@@ -104,6 +104,14 @@ struct RbpfOptions {
   /// beams) times the motion prior beats the odometry prediction's; otherwise the prediction
   /// stands. Particles, maps, weights and the best trajectory are unchanged.
   bool track_between_updates = false;
+  /// Hill climbing of that tracking: initial steps and step halvings; 0 = the fine matcher's
+  /// (matcher.linear_step, angular_step, refinements). The prediction from the last tracked scan
+  /// is off by millimetres to a few centimetres, less than an update's odometry prior, so it
+  /// can start with smaller steps; a first step of the fine stage's 5 cm can climb into a
+  /// neighbouring ridge of the score.
+  double track_linear_step = 0.0;   ///< [m]
+  double track_angular_step = 0.0;  ///< [rad]
+  int track_refinements = 0;
   std::uint64_t seed = 1;  ///< results are reproducible for a seed, whatever the thread count
   bool parallel = true;    ///< particles on TBB worker threads (false: one thread)
   /// Draw each particle's pose from the fitted proposal (Grisetti et al. 2007); false keeps the
@@ -152,9 +160,10 @@ struct RbpfStats {
   std::uint64_t coarse_evaluations = 0;  ///< scan scores computed by the coarse stage
   std::uint64_t fine_evaluations = 0;    ///< by the fine stage
   std::uint64_t unusable_scans = 0;
-  std::uint64_t tracked_scans = 0;      ///< scans matched between updates (tracking on)
-  std::uint64_t tracking_failures = 0;  ///< of those, left on odometry (no better match)
-  std::uint64_t invalid_odometry = 0;   ///< non-finite odometry poses ignored
+  std::uint64_t tracked_scans = 0;         ///< scans matched between updates (tracking on)
+  std::uint64_t tracking_failures = 0;     ///< of those, left on odometry (no better match)
+  std::uint64_t tracking_evaluations = 0;  ///< scan scores computed by tracking
+  std::uint64_t invalid_odometry = 0;      ///< non-finite odometry poses ignored
 };
 
 /// Systematic (low-variance) resampling: n = weights.size() draws at u0 + k/n, k = 0..n-1, on
@@ -260,6 +269,7 @@ class Rbpf {
 
   RbpfOptions options_;
   common::ScanMatcher matcher_;
+  common::ScanMatcher tracking_matcher_;  // matcher_ with the tracking's steps
   std::optional<common::ScanMatcher> coarse_matcher_;
   std::vector<Particle> particles_;
   bool initialized_ = false;

@@ -75,6 +75,8 @@ struct SubmapBuilderOptions {
   double min_overlap_fraction = 0.0;
   double best_support_linear = 0.0, best_support_angular = 0.0;
   bool track_between_updates = true;
+  double track_linear_step = 0.0, track_angular_step = 0.0;
+  int track_refinements = 0;
   double match_sigma = 0.05;
   double match_likelihood_sigma = 0.075;
   double match_likelihood_gain = 3.0;
@@ -150,6 +152,12 @@ struct SubmapBuilderOptions {
     v("track_between_updates", track_between_updates,
       "between filter updates, match each scan against the best particle's map so the online "
       "pose follows the scans rather than the odometry");
+    v("track_linear_step", track_linear_step,
+      "tracking's initial hill-climbing step [m]; 0: the fine matcher's");
+    v("track_angular_step", track_angular_step,
+      "tracking's initial hill-climbing step [rad]; 0: the fine matcher's");
+    v("track_refinements", track_refinements,
+      "tracking's step halvings before it stops; 0: the fine matcher's");
     v("match_sigma", match_sigma, "score kernel width [m]");
     v("match_likelihood_sigma", match_likelihood_sigma, "likelihood kernel width [m]");
     v("match_likelihood_gain", match_likelihood_gain,
