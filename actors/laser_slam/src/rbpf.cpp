@@ -58,6 +58,16 @@ Eigen::Matrix3d inMapFrame(const Eigen::Matrix3d& local, const Pose2& frame) {
 
 }  // namespace
 
+namespace {
+/// exp(-½ (|Δxy|² / σ_linear² + Δθ² / σ_angular²)) between two poses.
+double poseKernel(const Pose2& a, const Pose2& b, double sigma_linear, double sigma_angular) {
+  const double dx = (a.x - b.x) / sigma_linear;
+  const double dy = (a.y - b.y) / sigma_linear;
+  const double dt = common::angleDiff(a.theta, b.theta) / sigma_angular;
+  return std::exp(-0.5 * (dx * dx + dy * dy + dt * dt));
+}
+}  // namespace
+
 std::size_t selectBestParticle(std::span<const Pose2> poses, std::span<const double> weights,
                                std::span<const double> tie_break, double sigma_linear,
                                double sigma_angular) {
@@ -65,12 +75,8 @@ std::size_t selectBestParticle(std::span<const Pose2> poses, std::span<const dou
   std::vector<double> support(n, 0.0);
   if (sigma_linear > 0 && sigma_angular > 0) {
     for (std::size_t i = 0; i < n; ++i)
-      for (std::size_t j = 0; j < n; ++j) {
-        const double dx = (poses[i].x - poses[j].x) / sigma_linear;
-        const double dy = (poses[i].y - poses[j].y) / sigma_linear;
-        const double dt = common::angleDiff(poses[i].theta, poses[j].theta) / sigma_angular;
-        support[i] += weights[j] * std::exp(-0.5 * (dx * dx + dy * dy + dt * dt));
-      }
+      for (std::size_t j = 0; j < n; ++j)
+        support[i] += weights[j] * poseKernel(poses[i], poses[j], sigma_linear, sigma_angular);
   }
   // Supports within a relative 1e-9 are ties (copies of one particle, or the disabled kernel).
   std::size_t best = 0;
@@ -81,6 +87,21 @@ std::size_t selectBestParticle(std::span<const Pose2> poses, std::span<const dou
       best = i;
   }
   return best;
+}
+
+Pose2 kernelMean(std::span<const Pose2> poses, std::span<const double> weights, const Pose2& centre,
+                 double sigma_linear, double sigma_angular) {
+  if (!(sigma_linear > 0 && sigma_angular > 0)) return centre;
+  double total = 0, x = 0, y = 0, dtheta = 0;
+  for (std::size_t i = 0; i < poses.size(); ++i) {
+    const double w = weights[i] * poseKernel(poses[i], centre, sigma_linear, sigma_angular);
+    total += w;
+    x += w * poses[i].x;
+    y += w * poses[i].y;
+    dtheta += w * common::angleDiff(poses[i].theta, centre.theta);
+  }
+  if (!(total > 0)) return centre;
+  return Pose2{x / total, y / total, centre.theta + dtheta / total};
 }
 
 std::vector<std::size_t> systematicResample(const std::vector<double>& weights, double u0) {
@@ -156,6 +177,9 @@ Rbpf::Rbpf(RbpfOptions options)
               std::isfinite(o.track_angular_step) && o.track_angular_step >= 0,
           "track_linear_step and track_angular_step must be >= 0 (0: the fine matcher's)");
   require(o.track_refinements >= 0, "track_refinements must be >= 0 (0: the fine matcher's)");
+  require(std::isfinite(o.online_mean_linear) && o.online_mean_linear >= 0 &&
+              std::isfinite(o.online_mean_angular) && o.online_mean_angular >= 0,
+          "online_mean_linear and online_mean_angular must be >= 0 (0: the best particle's pose)");
   require(std::isfinite(o.min_overlap_fraction) && o.min_overlap_fraction >= 0 &&
               o.min_overlap_fraction <= 1,
           "min_overlap_fraction must be in [0, 1]");
@@ -536,7 +560,9 @@ void Rbpf::trackScan(const common::RangeScan& scan, const Pose2& mount,
 }
 
 void Rbpf::resetTracking(const Pose2& odometry) {
-  tracked_ = particles_[static_cast<std::size_t>(best_)].pose;
+  tracked_ =
+      kernelMean(particlePoses(), weights(), particles_[static_cast<std::size_t>(best_)].pose,
+                 options_.online_mean_linear, options_.online_mean_angular);
   tracked_odometry_ = odometry;
 }
 

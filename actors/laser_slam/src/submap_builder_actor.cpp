@@ -73,6 +73,8 @@ RbpfOptions SubmapBuilderOptions::rbpf() const {
   o.min_overlap_fraction = min_overlap_fraction;
   o.best_support_linear = best_support_linear;
   o.best_support_angular = best_support_angular;
+  o.online_mean_linear = online_mean_linear;
+  o.online_mean_angular = online_mean_angular;
   o.track_between_updates = track_between_updates;
   o.track_linear_step = track_linear_step;
   o.track_angular_step = track_angular_step;

@@ -6,6 +6,7 @@
 
 #include <cmath>
 #include <limits>
+#include <numbers>
 #include <numeric>
 #include <vector>
 
@@ -95,6 +96,47 @@ TEST_CASE("the best particle is the best-supported hypothesis, not the single he
         1);
   CHECK(laser_slam::selectBestParticle(copies, equal, std::vector<double>(3, -1.0), 0.1, 0.05) ==
         0);
+}
+
+TEST_CASE("the online mean averages the chosen hypothesis and leaves the other out", "[rbpf]") {
+  // Hypothesis A around the origin (three particles, headings either side of pi), B 0.8 m off.
+  const double pi = std::numbers::pi;
+  const std::vector<Pose2> poses{
+      {0.8, 0.0, pi}, {0.0, 0.0, pi - 0.01}, {0.03, 0.0, -pi + 0.01}, {0.0, 0.03, pi}};
+  const std::vector<double> weights{0.4, 0.2, 0.2, 0.2};
+  const Pose2 mean = laser_slam::kernelMean(poses, weights, poses[1], 0.2, 0.1);
+  // B's kernel weight is exp(-8) of A's: it moves the mean by well under a millimetre.
+  CHECK(mean.x == Approx(0.01).margin(1e-3));
+  CHECK(mean.y == Approx(0.01).margin(1e-3));
+  // The headings average across the wrap to pi, not to 0.
+  CHECK(std::abs(common::angleDiff(mean.theta, pi)) < 1e-3);
+  // No kernel: the centre itself.
+  const Pose2 same = laser_slam::kernelMean(poses, weights, poses[1], 0.0, 0.1);
+  CHECK(same.x == poses[1].x);
+  CHECK(same.theta == poses[1].theta);
+}
+
+TEST_CASE("with the online mean the filter reports the particles' mean at updates", "[rbpf]") {
+  const auto sim = test::simulateRoomLoop();
+  RbpfOptions o = fastOptions(10);
+  o.online_mean_linear = 0.2;
+  o.online_mean_angular = 0.1;
+  Rbpf rbpf(o);
+  int updates = 0, moved = 0;
+  for (const auto& s : sim.scans) {
+    const laser_slam::RbpfStep step = rbpf.addScan(s.stamp_s, sim.range(s), Pose2{}, s.odometry);
+    if (!step.updated || rbpf.stats().updates < 2) continue;
+    ++updates;
+    const Pose2 expected = laser_slam::kernelMean(rbpf.particlePoses(), rbpf.weights(),
+                                                  rbpf.poseWithCovariance().pose, 0.2, 0.1);
+    CHECK(rbpf.pose().x == Approx(expected.x).margin(1e-12));
+    CHECK(rbpf.pose().y == Approx(expected.y).margin(1e-12));
+    CHECK(rbpf.pose().theta == Approx(expected.theta).margin(1e-12));
+    moved += translationError(rbpf.pose(), rbpf.poseWithCovariance().pose) > 1e-6 ? 1 : 0;
+  }
+  REQUIRE(updates > 10);
+  // Particles drawn from their proposals differ, so the mean is not the best particle's pose.
+  CHECK(moved > updates / 2);
 }
 
 TEST_CASE("rbpf tracks a simulated robot whose odometry drifts", "[rbpf]") {
@@ -487,4 +529,7 @@ TEST_CASE("rbpf rejects invalid options with the option name", "[rbpf]") {
   o = {};
   o.track_refinements = -1;
   CHECK_THROWS_WITH(Rbpf(o), Catch::Contains("track_refinements"));
+  o = {};
+  o.online_mean_angular = -0.1;
+  CHECK_THROWS_WITH(Rbpf(o), Catch::Contains("online_mean_angular"));
 }

@@ -97,6 +97,12 @@ struct RbpfOptions {
   /// accumulated log weight alone, as GMapping picks.
   double best_support_linear = 0.0;   ///< [m]
   double best_support_angular = 0.0;  ///< [rad]
+  /// The online estimate at an update: the weighted mean of the particles within a Gaussian
+  /// kernel of these widths around the best particle (kernelMean()), not the best particle's
+  /// own pose, which is one draw from its proposal. Particles, maps and the best trajectory are
+  /// unchanged. 0 (either): the best particle's pose.
+  double online_mean_linear = 0.0;   ///< [m]
+  double online_mean_angular = 0.0;  ///< [rad]
   /// Between filter updates, match each usable scan (the coarse stage's beams, fine kernel)
   /// against the best particle's map, from the last tracked pose moved by the odometry since:
   /// the online estimate pose() then follows the scans instead of the raw odometry (which over
@@ -179,6 +185,13 @@ std::size_t selectBestParticle(std::span<const common::Pose2> poses,
                                std::span<const double> weights, std::span<const double> tie_break,
                                double sigma_linear, double sigma_angular);
 
+/// Weighted mean of the poses within a Gaussian kernel around `centre`, each weighted by
+/// weights_i · exp(-½ (|Δxy|² / σ_linear² + Δθ² / σ_angular²)); headings are averaged as
+/// differences from the centre's, so the mean is continuous across ±π. `centre` itself when
+/// the kernel holds no weight or σ = 0 (either).
+common::Pose2 kernelMean(std::span<const common::Pose2> poses, std::span<const double> weights,
+                         const common::Pose2& centre, double sigma_linear, double sigma_angular);
+
 class Rbpf {
  public:
   /// Throws std::invalid_argument naming the offending option.
@@ -193,8 +206,9 @@ class Rbpf {
   /// True once the first usable scan has been inserted.
   bool initialized() const { return initialized_; }
   /// Online estimate of base_link in the current submap at the last scan: the best particle's
-  /// pose at the last update composed with the odometry travelled since (with
-  /// track_between_updates: with the scan-matched motion since).
+  /// pose at the last update (with online_mean_*: the particles' mean around it) composed with
+  /// the odometry travelled since (with track_between_updates: with the scan-matched motion
+  /// since).
   common::Pose2 pose() const;
   /// Best particle's pose and the weighted spread of all particles around it, at the last
   /// update (in the current submap).

@@ -74,6 +74,7 @@ struct SubmapBuilderOptions {
   double recovery_angular_step = 0.05;
   double min_overlap_fraction = 0.0;
   double best_support_linear = 0.0, best_support_angular = 0.0;
+  double online_mean_linear = 0.0, online_mean_angular = 0.0;
   bool track_between_updates = true;
   double track_linear_step = 0.0, track_angular_step = 0.0;
   int track_refinements = 0;
@@ -149,6 +150,11 @@ struct SubmapBuilderOptions {
       "its pose; 0: highest accumulated weight alone");
     v("best_support_angular", best_support_angular,
       "angular width of that kernel [rad]; 0: highest accumulated weight alone");
+    v("online_mean_linear", online_mean_linear,
+      "online pose at updates = weighted mean of the particles within a Gaussian kernel of this "
+      "width [m] around the best particle; 0: the best particle's pose");
+    v("online_mean_angular", online_mean_angular,
+      "angular width of that kernel [rad]; 0: the best particle's pose");
     v("track_between_updates", track_between_updates,
       "between filter updates, match each scan against the best particle's map so the online "
       "pose follows the scans rather than the odometry");
