@@ -56,9 +56,6 @@ Eigen::Matrix3d inMapFrame(const Eigen::Matrix3d& local, const Pose2& frame) {
   return r * local * r.transpose();
 }
 
-}  // namespace
-
-namespace {
 /// exp(-½ (|Δxy|² / σ_linear² + Δθ² / σ_angular²)) between two poses.
 double poseKernel(const Pose2& a, const Pose2& b, double sigma_linear, double sigma_angular) {
   const double dx = (a.x - b.x) / sigma_linear;
@@ -66,6 +63,7 @@ double poseKernel(const Pose2& a, const Pose2& b, double sigma_linear, double si
   const double dt = common::angleDiff(a.theta, b.theta) / sigma_angular;
   return std::exp(-0.5 * (dx * dx + dy * dy + dt * dt));
 }
+
 }  // namespace
 
 std::size_t selectBestParticle(std::span<const Pose2> poses, std::span<const double> weights,
