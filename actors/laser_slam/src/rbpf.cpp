@@ -312,82 +312,100 @@ std::size_t Rbpf::updateParticles(const common::ScanPoints& points,
   struct Proposal {
     Pose2 prior;  // the motion model's mean and covariance (map frame)
     Eigen::Matrix3d prior_cov;
-    bool matched = false;
-    common::ProposalFit fit;  // when matched
+    Pose2 start;                // where the fine stage started: the coarse pose or the prior
+    common::MatchResult match;  // the fine stage's
+    bool matched = false;       // trusted: `fit` is the proposal
+    bool weak = false;          // matched, but too little of the scan on the map to trust
+    common::ProposalFit fit;    // when matched
   };
   std::vector<Proposal> proposals(n);
   std::atomic<std::uint64_t> failures{0}, coarse_evals{0}, fine_evals{0}, recoveries{0};
+  // Too little overlap with the map to trust (RbpfOptions::min_overlap_fraction).
+  const auto overlaps = [&](const common::MatchResult& m) {
+    return static_cast<double>(m.matched_beams) >=
+           options_.min_overlap_fraction * static_cast<double>(points.size());
+  };
+  // The prior mean lies outside the matcher's basin (odometry off by more than the coarse kernel
+  // reaches, typically a heading error after turning on the spot). Drawing from the motion model
+  // instead would insert this scan at a random pose and corrupt the map, so search the prior's
+  // support first: headings recovery_angular_step apart, each also shifted along x and y; the
+  // best coarse score goes on to the fine stage. Its match replaces the proposal's when there
+  // was none, or when it has more beams on the map than a weak one; returns whether it did.
+  const auto searchPrior = [&](const Particle& p, Proposal& out, bool had_match) {
+    const common::ScanMatcher& coarse_stage = coarse_matcher_ ? *coarse_matcher_ : matcher_;
+    const common::ScanPoints& coarse_pts = coarse_matcher_ ? coarse_points : points;
+    const Pose2& prior = out.prior;
+    const Eigen::Vector3d reach = options_.recovery_sigma * out.prior_cov.diagonal().cwiseSqrt();
+    const int nt =
+        std::min(static_cast<int>(reach.z() / options_.recovery_angular_step), kMaxRecoverySteps);
+    const double lx = 0.5 * reach.x(), ly = 0.5 * reach.y();
+    const Pose2 shifts[5] = {{0, 0, 0}, {lx, 0, 0}, {-lx, 0, 0}, {0, ly, 0}, {0, -ly, 0}};
+    double best_score = -1.0;
+    Pose2 best_pose = prior;
+    std::uint64_t evals = 0;
+    for (int k = -nt; k <= nt; ++k)
+      for (const Pose2& d : shifts) {
+        if (k == 0 && d.x == 0 && d.y == 0) continue;  // the prior mean: tried already
+        const Pose2 from{prior.x + d.x, prior.y + d.y,
+                         prior.theta + k * options_.recovery_angular_step};
+        const common::MatchResult c = coarse_stage.match(*p.map, coarse_pts, from);
+        evals += static_cast<std::uint64_t>(c.evaluations);
+        if (c.success && c.score > best_score) {
+          best_score = c.score;
+          best_pose = c.pose;
+        }
+      }
+    coarse_evals.fetch_add(evals, std::memory_order_relaxed);
+    if (best_score < 0) return false;
+    common::MatchResult recovered = matcher_.match(*p.map, points, best_pose);
+    fine_evals.fetch_add(static_cast<std::uint64_t>(recovered.evaluations),
+                         std::memory_order_relaxed);
+    if (had_match && recovered.matched_beams <= out.match.matched_beams) return false;
+    recoveries.fetch_add(1, std::memory_order_relaxed);
+    out.start = best_pose;
+    out.match = recovered;
+    return true;
+  };
+  const auto finish = [&](const Particle& p, Proposal& out, bool matched) {
+    // The fine stage refines the coarse pose; when it cannot (too few beams within its narrow
+    // kernel), the coarse pose is still better than the odometry prior.
+    const Pose2 mode = out.match.success ? out.match.pose : out.start;
+    out.weak = matched && !overlaps(out.match);
+    out.matched = matched && !out.weak;
+    if (out.matched) out.fit = matcher_.fitProposal(*p.map, points, mode, out.prior, out.prior_cov);
+  };
   const auto propose = [&](std::size_t k) {
     const std::size_t i = sources[k];
     const Particle& p = particles_[i];
-    const Pose2 prior = p.pose * odom_delta;
+    Proposal& out = proposals[i];
+    out.prior = p.pose * odom_delta;
     // The odometry noise is stated in the robot frame at the previous pose.
-    const Eigen::Matrix3d prior_cov = inMapFrame(local_cov, p.pose);
-
-    // The stage the recovery search runs: the coarse one, or the fine one when disabled.
-    const common::ScanMatcher& coarse_stage = coarse_matcher_ ? *coarse_matcher_ : matcher_;
-    const common::ScanPoints& coarse_pts = coarse_matcher_ ? coarse_points : points;
-    Pose2 start = prior;
+    out.prior_cov = inMapFrame(local_cov, p.pose);
+    out.start = out.prior;
     bool matched = false;
     if (coarse_matcher_) {
-      const common::MatchResult coarse = coarse_matcher_->match(*p.map, coarse_points, prior);
+      const common::MatchResult coarse = coarse_matcher_->match(*p.map, coarse_points, out.prior);
       coarse_evals.fetch_add(static_cast<std::uint64_t>(coarse.evaluations),
                              std::memory_order_relaxed);
-      if (coarse.success) start = coarse.pose;
+      if (coarse.success) out.start = coarse.pose;
       matched = coarse.success;
     }
-    common::MatchResult match = matcher_.match(*p.map, points, start);
-    fine_evals.fetch_add(static_cast<std::uint64_t>(match.evaluations), std::memory_order_relaxed);
-    matched = matched || match.success;
-    if (!matched && options_.recovery_sigma > 0) {
-      // The prior mean lies outside the matcher's basin (odometry off by more than the coarse
-      // kernel reaches, typically a heading error after turning on the spot). Drawing from the
-      // motion model instead would insert this scan at a random pose and corrupt the map, so
-      // search the prior's support first: headings recovery_angular_step apart, each also
-      // shifted along x and y; the best coarse score goes on to the fine stage.
-      const Eigen::Vector3d reach = options_.recovery_sigma * prior_cov.diagonal().cwiseSqrt();
-      const int nt =
-          std::min(static_cast<int>(reach.z() / options_.recovery_angular_step), kMaxRecoverySteps);
-      const double lx = 0.5 * reach.x(), ly = 0.5 * reach.y();
-      const Pose2 shifts[5] = {{0, 0, 0}, {lx, 0, 0}, {-lx, 0, 0}, {0, ly, 0}, {0, -ly, 0}};
-      double best_score = -1.0;
-      Pose2 best_pose = prior;
-      std::uint64_t evals = 0;
-      for (int k = -nt; k <= nt; ++k)
-        for (const Pose2& d : shifts) {
-          if (k == 0 && d.x == 0 && d.y == 0) continue;  // the prior mean: tried above
-          const Pose2 from{prior.x + d.x, prior.y + d.y,
-                           prior.theta + k * options_.recovery_angular_step};
-          const common::MatchResult c = coarse_stage.match(*p.map, coarse_pts, from);
-          evals += static_cast<std::uint64_t>(c.evaluations);
-          if (c.success && c.score > best_score) {
-            best_score = c.score;
-            best_pose = c.pose;
-          }
-        }
-      coarse_evals.fetch_add(evals, std::memory_order_relaxed);
-      if (best_score >= 0) {
-        recoveries.fetch_add(1, std::memory_order_relaxed);
-        start = best_pose;
-        matched = true;
-        match = matcher_.match(*p.map, points, start);
-        fine_evals.fetch_add(static_cast<std::uint64_t>(match.evaluations),
-                             std::memory_order_relaxed);
-      }
-    }
-    // The fine stage refines the coarse pose; when it cannot (too few beams within its narrow
-    // kernel), the coarse pose is still better than the odometry prior.
-    const Pose2 mode = match.success ? match.pose : start;
-    // Too little overlap with the map to trust (RbpfOptions::min_overlap_fraction).
-    if (matched && static_cast<double>(match.matched_beams) <
-                       options_.min_overlap_fraction * static_cast<double>(points.size())) {
-      matched = false;
-    }
+    out.match = matcher_.match(*p.map, points, out.start);
+    fine_evals.fetch_add(static_cast<std::uint64_t>(out.match.evaluations),
+                         std::memory_order_relaxed);
+    matched = matched || out.match.success;
+    if (!matched && options_.recovery_sigma > 0) matched = searchPrior(p, out, false);
+    finish(p, out, matched);
+  };
+  // Weak matches get the search only when no particle has a trusted one: then the filter has
+  // lost the map (as at t = 911 s of the Intel log, where the coarse stage, with its wide
+  // kernel, still succeeded from every prior but left the fine stage 9-18 of 171 beams, while
+  // the scan lay 0.2 m and 0.18 rad away with 120 of them on walls). While some particle holds
+  // the map, the weak ones are off its mode and should lose the weights, not be moved.
+  const auto searchWeak = [&](std::size_t k) {
+    const std::size_t i = sources[k];
     Proposal& out = proposals[i];
-    out.prior = prior;
-    out.prior_cov = prior_cov;
-    out.matched = matched;
-    if (matched) out.fit = matcher_.fitProposal(*p.map, points, mode, prior, prior_cov);
+    if (searchPrior(particles_[i], out, true)) finish(particles_[i], out, true);
   };
   const auto draw = [&](std::size_t i) {
     Particle& p = particles_[i];
@@ -411,13 +429,23 @@ std::size_t Rbpf::updateParticles(const common::ScanPoints& points,
     p.log_score += inc;
   };
   // Every proposal is found before any particle moves: copies read their source's pose.
-  if (options_.parallel) {
-    tbb::parallel_for(std::size_t{0}, sources.size(), propose);
-    tbb::parallel_for(std::size_t{0}, n, draw);
-  } else {
-    for (std::size_t k = 0; k < sources.size(); ++k) propose(k);
-    for (std::size_t i = 0; i < n; ++i) draw(i);
+  const auto each = [&](std::size_t count, const auto& f) {
+    if (options_.parallel) {
+      tbb::parallel_for(std::size_t{0}, count, f);
+    } else {
+      for (std::size_t k = 0; k < count; ++k) f(k);
+    }
+  };
+  each(sources.size(), propose);
+  if (options_.recovery_sigma > 0 &&
+      std::none_of(sources.begin(), sources.end(),
+                   [&](std::size_t i) { return proposals[i].matched; })) {
+    std::vector<std::size_t> weak;
+    for (std::size_t k = 0; k < sources.size(); ++k)
+      if (proposals[sources[k]].weak) weak.push_back(k);
+    each(weak.size(), [&](std::size_t w) { searchWeak(weak[w]); });
   }
+  each(n, draw);
   stats_.particle_updates += n;
   stats_.match_failures += failures.load();
   stats_.coarse_evaluations += coarse_evals.load();
