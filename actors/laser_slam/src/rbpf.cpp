@@ -316,6 +316,7 @@ std::size_t Rbpf::updateParticles(const common::ScanPoints& points,
     common::MatchResult match;  // the fine stage's
     bool matched = false;       // trusted: `fit` is the proposal
     bool weak = false;          // matched, but too little of the scan on the map to trust
+    bool searched = false;      // the prior's support was searched (searchPrior)
     common::ProposalFit fit;    // when matched
   };
   std::vector<Proposal> proposals(n);
@@ -335,6 +336,7 @@ std::size_t Rbpf::updateParticles(const common::ScanPoints& points,
     const common::ScanMatcher& coarse_stage = coarse_matcher_ ? *coarse_matcher_ : matcher_;
     const common::ScanPoints& coarse_pts = coarse_matcher_ ? coarse_points : points;
     const Pose2& prior = out.prior;
+    out.searched = true;
     const Eigen::Vector3d reach = options_.recovery_sigma * out.prior_cov.diagonal().cwiseSqrt();
     const int nt =
         std::min(static_cast<int>(reach.z() / options_.recovery_angular_step), kMaxRecoverySteps);
@@ -405,7 +407,8 @@ std::size_t Rbpf::updateParticles(const common::ScanPoints& points,
   const auto searchWeak = [&](std::size_t k) {
     const std::size_t i = sources[k];
     Proposal& out = proposals[i];
-    if (searchPrior(particles_[i], out, true)) finish(particles_[i], out, true);
+    // A weak match the search itself found would only be found again.
+    if (!out.searched && searchPrior(particles_[i], out, true)) finish(particles_[i], out, true);
   };
   const auto draw = [&](std::size_t i) {
     Particle& p = particles_[i];
