@@ -399,17 +399,6 @@ std::size_t Rbpf::updateParticles(const common::ScanPoints& points,
     if (!matched && options_.recovery_sigma > 0) matched = searchPrior(p, out, false);
     finish(p, out, matched);
   };
-  // Weak matches get the search only when no particle has a trusted one: then the filter has
-  // lost the map (as at t = 911 s of the Intel log, where the coarse stage, with its wide
-  // kernel, still succeeded from every prior but left the fine stage 9-18 of 171 beams, while
-  // the scan lay 0.2 m and 0.18 rad away with 120 of them on walls). While some particle holds
-  // the map, the weak ones are off its mode and should lose the weights, not be moved.
-  const auto searchWeak = [&](std::size_t k) {
-    const std::size_t i = sources[k];
-    Proposal& out = proposals[i];
-    // A weak match the search itself found would only be found again.
-    if (!out.searched && searchPrior(particles_[i], out, true)) finish(particles_[i], out, true);
-  };
   const auto draw = [&](std::size_t i) {
     Particle& p = particles_[i];
     const Proposal& proposal = proposals[source[i]];
@@ -440,13 +429,22 @@ std::size_t Rbpf::updateParticles(const common::ScanPoints& points,
     }
   };
   each(sources.size(), propose);
+  // Weak matches get the search only when no particle has a trusted one: then the filter has
+  // lost the map (as at t = 911 s of the Intel log, where the coarse stage, with its wide
+  // kernel, still succeeded from every prior but left the fine stage 9-18 of 171 beams, while
+  // the scan lay 0.2 m and 0.18 rad away with 120 of them on walls). While some particle holds
+  // the map, the weak ones are off its mode and should lose the weights, not be moved. A weak
+  // match the search itself found would only be found again.
   if (options_.recovery_sigma > 0 &&
       std::none_of(sources.begin(), sources.end(),
                    [&](std::size_t i) { return proposals[i].matched; })) {
     std::vector<std::size_t> weak;
-    for (std::size_t k = 0; k < sources.size(); ++k)
-      if (proposals[sources[k]].weak) weak.push_back(k);
-    each(weak.size(), [&](std::size_t w) { searchWeak(weak[w]); });
+    for (std::size_t i : sources)
+      if (proposals[i].weak && !proposals[i].searched) weak.push_back(i);
+    each(weak.size(), [&](std::size_t w) {
+      const std::size_t i = weak[w];
+      if (searchPrior(particles_[i], proposals[i], true)) finish(particles_[i], proposals[i], true);
+    });
   }
   each(n, draw);
   stats_.particle_updates += n;
@@ -589,9 +587,10 @@ void Rbpf::trackScan(const common::RangeScan& scan, const Pose2& mount,
 }
 
 void Rbpf::resetTracking(const Pose2& odometry) {
-  tracked_ =
-      kernelMean(particlePoses(), weights(), particles_[static_cast<std::size_t>(best_)].pose,
-                 options_.online_mean_linear, options_.online_mean_angular);
+  tracked_ = particles_[static_cast<std::size_t>(best_)].pose;
+  if (options_.online_mean_linear > 0 && options_.online_mean_angular > 0)
+    tracked_ = kernelMean(particlePoses(), weights(), tracked_, options_.online_mean_linear,
+                          options_.online_mean_angular);
   tracked_odometry_ = odometry;
 }
 
