@@ -293,6 +293,10 @@ int launch(const LaunchArgs& a) {
       if (clean) continue;
       std::cerr << "[launch] process '" << w.process << "' (pid " << w.pid << ") "
                 << describeStatus(status) << "\n";
+      // Killed inside a send, it would leave a port locked and wedge RouDi and its peers.
+      for (const auto& port : roudi.releaseOrphanedPortLocks()) {
+        std::cerr << "[launch] released the lock it held on " << port << "\n";
+      }
       const bool ending = sync.block().command.load() != 0;
       if (w.restart && !sim && !ending) {
         ++w.incarnation;
@@ -324,13 +328,15 @@ int launch(const LaunchArgs& a) {
         next_stop_report = now + 10 * kNanosPerSecond;
       } else if (now >= next_stop_report) {
         next_stop_report = now + 10 * kNanosPerSecond;
-        std::string names;
+        std::string names, left;
         for (const int i : clock.holdingUpStop()) names += " '" + workers[i].process + "'";
+        for (const auto& w : workers) {
+          if (w.running) left += " '" + w.process + "' (pid " + std::to_string(w.pid) + ")";
+        }
         std::cerr << "[launch] still stopping after " << (now - stopping_since) / kNanosPerSecond
                   << " s (stop turn " << sync.block().stop_turn.load() << " of "
                   << stage_owners.size() + 1 << "); "
-                  << (names.empty() ? std::string("waiting for the processes to leave")
-                                    : "waiting for" + names)
+                  << (names.empty() ? "waiting for" + left + " to exit" : "waiting for" + names)
                   << "\n";
       }
     }
@@ -430,7 +436,10 @@ int worker(const WorkerArgs& a) {
   auto runtime = buildProcessRuntime(profile, options, a.process,
                                      [&](Runtime& rt) { transport.attach(rt, topics); });
   transport.startReceiving();
-  if (!transport.waitForPublishers(std::chrono::seconds(30))) {
+  // A peer that died before connecting stops the deployment: leave then, not after 30 s.
+  if (!transport.waitForPublishers(std::chrono::seconds(30),
+                                   [&] { return coordinator.ending(); }) &&
+      !coordinator.ending()) {
     throw std::runtime_error("process '" + a.process + "': its peers did not connect within 30 s");
   }
   runtime->installSignalHandlers();

@@ -214,10 +214,14 @@ bool WorkerCoordinator::readyAndWait() {
   slot().ready = 1;
   Backoff b;
   while (block_.go.load() == 0) {
-    if (block_.command.load() != 0 || orphaned()) return false;
+    if (ending()) return false;
     b.pause();
   }
   return block_.command.load() == 0;
+}
+
+bool WorkerCoordinator::ending() {
+  return block_.command.load() != 0 || orphaned();
 }
 
 bool WorkerCoordinator::orphaned() {

@@ -1,9 +1,11 @@
+#include <tessera/runtime/orphaned_lock.hpp>
 #include <tessera/runtime/roudi_host.hpp>
 
 #include <iceoryx_hoofs/log/logmanager.hpp>
 #include <iceoryx_hoofs/posix_wrapper/posix_access_rights.hpp>
 #include <iceoryx_posh/iceoryx_posh_config.hpp>
 #include <iceoryx_posh/iceoryx_posh_types.hpp>
+#include <iceoryx_posh/internal/popo/building_blocks/locking_policy.hpp>
 #include <iceoryx_posh/internal/roudi/roudi.hpp>
 #include <iceoryx_posh/roudi/iceoryx_roudi_components.hpp>
 
@@ -182,6 +184,37 @@ std::size_t RouDiHost::maxChunkBytes() const {
 
 const std::vector<std::string>& RouDiHost::removedStale() const {
   return impl_->removed;
+}
+
+namespace {
+/// The pthread mutex of a port's ThreadSafePolicy: its only member is iox::posix::mutex, whose
+/// only member is the native handle.
+pthread_mutex_t& nativeLock(const iox::popo::ThreadSafePolicy& policy) {
+  static_assert(sizeof(iox::popo::ThreadSafePolicy) == sizeof(pthread_mutex_t));
+  return *reinterpret_cast<pthread_mutex_t*>(const_cast<iox::popo::ThreadSafePolicy*>(&policy));
+}
+
+std::string describePort(const char* what, const iox::popo::BasePortData& port) {
+  return std::string(what) + " '" + port.m_serviceDescription.getInstanceIDString().c_str() +
+         "' of " + port.m_runtimeName.c_str();
+}
+}  // namespace
+
+std::vector<std::string> RouDiHost::releaseOrphanedPortLocks() {
+  std::vector<std::string> released;
+  auto pool = impl_->components->rouDiMemoryManager.portPool();
+  if (!pool.has_value()) return released;
+  for (auto* port : (*pool)->getPublisherPortDataList()) {
+    const iox::popo::ThreadSafePolicy& lock = port->m_chunkSenderData;
+    if (releaseIfOwnerDied(nativeLock(lock))) released.push_back(describePort("publisher", *port));
+  }
+  for (auto* port : (*pool)->getSubscriberPortDataList()) {
+    const iox::popo::ThreadSafePolicy& lock = port->m_chunkReceiverData;
+    if (releaseIfOwnerDied(nativeLock(lock))) {
+      released.push_back(describePort("subscriber", *port));
+    }
+  }
+  return released;
 }
 
 }  // namespace tessera

@@ -451,7 +451,8 @@ void ShmTransport::attach(Runtime& runtime, const std::vector<ShmTopic>& topics)
   }
 }
 
-bool ShmTransport::waitForPublishers(std::chrono::milliseconds timeout) {
+bool ShmTransport::waitForPublishers(std::chrono::milliseconds timeout,
+                                     const std::function<bool()>& give_up) {
   const auto deadline = std::chrono::steady_clock::now() + timeout;
   for (;;) {
     bool all = true;
@@ -464,7 +465,7 @@ bool ShmTransport::waitForPublishers(std::chrono::milliseconds timeout) {
       peers = peers && e->publisher->hasSubscribers();
     }
     if (all && peers) return true;
-    if (std::chrono::steady_clock::now() > deadline) return false;
+    if (std::chrono::steady_clock::now() > deadline || (give_up && give_up())) return false;
     std::this_thread::sleep_for(std::chrono::milliseconds(2));
   }
 }

@@ -318,6 +318,31 @@ TEST_CASE("Ctrl-C while a restarted process is still starting stops the deployme
   CHECK(shmClean());
 }
 
+TEST_CASE("a process still waiting for its peers leaves at once when the deployment stops",
+          "[launch]") {
+  // The mapping process is frozen before it subscribes, so the robot waits for a subscriber that
+  // never comes. Killing the mapping stops the run: the robot must notice instead of sitting out
+  // its 30 s connection timeout.
+  const auto dir = freshDir("launch_peer_wait");
+  std::ofstream(dir / "wall.yaml") << kWallMapping;
+  Launch launch({(dir / "wall.yaml").string()}, dir);
+  const std::string mapping = launch.waitFor(R"(started 'mapping' \(pid (\d+)\))");
+  REQUIRE(!mapping.empty());
+  ::kill(std::stoi(mapping), SIGSTOP);
+  std::this_thread::sleep_for(1500ms);
+  ::kill(std::stoi(mapping), SIGKILL);
+  const auto killed = std::chrono::steady_clock::now();
+  const int rc = launch.wait(60s);
+  const auto took = std::chrono::steady_clock::now() - killed;
+  INFO(launch.output());
+  CHECK(rc == 1);
+  CHECK(took < 10s);
+  CHECK(launch.output().find("process 'mapping' (pid " + mapping + ") was killed by SIGKILL") !=
+        std::string::npos);
+  CHECK(Launch::reapAll(10s));
+  CHECK(shmClean());
+}
+
 TEST_CASE("when the launcher and its RouDi die the workers stop and the next launch cleans up",
           "[launch]") {
   const auto dir = freshDir("launch_roudi_death");

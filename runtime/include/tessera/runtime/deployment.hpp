@@ -111,6 +111,9 @@ class WorkerCoordinator final : public RunCoordinator {
   /// Announces this worker attached and connected, then waits for the launcher's go (false when
   /// the launcher asked to stop instead).
   bool readyAndWait();
+  /// True once the deployment ends (the launcher asked to stop or finish, or died): a worker
+  /// still starting has nothing left to wait for.
+  bool ending();
   SyncSlot& slot() { return block_.slots[index_]; }
   /// True once the launcher died (this process was re-parented).
   bool orphaned();

@@ -56,6 +56,11 @@ class RouDiHost {
   std::size_t maxChunkBytes() const;
   /// Files of an earlier crashed run that start-up removed (empty when there were none).
   const std::vector<std::string>& removedStale() const;
+  /// Hands back the publisher and subscriber port locks that threads of a dead process still
+  /// hold (see orphaned_lock.hpp), so RouDi's clean-up of it and its peers do not block for
+  /// ever. Call after reaping a process that did not exit cleanly; returns the ports, e.g.
+  /// "publisher 'scan' of tessera_robot_0".
+  std::vector<std::string> releaseOrphanedPortLocks();
 
   struct Impl;
 

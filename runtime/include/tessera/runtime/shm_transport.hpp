@@ -25,6 +25,7 @@
 #include <atomic>
 #include <chrono>
 #include <cstdint>
+#include <functional>
 #include <memory>
 #include <string>
 #include <unordered_map>
@@ -75,8 +76,10 @@ class ShmTransport {
   /// before runtime.configure().
   void attach(Runtime& runtime, const std::vector<ShmTopic>& topics);
   /// Waits until every import is connected to a publisher (a message sent before that would
-  /// not reach this process); returns false on timeout.
-  bool waitForPublishers(std::chrono::milliseconds timeout);
+  /// not reach this process) and every export has a subscriber; returns false on timeout, or
+  /// as soon as `give_up` (when given) returns true.
+  bool waitForPublishers(std::chrono::milliseconds timeout,
+                         const std::function<bool()>& give_up = {});
   /// Starts / stops the thread that takes arriving chunks and delivers them.
   void startReceiving();
   void stopReceiving();
