@@ -201,6 +201,8 @@ std::string describePort(const char* what, const iox::popo::BasePortData& port) 
 }  // namespace
 
 std::vector<std::string> RouDiHost::releaseOrphanedPortLocks() {
+  // RouDi's threads may create or destroy ports meanwhile. Port slots stay mapped, and a lock is
+  // written only when its owner is dead, which no slot being built or torn down has.
   std::vector<std::string> released;
   auto pool = impl_->components->rouDiMemoryManager.portPool();
   if (!pool.has_value()) return released;
