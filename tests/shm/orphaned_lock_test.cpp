@@ -4,7 +4,6 @@
 #include <tessera/runtime/roudi_host.hpp>
 
 #include <sys/mman.h>
-#include <sys/wait.h>
 #include <unistd.h>
 #include <catch2/catch.hpp>
 #include <iceoryx_posh/internal/popo/building_blocks/locking_policy.hpp>
@@ -40,28 +39,22 @@ struct SharedMutex {
   pthread_mutex_t* mutex = nullptr;
 };
 
-/// Forks a child that takes `m` and then exits (`hold_for` 0) or sleeps holding it.
-pid_t childHolding(pthread_mutex_t* m, std::chrono::seconds hold_for) {
-  int ready[2];
-  REQUIRE(::pipe(ready) == 0);
-  const pid_t pid = ::fork();
-  if (pid == 0) {
-    pthread_mutex_lock(m);
-    (void)!::write(ready[1], "x", 1);
-    std::this_thread::sleep_for(hold_for);
-    ::_exit(0);  // still holding it
-  }
-  char c;
-  REQUIRE(::read(ready[0], &c, 1) == 1);
-  ::close(ready[0]);
-  ::close(ready[1]);
-  return pid;
-}
 }  // namespace
 
 TEST_CASE("a lock whose owner process died is handed to the thread waiting for it", "[shm]") {
   SharedMutex shared;
-  const pid_t child = childHolding(shared.mutex, 1s);
+  int locked[2];
+  REQUIRE(::pipe(locked) == 0);
+  test::Children children;
+  const pid_t child = children.spawn([&] {
+    pthread_mutex_lock(shared.mutex);
+    (void)!::write(locked[1], "x", 1);
+    std::this_thread::sleep_for(1s);
+    return 0;  // exits still holding it
+  });
+  children.open();
+  char c;
+  REQUIRE(::read(locked[0], &c, 1) == 1);
   std::atomic<bool> got{false};
   std::thread waiter([&] {
     pthread_mutex_lock(shared.mutex);  // blocks: the child holds it
@@ -71,8 +64,7 @@ TEST_CASE("a lock whose owner process died is handed to the thread waiting for i
   std::this_thread::sleep_for(100ms);
   CHECK_FALSE(releaseIfOwnerDied(*shared.mutex));  // the owner still runs
   CHECK_FALSE(got.load());
-  int status = 0;
-  REQUIRE(::waitpid(child, &status, 0) == child);
+  REQUIRE(children.wait(child, 10s) == 0);
   CHECK_FALSE(threadExists(child));
   std::this_thread::sleep_for(100ms);
   CHECK_FALSE(got.load());  // nobody else can ever unlock it
@@ -84,6 +76,7 @@ TEST_CASE("a lock whose owner process died is handed to the thread waiting for i
   CHECK(pthread_mutex_unlock(shared.mutex) == 0);
   CHECK_FALSE(releaseIfOwnerDied(*shared.mutex));  // free: nothing to do
   CHECK(pthread_mutex_destroy(shared.mutex) == 0);
+  for (int fd : locked) ::close(fd);
 }
 
 TEST_CASE("a free lock and one held by a live thread are left alone", "[shm]") {
