@@ -313,6 +313,28 @@ class FollowerLogic {
 // ------------------------------------------------------------------ Runtime actors (iceoryx,
 // inproc)
 
+/// Payloads from this size on are loaned as a blob (Publisher::loanWithBlob), as a producer
+/// of large arrays would: written once, not zeroed first. Smaller ones are a plain Data field.
+constexpr std::size_t kBlobFrom = 64 << 10;
+
+/// A Blob message whose payload holds `bytes` (contents undefined until written).
+Loan<msg::Blob> loanPayload(const Publisher<msg::Blob>& pub, std::size_t bytes) {
+  if (bytes < kBlobFrom) {
+    auto loan = pub.loan(bytes + 64);
+    loan->initPayload(static_cast<unsigned>(bytes));
+    return loan;
+  }
+  auto loan = pub.loanWithBlob(bytes);
+  loan->adoptPayload(loan.blobData());
+  return loan;
+}
+
+/// Where a loanPayload() message's payload bytes are written.
+std::byte* payloadOf(Loan<msg::Blob>& loan) {
+  if (!loan.blob().empty()) return loan.blob().data();
+  return reinterpret_cast<std::byte*>(loan->getPayload().begin());
+}
+
 /// Answers pings on "ping" with pongs on "pong".
 class Echo : public Actor {
  public:
@@ -335,18 +357,17 @@ class Echo : public Actor {
     }
     auto prepare = [this](std::size_t bytes) -> void* {
       if (!next_ || next_bytes_ != bytes) {
-        next_.emplace(pong_.loan(bytes + 64));
+        next_.emplace(loanPayload(pong_, bytes));
         setHeader((*next_)->initHeader(), 0, "bench", pong_.nextSeq());
-        auto payload = (*next_)->initPayload(static_cast<unsigned>(bytes));
-        fillPayload(payload.begin(), bytes, Kind::kPong);
+        fillPayload(payloadOf(*next_), bytes, Kind::kPong);
         next_bytes_ = bytes;
       }
-      return (*next_)->getPayload().begin();
+      return payloadOf(*next_);
     };
     auto send = [this] {
       auto loan = std::move(*next_);
       next_.reset();
-      loan->getHeader().setStampNs(readWire(loan->getPayload().begin()).stamp);
+      loan->getHeader().setStampNs(readWire(payloadOf(loan)).stamp);
       pong_.publish(std::move(loan));
     };
     auto control = [this](Wire w) {
@@ -412,14 +433,14 @@ class RuntimeLeader final : public LeaderLink {
   RuntimeLeader(Runtime& rt, Catcher& catcher, const ShmTransport* transport)
       : pub_(rt.externalPublisher<msg::Blob>("ping")), catcher_(catcher), transport_(transport) {}
   void build(std::size_t bytes, Kind kind, std::int64_t value) override {
-    next_.emplace(pub_.loan(bytes + 64));
+    next_.emplace(loanPayload(pub_, bytes));
     setHeader((*next_)->initHeader(), 0, "bench", pub_.nextSeq());
-    fillPayload((*next_)->initPayload(static_cast<unsigned>(bytes)).begin(), bytes, kind, value);
+    fillPayload(payloadOf(*next_), bytes, kind, value);
   }
   Nanos send() override {
     auto loan = std::move(*next_);
     next_.reset();
-    void* p = loan->getPayload().begin();
+    void* p = payloadOf(loan);
     Wire w = readWire(p);
     w.stamp = steadyNow();
     writeWire(p, w);
@@ -993,8 +1014,10 @@ class StdoutToStderr {
 std::vector<MemPool> benchPools() {
   std::vector<ChunkDemand> demands;
   for (std::size_t bytes : kSizes) {
-    demands.push_back({bytes, 8});                                  // raw chunks
-    demands.push_back({bytes + 64 + 1024 + kShmChunkOverhead, 8});  // Cap'n Proto Blob loans
+    demands.push_back({bytes, 8});  // raw chunks
+    // Cap'n Proto Blob loans: the payload in the message, or beside it (loanWithBlob) after
+    // a first segment of the default size.
+    demands.push_back({bytes + kShmDefaultMessageBytes + 1024 + 2 * kShmChunkOverhead, 8});
   }
   // Streaming: subscriber queues and mailboxes full of small messages on both paths.
   demands.push_back({kShmDefaultMessageBytes + 1024 + kShmChunkOverhead, 512});

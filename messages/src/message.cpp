@@ -83,12 +83,21 @@ class SegmentPool {
 
 }  // namespace
 
-std::shared_ptr<BuilderStorage> makeBuilderStorage(std::size_t size_hint_bytes) {
+std::shared_ptr<BuilderStorage> makeBuilderStorage(std::size_t size_hint_bytes,
+                                                   std::size_t blob_bytes) {
   return std::allocate_shared<BuilderStorage>(tbb::scalable_allocator<BuilderStorage>(),
-                                              size_hint_bytes);
+                                              size_hint_bytes, blob_bytes);
 }
 
-BuilderStorage::BuilderStorage(std::size_t size_hint_bytes) {
+BuilderStorage::BuilderStorage(std::size_t size_hint_bytes, std::size_t blob_bytes) {
+  if (blob_bytes > 0) {
+    // Uninitialised (new T[], not make_unique): the producer overwrites it. Whole words, and
+    // the padding of the last one zeroed, since the message shows it.
+    const std::size_t words = (blob_bytes + sizeof(capnp::word) - 1) / sizeof(capnp::word);
+    blob_words_.reset(new capnp::word[words]);
+    std::memset(static_cast<void*>(blob_words_.get() + words - 1), 0, sizeof(capnp::word));
+    blob_ = {reinterpret_cast<std::byte*>(blob_words_.get()), blob_bytes};
+  }
   std::size_t hint_words = (size_hint_bytes + sizeof(capnp::word) - 1) / sizeof(capnp::word) + 16;
   if (hint_words <= kInlineWords) {
     std::memset(static_cast<void*>(inline_), 0, sizeof(inline_));

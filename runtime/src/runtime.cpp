@@ -57,9 +57,11 @@ double DurationHistogram::percentileMicros(double q) const {
 
 thread_local std::vector<const Cell*> t_running;  // cells whose handlers run on this thread
 
-std::shared_ptr<LoanStorage> loanStorage(TopicState* topic, std::size_t size_hint_bytes) {
-  if (topic != nullptr && topic->exporter) return topic->exporter->loan(size_hint_bytes);
-  return makeBuilderStorage(size_hint_bytes);
+std::shared_ptr<LoanStorage> loanStorage(TopicState* topic, std::size_t size_hint_bytes,
+                                         std::size_t blob_bytes) {
+  if (topic != nullptr && topic->exporter)
+    return topic->exporter->loan(size_hint_bytes, blob_bytes);
+  return makeBuilderStorage(size_hint_bytes, blob_bytes);
 }
 
 void publishRaw(TopicState* topic, std::uint32_t owner, std::shared_ptr<const MessageStorage> m) {

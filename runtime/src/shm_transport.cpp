@@ -28,6 +28,12 @@ constexpr std::uint32_t kChunkMagic = 0x31525354;  // "TSR1"
 constexpr std::size_t kPrefixBytes = 16;           // magic, origin, extent, check
 constexpr std::size_t kWord = sizeof(capnp::word);
 static_assert(kShmChunkOverhead == kPrefixBytes + kWord, "prefix + one-segment table");
+// A loan with a blob: prefix and a two-segment table (message, then blob).
+constexpr std::size_t kBlobChunkOverhead = kPrefixBytes + 2 * kWord;
+
+std::size_t wholeWords(std::size_t bytes) {
+  return (bytes + kWord - 1) / kWord;
+}
 
 struct Prefix {
   std::uint32_t magic;
@@ -97,18 +103,19 @@ void recordChunkExtent(std::byte* payload, std::uint32_t origin, std::size_t ext
 }
 
 std::size_t zeroChunkForBuilder(std::byte* payload, std::size_t capacity, std::size_t end,
-                                std::uint32_t origin) {
+                                std::uint32_t origin, std::size_t written_end) {
   const std::size_t before = chunkExtent(payload, capacity);
+  const std::size_t will_write = std::max(end, written_end);
   if (before > kPrefixBytes) {
     // A chunk of unknown history is zeroed throughout once; from then on only what each use
     // wrote is.
     const std::size_t zero_to = before == capacity ? capacity : std::min(before, end);
     zeroBytes(payload + kPrefixBytes, zero_to - kPrefixBytes);
     const std::size_t rest = zero_to < before ? before : 0;
-    recordChunkExtent(payload, origin, std::max(end, rest));
+    recordChunkExtent(payload, origin, std::max(will_write, rest));
     return rest;
   }
-  recordChunkExtent(payload, origin, end);
+  recordChunkExtent(payload, origin, will_write);
   return 0;
 }
 
@@ -145,7 +152,10 @@ struct ShmTransport::Impl {
 /// message outgrows the chunk, come from the heap and are copied into a new chunk on send.
 class ChunkLoan final : public detail::LoanStorage {
  public:
-  ChunkLoan(std::shared_ptr<ShmExport> owner, void* payload, std::size_t segment_words);
+  /// The message is built in `segment_words` after the segment table; `blob_bytes` (0: none)
+  /// follow it, not zeroed.
+  ChunkLoan(std::shared_ptr<ShmExport> owner, void* payload, std::size_t segment_words,
+            std::size_t blob_bytes);
   ~ChunkLoan() noexcept override;
   capnp::MessageBuilder& builder() override { return *builder_; }
   void seal() override { segments_ = builder_->getSegmentsForOutput(); }
@@ -187,6 +197,7 @@ class ChunkLoan final : public detail::LoanStorage {
 
   std::shared_ptr<ShmExport> owner_;
   void* payload_;
+  std::size_t segment_words_;
   std::size_t rest_ = 0;  // extent of an earlier use past what this builder may touch
   std::optional<Builder> builder_;
   kj::ArrayPtr<const kj::ArrayPtr<const capnp::word>> segments_;
@@ -202,7 +213,8 @@ struct ShmExport final : TopicExport, std::enable_shared_from_this<ShmExport> {
     publisher.emplace(serviceOf(t.name), po);
   }
 
-  std::shared_ptr<detail::LoanStorage> loan(std::size_t size_hint_bytes) override;
+  std::shared_ptr<detail::LoanStorage> loan(std::size_t size_hint_bytes,
+                                            std::size_t blob_bytes) override;
   void send(const std::shared_ptr<const MessageStorage>& message) override;
   bool loopsBack() const override { return topic.loopback(); }
 
@@ -238,15 +250,23 @@ struct ShmExport final : TopicExport, std::enable_shared_from_this<ShmExport> {
   std::optional<iox::popo::UntypedPublisher> publisher;
 };
 
-ChunkLoan::ChunkLoan(std::shared_ptr<ShmExport> owner, void* payload, std::size_t segment_words)
-    : owner_(std::move(owner)), payload_(payload) {
+ChunkLoan::ChunkLoan(std::shared_ptr<ShmExport> owner, void* payload, std::size_t segment_words,
+                     std::size_t blob_bytes)
+    : owner_(std::move(owner)), payload_(payload), segment_words_(segment_words) {
   auto* bytes = static_cast<std::byte*>(payload);
+  const std::size_t start = blob_bytes > 0 ? kBlobChunkOverhead : kShmChunkOverhead;
+  const std::size_t end = start + segment_words * kWord;
   // Chunks are reused: of what the builder may hand out, zero only what an earlier use wrote.
-  rest_ = detail::zeroChunkForBuilder(bytes, capacityOf(payload),
-                                      kShmChunkOverhead + segment_words * kWord,
-                                      owner_->options.process_index);
-  builder_.emplace(
-      kj::arrayPtr(reinterpret_cast<capnp::word*>(bytes + kShmChunkOverhead), segment_words));
+  // The blob is the producer's to overwrite, so it is only counted as written.
+  rest_ =
+      detail::zeroChunkForBuilder(bytes, capacityOf(payload), end, owner_->options.process_index,
+                                  end + wholeWords(blob_bytes) * kWord);
+  if (blob_bytes > 0) {
+    blob_ = {bytes + end, blob_bytes};
+    // Readers see the last word whole: its padding is zero, not an earlier message's bytes.
+    std::memset(bytes + end + (wholeWords(blob_bytes) - 1) * kWord, 0, kWord);
+  }
+  builder_.emplace(kj::arrayPtr(reinterpret_cast<capnp::word*>(bytes + start), segment_words));
 }
 
 ChunkLoan::~ChunkLoan() noexcept {
@@ -260,11 +280,27 @@ ChunkLoan::~ChunkLoan() noexcept {
 bool ChunkLoan::finishInPlace(std::uint32_t origin) {
   auto* bytes = static_cast<std::byte*>(payload_);
   // Not in place: the chunk goes back unsent, and the extent recorded at the loan stays.
-  if (builder_->overflowed() || segments_.size() != 1) return false;
-  const std::uint32_t table[2] = {0, static_cast<std::uint32_t>(segments_[0].size())};
+  if (builder_->overflowed()) return false;
+  if (blob_.empty()) {
+    if (segments_.size() != 1) return false;
+    const std::uint32_t table[2] = {0, static_cast<std::uint32_t>(segments_[0].size())};
+    std::memcpy(bytes + kPrefixBytes, table, sizeof(table));
+    detail::recordChunkExtent(bytes, origin,
+                              std::max(kShmChunkOverhead + segments_[0].size() * kWord, rest_));
+    return true;
+  }
+  // Segment 1 is the blob, where it lies: right after the whole first segment, whose unused
+  // tail was zeroed at the loan. A blob never attached is an unreferenced segment.
+  const std::size_t blob_words = wholeWords(blob_.size());
+  const auto* blob_start = reinterpret_cast<const capnp::word*>(blob_.data());
+  const bool attached = segments_.size() == 2 && segments_[1].begin() == blob_start &&
+                        segments_[1].size() == blob_words;
+  if (!(segments_.size() == 1 || attached)) return false;
+  const std::uint32_t table[4] = {1, static_cast<std::uint32_t>(segment_words_),
+                                  static_cast<std::uint32_t>(blob_words), 0};
   std::memcpy(bytes + kPrefixBytes, table, sizeof(table));
-  detail::recordChunkExtent(bytes, origin,
-                            std::max(kShmChunkOverhead + segments_[0].size() * kWord, rest_));
+  const auto blob_end = static_cast<std::size_t>(blob_.data() - bytes) + blob_words * kWord;
+  detail::recordChunkExtent(bytes, origin, std::max(blob_end, rest_));
   return true;
 }
 
@@ -277,23 +313,26 @@ void* ShmExport::tryLoan(std::size_t payload_bytes, bool& exhausted) {
   return nullptr;
 }
 
-std::shared_ptr<detail::LoanStorage> ShmExport::loan(std::size_t size_hint_bytes) {
+std::shared_ptr<detail::LoanStorage> ShmExport::loan(std::size_t size_hint_bytes,
+                                                     std::size_t blob_bytes) {
   // Headroom over the hint: the root struct, header, list tags and padding.
   std::size_t words = (std::max(size_hint_bytes, kShmDefaultMessageBytes) + 511) / kWord + 64;
-  std::size_t bytes = kShmChunkOverhead + words * kWord;
+  const std::size_t overhead = blob_bytes > 0 ? kBlobChunkOverhead : kShmChunkOverhead;
+  const std::size_t blob_space = wholeWords(blob_bytes) * kWord;
+  std::size_t bytes = overhead + words * kWord + blob_space;
   if (bytes > options.max_chunk_bytes) {
-    checkFits(kShmChunkOverhead + size_hint_bytes);  // the message itself can never fit
+    checkFits(overhead + size_hint_bytes + blob_space);  // the message itself can never fit
     bytes = options.max_chunk_bytes;
-    words = (bytes - kShmChunkOverhead) / kWord;
+    words = (bytes - overhead - blob_space) / kWord;
   }
   bool exhausted = false;
   if (void* payload = tryLoan(bytes, exhausted)) {
-    return std::make_shared<ChunkLoan>(shared_from_this(), payload, words);
+    return std::make_shared<ChunkLoan>(shared_from_this(), payload, words, blob_bytes);
   }
   // All of this publisher's loans are out (an actor holds many unsent messages) or the pool is
   // empty: build on the heap; send() copies into a chunk when one is free.
   ++owner.heap_fallbacks;
-  return detail::makeBuilderStorage(size_hint_bytes);
+  return detail::makeBuilderStorage(size_hint_bytes, blob_bytes);
 }
 
 void ShmExport::send(const std::shared_ptr<const MessageStorage>& message) {
@@ -367,10 +406,10 @@ class ChunkView final : public MessageStorage {
     options.traversalLimitInWords = std::max<std::uint64_t>(64 * words.size(), 1u << 20);
     reader_.emplace(words, options);  // checks the segment table against the chunk size
     const unsigned count = segmentCount(words);
-    // Messages built in place have one segment: no allocation for its table.
-    if (count == 1) {
-      first_ = reader_->getSegment(0);
-      segments_ = kj::arrayPtr(&first_, 1);
+    // Messages built in place have one segment, or two with a blob: no allocation for that.
+    if (count <= 2) {
+      for (unsigned i = 0; i < count; ++i) first_[i] = reader_->getSegment(i);
+      segments_ = kj::arrayPtr(first_, count);
     } else {
       more_ = kj::heapArray<kj::ArrayPtr<const capnp::word>>(count);
       for (unsigned i = 0; i < count; ++i) more_[i] = reader_->getSegment(i);
@@ -401,7 +440,7 @@ class ChunkView final : public MessageStorage {
   std::shared_ptr<ShmTransport::Impl::Import> import_;
   const void* payload_;
   std::optional<capnp::FlatArrayMessageReader> reader_;
-  kj::ArrayPtr<const capnp::word> first_;
+  kj::ArrayPtr<const capnp::word> first_[2];
   kj::Array<kj::ArrayPtr<const capnp::word>> more_;
   kj::ArrayPtr<const kj::ArrayPtr<const capnp::word>> segments_;
 };

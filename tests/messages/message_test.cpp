@@ -140,3 +140,41 @@ TEST_CASE("large messages recycle their first segment and always start zeroed", 
   auto sealed = std::move(again).seal();
   CHECK(sealed->address() == first_address);
 }
+
+TEST_CASE("a blob loaned beside the message is written once and read back through the field",
+          "[messages]") {
+  constexpr std::size_t kBytes = 100003;  // not whole words: the last one is padded
+  Loan<msg::Blob> loan(std::size_t{0}, kBytes);
+  REQUIRE(loan.blob().size() == kBytes);
+  REQUIRE(reinterpret_cast<std::uintptr_t>(loan.blob().data()) % sizeof(capnp::word) == 0);
+  setHeader(loan->initHeader(), 5, "camera", 9);
+  for (std::size_t i = 0; i < kBytes; ++i) loan.blob()[i] = static_cast<std::byte>(i * 7 + 1);
+  loan->adoptPayload(loan.blobData());
+  CHECK_THROWS_AS(loan.blobData(), std::logic_error);  // one field per blob
+  const Message<msg::Blob> m(std::move(loan).seal());
+
+  // Read in place: the field's bytes are the blob's, not a copy.
+  const auto payload = m->getPayload();
+  REQUIRE(payload.size() == kBytes);
+  bool same = true;
+  for (std::size_t i = 0; i < kBytes; ++i)
+    same = same && payload[i] == static_cast<kj::byte>(static_cast<std::byte>(i * 7 + 1));
+  CHECK(same);
+  CHECK(m->getHeader().getFrameId() == "camera");
+
+  // Encoded with the blob as a segment of its own; the padding past the blob is zero.
+  const auto bytes = encodeMessage(*m.storage());
+  const auto decoded = checkedMessage<msg::Blob>(decodeMessage(bytes, "blob bytes"), "blob bytes");
+  REQUIRE(decoded->getPayload().size() == kBytes);
+  CHECK(std::equal(payload.begin(), payload.end(), decoded->getPayload().begin()));
+  const auto segments = m.storage()->segments();
+  REQUIRE(segments.size() == 2);
+  const auto* pad = reinterpret_cast<const std::uint8_t*>(segments[1].end()) - 5;
+  CHECK(std::all_of(pad, pad + 5, [](std::uint8_t b) { return b == 0; }));
+}
+
+TEST_CASE("a loan without a blob has none to attach", "[messages]") {
+  Loan<msg::Blob> loan;
+  CHECK(loan.blob().empty());
+  CHECK_THROWS_AS(loan.blobData(), std::logic_error);
+}

@@ -101,3 +101,21 @@ TEST_CASE("a large span is zeroed exactly, whatever its alignment", "[shm][chunk
     CHECK(zeroIn(buffer, offset + 16, offset + kLarge));
   }
 }
+
+TEST_CASE("bytes a producer writes past the builder range without zeroing count as written",
+          "[shm][chunk_extent]") {
+  std::vector<std::byte> chunk(kCapacity, std::byte{0});
+  zeroChunkForBuilder(chunk.data(), kCapacity, kCapacity, 0);
+  recordChunkExtent(chunk.data(), 0, 100);
+  chunk[3000] = std::byte{1};  // past the extent: not zeroed, not written by the next use
+  // A blob loan: the builder may write to 512, the producer writes a blob up to 2048 unzeroed.
+  const std::size_t rest = zeroChunkForBuilder(chunk.data(), kCapacity, 512, 0, 2048);
+  CHECK(rest == 0);
+  CHECK(zeroIn(chunk, 16, 512));
+  CHECK(chunk[3000] == std::byte{1});
+  // Were the producer to die now, the next use must know the blob's bytes are dirty.
+  CHECK(chunkExtent(chunk.data(), kCapacity) == 2048);
+  scribble(chunk, 512, 2048);
+  zeroChunkForBuilder(chunk.data(), kCapacity, kCapacity, 0);
+  CHECK(zeroIn(chunk, 16, 2048));
+}

@@ -8,6 +8,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstring>
 #include <iostream>
 #include <stdexcept>
 
@@ -128,14 +129,15 @@ void MapAssemblerActor::placeChained() {
 void MapAssemblerActor::publishMap() {
   const common::OccupancyMap map = assembler_.assemble();
   if (map.empty()) return;
-  auto loan = map_pub_.loan(map.cells.size() + 512);
+  // The cells go in a blob: every one is copied in, so they need no zeroing first.
+  auto loan = map_pub_.loanWithBlob(map.cells.size(), 512);
   setHeader(loan->initHeader(), last_stamp_, options_.frame_id, map_pub_.nextSeq());
   loan->setResolution(static_cast<float>(map.resolution));
   loan->setWidth(static_cast<std::uint32_t>(map.width));
   loan->setHeight(static_cast<std::uint32_t>(map.height));
   writePose(loan->initOrigin(), PoseXYT{map.origin.x, map.origin.y, map.origin.theta});
-  auto out = mutableViewInt8(loan->initCells(static_cast<unsigned>(map.cells.size())));
-  std::copy(map.cells.begin(), map.cells.end(), out.begin());
+  std::memcpy(loan.blob().data(), map.cells.data(), map.cells.size());
+  loan->adoptCells(loan.blobData());
   map_pub_.publish(std::move(loan));
   map_width_ = map.width;
   map_height_ = map.height;

@@ -110,14 +110,16 @@ void GridMapperActor::publishMap() {
   const common::CellBox box = grid.knownBounds();
   if (box.empty()) return;
   const std::size_t cells = static_cast<std::size_t>(box.width()) * box.height();
-  auto loan = map_pub_.loan(cells + 512);
+  // The cells go in a blob: exportInt8 writes every one, so they need no zeroing first.
+  auto loan = map_pub_.loanWithBlob(cells, 512);
   setHeader(loan->initHeader(), last_scan_stamp_, options_.frame_id, map_pub_.nextSeq());
   loan->setResolution(static_cast<float>(grid.resolution()));
   loan->setWidth(static_cast<std::uint32_t>(box.width()));
   loan->setHeight(static_cast<std::uint32_t>(box.height()));
   const Eigen::Vector2d corner = grid.cellCorner(box.min);
   writePose(loan->initOrigin(), PoseXYT{corner.x(), corner.y(), 0.0});
-  grid.exportInt8(box, mutableViewInt8(loan->initCells(static_cast<unsigned>(cells))));
+  grid.exportInt8(box, {reinterpret_cast<std::int8_t*>(loan.blob().data()), cells});
+  loan->adoptCells(loan.blobData());
   map_pub_.publish(std::move(loan));
   dirty_ = false;
   ++maps_published_;

@@ -14,6 +14,7 @@
 
 #include <capnp/any.h>
 #include <capnp/message.h>
+#include <capnp/orphan.h>
 #include <capnp/schema.h>
 #include <capnp/serialize.h>
 #include <kj/exception.h>
@@ -69,12 +70,19 @@ class LoanStorage : public MessageStorage {
   virtual capnp::MessageBuilder& builder() = 0;
   /// Ends construction: records the segment table so readers never touch the builder state.
   virtual void seal() = 0;
+  /// The uninitialised bytes reserved beside the message for one large Data field (see
+  /// Loan::blob()); empty unless the loan asked for them. Word-aligned; owned by this storage.
+  std::span<std::byte> blob() const { return blob_; }
+
+ protected:
+  std::span<std::byte> blob_;
 };
 
 /// Storage whose segments were allocated by a Cap'n Proto builder on the heap.
 class BuilderStorage final : public LoanStorage {
  public:
-  explicit BuilderStorage(std::size_t size_hint_bytes);
+  /// blob_bytes: uninitialised heap bytes to reserve for blob() (0: none).
+  explicit BuilderStorage(std::size_t size_hint_bytes, std::size_t blob_bytes = 0);
   // Cap'n Proto destructors are noexcept(false); freeing heap segments cannot throw.
   ~BuilderStorage() noexcept override;
   capnp::MessageBuilder& builder() override { return *builder_; }
@@ -92,13 +100,15 @@ class BuilderStorage final : public LoanStorage {
   // reuses warm memory instead of paying mmap, page faults and munmap per message.
   capnp::word* pooled_ = nullptr;
   std::size_t pooled_words_ = 0;
+  std::unique_ptr<capnp::word[]> blob_words_;           // outlives builder_, which may refer to it
   std::optional<capnp::MallocMessageBuilder> builder_;  // in place: no second allocation
   kj::ArrayPtr<const kj::ArrayPtr<const capnp::word>> segments_;
 };
 
 /// Allocates a BuilderStorage. Messages are usually freed on another thread than the one that
 /// built them; a scalable allocator keeps that cross-thread free off a shared malloc arena lock.
-std::shared_ptr<BuilderStorage> makeBuilderStorage(std::size_t size_hint_bytes);
+std::shared_ptr<BuilderStorage> makeBuilderStorage(std::size_t size_hint_bytes,
+                                                   std::size_t blob_bytes = 0);
 }  // namespace detail
 
 /// A read view of one message of type T. Copyable, cheap, thread-safe to read.
@@ -129,8 +139,9 @@ class Loan {
   using Builder = typename T::Builder;
 
   /// size_hint_bytes: expected encoded size; large arrays fit in one segment when it is right.
-  explicit Loan(std::size_t size_hint_bytes = 0)
-      : Loan(detail::makeBuilderStorage(size_hint_bytes)) {}
+  /// blob_bytes: reserve blob() (see there).
+  explicit Loan(std::size_t size_hint_bytes = 0, std::size_t blob_bytes = 0)
+      : Loan(detail::makeBuilderStorage(size_hint_bytes, blob_bytes)) {}
   /// Builds in storage provided by the caller (e.g. a shared-memory chunk).
   explicit Loan(std::shared_ptr<detail::LoanStorage> storage)
       : storage_(std::move(storage)), root_(storage_->builder().template initRoot<T>()) {}
@@ -138,6 +149,24 @@ class Loan {
   Builder& operator*() { return root_; }
   Builder* operator->() { return &root_; }
   Builder& builder() { return root_; }
+
+  /// Bytes for one large Data field, reserved with the loan (Publisher::loanWithBlob): placed
+  /// after the message rather than inside it, and NOT zeroed, so a producer that overwrites a
+  /// large payload anyway writes it once (a Data field from init...() is zeroed first, then
+  /// filled). Write every byte (unwritten ones keep whatever an earlier message left there),
+  /// then attach them with blobData(). Empty when the loan reserved none.
+  std::span<std::byte> blob() { return storage_->blob(); }
+  /// The blob as an orphan to adopt into the Data field (`loan->adoptImage(loan.blobData())`);
+  /// at most once per loan. The field then reads back only through a Reader: getting its
+  /// Builder throws, so keep writing through blob().
+  capnp::Orphan<capnp::Data> blobData() {
+    if (storage_->blob().empty()) throw std::logic_error("Loan::blobData(): no blob reserved");
+    if (blob_taken_) throw std::logic_error("Loan::blobData(): the blob was already attached");
+    blob_taken_ = true;
+    const std::span<std::byte> b = storage_->blob();
+    return storage_->builder().getOrphanage().referenceExternalData(
+        capnp::Data::Reader(reinterpret_cast<const kj::byte*>(b.data()), b.size()));
+  }
 
   /// Ends construction; the returned storage is immutable and shareable.
   std::shared_ptr<const MessageStorage> seal() && {
@@ -149,6 +178,7 @@ class Loan {
  private:
   std::shared_ptr<detail::LoanStorage> storage_;
   Builder root_;
+  bool blob_taken_ = false;
 };
 
 /// Build a stand-alone message (tests, tools) and return its read view.

@@ -28,7 +28,8 @@ class ActorContext;
 namespace detail {
 struct TopicState;  // runtime-internal
 /// Storage for a new message on `topic`: heap, or shared memory when the topic is exported.
-std::shared_ptr<LoanStorage> loanStorage(TopicState* topic, std::size_t size_hint_bytes);
+std::shared_ptr<LoanStorage> loanStorage(TopicState* topic, std::size_t size_hint_bytes,
+                                         std::size_t blob_bytes = 0);
 using RawHandler = std::function<void(const std::shared_ptr<const MessageStorage>&)>;
 }  // namespace detail
 
@@ -57,6 +58,12 @@ class Publisher {
   /// On a topic that crosses processes the message is built in a shared-memory chunk.
   Loan<T> loan(std::size_t size_hint_bytes = 0) const {
     return Loan<T>(detail::loanStorage(topic_, size_hint_bytes));
+  }
+  /// A loan with `blob_bytes` of uninitialised storage for one large Data field beside the
+  /// message (see Loan::blob()): a payload the producer overwrites whole is written once, in
+  /// place, and crosses processes without a copy. size_hint_bytes is the rest of the message.
+  Loan<T> loanWithBlob(std::size_t blob_bytes, std::size_t size_hint_bytes = 0) const {
+    return Loan<T>(detail::loanStorage(topic_, size_hint_bytes, blob_bytes));
   }
   /// Delivers the message to every subscriber (zero copy). May wait on reliable mailboxes.
   void publish(Loan<T>&& loan) const;

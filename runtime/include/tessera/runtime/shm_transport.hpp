@@ -101,11 +101,12 @@ namespace detail {
 /// something else) counts as written throughout its `capacity`.
 ///
 /// zeroChunkForBuilder: makes bytes [16, end) of the payload zero, touching only what was
-/// written before, and records the extent pessimistically (the builder may write up to `end`;
-/// a process that dies while building leaves that). Returns the extent that remains past
-/// `end` (0 when the chunk is zero from `end` on), which recordChunkExtent must keep.
+/// written before, and records the extent pessimistically (the builder may write up to `end`,
+/// the producer without zeroing up to `written_end`; a process that dies while building leaves
+/// that). Returns the extent that remains past `end` (0 when the chunk is zero from `end` on),
+/// which recordChunkExtent must keep.
 std::size_t zeroChunkForBuilder(std::byte* payload, std::size_t capacity, std::size_t end,
-                                std::uint32_t origin);
+                                std::uint32_t origin, std::size_t written_end = 0);
 /// The extent the chunk had before this use (for a chunk written without zeroing).
 std::size_t chunkExtent(const std::byte* payload, std::size_t capacity);
 /// Writes the prefix: Tessera magic, the sending process, the extent and its check value.

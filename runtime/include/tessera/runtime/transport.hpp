@@ -27,8 +27,10 @@ namespace tessera {
 class TopicExport {
  public:
   virtual ~TopicExport() = default;
-  /// Storage for one message of about `size_hint_bytes` (0: small).
-  virtual std::shared_ptr<detail::LoanStorage> loan(std::size_t size_hint_bytes) = 0;
+  /// Storage for one message of about `size_hint_bytes` (0: small), with `blob_bytes` of
+  /// uninitialised LoanStorage::blob() beside it.
+  virtual std::shared_ptr<detail::LoanStorage> loan(std::size_t size_hint_bytes,
+                                                    std::size_t blob_bytes) = 0;
   /// Sends a sealed message (loaned here, or any other storage, which is then copied once).
   virtual void send(const std::shared_ptr<const MessageStorage>& message) = 0;
   /// True when this process imports the topic too: send() comes back through the import, and
