@@ -409,6 +409,12 @@ class Catcher : public Actor {
                                arrived_.notify_one();
                              });
   }
+  /// Pong number `n` (1-based) once it arrived.
+  std::optional<std::pair<Wire, Nanos>> arrived(std::int64_t n) const {
+    std::lock_guard lock(mutex_);
+    if (count_ < n) return std::nullopt;
+    return std::pair{last_, taken_};
+  }
   /// Waits for pong number `n` (1-based) and returns it.
   std::pair<Wire, Nanos> await(std::int64_t n) const {
     // Blocks rather than spins: the stamps are taken in the handler, and on 2 cores a spinning
@@ -430,7 +436,9 @@ class Catcher : public Actor {
 
 class RuntimeLeader final : public LeaderLink {
  public:
-  RuntimeLeader(Runtime& rt, Catcher& catcher, const ShmTransport* transport)
+  /// With a transport, pongs are received on the calling thread (ShmTransport::receiveHere), as
+  /// raw iceoryx's leader does: the thread that sent the ping is the one its pong wakes.
+  RuntimeLeader(Runtime& rt, Catcher& catcher, ShmTransport* transport)
       : pub_(rt.externalPublisher<msg::Blob>("ping")), catcher_(catcher), transport_(transport) {}
   void build(std::size_t bytes, Kind kind, std::int64_t value) override {
     next_.emplace(loanPayload(pub_, bytes));
@@ -451,7 +459,13 @@ class RuntimeLeader final : public LeaderLink {
     }
     return w.stamp;
   }
-  std::pair<Wire, Nanos> receive() override { return catcher_.await(expected_); }
+  std::pair<Wire, Nanos> receive() override {
+    if (transport_ == nullptr) return catcher_.await(expected_);
+    for (;;) {
+      if (auto pong = catcher_.arrived(expected_)) return *pong;
+      transport_->receiveHere(std::chrono::milliseconds(100));
+    }
+  }
   std::uint64_t copies() const override {
     if (transport_ == nullptr) return 0;
     const auto s = transport_->stats();
@@ -461,7 +475,7 @@ class RuntimeLeader final : public LeaderLink {
  private:
   Publisher<msg::Blob> pub_;
   Catcher& catcher_;
-  const ShmTransport* transport_;
+  ShmTransport* transport_;
   std::optional<Loan<msg::Blob>> next_;
   std::int64_t expected_ = 0;
 };
@@ -521,10 +535,8 @@ void shmLeader(std::size_t max_chunk, const Options& o, TransportResult& out, in
   RuntimeLeader link(rt, catcher, &transport);
   rt.configure();
   rt.start();
-  transport.startReceiving();
   if (!transport.waitForPublishers(10s)) throw std::runtime_error("leader: no follower");
   lead(link, o, out);
-  transport.stopReceiving();
   rt.stop();
 }
 

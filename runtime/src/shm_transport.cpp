@@ -142,6 +142,8 @@ struct ShmTransport::Impl {
   std::atomic<std::uint64_t> copies{0}, drops{0}, heap_fallbacks{0}, sent{0}, received{0};
   std::optional<iox::popo::UserTrigger> wake;
   std::thread receiver;
+  std::optional<iox::popo::WaitSet<>>
+      caller_waitset;  // receiveHere()'s (one WaitSet per subscriber)
   std::atomic<bool> quit{false};
   // The receiving thread may run handlers itself unless a handler it runs could publish into a
   // full queue that only this same thread empties (a topic this process sends and receives).
@@ -509,98 +511,121 @@ bool ShmTransport::waitForPublishers(std::chrono::milliseconds timeout,
   }
 }
 
+namespace {
+/// Takes every chunk waiting on the imports and delivers it (see startReceiving()).
+void deliverArrived(ShmTransport::Impl* impl) {
+  for (auto& i : impl->imports) {
+    int deferred = 0;  // queued without running, in this batch
+    for (;;) {
+      const void* payload = nullptr;
+      bool more = false;
+      {
+        std::lock_guard lock(i->mutex);
+        auto r = i->subscriber->take();
+        more = !r.has_error() && i->subscriber->hasData();
+        if (r.has_error()) {
+          if (r.get_error() == iox::popo::ChunkReceiveResult::TOO_MANY_CHUNKS_HELD_IN_PARALLEL) {
+            // Local readers hold 256 chunks of this topic: let them finish first.
+            std::this_thread::sleep_for(std::chrono::microseconds(200));
+          }
+          break;
+        }
+        payload = r.value();
+      }
+      const auto* header = iox::mepoo::ChunkHeader::fromUserPayload(payload);
+      const std::size_t size = header->userPayloadSize();
+      // The sender counted every message once per importing process, including those a
+      // full keep_latest queue here discarded before this thread could take them (the
+      // newest always arrives): account for those too, or the deployment's clock would
+      // wait for them for ever.
+      const std::uint64_t accounted =
+          i->gaps.account(static_cast<std::uint64_t>(header->originId()), header->sequenceNumber());
+      if (accounted > 1) {
+        impl->drops += accounted - 1;
+        if (impl->options.received != nullptr) impl->options.received->fetch_add(accounted - 1);
+      }
+      Prefix prefix{};
+      if (size >= kShmChunkOverhead) std::memcpy(&prefix, payload, sizeof(prefix));
+      if (size < kShmChunkOverhead || prefix.magic != kChunkMagic) {
+        std::fprintf(stderr, "warning: topic '%s': dropped a chunk that is not a Tessera message\n",
+                     i->topic.name.c_str());
+        std::lock_guard lock(i->mutex);
+        i->subscriber->release(payload);
+        continue;
+      }
+      const auto* words = reinterpret_cast<const capnp::word*>(
+          static_cast<const std::byte*>(payload) + kPrefixBytes);
+      std::shared_ptr<const MessageStorage> view;
+      try {
+        // Views are freed on whichever thread drops the last reader: a scalable allocator
+        // keeps that cross-thread free off a shared malloc arena lock.
+        view = std::allocate_shared<ChunkView>(tbb::scalable_allocator<ChunkView>(), i, payload,
+                                               kj::arrayPtr(words, (size - kPrefixBytes) / kWord));
+      } catch (const kj::Exception& e) {
+        // The view was not built, so its destructor will not release the chunk.
+        std::fprintf(stderr, "warning: topic '%s': dropped a malformed message: %s\n",
+                     i->topic.name.c_str(), e.getDescription().cStr());
+        {
+          std::lock_guard lock(i->mutex);
+          i->subscriber->release(payload);
+        }
+        // Handled (dropped): the sender counted it, so must the in-flight accounting.
+        if (impl->options.received != nullptr) impl->options.received->fetch_add(1);
+        continue;
+      }
+      const bool loopback = prefix.origin == impl->options.process_index && i->topic.loopback();
+      // A burst is queued whole and run once: one pass over the strands per batch.
+      auto delivery = ImportDelivery::kSchedule;
+      if (impl->run_handlers_here) {
+        delivery = more && deferred < 32 ? ImportDelivery::kDefer : ImportDelivery::kRunHere;
+      }
+      deferred = delivery == ImportDelivery::kDefer ? deferred + 1 : 0;
+      i->deliver(std::move(view), loopback, delivery);
+      ++impl->received;
+      if (impl->options.received != nullptr) impl->options.received->fetch_add(1);
+    }
+    if (deferred > 0) i->deliver(nullptr, false, ImportDelivery::kRunHere);
+  }
+}
+
+void watchImports(ShmTransport::Impl* impl, iox::popo::WaitSet<>& waitset) {
+  for (auto& i : impl->imports) {
+    waitset.attachState(*i->subscriber, iox::popo::SubscriberState::HAS_DATA).or_else([&](auto) {
+      std::fprintf(stderr, "error: cannot watch topic '%s' for data\n", i->topic.name.c_str());
+    });
+  }
+}
+}  // namespace
+
 void ShmTransport::startReceiving() {
   if (impl_->receiver.joinable() || impl_->imports.empty()) return;
+  impl_->caller_waitset.reset();  // a subscriber is watched by one WaitSet at a time
   impl_->quit = false;
   impl_->wake.emplace();
   impl_->receiver = std::thread([impl = impl_.get()] {
     pthread_setname_np(pthread_self(), "tessera-shm-rx");
     iox::popo::WaitSet<> waitset;
-    for (auto& i : impl->imports) {
-      waitset.attachState(*i->subscriber, iox::popo::SubscriberState::HAS_DATA).or_else([&](auto) {
-        std::fprintf(stderr, "error: cannot watch topic '%s' for data\n", i->topic.name.c_str());
-      });
-    }
+    watchImports(impl, waitset);
     waitset.attachEvent(*impl->wake).or_else([](auto) {});
     while (!impl->quit.load()) {
       auto notes = waitset.wait();
-      for (auto& i : impl->imports) {
-        int deferred = 0;  // queued without running, in this batch
-        for (;;) {
-          const void* payload = nullptr;
-          bool more = false;
-          {
-            std::lock_guard lock(i->mutex);
-            auto r = i->subscriber->take();
-            more = !r.has_error() && i->subscriber->hasData();
-            if (r.has_error()) {
-              if (r.get_error() ==
-                  iox::popo::ChunkReceiveResult::TOO_MANY_CHUNKS_HELD_IN_PARALLEL) {
-                // Local readers hold 256 chunks of this topic: let them finish first.
-                std::this_thread::sleep_for(std::chrono::microseconds(200));
-              }
-              break;
-            }
-            payload = r.value();
-          }
-          const auto* header = iox::mepoo::ChunkHeader::fromUserPayload(payload);
-          const std::size_t size = header->userPayloadSize();
-          // The sender counted every message once per importing process, including those a
-          // full keep_latest queue here discarded before this thread could take them (the
-          // newest always arrives): account for those too, or the deployment's clock would
-          // wait for them for ever.
-          const std::uint64_t accounted = i->gaps.account(
-              static_cast<std::uint64_t>(header->originId()), header->sequenceNumber());
-          if (accounted > 1) {
-            impl->drops += accounted - 1;
-            if (impl->options.received != nullptr) impl->options.received->fetch_add(accounted - 1);
-          }
-          Prefix prefix{};
-          if (size >= kShmChunkOverhead) std::memcpy(&prefix, payload, sizeof(prefix));
-          if (size < kShmChunkOverhead || prefix.magic != kChunkMagic) {
-            std::fprintf(stderr,
-                         "warning: topic '%s': dropped a chunk that is not a Tessera message\n",
-                         i->topic.name.c_str());
-            std::lock_guard lock(i->mutex);
-            i->subscriber->release(payload);
-            continue;
-          }
-          const auto* words = reinterpret_cast<const capnp::word*>(
-              static_cast<const std::byte*>(payload) + kPrefixBytes);
-          std::shared_ptr<const MessageStorage> view;
-          try {
-            // Views are freed on whichever thread drops the last reader: a scalable allocator
-            // keeps that cross-thread free off a shared malloc arena lock.
-            view =
-                std::allocate_shared<ChunkView>(tbb::scalable_allocator<ChunkView>(), i, payload,
-                                                kj::arrayPtr(words, (size - kPrefixBytes) / kWord));
-          } catch (const kj::Exception& e) {
-            // The view was not built, so its destructor will not release the chunk.
-            std::fprintf(stderr, "warning: topic '%s': dropped a malformed message: %s\n",
-                         i->topic.name.c_str(), e.getDescription().cStr());
-            {
-              std::lock_guard lock(i->mutex);
-              i->subscriber->release(payload);
-            }
-            // Handled (dropped): the sender counted it, so must the in-flight accounting.
-            if (impl->options.received != nullptr) impl->options.received->fetch_add(1);
-            continue;
-          }
-          const bool loopback = prefix.origin == impl->options.process_index && i->topic.loopback();
-          // A burst is queued whole and run once: one pass over the strands per batch.
-          auto delivery = ImportDelivery::kSchedule;
-          if (impl->run_handlers_here) {
-            delivery = more && deferred < 32 ? ImportDelivery::kDefer : ImportDelivery::kRunHere;
-          }
-          deferred = delivery == ImportDelivery::kDefer ? deferred + 1 : 0;
-          i->deliver(std::move(view), loopback, delivery);
-          ++impl->received;
-          if (impl->options.received != nullptr) impl->options.received->fetch_add(1);
-        }
-        if (deferred > 0) i->deliver(nullptr, false, ImportDelivery::kRunHere);
-      }
+      deliverArrived(impl);
     }
   });
+}
+
+void ShmTransport::receiveHere(std::chrono::microseconds timeout) {
+  if (impl_->receiver.joinable()) {
+    throw std::logic_error("ShmTransport: receiveHere() while the receiving thread runs");
+  }
+  if (impl_->imports.empty()) return;
+  if (!impl_->caller_waitset) {
+    impl_->caller_waitset.emplace();
+    watchImports(impl_.get(), *impl_->caller_waitset);
+  }
+  auto notes = impl_->caller_waitset->timedWait(
+      iox::units::Duration::fromMicroseconds(static_cast<std::uint64_t>(timeout.count())));
+  deliverArrived(impl_.get());
 }
 
 void ShmTransport::stopReceiving() {

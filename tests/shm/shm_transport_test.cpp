@@ -374,3 +374,62 @@ TEST_CASE("a blob crosses processes in place and the chunk it used is clean for 
   CHECK(children.wait(tx) == 0);
   CHECK(children.wait(rx) == 0);
 }
+
+namespace {
+/// Counts Blobs on "in" and notes whether each handler ran on `expected_thread`.
+class ThreadNoter : public Actor {
+ public:
+  void configure(ActorContext& ctx) override {
+    ctx.subscribe<msg::Blob>("in", MailboxPolicy::reliable(8), [this](const Message<msg::Blob>& m) {
+      if (m->getHeader().getSeq() != static_cast<std::uint64_t>(seen)) ++out_of_order;
+      if (std::this_thread::get_id() != expected_thread) ++elsewhere;
+      ++seen;
+    });
+  }
+  std::thread::id expected_thread;
+  int seen = 0, out_of_order = 0, elsewhere = 0;
+};
+}  // namespace
+
+TEST_CASE("a process without a receiving thread gets its messages on the thread that waits",
+          "[shm]") {
+  const auto pools = smallPools();
+  const auto max_chunk = maxChunk(pools);
+  constexpr int kCount = 500;
+  test::Children children;
+  auto rx = children.spawn([&] {
+    ShmTransport transport(processOptions("tessera_test_here_rx", 1, max_chunk));
+    Runtime rt(wallReceiverRuntime());
+    auto& noter =
+        static_cast<ThreadNoter&>(rt.add("rx", std::make_unique<ThreadNoter>(), {{"in", "here"}}));
+    noter.expected_thread = std::this_thread::get_id();
+    transport.attach(rt, {topic("here", false, true, MailboxPolicy::reliable(8))});
+    rt.configure();
+    rt.start();
+    if (!transport.waitForPublishers(10s)) return 5;
+    const auto deadline = std::chrono::steady_clock::now() + 20s;
+    while (noter.seen < kCount && std::chrono::steady_clock::now() < deadline)
+      transport.receiveHere(std::chrono::milliseconds(50));
+    // The receiving thread and receiveHere() exclude each other.
+    transport.startReceiving();
+    bool refused = false;
+    try {
+      transport.receiveHere(std::chrono::milliseconds(1));
+    } catch (const std::logic_error&) {
+      refused = true;
+    }
+    transport.stopReceiving();
+    rt.stop();
+    std::printf("rx: %d messages, %d out of order, %d on another thread\n", noter.seen,
+                noter.out_of_order, noter.elsewhere);
+    if (noter.seen != kCount || noter.out_of_order != 0) return 2;
+    if (noter.elsewhere != 0) return 3;
+    return refused ? 0 : 4;
+  });
+  auto tx = children.spawn(
+      [&] { return send("here", MailboxPolicy::reliable(8), kCount, 64, max_chunk, 60000ms); });
+  RouDiHost roudi(pools);
+  children.open();
+  CHECK(children.wait(tx) == 0);
+  CHECK(children.wait(rx) == 0);
+}
