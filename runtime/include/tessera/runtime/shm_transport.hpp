@@ -83,8 +83,8 @@ class ShmTransport {
   /// Starts / stops the thread that takes arriving chunks and delivers them.
   void startReceiving();
   void stopReceiving();
-  /// Instead of that thread: waits up to `timeout` on the calling thread and delivers what
-  /// arrived, running handlers here when their actors are idle. For a process whose own loop
+  /// Instead of that thread: delivers what arrived on the calling thread, running handlers
+  /// here when their actors are idle; waits up to `timeout` only when nothing had arrived. For a process whose own loop
   /// waits for its answers (a request/response client), so that the answer wakes the thread
   /// that asked rather than a second one. Not while the receiving thread runs (logic_error;
   /// startReceiving() afterwards takes over); from one thread at a time.
