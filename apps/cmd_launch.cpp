@@ -18,6 +18,7 @@
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include <array>
 #include <atomic>
 #include <cstring>
 #include <filesystem>
@@ -229,19 +230,34 @@ int launch(const LaunchArgs& a) {
 
   std::atomic<bool> quit{false};
   std::thread clock_thread([&] {
+    SyncBlock& block = sync.block();
+    // What workers wait for; a change (from this loop or from requestStop) rings their bells.
+    auto decisions = [&] {
+      return std::array<std::uint64_t, 4>{block.go.load(), block.grant_seq.load(),
+                                          block.command.load(), block.stop_turn.load()};
+    };
+    auto rung = decisions();
     int quiet_rounds = 0;
     while (!quit.load()) {
-      const auto grants = sync.block().grant_seq.load();
+      // Read before the step, so that a worker's ring after it ends the wait below.
+      const std::uint32_t bell = block.clock_bell.load();
       clock.step();
-      if (sync.block().grant_seq.load() != grants) quiet_rounds = 0;
-      // Simulated time: the next step follows within microseconds, so stay close while steps
-      // come quickly. Wall clock: only the end of the run is decided here.
+      if (const auto now = decisions(); now != rung) {
+        rung = now;
+        quiet_rounds = 0;
+        for (int i = 0; i < static_cast<int>(workers.size()); ++i) {
+          ringBell(block.slots[i].bell, block.slots[i].waiting);
+        }
+      }
+      // Simulated time: sleep until a worker's slot changes (a few yields first, as the next
+      // step often follows within microseconds). Wall clock: only the end of the run is decided
+      // here.
       if (!sim) {
         std::this_thread::sleep_for(std::chrono::milliseconds(2));
-      } else if (++quiet_rounds < 100) {
+      } else if (++quiet_rounds < 4) {
         std::this_thread::yield();
       } else {
-        std::this_thread::sleep_for(std::chrono::microseconds(quiet_rounds < 5000 ? 10 : 500));
+        waitBell(block.clock_bell, block.clock_waiting, bell, std::chrono::milliseconds(2));
       }
     }
   });
@@ -425,6 +441,7 @@ int worker(const WorkerArgs& a) {
   so.max_chunk_bytes = a.max_chunk;
   so.sent = &coordinator.slot().sent;
   so.received = &coordinator.slot().received;
+  so.arrived = [&coordinator] { coordinator.messageArrived(); };
   ShmTransport transport(so);
   RuntimeOptions options;
   options.threads = a.threads;

@@ -1,7 +1,9 @@
 #include <tessera/runtime/deployment.hpp>
 
 #include <fcntl.h>
+#include <linux/futex.h>
 #include <sys/mman.h>
+#include <sys/syscall.h>
 #include <unistd.h>
 
 #include <algorithm>
@@ -175,6 +177,32 @@ SyncMemory::~SyncMemory() {
   if (owner_) ::shm_unlink(name_.c_str());
 }
 
+// ------------------------------------------------------------------ doorbells
+
+namespace {
+long futex(std::atomic<std::uint32_t>& word, int op, std::uint32_t value, const timespec* timeout) {
+  static_assert(sizeof(std::atomic<std::uint32_t>) == sizeof(std::uint32_t));
+  // Not FUTEX_PRIVATE_FLAG: the word is in memory shared between processes.
+  return ::syscall(SYS_futex, reinterpret_cast<std::uint32_t*>(&word), op, value, timeout, nullptr,
+                   0);
+}
+}  // namespace
+
+void ringBell(std::atomic<std::uint32_t>& bell, const std::atomic<std::uint32_t>& waiting) {
+  bell.fetch_add(1);
+  if (waiting.load() != 0) futex(bell, FUTEX_WAKE, INT32_MAX, nullptr);
+}
+
+void waitBell(std::atomic<std::uint32_t>& bell, std::atomic<std::uint32_t>& waiting,
+              std::uint32_t seen, std::chrono::microseconds timeout) {
+  const timespec t{static_cast<time_t>(timeout.count() / 1000000),
+                   static_cast<long>(timeout.count() % 1000000) * 1000};
+  waiting.fetch_add(1);
+  // Returns at once when the bell rang after `seen` was read (the value differs).
+  futex(bell, FUTEX_WAIT, seen, &t);
+  waiting.fetch_sub(1);
+}
+
 // ------------------------------------------------------------------ worker side
 
 namespace {
@@ -212,6 +240,7 @@ WorkerCoordinator::WorkerCoordinator(SyncBlock& block, int index, std::vector<St
 
 bool WorkerCoordinator::readyAndWait() {
   slot().ready = 1;
+  changed();
   Backoff b;
   while (block_.go.load() == 0) {
     if (ending()) return false;
@@ -251,6 +280,7 @@ void WorkerCoordinator::publishIdle(bool idle, std::uint64_t received) {
   if (idle) s.recv_at_idle = received;
   s.gen.fetch_add(1);
   s.idle = idle ? 1 : 0;
+  changed();
 }
 
 RunCoordinator::Decision WorkerCoordinator::idle(const LocalState& state,
@@ -261,8 +291,10 @@ RunCoordinator::Decision WorkerCoordinator::idle(const LocalState& state,
   s.finished = state.finished_sources;
   s.grant_seen = last_grant_;
   s.gen.fetch_add(1);  // new timer/source figures
-  Backoff b;
-  for (;;) {
+  changed();
+  for (int round = 0;; ++round) {
+    // Read before looking, so that a ring (a grant, a message) after the look ends the wait.
+    const std::uint32_t bell = s.bell.load();
     const auto received = s.received.load();
     if (busy()) {
       publishIdle(false, received);
@@ -276,7 +308,12 @@ RunCoordinator::Decision WorkerCoordinator::idle(const LocalState& state,
       publishIdle(false, received);
       return {Verdict::kAdvance, block_.grant_time.load(), {}};
     }
-    b.pause();
+    // The launcher usually answers within microseconds: a few yields, then sleep until a ring.
+    if (round < 4) {
+      std::this_thread::yield();
+    } else {
+      waitBell(s.bell, s.waiting, bell, std::chrono::milliseconds(2));
+    }
   }
 }
 
@@ -294,7 +331,10 @@ RunCoordinator::Decision WorkerCoordinator::poll(const LocalState& state,
 
 std::vector<std::string> WorkerCoordinator::awaitStopTurn(const std::function<bool()>& busy) {
   auto& s = slot();
-  if (block_.command.load() == 0) s.wants_stop = 1;  // a local stop (signal, fatal error)
+  if (block_.command.load() == 0) {
+    s.wants_stop = 1;  // a local stop (signal, fatal error)
+    changed();
+  }
   while (next_stage_ < stages_.size() && stages_[next_stage_].process != index_) ++next_stage_;
   // After its last stage the process still handles what later stages send it (a cycle of
   // actors), until every stage is done and the launcher lets it leave.
@@ -310,6 +350,7 @@ std::vector<std::string> WorkerCoordinator::awaitStopTurn(const std::function<bo
                     stages_[next_stage_].actors.end());
       }
       s.stopped = 1;
+      changed();
       return rest;
     }
     const auto received = s.received.load();
@@ -318,6 +359,7 @@ std::vector<std::string> WorkerCoordinator::awaitStopTurn(const std::function<bo
   }
   if (next_stage_ >= stages_.size()) {
     s.stopped = 1;
+    changed();
     return {};
   }
   return stages_[next_stage_++].actors;
@@ -326,6 +368,7 @@ std::vector<std::string> WorkerCoordinator::awaitStopTurn(const std::function<bo
 void WorkerCoordinator::stopped() {
   publishIdle(true, slot().received.load());  // stopActors() drained everything
   block_.stages_done = next_stage_;
+  changed();
 }
 
 // ------------------------------------------------------------------ the launcher's clock

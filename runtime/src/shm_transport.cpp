@@ -512,6 +512,12 @@ bool ShmTransport::waitForPublishers(std::chrono::milliseconds timeout,
 }
 
 namespace {
+/// In-flight accounting of `n` messages received (or known lost on the way).
+void countReceived(ShmTransport::Impl* impl, std::uint64_t n) {
+  if (impl->options.received != nullptr) impl->options.received->fetch_add(n);
+  if (impl->options.arrived) impl->options.arrived();
+}
+
 /// Takes every chunk waiting on the imports and delivers it (see startReceiving()); returns
 /// how many it took.
 std::size_t deliverArrived(ShmTransport::Impl* impl) {
@@ -545,7 +551,7 @@ std::size_t deliverArrived(ShmTransport::Impl* impl) {
           i->gaps.account(static_cast<std::uint64_t>(header->originId()), header->sequenceNumber());
       if (accounted > 1) {
         impl->drops += accounted - 1;
-        if (impl->options.received != nullptr) impl->options.received->fetch_add(accounted - 1);
+        countReceived(impl, accounted - 1);
       }
       Prefix prefix{};
       if (size >= kShmChunkOverhead) std::memcpy(&prefix, payload, sizeof(prefix));
@@ -573,7 +579,7 @@ std::size_t deliverArrived(ShmTransport::Impl* impl) {
           i->subscriber->release(payload);
         }
         // Handled (dropped): the sender counted it, so must the in-flight accounting.
-        if (impl->options.received != nullptr) impl->options.received->fetch_add(1);
+        countReceived(impl, 1);
         continue;
       }
       const bool loopback = prefix.origin == impl->options.process_index && i->topic.loopback();
@@ -585,7 +591,7 @@ std::size_t deliverArrived(ShmTransport::Impl* impl) {
       deferred = delivery == ImportDelivery::kDefer ? deferred + 1 : 0;
       i->deliver(std::move(view), loopback, delivery);
       ++impl->received;
-      if (impl->options.received != nullptr) impl->options.received->fetch_add(1);
+      countReceived(impl, 1);
     }
     if (deferred > 0) i->deliver(nullptr, false, ImportDelivery::kRunHere);
   }

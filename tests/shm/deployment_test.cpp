@@ -152,3 +152,34 @@ TEST_CASE("a restarted process that leaves before it runs does not hold up the s
   CHECK(mapping_stage == std::vector<std::string>{"mapper", "map_writer"});
   CHECK(clock.reason() == "interrupted");
 }
+
+TEST_CASE("a doorbell wakes its sleeper at once and a missed ring costs only the timeout",
+          "[deployment]") {
+  using namespace std::chrono;
+  std::atomic<std::uint32_t> bell{0}, waiting{0};
+  // Rung after `seen` was read: the wait returns at once.
+  const std::uint32_t seen = bell.load();
+  ringBell(bell, waiting);
+  auto t0 = steady_clock::now();
+  waitBell(bell, waiting, seen, milliseconds(500));
+  CHECK(steady_clock::now() - t0 < milliseconds(100));
+  // Nobody rings: it sleeps for the timeout, not for ever.
+  t0 = steady_clock::now();
+  waitBell(bell, waiting, bell.load(), milliseconds(30));
+  const auto slept = steady_clock::now() - t0;
+  CHECK(slept >= milliseconds(25));
+  CHECK(slept < milliseconds(400));
+  // Rung by another thread while asleep: woken long before the timeout.
+  std::atomic<bool> asleep{false};
+  std::thread ringer([&] {
+    while (waiting.load() == 0) std::this_thread::yield();
+    asleep = true;
+    ringBell(bell, waiting);
+  });
+  t0 = steady_clock::now();
+  waitBell(bell, waiting, bell.load(), seconds(5));
+  ringer.join();
+  CHECK(asleep.load());
+  CHECK(steady_clock::now() - t0 < seconds(2));
+  CHECK(waiting.load() == 0);
+}

@@ -21,6 +21,7 @@
 #include <tessera/runtime/transport.hpp>
 
 #include <atomic>
+#include <chrono>
 #include <cstdint>
 #include <map>
 #include <memory>
@@ -69,6 +70,9 @@ struct SyncSlot {
   std::atomic<std::int64_t> finite, finished;
   std::atomic<std::uint64_t> sent, received;  // live counters (messages x importing processes)
   std::atomic<std::uint64_t> ready, stopped, wants_stop;
+  // The worker's doorbell (a futex word): rung by the launcher when it grants time or ends the
+  // run, and by the worker's receiving thread for every message; `waiting` while it sleeps.
+  std::atomic<std::uint32_t> bell, waiting;
 };
 struct SyncBlock {
   std::atomic<std::uint64_t> magic;
@@ -80,8 +84,17 @@ struct SyncBlock {
   std::atomic<std::uint64_t> stop_turn;    // stop stages with index < stop_turn may run
   std::atomic<std::uint64_t> stages_done;  // stop stages finished (their owner sets it)
   char reason[240];
+  // The launcher's doorbell: rung by a worker whose slot changed, while the launcher sleeps.
+  std::atomic<std::uint32_t> clock_bell, clock_waiting;
   SyncSlot slots[kMaxDeploymentProcesses];
 };
+
+/// Doorbells of the control block: futex words shared between processes. ringBell() wakes
+/// whoever waits on `bell` (when `waiting` says someone may); waitBell() sleeps until the bell
+/// no longer reads `seen`, at most `timeout` (a missed ring only costs that).
+void ringBell(std::atomic<std::uint32_t>& bell, const std::atomic<std::uint32_t>& waiting);
+void waitBell(std::atomic<std::uint32_t>& bell, std::atomic<std::uint32_t>& waiting,
+              std::uint32_t seen, std::chrono::microseconds timeout);
 
 /// Maps (creates when `create`) the control block named `name` ("/tessera_sync_<pid>").
 class SyncMemory {
@@ -117,10 +130,14 @@ class WorkerCoordinator final : public RunCoordinator {
   SyncSlot& slot() { return block_.slots[index_]; }
   /// True once the launcher died (this process was re-parented).
   bool orphaned();
+  /// A message reached this process (its receiving thread calls this): wakes idle().
+  void messageArrived() { ringBell(slot().bell, slot().waiting); }
 
  private:
   Decision ended() const;
   void publishIdle(bool idle, std::uint64_t received);
+  /// Tells the launcher this slot changed.
+  void changed() { ringBell(block_.clock_bell, block_.clock_waiting); }
   SyncBlock& block_;
   int index_;
   int launcher_;

@@ -56,6 +56,8 @@ struct ShmTransportOptions {
   /// lost on the way (discarded by a full keep_latest queue, dropped as malformed).
   std::atomic<std::uint64_t>* sent = nullptr;
   std::atomic<std::uint64_t>* received = nullptr;
+  /// Called after `received` counted (may be empty): e.g. to wake a process waiting for work.
+  std::function<void()> arrived;
 };
 
 struct ShmStats {
@@ -84,10 +86,10 @@ class ShmTransport {
   void startReceiving();
   void stopReceiving();
   /// Instead of that thread: delivers what arrived on the calling thread, running handlers
-  /// here when their actors are idle; waits up to `timeout` only when nothing had arrived. For a process whose own loop
-  /// waits for its answers (a request/response client), so that the answer wakes the thread
-  /// that asked rather than a second one. Not while the receiving thread runs (logic_error;
-  /// startReceiving() afterwards takes over); from one thread at a time.
+  /// here when their actors are idle; waits up to `timeout` only when nothing had arrived. For a
+  /// process whose own loop waits for its answers (a request/response client), so that the answer
+  /// wakes the thread that asked rather than a second one. Not while the receiving thread runs
+  /// (logic_error; startReceiving() afterwards takes over); from one thread at a time.
   void receiveHere(std::chrono::microseconds timeout);
   ShmStats stats() const;
 
