@@ -194,7 +194,7 @@ int launch(const LaunchArgs& a) {
   for (const auto& p : ro.pools) pool_bytes += p.chunk_bytes * p.count;
   std::cerr << "  RouDi embedded: " << ro.pools.size() << " memory pools, chunks up to "
             << (roudi.maxChunkBytes() >> 10) << " KiB, " << (pool_bytes >> 20)
-            << " MiB reserved (sparse)\n"
+            << " MiB of shared memory\n"
             << "  clock: "
             << (profile.clock == ClockKind::kSimulated ? "simulated, coordinated across processes"
                                                        : "wall")

@@ -229,7 +229,8 @@ struct ShmExport final : TopicExport, std::enable_shared_from_this<ShmExport> {
                          std::to_string(payload_bytes - kShmChunkOverhead) +
                          " bytes does not fit the largest shared-memory chunk (" +
                          std::to_string(options.max_chunk_bytes - kShmChunkOverhead) +
-                         " bytes); raise transport.max_message_bytes in the profile");
+                         " bytes, sized from the message family's bound); it cannot cross "
+                         "processes");
     }
   }
   void publishChunk(void* payload) {
