@@ -179,16 +179,24 @@ TEST_CASE("a message larger than the largest shared-memory chunk is a clear erro
     transport.attach(rt, {topic("big", true, false, MailboxPolicy::reliable())});
     auto pub = rt.externalPublisher<msg::Blob>("big");
     rt.configure(true);
+    auto clearError = [](const MessageError& e) {
+      const std::string what = e.what();
+      return what.find("'big'") != std::string::npos &&
+             what.find("largest shared-memory chunk") != std::string::npos;
+    };
     try {
       auto loan = pub.loan(max_chunk * 2);
       return 1;
     } catch (const MessageError& e) {
-      const std::string what = e.what();
-      return what.find("'big'") != std::string::npos &&
-                     what.find("largest shared-memory chunk") != std::string::npos
-                 ? 0
-                 : 2;
+      if (!clearError(e)) return 2;
     }
+    try {  // a blob that cannot fit beside the message either
+      auto loan = pub.loanWithBlob(max_chunk);
+      return 3;
+    } catch (const MessageError& e) {
+      if (!clearError(e)) return 4;
+    }
+    return 0;
   });
   RouDiHost roudi(pools);
   children.open();
