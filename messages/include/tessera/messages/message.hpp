@@ -1,6 +1,7 @@
 // Message<T>, Loan<T> and MessageStorage: how Tessera holds Cap'n Proto messages.
 //
-// A publisher asks for a Loan<T>, builds the message in place, and seals it into an immutable
+// A publisher asks for a Loan<T>, builds the message in place (a large Data payload it writes
+// whole may go in a blob beside the message: Loan::blob()), and seals it into an immutable
 // MessageStorage. Every subscriber then reads those same bytes through a Message<T>, which keeps
 // the storage alive through a shared pointer: fan-out to N subscribers copies a pointer, never
 // the payload. Bytes that come from outside (a file, another process, the network) enter through
