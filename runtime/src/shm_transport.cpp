@@ -10,9 +10,11 @@
 #include <iceoryx_posh/runtime/posh_runtime.hpp>
 
 #include <capnp/serialize.h>
+#include <kj/debug.h>
 #include <pthread.h>
 #include <tbb/scalable_allocator.h>
 
+#include <algorithm>
 #include <cstring>
 #if defined(__SSE2__)
 #include <emmintrin.h>
@@ -120,7 +122,14 @@ std::size_t zeroChunkForBuilder(std::byte* payload, std::size_t capacity, std::s
 }
 
 std::uint64_t SendGaps::account(std::uint64_t publisher, std::uint64_t sequence) {
-  auto& next = next_[publisher];  // a port numbers its sends from 0
+  auto it = std::find_if(next_.begin(), next_.end(),
+                         [&](const auto& entry) { return entry.first == publisher; });
+  if (it == next_.end()) {
+    next_.emplace_back(publisher, 0);  // a port numbers its sends from 0
+    it = next_.end() - 1;
+  }
+  if (it != next_.begin()) std::iter_swap(it, next_.begin());
+  auto& next = next_.front().second;
   // A number behind the expected one cannot come from a live port (iceoryx numbers each send
   // of a port once): count the message alone rather than a wrapped gap.
   const std::uint64_t missed = sequence >= next ? sequence - next : 0;
@@ -407,17 +416,31 @@ class ChunkView final : public MessageStorage {
     capnp::ReaderOptions options;
     // One reader serves every local subscriber: give it room for many full traversals.
     options.traversalLimitInWords = std::max<std::uint64_t>(64 * words.size(), 1u << 20);
-    reader_.emplace(words, options);  // checks the segment table against the chunk size
-    const unsigned count = segmentCount(words);
-    // Messages built in place have one segment, or two with a blob: no allocation for that.
-    if (count <= 2) {
-      for (unsigned i = 0; i < count; ++i) first_[i] = reader_->getSegment(i);
-      segments_ = kj::arrayPtr(first_, count);
-    } else {
+    // The segment table is read here rather than by a FlatArrayMessageReader, which allocates
+    // for every segment past the first (a blob message has two).
+    KJ_REQUIRE(words.size() >= 1, "chunk too small for a segment table");
+    std::uint32_t count_minus_one = 0;
+    std::memcpy(&count_minus_one, words.begin(), sizeof(count_minus_one));
+    KJ_REQUIRE(count_minus_one < kMaxSegments, "too many segments", count_minus_one);
+    const std::size_t count = std::size_t{count_minus_one} + 1;
+    const std::size_t table_words = count / 2 + 1;
+    KJ_REQUIRE(table_words <= words.size(), "segment table past the chunk's end");
+    kj::ArrayPtr<const capnp::word>* segments = first_;
+    if (count > 2) {
       more_ = kj::heapArray<kj::ArrayPtr<const capnp::word>>(count);
-      for (unsigned i = 0; i < count; ++i) more_[i] = reader_->getSegment(i);
-      segments_ = more_.asPtr();
+      segments = more_.begin();
     }
+    std::size_t at = table_words;
+    for (std::size_t i = 0; i < count; ++i) {
+      std::uint32_t size = 0;
+      std::memcpy(&size, reinterpret_cast<const std::byte*>(words.begin()) + 4 * (i + 1),
+                  sizeof(size));
+      KJ_REQUIRE(size <= words.size() - at, "segment past the chunk's end", i, size);
+      segments[i] = kj::arrayPtr(words.begin() + at, size);
+      at += size;
+    }
+    segments_ = kj::arrayPtr(segments, count);
+    reader_.emplace(segments_, options);
   }
   ~ChunkView() noexcept override {
     try {
@@ -428,21 +451,17 @@ class ChunkView final : public MessageStorage {
     import_->subscriber->release(payload_);
   }
   capnp::AnyPointer::Reader root() const override {
-    return const_cast<capnp::FlatArrayMessageReader&>(*reader_).getRoot<capnp::AnyPointer>();
+    return const_cast<capnp::SegmentArrayMessageReader&>(*reader_).getRoot<capnp::AnyPointer>();
   }
   kj::ArrayPtr<const kj::ArrayPtr<const capnp::word>> segments() const override {
     return segments_;
   }
 
  private:
-  static unsigned segmentCount(kj::ArrayPtr<const capnp::word> words) {
-    std::uint32_t count_minus_one = 0;
-    std::memcpy(&count_minus_one, words.begin(), sizeof(count_minus_one));
-    return count_minus_one + 1;
-  }
   std::shared_ptr<ShmTransport::Impl::Import> import_;
   const void* payload_;
-  std::optional<capnp::FlatArrayMessageReader> reader_;
+  static constexpr std::uint32_t kMaxSegments = 512;  // as Cap'n Proto's own reader
+  std::optional<capnp::SegmentArrayMessageReader> reader_;
   kj::ArrayPtr<const capnp::word> first_[2];
   kj::Array<kj::ArrayPtr<const capnp::word>> more_;
   kj::ArrayPtr<const kj::ArrayPtr<const capnp::word>> segments_;

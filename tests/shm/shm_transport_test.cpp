@@ -7,6 +7,7 @@
 #include <tessera/runtime/shm_transport.hpp>
 
 #include <catch2/catch.hpp>
+#include <iceoryx_posh/popo/untyped_publisher.hpp>
 
 #include <filesystem>
 #include <fstream>
@@ -436,6 +437,78 @@ TEST_CASE("a process without a receiving thread gets its messages on the thread 
   });
   auto tx = children.spawn(
       [&] { return send("here", MailboxPolicy::reliable(8), kCount, 64, max_chunk, 60000ms); });
+  RouDiHost roudi(pools);
+  children.open();
+  CHECK(children.wait(tx) == 0);
+  CHECK(children.wait(rx) == 0);
+}
+
+TEST_CASE("malformed chunks from another process are dropped and later messages still arrive",
+          "[shm]") {
+  const auto pools = smallPools();
+  const auto max_chunk = maxChunk(pools);
+  test::Children children;
+  auto rx = children.spawn([&] {
+    ShmTransport transport(processOptions("tessera_test_bad_rx", 1, max_chunk));
+    Runtime rt(wallReceiverRuntime());
+    auto& rec = static_cast<test::Recorder&>(rt.add(
+        "rx", std::make_unique<test::Recorder>(MailboxPolicy::reliable(8)), {{"in", "mixed"}}));
+    transport.attach(rt, {topic("mixed", false, true, MailboxPolicy::reliable(8))});
+    rt.configure();
+    rt.start();
+    transport.startReceiving();
+    if (!transport.waitForPublishers(10s)) return 5;
+    const auto deadline = std::chrono::steady_clock::now() + 10s;
+    while (transport.stats().received < 1 && std::chrono::steady_clock::now() < deadline)
+      std::this_thread::sleep_for(5ms);
+    std::this_thread::sleep_for(100ms);  // nothing else may arrive
+    transport.stopReceiving();
+    rt.stop();
+    std::printf("rx: %zu delivered\n", rec.seqs.size());
+    if (rec.seqs.size() != 1) return 2;
+    return rec.seqs[0] == 7 ? 0 : 3;
+  });
+  auto tx = children.spawn([&] {
+    ShmTransport transport(processOptions("tessera_test_bad_tx", 0, max_chunk));
+    RuntimeOptions ro;
+    ro.clock = ClockKind::kWall;
+    ro.manual = true;
+    Runtime rt(ro);
+    transport.attach(rt, {topic("mixed", true, false, MailboxPolicy::reliable(8))});
+    auto pub = rt.externalPublisher<msg::Blob>("mixed");
+    rt.configure(true);
+    // A second, raw port on the same topic, as a foreign or broken sender would use.
+    iox::popo::PublisherOptions po;
+    po.subscriberTooSlowPolicy = iox::popo::ConsumerTooSlowPolicy::WAIT_FOR_CONSUMER;
+    iox::popo::UntypedPublisher raw({"tessera", "mixed", "capnp"}, po);
+    if (!transport.waitForPublishers(10s)) return 5;
+    const auto until = std::chrono::steady_clock::now() + 10s;
+    while (!raw.hasSubscribers() && std::chrono::steady_clock::now() < until)
+      std::this_thread::sleep_for(2ms);
+    auto sendRaw = [&](const std::function<void(std::byte*)>& write) {
+      auto r = raw.loan(256, 8);
+      if (r.has_error()) return false;
+      auto* p = static_cast<std::byte*>(r.value());
+      std::memset(p, 0, 256);
+      write(p);
+      raw.publish(r.value());
+      return true;
+    };
+    auto table = [](std::byte* p, std::uint32_t count_minus_one, std::uint32_t size) {
+      detail::recordChunkExtent(p, 0, 256);  // a valid Tessera prefix
+      std::memcpy(p + 16, &count_minus_one, 4);
+      std::memcpy(p + 20, &size, 4);
+    };
+    bool ok = sendRaw([](std::byte* p) { std::memset(p, 0x7f, 64); });  // no Tessera prefix
+    ok = ok && sendRaw([&](std::byte* p) { table(p, 100000, 1); });     // absurd segment count
+    ok = ok && sendRaw([&](std::byte* p) { table(p, 0, 1u << 20); });   // segment past the end
+    if (!ok) return 6;
+    auto loan = pub.loan(64);
+    setHeader(loan->initHeader(), 7, "test", 7);
+    pub.publish(std::move(loan));
+    std::this_thread::sleep_for(300ms);
+    return 0;
+  });
   RouDiHost roudi(pools);
   children.open();
   CHECK(children.wait(tx) == 0);
