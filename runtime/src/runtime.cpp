@@ -395,6 +395,14 @@ void Runtime::Impl::dispatch(Cell& cell, Item& item) {
     ++cell.messages_in;
     try {
       cell.slots[static_cast<std::size_t>(item.slot)].handler(item.message);
+    } catch (const MalformedMessage& e) {
+      // Bytes from outside that passed the transport's checks but not the reader's: the run
+      // goes on without them; said (the first few) and counted, never silent.
+      if (++cell.malformed <= 3) {
+        std::fprintf(stderr, "warning: actor '%s' dropped a malformed message on '%s': %s\n",
+                     cell.name.c_str(),
+                     cell.slots[static_cast<std::size_t>(item.slot)].topic.c_str(), e.what());
+      }
     } catch (const std::exception& e) {
       requestStop("actor '" + cell.name + "' failed handling '" +
                   cell.slots[static_cast<std::size_t>(item.slot)].topic + "': " + e.what());
@@ -530,6 +538,7 @@ RunReport Runtime::Impl::makeReport() const {
     a.messages_in = c->messages_in;
     a.messages_out = c->messages_out;
     a.timer_calls = c->timer_calls;
+    a.malformed = c->malformed;
     for (const auto& s : c->slots) a.drops += s.drops;
     a.max_queue_depth = c->max_depth;
     a.handler_p50_us = c->handler_time.percentileMicros(0.50);
@@ -1023,6 +1032,9 @@ std::string RunReport::table() const {
       << std::setw(7) << a.max_queue_depth << std::setprecision(1) << std::setw(11)
       << a.handler_p50_us << std::setw(11) << a.handler_p99_us << std::setprecision(2)
       << std::setw(10) << a.handler_total_s << "\n";
+  }
+  for (const auto& a : actors) {
+    if (a.malformed > 0) s << a.name << ": " << a.malformed << " malformed messages dropped\n";
   }
   return s.str();
 }

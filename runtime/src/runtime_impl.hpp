@@ -103,7 +103,7 @@ struct Cell {
   std::atomic<bool> scheduled{false};
 
   // Metrics (written under strand or atomically).
-  std::atomic<std::uint64_t> messages_in{0}, messages_out{0}, timer_calls{0};
+  std::atomic<std::uint64_t> messages_in{0}, messages_out{0}, timer_calls{0}, malformed{0};
   DurationHistogram handler_time;
 
   // Finite-source bookkeeping.

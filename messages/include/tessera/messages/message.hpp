@@ -38,6 +38,14 @@ class MessageError : public std::runtime_error {
   using std::runtime_error::runtime_error;
 };
 
+/// A delivered message whose root cannot be read as its type (bytes from another process are
+/// checked only as they are read): the runtime drops it with a warning instead of failing the
+/// subscriber.
+class MalformedMessage : public MessageError {
+ public:
+  using MessageError::MessageError;
+};
+
 /// Identity of a message type: Cap'n Proto schema id plus a readable name for errors.
 struct MessageType {
   std::uint64_t id = 0;
@@ -181,6 +189,17 @@ class Loan {
   Builder root_;
   bool blob_taken_ = false;
 };
+
+/// Message<T> over `storage`; MalformedMessage when its root is not a readable T.
+template <typename T>
+Message<T> readMessage(std::shared_ptr<const MessageStorage> storage) {
+  try {
+    return Message<T>(std::move(storage));
+  } catch (const kj::Exception& e) {
+    throw MalformedMessage(std::string("not a readable ") + messageTypeOf<T>().name + ": " +
+                           e.getDescription().cStr());
+  }
+}
 
 /// Build a stand-alone message (tests, tools) and return its read view.
 template <typename T, typename Fill>

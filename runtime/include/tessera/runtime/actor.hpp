@@ -140,7 +140,7 @@ class ActorContext {
   void subscribe(std::string_view topic, MailboxPolicy policy, Handler&& handler) {
     subscribeRaw(topic, messageTypeOf<T>(), policy,
                  [h = std::forward<Handler>(handler)](
-                     const std::shared_ptr<const MessageStorage>& s) { h(Message<T>(s)); });
+                     const std::shared_ptr<const MessageStorage>& s) { h(readMessage<T>(s)); });
   }
 
   template <typename T>
