@@ -395,6 +395,7 @@ void DeploymentClock::markRestarted(int index) {
   s.idle = 0;
   s.stopped = 0;
   s.wants_stop = 0;
+  s.waiting = 0;  // the old one may have died asleep
   s.gen.fetch_add(1);
   gone_[index] = false;
 }

@@ -151,8 +151,8 @@ struct ShmTransport::Impl {
   std::atomic<std::uint64_t> copies{0}, drops{0}, heap_fallbacks{0}, sent{0}, received{0};
   std::optional<iox::popo::UserTrigger> wake;
   std::thread receiver;
-  std::optional<iox::popo::WaitSet<>>
-      caller_waitset;  // receiveHere()'s (one WaitSet per subscriber)
+  // receiveHere()'s; reset when the receiving thread starts (a subscriber has one WaitSet).
+  std::optional<iox::popo::WaitSet<>> caller_waitset;
   std::atomic<bool> quit{false};
   // The receiving thread may run handlers itself unless a handler it runs could publish into a
   // full queue that only this same thread empties (a topic this process sends and receives).
