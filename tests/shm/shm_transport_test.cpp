@@ -51,6 +51,17 @@ ShmTransportOptions processOptions(const std::string& runtime_name, std::uint32_
   return so;
 }
 
+/// Runs `rx` and `tx` as two processes beside a RouDi with `pools`; both must exit with 0.
+void checkPair(const RouDiHostOptions& pools, std::function<int()> rx, std::function<int()> tx) {
+  test::Children children;
+  const pid_t receiver = children.spawn(std::move(rx));
+  const pid_t sender = children.spawn(std::move(tx));
+  RouDiHost roudi(pools);
+  children.open();
+  CHECK(children.wait(sender) == 0);
+  CHECK(children.wait(receiver) == 0);
+}
+
 /// A wall-clock runtime with one worker thread, quiet.
 RuntimeOptions wallReceiverRuntime() {
   RuntimeOptions ro;
@@ -138,34 +149,29 @@ TEST_CASE("two processes exchange 10000 messages on a reliable topic without los
           "[shm]") {
   const auto pools = smallPools();
   const auto max_chunk = maxChunk(pools);
-  test::Children children;
-  auto rx = children.spawn([&] {
-    return receive("reliable_blobs", MailboxPolicy::reliable(8), 10000, 0us, max_chunk, true);
-  });
-  auto tx = children.spawn([&] {
-    return send("reliable_blobs", MailboxPolicy::reliable(8), 10000, 200, max_chunk, 60000ms);
-  });
-  RouDiHost roudi(pools);
-  children.open();
-  CHECK(children.wait(tx) == 0);
-  CHECK(children.wait(rx) == 0);
+  checkPair(
+      pools,
+      [&] {
+        return receive("reliable_blobs", MailboxPolicy::reliable(8), 10000, 0us, max_chunk, true);
+      },
+      [&] {
+        return send("reliable_blobs", MailboxPolicy::reliable(8), 10000, 200, max_chunk, 60000ms);
+      });
 }
 
 TEST_CASE("a slow keep_latest subscriber in another process drops and the publisher never blocks",
           "[shm]") {
   const auto pools = smallPools();
   const auto max_chunk = maxChunk(pools);
-  test::Children children;
-  auto rx = children.spawn([&] {
-    return receive("latest_blobs", MailboxPolicy::keepLatest(2), 2000, 2000us, max_chunk, false);
-  });
-  auto tx = children.spawn([&] {
-    return send("latest_blobs", MailboxPolicy::keepLatest(2), 2000, 200, max_chunk, 50ms);
-  });
-  RouDiHost roudi(pools);
-  children.open();
-  CHECK(children.wait(tx) == 0);
-  CHECK(children.wait(rx) == 0);
+  checkPair(
+      pools,
+      [&] {
+        return receive("latest_blobs", MailboxPolicy::keepLatest(2), 2000, 2000us, max_chunk,
+                       false);
+      },
+      [&] {
+        return send("latest_blobs", MailboxPolicy::keepLatest(2), 2000, 200, max_chunk, 50ms);
+      });
 }
 
 TEST_CASE("a message larger than the largest shared-memory chunk is a clear error", "[shm]") {
@@ -249,45 +255,42 @@ TEST_CASE("messages a full keep_latest queue discarded still count as received f
   const auto sent_flag = std::filesystem::temp_directory_path() / "tessera_test_gaps_sent";
   std::filesystem::remove(sent_flag);
   constexpr int kCount = 20;
-  test::Children children;
-  auto rx = children.spawn([&] {
-    std::atomic<std::uint64_t> received{0};
-    ShmTransportOptions so = processOptions("tessera_test_gaps_rx", 1, max_chunk);
-    so.received = &received;
-    ShmTransport transport(so);
-    Runtime rt(wallReceiverRuntime());
-    auto& rec = static_cast<test::Recorder&>(
-        rt.add("rx", std::make_unique<test::Recorder>(MailboxPolicy::keepLatest(1), 0us),
-               {{"in", "gaps"}}));
-    transport.attach(rt, {topic("gaps", false, true, MailboxPolicy::keepLatest(1))});
-    rt.configure();
-    rt.start();
-    if (!transport.waitForPublishers(10s)) return 5;
-    const auto deadline = std::chrono::steady_clock::now() + 20s;
-    while (!std::filesystem::exists(sent_flag) && std::chrono::steady_clock::now() < deadline)
-      std::this_thread::sleep_for(5ms);
-    transport.startReceiving();
-    while (received.load() < kCount && std::chrono::steady_clock::now() < deadline)
-      std::this_thread::sleep_for(5ms);
-    std::this_thread::sleep_for(100ms);  // nothing more may be counted
-    rt.stop();
-    transport.stopReceiving();
-    std::printf("rx: %zu handled, %llu accounted\n", rec.seqs.size(),
-                static_cast<unsigned long long>(received.load()));
-    if (rec.seqs.empty()) return 2;
-    // Every message is either handled here or counted as discarded, exactly.
-    if (transport.stats().drops + transport.stats().received != kCount) return 4;
-    return received.load() == kCount ? 0 : 3;
-  });
-  auto tx = children.spawn([&] {
-    const int code = send("gaps", MailboxPolicy::keepLatest(1), kCount, 64, max_chunk, 1000ms);
-    std::ofstream(sent_flag) << "sent\n";
-    return code;
-  });
-  RouDiHost roudi(pools);
-  children.open();
-  CHECK(children.wait(tx) == 0);
-  CHECK(children.wait(rx) == 0);
+  checkPair(
+      pools,
+      [&] {
+        std::atomic<std::uint64_t> received{0};
+        ShmTransportOptions so = processOptions("tessera_test_gaps_rx", 1, max_chunk);
+        so.received = &received;
+        ShmTransport transport(so);
+        Runtime rt(wallReceiverRuntime());
+        auto& rec = static_cast<test::Recorder&>(
+            rt.add("rx", std::make_unique<test::Recorder>(MailboxPolicy::keepLatest(1), 0us),
+                   {{"in", "gaps"}}));
+        transport.attach(rt, {topic("gaps", false, true, MailboxPolicy::keepLatest(1))});
+        rt.configure();
+        rt.start();
+        if (!transport.waitForPublishers(10s)) return 5;
+        const auto deadline = std::chrono::steady_clock::now() + 20s;
+        while (!std::filesystem::exists(sent_flag) && std::chrono::steady_clock::now() < deadline)
+          std::this_thread::sleep_for(5ms);
+        transport.startReceiving();
+        while (received.load() < kCount && std::chrono::steady_clock::now() < deadline)
+          std::this_thread::sleep_for(5ms);
+        std::this_thread::sleep_for(100ms);  // nothing more may be counted
+        rt.stop();
+        transport.stopReceiving();
+        std::printf("rx: %zu handled, %llu accounted\n", rec.seqs.size(),
+                    static_cast<unsigned long long>(received.load()));
+        if (rec.seqs.empty()) return 2;
+        // Every message is either handled here or counted as discarded, exactly.
+        if (transport.stats().drops + transport.stats().received != kCount) return 4;
+        return received.load() == kCount ? 0 : 3;
+      },
+      [&] {
+        const int code = send("gaps", MailboxPolicy::keepLatest(1), kCount, 64, max_chunk, 1000ms);
+        std::ofstream(sent_flag) << "sent\n";
+        return code;
+      });
   std::filesystem::remove(sent_flag);
 }
 
@@ -325,63 +328,60 @@ TEST_CASE("a blob crosses processes in place and the chunk it used is clean for 
   pools.pools = memPoolsFor({{1 << 17, 40}, {1 << 12, 64}});
   const auto max_chunk = maxChunk(pools);
   constexpr int kCount = 200;
-  test::Children children;
-  auto rx = children.spawn([&] {
-    ShmTransport transport(processOptions("tessera_test_blob_rx", 1, max_chunk));
-    Runtime rt(wallReceiverRuntime());
-    auto& checker =
-        static_cast<BlobChecker&>(rt.add("rx", std::make_unique<BlobChecker>(), {{"in", "blobs"}}));
-    transport.attach(rt, {topic("blobs", false, true, MailboxPolicy::reliable(8))});
-    rt.configure();
-    rt.start();
-    transport.startReceiving();
-    if (!transport.waitForPublishers(10s)) return 5;
-    const auto deadline = std::chrono::steady_clock::now() + 20s;
-    while (checker.seen.load() < kCount && std::chrono::steady_clock::now() < deadline)
-      std::this_thread::sleep_for(5ms);
-    rt.stop();
-    transport.stopReceiving();
-    std::printf("rx: %d messages, %d wrong\n", checker.seen.load(), checker.wrong.load());
-    if (checker.seen.load() != kCount) return 2;
-    return checker.wrong.load() == 0 ? 0 : 3;
-  });
-  auto tx = children.spawn([&] {
-    ShmTransport transport(processOptions("tessera_test_blob_tx", 0, max_chunk));
-    RuntimeOptions ro;
-    ro.clock = ClockKind::kWall;
-    ro.manual = true;
-    Runtime rt(ro);
-    transport.attach(rt, {topic("blobs", true, false, MailboxPolicy::reliable(8))});
-    auto pub = rt.externalPublisher<msg::Blob>("blobs");
-    rt.configure(true);
-    if (!transport.waitForPublishers(10s)) return 5;
-    constexpr std::size_t n = BlobChecker::kBlobPayload;
-    for (int i = 0; i < kCount; ++i) {
-      if (i % 2 == 0) {
-        auto loan = pub.loanWithBlob(n);
-        setHeader(loan->initHeader(), i, "test", static_cast<std::uint64_t>(i));
-        for (std::size_t k = 0; k < n; ++k)
-          loan.blob()[k] = static_cast<std::byte>((static_cast<std::size_t>(i) + k) % 251);
-        loan->adoptPayload(loan.blobData());
-        pub.publish(std::move(loan));
-      } else {
-        auto loan = pub.loan(n);
-        setHeader(loan->initHeader(), i, "test", static_cast<std::uint64_t>(i));
-        loan->initPayload(static_cast<unsigned>(n))[0] = static_cast<kj::byte>(i);
-        pub.publish(std::move(loan));
-      }
-    }
-    const auto s = transport.stats();
-    std::printf("tx: %d sent, %llu copies, %llu heap loans\n", kCount,
-                static_cast<unsigned long long>(s.copies),
-                static_cast<unsigned long long>(s.heap_fallbacks));
-    std::this_thread::sleep_for(300ms);  // let the receiver take the last chunks
-    return s.copies == 0 ? 0 : 7;        // every message went in place
-  });
-  RouDiHost roudi(pools);
-  children.open();
-  CHECK(children.wait(tx) == 0);
-  CHECK(children.wait(rx) == 0);
+  checkPair(
+      pools,
+      [&] {
+        ShmTransport transport(processOptions("tessera_test_blob_rx", 1, max_chunk));
+        Runtime rt(wallReceiverRuntime());
+        auto& checker = static_cast<BlobChecker&>(
+            rt.add("rx", std::make_unique<BlobChecker>(), {{"in", "blobs"}}));
+        transport.attach(rt, {topic("blobs", false, true, MailboxPolicy::reliable(8))});
+        rt.configure();
+        rt.start();
+        transport.startReceiving();
+        if (!transport.waitForPublishers(10s)) return 5;
+        const auto deadline = std::chrono::steady_clock::now() + 20s;
+        while (checker.seen.load() < kCount && std::chrono::steady_clock::now() < deadline)
+          std::this_thread::sleep_for(5ms);
+        rt.stop();
+        transport.stopReceiving();
+        std::printf("rx: %d messages, %d wrong\n", checker.seen.load(), checker.wrong.load());
+        if (checker.seen.load() != kCount) return 2;
+        return checker.wrong.load() == 0 ? 0 : 3;
+      },
+      [&] {
+        ShmTransport transport(processOptions("tessera_test_blob_tx", 0, max_chunk));
+        RuntimeOptions ro;
+        ro.clock = ClockKind::kWall;
+        ro.manual = true;
+        Runtime rt(ro);
+        transport.attach(rt, {topic("blobs", true, false, MailboxPolicy::reliable(8))});
+        auto pub = rt.externalPublisher<msg::Blob>("blobs");
+        rt.configure(true);
+        if (!transport.waitForPublishers(10s)) return 5;
+        constexpr std::size_t n = BlobChecker::kBlobPayload;
+        for (int i = 0; i < kCount; ++i) {
+          if (i % 2 == 0) {
+            auto loan = pub.loanWithBlob(n);
+            setHeader(loan->initHeader(), i, "test", static_cast<std::uint64_t>(i));
+            for (std::size_t k = 0; k < n; ++k)
+              loan.blob()[k] = static_cast<std::byte>((static_cast<std::size_t>(i) + k) % 251);
+            loan->adoptPayload(loan.blobData());
+            pub.publish(std::move(loan));
+          } else {
+            auto loan = pub.loan(n);
+            setHeader(loan->initHeader(), i, "test", static_cast<std::uint64_t>(i));
+            loan->initPayload(static_cast<unsigned>(n))[0] = static_cast<kj::byte>(i);
+            pub.publish(std::move(loan));
+          }
+        }
+        const auto s = transport.stats();
+        std::printf("tx: %d sent, %llu copies, %llu heap loans\n", kCount,
+                    static_cast<unsigned long long>(s.copies),
+                    static_cast<unsigned long long>(s.heap_fallbacks));
+        std::this_thread::sleep_for(300ms);  // let the receiver take the last chunks
+        return s.copies == 0 ? 0 : 7;        // every message went in place
+      });
 }
 
 namespace {
@@ -405,122 +405,116 @@ TEST_CASE("a process without a receiving thread gets its messages on the thread 
   const auto pools = smallPools();
   const auto max_chunk = maxChunk(pools);
   constexpr int kCount = 500;
-  test::Children children;
-  auto rx = children.spawn([&] {
-    ShmTransport transport(processOptions("tessera_test_here_rx", 1, max_chunk));
-    Runtime rt(wallReceiverRuntime());
-    auto& noter =
-        static_cast<ThreadNoter&>(rt.add("rx", std::make_unique<ThreadNoter>(), {{"in", "here"}}));
-    noter.expected_thread = std::this_thread::get_id();
-    transport.attach(rt, {topic("here", false, true, MailboxPolicy::reliable(8))});
-    rt.configure();
-    rt.start();
-    if (!transport.waitForPublishers(10s)) return 5;
-    const auto deadline = std::chrono::steady_clock::now() + 20s;
-    while (noter.seen < kCount && std::chrono::steady_clock::now() < deadline)
-      transport.receiveHere(std::chrono::milliseconds(50));
-    // The receiving thread and receiveHere() exclude each other.
-    transport.startReceiving();
-    bool refused = false;
-    try {
-      transport.receiveHere(std::chrono::milliseconds(1));
-    } catch (const std::logic_error&) {
-      refused = true;
-    }
-    transport.stopReceiving();
-    rt.stop();
-    std::printf("rx: %d messages, %d out of order, %d on another thread\n", noter.seen,
-                noter.out_of_order, noter.elsewhere);
-    if (noter.seen != kCount || noter.out_of_order != 0) return 2;
-    if (noter.elsewhere != 0) return 3;
-    return refused ? 0 : 4;
-  });
-  auto tx = children.spawn(
+  checkPair(
+      pools,
+      [&] {
+        ShmTransport transport(processOptions("tessera_test_here_rx", 1, max_chunk));
+        Runtime rt(wallReceiverRuntime());
+        auto& noter = static_cast<ThreadNoter&>(
+            rt.add("rx", std::make_unique<ThreadNoter>(), {{"in", "here"}}));
+        noter.expected_thread = std::this_thread::get_id();
+        transport.attach(rt, {topic("here", false, true, MailboxPolicy::reliable(8))});
+        rt.configure();
+        rt.start();
+        if (!transport.waitForPublishers(10s)) return 5;
+        const auto deadline = std::chrono::steady_clock::now() + 20s;
+        while (noter.seen < kCount && std::chrono::steady_clock::now() < deadline)
+          transport.receiveHere(std::chrono::milliseconds(50));
+        // The receiving thread and receiveHere() exclude each other.
+        transport.startReceiving();
+        bool refused = false;
+        try {
+          transport.receiveHere(std::chrono::milliseconds(1));
+        } catch (const std::logic_error&) {
+          refused = true;
+        }
+        transport.stopReceiving();
+        rt.stop();
+        std::printf("rx: %d messages, %d out of order, %d on another thread\n", noter.seen,
+                    noter.out_of_order, noter.elsewhere);
+        if (noter.seen != kCount || noter.out_of_order != 0) return 2;
+        if (noter.elsewhere != 0) return 3;
+        return refused ? 0 : 4;
+      },
+
       [&] { return send("here", MailboxPolicy::reliable(8), kCount, 64, max_chunk, 60000ms); });
-  RouDiHost roudi(pools);
-  children.open();
-  CHECK(children.wait(tx) == 0);
-  CHECK(children.wait(rx) == 0);
 }
 
 TEST_CASE("malformed messages from another process are dropped and later ones still arrive",
           "[shm]") {
   const auto pools = smallPools();
   const auto max_chunk = maxChunk(pools);
-  test::Children children;
-  auto rx = children.spawn([&] {
-    ShmTransport transport(processOptions("tessera_test_bad_rx", 1, max_chunk));
-    Runtime rt(wallReceiverRuntime());
-    auto& rec = static_cast<test::Recorder&>(rt.add(
-        "rx", std::make_unique<test::Recorder>(MailboxPolicy::reliable(8)), {{"in", "mixed"}}));
-    transport.attach(rt, {topic("mixed", false, true, MailboxPolicy::reliable(8))});
-    rt.configure();
-    rt.start();
-    transport.startReceiving();
-    if (!transport.waitForPublishers(10s)) return 5;
-    const auto deadline = std::chrono::steady_clock::now() + 10s;
-    // Delivered by the transport: the one with a bad root pointer and the good one.
-    while (transport.stats().received < 2 && std::chrono::steady_clock::now() < deadline)
-      std::this_thread::sleep_for(5ms);
-    std::this_thread::sleep_for(100ms);  // nothing else may arrive
-    transport.stopReceiving();
-    rt.stop();
-    const auto report = rt.report();
-    std::printf("rx: %zu handled, %llu malformed, stop reason '%s'\n", rec.seqs.size(),
-                static_cast<unsigned long long>(report.actors[0].malformed),
-                report.stop_reason.c_str());
-    if (rec.seqs.size() != 1) return 2;
-    if (report.actors[0].malformed != 1 || report.interrupted) return 4;
-    return rec.seqs[0] == 7 ? 0 : 3;
-  });
-  auto tx = children.spawn([&] {
-    ShmTransport transport(processOptions("tessera_test_bad_tx", 0, max_chunk));
-    RuntimeOptions ro;
-    ro.clock = ClockKind::kWall;
-    ro.manual = true;
-    Runtime rt(ro);
-    transport.attach(rt, {topic("mixed", true, false, MailboxPolicy::reliable(8))});
-    auto pub = rt.externalPublisher<msg::Blob>("mixed");
-    rt.configure(true);
-    // A second, raw port on the same topic, as a foreign or broken sender would use.
-    iox::popo::PublisherOptions po;
-    po.subscriberTooSlowPolicy = iox::popo::ConsumerTooSlowPolicy::WAIT_FOR_CONSUMER;
-    iox::popo::UntypedPublisher raw({"tessera", "mixed", "capnp"}, po);
-    if (!transport.waitForPublishers(10s)) return 5;
-    const auto until = std::chrono::steady_clock::now() + 10s;
-    while (!raw.hasSubscribers() && std::chrono::steady_clock::now() < until)
-      std::this_thread::sleep_for(2ms);
-    auto sendRaw = [&](const std::function<void(std::byte*)>& write) {
-      auto r = raw.loan(256, 8);
-      if (r.has_error()) return false;
-      auto* p = static_cast<std::byte*>(r.value());
-      std::memset(p, 0, 256);
-      write(p);
-      raw.publish(r.value());
-      return true;
-    };
-    auto table = [](std::byte* p, std::uint32_t count_minus_one, std::uint32_t size) {
-      detail::recordChunkExtent(p, 0, 256);  // a valid Tessera prefix
-      std::memcpy(p + 16, &count_minus_one, 4);
-      std::memcpy(p + 20, &size, 4);
-    };
-    bool ok = sendRaw([](std::byte* p) { std::memset(p, 0x7f, 64); });  // no Tessera prefix
-    ok = ok && sendRaw([&](std::byte* p) { table(p, 100000, 1); });     // absurd segment count
-    ok = ok && sendRaw([&](std::byte* p) { table(p, 0, 1u << 20); });   // segment past the end
-    ok = ok && sendRaw([&](std::byte* p) {  // a root struct pointer 1000 words past the segment
-           table(p, 0, 1);
-           const std::uint64_t root = (std::uint64_t{1000} << 2) | (std::uint64_t{1} << 32);
-           std::memcpy(p + 24, &root, sizeof(root));
-         });
-    if (!ok) return 6;
-    auto loan = pub.loan(64);
-    setHeader(loan->initHeader(), 7, "test", 7);
-    pub.publish(std::move(loan));
-    std::this_thread::sleep_for(300ms);
-    return 0;
-  });
-  RouDiHost roudi(pools);
-  children.open();
-  CHECK(children.wait(tx) == 0);
-  CHECK(children.wait(rx) == 0);
+  checkPair(
+      pools,
+      [&] {
+        ShmTransport transport(processOptions("tessera_test_bad_rx", 1, max_chunk));
+        Runtime rt(wallReceiverRuntime());
+        auto& rec = static_cast<test::Recorder&>(rt.add(
+            "rx", std::make_unique<test::Recorder>(MailboxPolicy::reliable(8)), {{"in", "mixed"}}));
+        transport.attach(rt, {topic("mixed", false, true, MailboxPolicy::reliable(8))});
+        rt.configure();
+        rt.start();
+        transport.startReceiving();
+        if (!transport.waitForPublishers(10s)) return 5;
+        const auto deadline = std::chrono::steady_clock::now() + 10s;
+        // Delivered by the transport: the one with a bad root pointer and the good one.
+        while (transport.stats().received < 2 && std::chrono::steady_clock::now() < deadline)
+          std::this_thread::sleep_for(5ms);
+        std::this_thread::sleep_for(100ms);  // nothing else may arrive
+        transport.stopReceiving();
+        rt.stop();
+        const auto report = rt.report();
+        std::printf("rx: %zu handled, %llu malformed, stop reason '%s'\n", rec.seqs.size(),
+                    static_cast<unsigned long long>(report.actors[0].malformed),
+                    report.stop_reason.c_str());
+        if (rec.seqs.size() != 1) return 2;
+        if (report.actors[0].malformed != 1 || report.interrupted) return 4;
+        return rec.seqs[0] == 7 ? 0 : 3;
+      },
+      [&] {
+        ShmTransport transport(processOptions("tessera_test_bad_tx", 0, max_chunk));
+        RuntimeOptions ro;
+        ro.clock = ClockKind::kWall;
+        ro.manual = true;
+        Runtime rt(ro);
+        transport.attach(rt, {topic("mixed", true, false, MailboxPolicy::reliable(8))});
+        auto pub = rt.externalPublisher<msg::Blob>("mixed");
+        rt.configure(true);
+        // A second, raw port on the same topic, as a foreign or broken sender would use.
+        iox::popo::PublisherOptions po;
+        po.subscriberTooSlowPolicy = iox::popo::ConsumerTooSlowPolicy::WAIT_FOR_CONSUMER;
+        iox::popo::UntypedPublisher raw({"tessera", "mixed", "capnp"}, po);
+        if (!transport.waitForPublishers(10s)) return 5;
+        const auto until = std::chrono::steady_clock::now() + 10s;
+        while (!raw.hasSubscribers() && std::chrono::steady_clock::now() < until)
+          std::this_thread::sleep_for(2ms);
+        auto sendRaw = [&](const std::function<void(std::byte*)>& write) {
+          auto r = raw.loan(256, 8);
+          if (r.has_error()) return false;
+          auto* p = static_cast<std::byte*>(r.value());
+          std::memset(p, 0, 256);
+          write(p);
+          raw.publish(r.value());
+          return true;
+        };
+        auto table = [](std::byte* p, std::uint32_t count_minus_one, std::uint32_t size) {
+          detail::recordChunkExtent(p, 0, 256);  // a valid Tessera prefix
+          std::memcpy(p + 16, &count_minus_one, 4);
+          std::memcpy(p + 20, &size, 4);
+        };
+        bool ok = sendRaw([](std::byte* p) { std::memset(p, 0x7f, 64); });  // no Tessera prefix
+        ok = ok && sendRaw([&](std::byte* p) { table(p, 100000, 1); });     // absurd segment count
+        ok = ok && sendRaw([&](std::byte* p) { table(p, 0, 1u << 20); });   // segment past the end
+        ok = ok && sendRaw([&](std::byte* p) {  // a root struct pointer 1000 words past the segment
+               table(p, 0, 1);
+               const std::uint64_t root = (std::uint64_t{1000} << 2) | (std::uint64_t{1} << 32);
+               std::memcpy(p + 24, &root, sizeof(root));
+             });
+        if (!ok) return 6;
+        auto loan = pub.loan(64);
+        setHeader(loan->initHeader(), 7, "test", 7);
+        pub.publish(std::move(loan));
+        std::this_thread::sleep_for(300ms);
+        return 0;
+      });
 }
