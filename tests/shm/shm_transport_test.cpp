@@ -62,6 +62,14 @@ void checkPair(const RouDiHostOptions& pools, std::function<int()> rx, std::func
   CHECK(children.wait(receiver) == 0);
 }
 
+/// A sending process's runtime: wall clock, stepped by hand (publishes from the test's thread).
+RuntimeOptions manualSenderRuntime() {
+  RuntimeOptions ro;
+  ro.clock = ClockKind::kWall;
+  ro.manual = true;
+  return ro;
+}
+
 /// A wall-clock runtime with one worker thread, quiet.
 RuntimeOptions wallReceiverRuntime() {
   RuntimeOptions ro;
@@ -116,10 +124,7 @@ int receive(const std::string& topic_name, MailboxPolicy policy, int expected,
 int send(const std::string& topic_name, MailboxPolicy policy, int count, std::size_t payload,
          std::size_t max_chunk, std::chrono::milliseconds max_block) {
   ShmTransport transport(processOptions("tessera_test_tx", 0, max_chunk));
-  RuntimeOptions ro;
-  ro.clock = ClockKind::kWall;
-  ro.manual = true;
-  Runtime rt(ro);
+  Runtime rt(manualSenderRuntime());
   auto t = topic(topic_name, true, false, policy);
   transport.attach(rt, {t});
   auto pub = rt.externalPublisher<msg::Blob>(topic_name);
@@ -180,9 +185,7 @@ TEST_CASE("a message larger than the largest shared-memory chunk is a clear erro
   test::Children children;
   auto tx = children.spawn([&] {
     ShmTransport transport(processOptions("tessera_test_big", 0, max_chunk));
-    RuntimeOptions ro;
-    ro.manual = true;
-    Runtime rt(ro);
+    Runtime rt(manualSenderRuntime());
     transport.attach(rt, {topic("big", true, false, MailboxPolicy::reliable())});
     auto pub = rt.externalPublisher<msg::Blob>("big");
     rt.configure(true);
@@ -351,10 +354,7 @@ TEST_CASE("a blob crosses processes in place and the chunk it used is clean for 
       },
       [&] {
         ShmTransport transport(processOptions("tessera_test_blob_tx", 0, max_chunk));
-        RuntimeOptions ro;
-        ro.clock = ClockKind::kWall;
-        ro.manual = true;
-        Runtime rt(ro);
+        Runtime rt(manualSenderRuntime());
         transport.attach(rt, {topic("blobs", true, false, MailboxPolicy::reliable(8))});
         auto pub = rt.externalPublisher<msg::Blob>("blobs");
         rt.configure(true);
@@ -473,10 +473,7 @@ TEST_CASE("malformed messages from another process are dropped and later ones st
       },
       [&] {
         ShmTransport transport(processOptions("tessera_test_bad_tx", 0, max_chunk));
-        RuntimeOptions ro;
-        ro.clock = ClockKind::kWall;
-        ro.manual = true;
-        Runtime rt(ro);
+        Runtime rt(manualSenderRuntime());
         transport.attach(rt, {topic("mixed", true, false, MailboxPolicy::reliable(8))});
         auto pub = rt.externalPublisher<msg::Blob>("mixed");
         rt.configure(true);

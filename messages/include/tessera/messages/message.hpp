@@ -247,10 +247,9 @@ Message<T> checkedMessage(std::shared_ptr<const MessageStorage> storage, const s
   validateMessageTree(*storage, what);
   validateTyped(*storage, capnp::Schema::from<T>(), what);
   try {
-    return Message<T>(std::move(storage));
-  } catch (const kj::Exception& e) {
-    throw MessageError(what + ": not a readable " + messageTypeOf<T>().name + ": " +
-                       e.getDescription().cStr());
+    return readMessage<T>(std::move(storage));
+  } catch (const MalformedMessage& e) {
+    throw MessageError(what + ": " + e.what());
   }
 }
 
