@@ -9,17 +9,27 @@
 // reaped (and killed on error, timeout or Ctrl-C), so no process or shared memory outlives it.
 //
 // Latency: the leader asks the follower to build its pong and waits for the confirmation, builds
-// its ping (payloads fully written: application work, not latency), waits a gap so both sides
-// are idle, then stamps steady_clock and publishes (gap 1 ms by default: a message after a quiet
+// its ping (application work, not latency), waits a gap so both sides are idle, then stamps
+// steady_clock and publishes (gap 1 ms by default: a message after a quiet
 // spell, as sensor data arrives; with --gap-us 100 on an idle VM raw iceoryx's two
 // single-threaded processes answer in ~8 us while ours and the socket take ~20 us, on a VM
 // loaded by other jobs all three are near 10 us). The follower stamps on take and sends the
 // prebuilt pong, which carries the ping's one-way latency and its own stamp. So no payload is
 // being written anywhere while a message is under way (writing MiBs slows this VM's wake-ups).
-// CLOCK_MONOTONIC is system-wide, so stamps of two processes compare. One-way figures pool both
-// directions; round trip is ping stamp to pong take. Streaming: the leader publishes 64 B messages
-// as fast as it can for --stream-seconds on a reliable (blocking) path; the follower counts them
-// and reports the count when told the end.
+// --fill says what building writes: `first-use` (default; iceperf's method, under which the
+// issue's reference figures were taken: raw iceoryx flat at every size) writes a buffer or chunk
+// in full the first time it is used and afterwards only its header; `every` writes every
+// payload in full, as a producer filling each image would. Writing MiBs before each message
+// evicts the caches the next wake-up runs from (every zero-copy transport then slows with size,
+// raw iceoryx too) and leaves the socket's source bytes hot for its copy: the two modes bracket
+// what an application sees.
+// CLOCK_MONOTONIC is system-wide, so stamps of two processes compare. The two directions are
+// kept apart: the ping wakes a process idle since the gap, the pong one that has just sent, so
+// they form two modes and a median over both pooled would land in either from run to run. The
+// one-way p50 is the mean of the two medians; p99 is over both. Round trip is ping stamp to
+// pong take. Streaming: the leader publishes 64 B messages as fast as it can for
+// --stream-seconds on a reliable (blocking) path; the follower counts them and reports the count
+// when told the end.
 #include "bench_util.hpp"
 #include "commands.hpp"
 
@@ -55,6 +65,7 @@
 #include <iostream>
 #include <new>
 #include <optional>
+#include <set>
 #include <stdexcept>
 
 namespace tessera::app {
@@ -78,6 +89,12 @@ std::string roundName(const char* base, int round) {
   return std::string(base) + "_" + std::to_string(round);
 }
 
+/// What building a message writes (--fill).
+enum class Fill {
+  kFirstUse,  // a buffer in full when it is first used (its pages faulted in), then its header
+  kEvery,     // every message's payload in full
+};
+
 struct Options {
   int samples = 1000;
   /// The process transports take turns in this many rounds (fresh processes each), so a
@@ -86,8 +103,13 @@ struct Options {
   int rounds = 5;
   int gap_us = 1000;
   double stream_seconds = 1.0;
+  Fill fill = Fill::kFirstUse;
   bool json = false;
 };
+
+const char* fillName(Fill f) {
+  return f == Fill::kEvery ? "every" : "first-use";
+}
 
 // kPrepare asks the follower to build its next pong (of `value` bytes) and answer kReady, so
 // that no payload is written on either side while a ping or pong is under way.
@@ -123,23 +145,39 @@ Nanos stampWire(void* p) {
   return w.stamp;
 }
 
-// Written into every payload like a real producer would (an image, a scan): every page touched.
-void fillPayload(void* p, std::size_t bytes, Kind kind, std::int64_t value = 0) {
-  std::memset(p, 0x5a, bytes);
-  Wire w;
-  w.bytes = static_cast<std::uint32_t>(bytes);
-  w.kind = kind;
-  w.value = value;
-  writeWire(p, w);
-}
+/// Writes payloads as --fill says; one per process side, as it remembers what it wrote.
+class PayloadFiller {
+ public:
+  explicit PayloadFiller(Fill fill) : fill_(fill) {}
+  /// Writes the `bytes` at `p` (in full when the mode asks for it) and their Wire header.
+  void operator()(void* p, std::size_t bytes, Kind kind, std::int64_t value = 0) {
+    if (fill_ == Fill::kEvery || written_.insert({p, bytes}).second) std::memset(p, 0x5a, bytes);
+    Wire w;
+    w.bytes = static_cast<std::uint32_t>(bytes);
+    w.kind = kind;
+    w.value = value;
+    writeWire(p, w);
+  }
+
+ private:
+  Fill fill_;
+  std::set<std::pair<const void*, std::size_t>> written_;  // first-use: buffers written in full
+};
 
 /// Small control messages (kPrepare, kReady, stream counts).
 constexpr std::size_t kControlBytes = 64;
 
 // ------------------------------------------------------------------ results
 
+/// One-way figures keep the two directions apart before combining them: the ping wakes a
+/// process idle since the gap, the pong one that has just sent, so their latencies form two
+/// modes and a median over both pooled lands in either, run to run.
 struct SizeResult {
-  double p50_us = 0, p99_us = 0, rtt_p50_us = 0, rtt_p99_us = 0;
+  double p50_us = 0;       // mean of the ping and pong medians
+  double ping_p50_us = 0;  // leader -> follower, after the idle gap
+  double pong_p50_us = 0;  // follower -> leader, the answer
+  double p99_us = 0;       // over every hop of both directions
+  double rtt_p50_us = 0, rtt_p99_us = 0;
   std::uint64_t copies = 0;
 };
 
@@ -338,8 +376,8 @@ std::byte* payloadOf(Loan<msg::Blob>& loan) {
 /// Answers pings on "ping" with pongs on "pong".
 class Echo : public Actor {
  public:
-  Echo(std::atomic<bool>& quit, const ShmTransport* transport)
-      : quit_(quit), transport_(transport) {}
+  Echo(std::atomic<bool>& quit, const ShmTransport* transport, Fill fill)
+      : quit_(quit), transport_(transport), fill_(fill) {}
   void configure(ActorContext& ctx) override {
     pong_ = ctx.advertise<msg::Blob>("pong");
     ctx.subscribe<msg::Blob>("ping", MailboxPolicy::reliable(128),
@@ -359,7 +397,7 @@ class Echo : public Actor {
       if (!next_ || next_bytes_ != bytes) {
         next_.emplace(loanPayload(pong_, bytes));
         setHeader((*next_)->initHeader(), 0, "bench", pong_.nextSeq());
-        fillPayload(payloadOf(*next_), bytes, Kind::kPong);
+        fill_(payloadOf(*next_), bytes, Kind::kPong);
         next_bytes_ = bytes;
       }
       return payloadOf(*next_);
@@ -389,6 +427,7 @@ class Echo : public Actor {
   Publisher<msg::Blob> pong_;
   std::optional<Loan<msg::Blob>> next_;
   std::size_t next_bytes_ = 0;
+  PayloadFiller fill_;
   FollowerLogic logic_;
 };
 
@@ -438,12 +477,15 @@ class RuntimeLeader final : public LeaderLink {
  public:
   /// With a transport, pongs are received on the calling thread (ShmTransport::receiveHere), as
   /// raw iceoryx's leader does: the thread that sent the ping is the one its pong wakes.
-  RuntimeLeader(Runtime& rt, Catcher& catcher, ShmTransport* transport)
-      : pub_(rt.externalPublisher<msg::Blob>("ping")), catcher_(catcher), transport_(transport) {}
+  RuntimeLeader(Runtime& rt, Catcher& catcher, ShmTransport* transport, Fill fill)
+      : pub_(rt.externalPublisher<msg::Blob>("ping")),
+        catcher_(catcher),
+        transport_(transport),
+        fill_(fill) {}
   void build(std::size_t bytes, Kind kind, std::int64_t value) override {
     next_.emplace(loanPayload(pub_, bytes));
     setHeader((*next_)->initHeader(), 0, "bench", pub_.nextSeq());
-    fillPayload(payloadOf(*next_), bytes, kind, value);
+    fill_(payloadOf(*next_), bytes, kind, value);
   }
   Nanos send() override {
     auto loan = std::move(*next_);
@@ -476,6 +518,7 @@ class RuntimeLeader final : public LeaderLink {
   Publisher<msg::Blob> pub_;
   Catcher& catcher_;
   ShmTransport* transport_;
+  PayloadFiller fill_;
   std::optional<Loan<msg::Blob>> next_;
   std::int64_t expected_ = 0;
 };
@@ -509,11 +552,11 @@ ShmTransportOptions shmOptions(const std::string& name, std::uint32_t index,
   return so;
 }
 
-int shmFollower(std::size_t max_chunk, int round) {
+int shmFollower(std::size_t max_chunk, Fill fill, int round) {
   ShmTransport transport(shmOptions(roundName(kShmFollowerName, round), 1, max_chunk));
   Runtime rt(benchRuntimeOptions(1));
   std::atomic<bool> quit{false};
-  rt.add("echo", std::make_unique<Echo>(quit, &transport));
+  rt.add("echo", std::make_unique<Echo>(quit, &transport, fill));
   transport.attach(rt, {blobTopic("ping", false), blobTopic("pong", true)});
   rt.configure();
   rt.start();
@@ -532,7 +575,7 @@ void shmLeader(std::size_t max_chunk, const Options& o, TransportResult& out, in
   Runtime rt(benchRuntimeOptions(1));
   auto& catcher = static_cast<Catcher&>(rt.add("catcher", std::make_unique<Catcher>()));
   transport.attach(rt, {blobTopic("ping", true), blobTopic("pong", false)});
-  RuntimeLeader link(rt, catcher, &transport);
+  RuntimeLeader link(rt, catcher, &transport, o.fill);
   rt.configure();
   rt.start();
   if (!transport.waitForPublishers(10s)) throw std::runtime_error("leader: no follower");
@@ -543,9 +586,9 @@ void shmLeader(std::size_t max_chunk, const Options& o, TransportResult& out, in
 void inprocRun(const Options& o, TransportResult& out) {
   Runtime rt(benchRuntimeOptions(2));
   std::atomic<bool> quit{false};
-  rt.add("echo", std::make_unique<Echo>(quit, nullptr));
+  rt.add("echo", std::make_unique<Echo>(quit, nullptr, o.fill));
   auto& catcher = static_cast<Catcher&>(rt.add("catcher", std::make_unique<Catcher>()));
-  RuntimeLeader link(rt, catcher, nullptr);
+  RuntimeLeader link(rt, catcher, nullptr, o.fill);
   rt.configure();
   rt.start();
   lead(link, o, out);
@@ -562,7 +605,7 @@ iox::capro::ServiceDescription rawService(const char* topic) {
 /// One end of the raw path: publisher on `out`, subscriber on `in` watched by a WaitSet.
 class RawEnd {
  public:
-  RawEnd(const char* out, const char* in) {
+  RawEnd(const char* out, const char* in, Fill fill) : fill_(fill) {
     iox::popo::PublisherOptions po;
     po.subscriberTooSlowPolicy = iox::popo::ConsumerTooSlowPolicy::WAIT_FOR_CONSUMER;
     publisher_.emplace(rawService(out), po);
@@ -595,7 +638,7 @@ class RawEnd {
     if (next_ != nullptr) publisher_->release(next_);
     next_ = loan(bytes);
     next_bytes_ = bytes;
-    fillPayload(next_, bytes, kind, value);
+    fill_(next_, bytes, kind, value);
     return next_;
   }
   /// Builds and publishes a control message now, leaving the prepared chunk alone.
@@ -638,13 +681,14 @@ class RawEnd {
     return r.value();
   }
 
+  PayloadFiller fill_;
   void* next_ = nullptr;
   std::size_t next_bytes_ = 0;
 };
 
 class RawLeader final : public LeaderLink {
  public:
-  RawLeader() : end_("ping", "pong") { end_.waitConnected(10s); }
+  explicit RawLeader(Fill fill) : end_("ping", "pong", fill) { end_.waitConnected(10s); }
   void build(std::size_t bytes, Kind kind, std::int64_t value) override {
     end_.prepare(bytes, kind, value);
   }
@@ -663,10 +707,10 @@ class RawLeader final : public LeaderLink {
   RawEnd end_;
 };
 
-int rawFollower(int round) {
+int rawFollower(Fill fill, int round) {
   const std::string name = roundName(kRawFollowerName, round);
   iox::runtime::PoshRuntime::initRuntime(iox::RuntimeName_t(iox::cxx::TruncateToCapacity, name));
-  RawEnd end("pong", "ping");
+  RawEnd end("pong", "ping", fill);
   end.waitConnected(10s);
   FollowerLogic logic;
   bool more = true;
@@ -683,7 +727,7 @@ int rawFollower(int round) {
 void rawLeader(const Options& o, TransportResult& out, int round) {
   const std::string name = roundName(kRawLeaderName, round);
   iox::runtime::PoshRuntime::initRuntime(iox::RuntimeName_t(iox::cxx::TruncateToCapacity, name));
-  RawLeader link;
+  RawLeader link(o.fill);
   lead(link, o, out);
 }
 
@@ -740,10 +784,10 @@ class UdsReader {
 /// A message buffer written in advance and sent whole.
 class UdsSender {
  public:
-  explicit UdsSender(int fd) : fd_(fd), buffer_(kSizes.back()) {}
+  UdsSender(int fd, Fill fill) : fd_(fd), buffer_(kSizes.back()), fill_(fill) {}
   void* prepare(std::size_t bytes, Kind kind, std::int64_t value = 0) {
     if (bytes_ != bytes) {
-      fillPayload(buffer_.data(), bytes, kind, value);
+      fill_(buffer_.data(), bytes, kind, value);
       bytes_ = bytes;
     }
     return buffer_.data();
@@ -759,18 +803,19 @@ class UdsSender {
   void* current() { return buffer_.data(); }
   void send() {
     writeAll(fd_, buffer_.data(), bytes_);
-    bytes_ = 0;  // built again next time: a real producer writes every message
+    bytes_ = 0;  // built again next time, as --fill says
   }
 
  private:
   int fd_;
   std::vector<std::byte> buffer_;
+  PayloadFiller fill_;
   std::size_t bytes_ = 0;
 };
 
 class UdsLeader final : public LeaderLink {
  public:
-  explicit UdsLeader(int fd) : sender_(fd), reader_(fd) {}
+  UdsLeader(int fd, Fill fill) : sender_(fd, fill), reader_(fd) {}
   void build(std::size_t bytes, Kind kind, std::int64_t value) override {
     sender_.prepare(bytes, kind, value);
   }
@@ -786,8 +831,8 @@ class UdsLeader final : public LeaderLink {
   UdsReader reader_;
 };
 
-int udsFollower(int fd) {
-  UdsSender sender(fd);
+int udsFollower(int fd, Fill fill) {
+  UdsSender sender(fd, fill);
   UdsReader reader(fd);
   FollowerLogic logic;
   for (;;) {
@@ -1111,15 +1156,21 @@ void addRows(std::vector<Row>& rows, const std::string& transport,
     stream_s += r->stream_s;
   }
   for (std::size_t k = 0; k < kSizes.size(); ++k) {
-    std::vector<double> one_way, round_trip;
+    std::vector<double> one_way, ping, pong, round_trip;
     SizeResult size;
     for (const auto* r : rounds) {
       const RoundSamples& s = r->sizes[k];
       one_way.insert(one_way.end(), s.one_way.begin(), s.one_way.begin() + 2 * s.count);
+      for (int i = 0; i < s.count; ++i) {
+        ping.push_back(s.one_way[2 * static_cast<std::size_t>(i)]);
+        pong.push_back(s.one_way[2 * static_cast<std::size_t>(i) + 1]);
+      }
       round_trip.insert(round_trip.end(), s.round_trip.begin(), s.round_trip.begin() + s.count);
       size.copies += s.copies;
     }
-    size.p50_us = percentile(one_way, 0.5);
+    size.ping_p50_us = percentile(ping, 0.5);
+    size.pong_p50_us = percentile(pong, 0.5);
+    size.p50_us = 0.5 * (size.ping_p50_us + size.pong_p50_us);
     size.p99_us = percentile(one_way, 0.99);
     size.rtt_p50_us = percentile(round_trip, 0.5);
     size.rtt_p99_us = percentile(round_trip, 0.99);
@@ -1138,12 +1189,15 @@ void print(const std::vector<Row>& rows, const std::vector<Target>& targets, con
     j["gap_us"] = o.gap_us;
     j["samples"] = o.samples;
     j["rounds"] = o.rounds;
+    j["fill"] = fillName(o.fill);
     for (const auto& r : rows) {
       j["results"].push_back(
           {{"transport", r.transport},
            {"payload_bytes", r.payload},
            {"subscribers", 1},
            {"p50_us", r.r.p50_us},
+           {"ping_p50_us", r.r.ping_p50_us},
+           {"pong_p50_us", r.r.pong_p50_us},
            {"p99_us", r.r.p99_us},
            {"round_trip_p50_us", r.r.rtt_p50_us},
            {"round_trip_p99_us", r.r.rtt_p99_us},
@@ -1161,20 +1215,23 @@ void print(const std::vector<Row>& rows, const std::vector<Target>& targets, con
     return;
   }
   std::cout << "machine: " << machineDescription() << "\n"
-            << "one-way latency: stamp before publish -> take in the other process (both "
-               "directions pooled), "
+            << "one-way latency: stamp before publish -> take in the other process; p50 is the "
+               "mean of the ping and pong medians, p99 over both directions; "
             << o.samples << " ping-pongs per size in " << o.rounds << " rounds taking turns, gap "
-            << o.gap_us << " us; round trip: ping stamp -> pong take\n\n";
+            << o.gap_us << " us, payloads written " << fillName(o.fill)
+            << " (--fill); round trip: ping stamp -> pong take\n\n";
   std::cout << std::left << std::setw(13) << "transport" << std::right << std::setw(10)
-            << "payload B" << std::setw(10) << "p50 us" << std::setw(10) << "p99 us"
-            << std::setw(12) << "rtt p50 us" << std::setw(12) << "rtt p99 us" << std::setw(12)
-            << "msgs/s" << std::setw(8) << "copies"
+            << "payload B" << std::setw(10) << "p50 us" << std::setw(10) << "ping p50"
+            << std::setw(10) << "pong p50" << std::setw(10) << "p99 us" << std::setw(12)
+            << "rtt p50 us" << std::setw(12) << "rtt p99 us" << std::setw(12) << "msgs/s"
+            << std::setw(8) << "copies"
             << "\n"
             << std::fixed;
   for (const auto& r : rows) {
     std::cout << std::left << std::setw(13) << r.transport << std::right << std::setw(10)
               << r.payload << std::setprecision(2) << std::setw(10) << r.r.p50_us << std::setw(10)
-              << r.r.p99_us << std::setw(12) << r.r.rtt_p50_us << std::setw(12) << r.r.rtt_p99_us
+              << r.r.ping_p50_us << std::setw(10) << r.r.pong_p50_us << std::setw(10) << r.r.p99_us
+              << std::setw(12) << r.r.rtt_p50_us << std::setw(12) << r.r.rtt_p99_us
               << std::setprecision(0) << std::setw(12)
               << (r.msgs_per_s ? std::to_string(static_cast<long>(*r.msgs_per_s)) : "-")
               << std::setw(8) << (r.has_copies ? std::to_string(r.r.copies) : "-") << "\n";
@@ -1230,11 +1287,11 @@ void runBench(const Options& o) {
     for (int r = 0; r < o.rounds; ++r) {
       pairs[0].push_back(std::make_unique<PairRun>(
           "iceoryx", [&, r](TransportResult& out) { shmLeader(max_chunk, round, out, r); },
-          [&, r] { return shmFollower(max_chunk, r); },
+          [&, r] { return shmFollower(max_chunk, o.fill, r); },
           std::vector<std::string>{roundName(kShmLeaderName, r), roundName(kShmFollowerName, r)}));
       pairs[1].push_back(std::make_unique<PairRun>(
           "iceoryx_raw", [&, r](TransportResult& out) { rawLeader(round, out, r); },
-          [r] { return rawFollower(r); },
+          [&o, r] { return rawFollower(o.fill, r); },
           std::vector<std::string>{roundName(kRawLeaderName, r), roundName(kRawFollowerName, r)}));
       const int* fds = sockets.emplace_back(std::make_unique<SocketPair>())->fds;
       // Each child closes the other end, so a dead peer shows as a closed socket.
@@ -1242,12 +1299,12 @@ void runBench(const Options& o) {
           "uds",
           [&round, fds](TransportResult& out) {
             ::close(fds[1]);
-            UdsLeader link(fds[0]);
+            UdsLeader link(fds[0], round.fill);
             lead(link, round, out);
           },
-          [fds] {
+          [&o, fds] {
             ::close(fds[0]);
-            return udsFollower(fds[1]);
+            return udsFollower(fds[1], o.fill);
           }));
     }
     // RouDi prints its start-up to stdout, which belongs to the report (one JSON object).
@@ -1290,8 +1347,14 @@ void addBenchIpcCommand(CLI::App& bench, int& result) {
                   "rounds in which the transports take turns (samples are split over them)");
   cmd->add_option("--gap-us", o->gap_us, "idle gap between ping-pongs [us]");
   cmd->add_option("--stream-seconds", o->stream_seconds, "duration of each 64 B streaming run [s]");
+  auto fill = std::make_shared<std::string>(fillName(o->fill));
+  cmd->add_option("--fill", *fill,
+                  "what building a message writes: first-use (a buffer in full when first used, "
+                  "then only its header, as iceperf does) or every (each payload in full)")
+      ->check(CLI::IsMember({fillName(Fill::kFirstUse), fillName(Fill::kEvery)}));
   cmd->add_flag("--json", o->json, "print exactly one JSON object on stdout");
-  cmd->callback([o, &result] {
+  cmd->callback([o, fill, &result] {
+    o->fill = *fill == fillName(Fill::kEvery) ? Fill::kEvery : Fill::kFirstUse;
     runBench(*o);
     result = 0;
   });

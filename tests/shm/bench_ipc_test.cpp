@@ -6,6 +6,7 @@
 
 #include <catch2/catch.hpp>
 
+#include <algorithm>
 #include <filesystem>
 #include <set>
 
@@ -21,6 +22,7 @@ TEST_CASE("bench ipc prints one JSON object with rows for every transport and si
   CHECK(j["machine"].is_string());
   CHECK(j["samples"] == 50);
   CHECK(j["rounds"] == 2);
+  CHECK(j["fill"] == "first-use");  // iceperf's method unless --fill every
 
   std::set<std::pair<std::string, std::size_t>> seen;
   for (const auto& row : j["results"]) {
@@ -28,8 +30,11 @@ TEST_CASE("bench ipc prints one JSON object with rows for every transport and si
     const std::size_t bytes = row["payload_bytes"];
     seen.insert({transport, bytes});
     INFO(transport << " " << bytes);
-    CHECK(row["p50_us"].get<double>() > 0);
-    CHECK(row["p99_us"].get<double>() >= row["p50_us"].get<double>());
+    const double ping = row["ping_p50_us"], pong = row["pong_p50_us"];
+    CHECK(ping > 0);
+    CHECK(pong > 0);
+    CHECK(row["p50_us"].get<double>() == Approx(0.5 * (ping + pong)));
+    CHECK(row["p99_us"].get<double>() >= std::min(ping, pong));
     CHECK(row["round_trip_p50_us"].get<double>() > 0);
     if (bytes == 64) {
       CHECK(row["msgs_per_s"].get<double>() > 0);
@@ -65,7 +70,8 @@ TEST_CASE("bench ipc prints one JSON object with rows for every transport and si
   std::filesystem::remove_all(dir);
 }
 
-TEST_CASE("bench ipc rejects rounds it cannot run before starting anything", "[shm]") {
+TEST_CASE("bench ipc rejects rounds and fill modes it cannot run before starting anything",
+          "[shm]") {
   const auto dir = std::filesystem::temp_directory_path() / "tessera_bench_ipc_rounds_test";
   std::filesystem::create_directories(dir);
   const auto none = runCli("bench ipc --rounds 0", dir);
@@ -74,6 +80,9 @@ TEST_CASE("bench ipc rejects rounds it cannot run before starting anything", "[s
   const auto too_long = runCli("bench ipc --samples 100000 --rounds 1", dir);
   CHECK(too_long.exit_code != 0);
   CHECK(too_long.err.find("samples per round; raise --rounds") != std::string::npos);
+  const auto fill = runCli("bench ipc --fill sometimes", dir);
+  CHECK(fill.exit_code != 0);
+  CHECK(fill.err.find("--fill: sometimes not in {first-use,every}") != std::string::npos);
   CHECK_FALSE(std::filesystem::exists("/dev/shm/iceoryx_mgmt"));
   std::filesystem::remove_all(dir);
 }
