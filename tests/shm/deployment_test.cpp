@@ -75,12 +75,20 @@ TEST_CASE("the memory pools cover every declared message bound", "[deployment]")
   CHECK(total <= (std::size_t{1} << 30));
 }
 
+namespace {
+/// sim_slam_global split over robot, main and global: submaps and grids cross processes and
+/// topics run both ways between them.
+DeploymentPlan slamOverThreeProcesses() {
+  return planDeployment(
+      loadProfile(std::string(TESSERA_SOURCE_DIR) + "/apps/profiles/sim_slam_global.yaml",
+                  {"sim.process=robot", "loops.process=global", "optimizer.process=global"}));
+}
+}  // namespace
+
 TEST_CASE("a deployment with grids crossing processes stays within 1 GiB of shared memory",
           "[deployment]") {
   // iceoryx zeroes the whole segment when RouDi starts: every pool byte is memory and time.
-  const auto plan = planDeployment(
-      loadProfile(std::string(TESSERA_SOURCE_DIR) + "/apps/profiles/sim_slam_global.yaml",
-                  {"sim.process=robot", "loops.process=global", "optimizer.process=global"}));
+  const auto plan = slamOverThreeProcesses();
   std::size_t needed = 0;
   for (const auto& d : plan.demands) needed = std::max(needed, d.max_bytes);
   REQUIRE(needed >= (std::size_t{16} << 20));  // submaps cross processes here
@@ -99,9 +107,7 @@ TEST_CASE("a deployment with topics both ways between processes stops its actors
           "[deployment]") {
   // The SLAM builder in main feeds the optimiser in global, whose stop-time output feeds the
   // writers back in main: main stops its upstream actors, then global, then the rest of main.
-  const auto plan = planDeployment(
-      loadProfile(std::string(TESSERA_SOURCE_DIR) + "/apps/profiles/sim_slam_global.yaml",
-                  {"sim.process=robot", "loops.process=global", "optimizer.process=global"}));
+  const auto plan = slamOverThreeProcesses();
   REQUIRE(plan.processes == std::vector<std::string>{"robot", "main", "global"});
   std::vector<std::string> order;
   std::vector<int> owners;

@@ -79,26 +79,43 @@ RuntimeOptions wallReceiverRuntime() {
   return ro;
 }
 
+/// A receiving process's transport and runtime: `actor` runs as "rx" with its "in" on
+/// `topic_name`, configured and started. The caller starts the receiving thread, or receives on
+/// its own thread.
+struct ReceiverProcess {
+  ReceiverProcess(const ShmTransportOptions& options, const std::string& topic_name,
+                  MailboxPolicy policy, std::unique_ptr<Actor> actor)
+      : transport(options), rt(wallReceiverRuntime()) {
+    added = &rt.add("rx", std::move(actor), {{"in", topic_name}});
+    transport.attach(rt, {topic(topic_name, false, true, policy)});
+    rt.configure();
+    rt.start();
+  }
+  template <typename A>
+  A& actor() {
+    return static_cast<A&>(*added);
+  }
+  ShmTransport transport;  // outlives the runtime, as its imports deliver into it
+  Runtime rt;
+  Actor* added = nullptr;  // owned by rt
+};
+
 /// Receiving process: records every Blob on `topic` until `expected` arrived (or 20 s), then
 /// checks order. Returns 0 when complete and in order, 2 when messages are missing, 3 when out
 /// of order, 4 when the bytes were not read in place.
 int receive(const std::string& topic_name, MailboxPolicy policy, int expected,
             std::chrono::microseconds work, std::size_t max_chunk, bool expect_all) {
-  ShmTransport transport(processOptions("tessera_test_rx", 1, max_chunk));
-  Runtime rt(wallReceiverRuntime());
-  auto& rec = static_cast<test::Recorder&>(
-      rt.add("rx", std::make_unique<test::Recorder>(policy, work), {{"in", topic_name}}));
-  transport.attach(rt, {topic(topic_name, false, true, policy)});
-  rt.configure();
-  rt.start();
-  transport.startReceiving();
-  if (!transport.waitForPublishers(10s)) return 5;
+  ReceiverProcess rx(processOptions("tessera_test_rx", 1, max_chunk), topic_name, policy,
+                     std::make_unique<test::Recorder>(policy, work));
+  auto& rec = rx.actor<test::Recorder>();
+  rx.transport.startReceiving();
+  if (!rx.transport.waitForPublishers(10s)) return 5;
   const auto deadline = std::chrono::steady_clock::now() + 20s;
   std::size_t last = 0;
   auto quiet_since = std::chrono::steady_clock::now();
   while (std::chrono::steady_clock::now() < deadline) {
     std::this_thread::sleep_for(5ms);
-    const auto n = transport.stats().received;
+    const auto n = rx.transport.stats().received;
     if (n != last) {
       last = n;
       quiet_since = std::chrono::steady_clock::now();
@@ -106,11 +123,11 @@ int receive(const std::string& topic_name, MailboxPolicy policy, int expected,
     if (static_cast<int>(n) >= expected) break;
     if (!expect_all && n > 0 && std::chrono::steady_clock::now() - quiet_since > 1s) break;
   }
-  rt.stop();
-  transport.stopReceiving();
+  rx.rt.stop();
+  rx.transport.stopReceiving();
   std::printf("rx: %zu messages, %llu iceoryx drops, %llu local drops\n", rec.seqs.size(),
-              static_cast<unsigned long long>(transport.stats().drops),
-              static_cast<unsigned long long>(rt.report().actors[0].drops));
+              static_cast<unsigned long long>(rx.transport.stats().drops),
+              static_cast<unsigned long long>(rx.rt.report().actors[0].drops));
   for (std::size_t i = 1; i < rec.seqs.size(); ++i) {
     if (rec.seqs[i] <= rec.seqs[i - 1]) return 3;
   }
@@ -264,29 +281,24 @@ TEST_CASE("messages a full keep_latest queue discarded still count as received f
         std::atomic<std::uint64_t> received{0};
         ShmTransportOptions so = processOptions("tessera_test_gaps_rx", 1, max_chunk);
         so.received = &received;
-        ShmTransport transport(so);
-        Runtime rt(wallReceiverRuntime());
-        auto& rec = static_cast<test::Recorder&>(
-            rt.add("rx", std::make_unique<test::Recorder>(MailboxPolicy::keepLatest(1), 0us),
-                   {{"in", "gaps"}}));
-        transport.attach(rt, {topic("gaps", false, true, MailboxPolicy::keepLatest(1))});
-        rt.configure();
-        rt.start();
-        if (!transport.waitForPublishers(10s)) return 5;
+        ReceiverProcess rx(so, "gaps", MailboxPolicy::keepLatest(1),
+                           std::make_unique<test::Recorder>(MailboxPolicy::keepLatest(1), 0us));
+        auto& rec = rx.actor<test::Recorder>();
+        if (!rx.transport.waitForPublishers(10s)) return 5;
         const auto deadline = std::chrono::steady_clock::now() + 20s;
         while (!std::filesystem::exists(sent_flag) && std::chrono::steady_clock::now() < deadline)
           std::this_thread::sleep_for(5ms);
-        transport.startReceiving();
+        rx.transport.startReceiving();
         while (received.load() < kCount && std::chrono::steady_clock::now() < deadline)
           std::this_thread::sleep_for(5ms);
         std::this_thread::sleep_for(100ms);  // nothing more may be counted
-        rt.stop();
-        transport.stopReceiving();
+        rx.rt.stop();
+        rx.transport.stopReceiving();
         std::printf("rx: %zu handled, %llu accounted\n", rec.seqs.size(),
                     static_cast<unsigned long long>(received.load()));
         if (rec.seqs.empty()) return 2;
         // Every message is either handled here or counted as discarded, exactly.
-        if (transport.stats().drops + transport.stats().received != kCount) return 4;
+        if (rx.transport.stats().drops + rx.transport.stats().received != kCount) return 4;
         return received.load() == kCount ? 0 : 3;
       },
       [&] {
@@ -334,20 +346,16 @@ TEST_CASE("a blob crosses processes in place and the chunk it used is clean for 
   checkPair(
       pools,
       [&] {
-        ShmTransport transport(processOptions("tessera_test_blob_rx", 1, max_chunk));
-        Runtime rt(wallReceiverRuntime());
-        auto& checker = static_cast<BlobChecker&>(
-            rt.add("rx", std::make_unique<BlobChecker>(), {{"in", "blobs"}}));
-        transport.attach(rt, {topic("blobs", false, true, MailboxPolicy::reliable(8))});
-        rt.configure();
-        rt.start();
-        transport.startReceiving();
-        if (!transport.waitForPublishers(10s)) return 5;
+        ReceiverProcess rx(processOptions("tessera_test_blob_rx", 1, max_chunk), "blobs",
+                           MailboxPolicy::reliable(8), std::make_unique<BlobChecker>());
+        auto& checker = rx.actor<BlobChecker>();
+        rx.transport.startReceiving();
+        if (!rx.transport.waitForPublishers(10s)) return 5;
         const auto deadline = std::chrono::steady_clock::now() + 20s;
         while (checker.seen.load() < kCount && std::chrono::steady_clock::now() < deadline)
           std::this_thread::sleep_for(5ms);
-        rt.stop();
-        transport.stopReceiving();
+        rx.rt.stop();
+        rx.transport.stopReceiving();
         std::printf("rx: %d messages, %d wrong\n", checker.seen.load(), checker.wrong.load());
         if (checker.seen.load() != kCount) return 2;
         return checker.wrong.load() == 0 ? 0 : 3;
@@ -408,28 +416,25 @@ TEST_CASE("a process without a receiving thread gets its messages on the thread 
   checkPair(
       pools,
       [&] {
-        ShmTransport transport(processOptions("tessera_test_here_rx", 1, max_chunk));
-        Runtime rt(wallReceiverRuntime());
-        auto& noter = static_cast<ThreadNoter&>(
-            rt.add("rx", std::make_unique<ThreadNoter>(), {{"in", "here"}}));
+        ReceiverProcess rx(processOptions("tessera_test_here_rx", 1, max_chunk), "here",
+                           MailboxPolicy::reliable(8), std::make_unique<ThreadNoter>());
+        auto& noter = rx.actor<ThreadNoter>();
+        // Handlers run only inside receiveHere() below, so setting this after start is safe.
         noter.expected_thread = std::this_thread::get_id();
-        transport.attach(rt, {topic("here", false, true, MailboxPolicy::reliable(8))});
-        rt.configure();
-        rt.start();
-        if (!transport.waitForPublishers(10s)) return 5;
+        if (!rx.transport.waitForPublishers(10s)) return 5;
         const auto deadline = std::chrono::steady_clock::now() + 20s;
         while (noter.seen < kCount && std::chrono::steady_clock::now() < deadline)
-          transport.receiveHere(std::chrono::milliseconds(50));
+          rx.transport.receiveHere(std::chrono::milliseconds(50));
         // The receiving thread and receiveHere() exclude each other.
-        transport.startReceiving();
+        rx.transport.startReceiving();
         bool refused = false;
         try {
-          transport.receiveHere(std::chrono::milliseconds(1));
+          rx.transport.receiveHere(std::chrono::milliseconds(1));
         } catch (const std::logic_error&) {
           refused = true;
         }
-        transport.stopReceiving();
-        rt.stop();
+        rx.transport.stopReceiving();
+        rx.rt.stop();
         std::printf("rx: %d messages, %d out of order, %d on another thread\n", noter.seen,
                     noter.out_of_order, noter.elsewhere);
         if (noter.seen != kCount || noter.out_of_order != 0) return 2;
@@ -447,23 +452,20 @@ TEST_CASE("malformed messages from another process are dropped and later ones st
   checkPair(
       pools,
       [&] {
-        ShmTransport transport(processOptions("tessera_test_bad_rx", 1, max_chunk));
-        Runtime rt(wallReceiverRuntime());
-        auto& rec = static_cast<test::Recorder&>(rt.add(
-            "rx", std::make_unique<test::Recorder>(MailboxPolicy::reliable(8)), {{"in", "mixed"}}));
-        transport.attach(rt, {topic("mixed", false, true, MailboxPolicy::reliable(8))});
-        rt.configure();
-        rt.start();
-        transport.startReceiving();
-        if (!transport.waitForPublishers(10s)) return 5;
+        ReceiverProcess rx(processOptions("tessera_test_bad_rx", 1, max_chunk), "mixed",
+                           MailboxPolicy::reliable(8),
+                           std::make_unique<test::Recorder>(MailboxPolicy::reliable(8)));
+        auto& rec = rx.actor<test::Recorder>();
+        rx.transport.startReceiving();
+        if (!rx.transport.waitForPublishers(10s)) return 5;
         const auto deadline = std::chrono::steady_clock::now() + 10s;
         // Delivered by the transport: the one with a bad root pointer and the good one.
-        while (transport.stats().received < 2 && std::chrono::steady_clock::now() < deadline)
+        while (rx.transport.stats().received < 2 && std::chrono::steady_clock::now() < deadline)
           std::this_thread::sleep_for(5ms);
         std::this_thread::sleep_for(100ms);  // nothing else may arrive
-        transport.stopReceiving();
-        rt.stop();
-        const auto report = rt.report();
+        rx.transport.stopReceiving();
+        rx.rt.stop();
+        const auto report = rx.rt.report();
         std::printf("rx: %zu handled, %llu malformed, stop reason '%s'\n", rec.seqs.size(),
                     static_cast<unsigned long long>(report.actors[0].malformed),
                     report.stop_reason.c_str());
