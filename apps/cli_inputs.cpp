@@ -16,13 +16,14 @@ void requireFile(const std::string& path, const char* option) {
                       (fs::exists(path, ec) ? ": not a regular file" : ": no such file"));
 }
 
-std::vector<common::PoseRelation> loadPoseRelations(const std::string& path, const char* option) {
+std::vector<tessera::evaluation::PoseRelation> loadPoseRelations(const std::string& path,
+                                                                 const char* option) {
   requireFile(path, option);
   const auto file = datasets::readRelations(path);
-  std::vector<common::PoseRelation> relations;
+  std::vector<tessera::evaluation::PoseRelation> relations;
   relations.reserve(file.relations.size());
   for (const auto& r : file.relations)
-    relations.push_back({r.t1_ns, r.t2_ns, common::Pose2(r.dx, r.dy, r.yaw)});
+    relations.push_back({r.t1_ns, r.t2_ns, tessera::Pose2(r.dx, r.dy, r.yaw)});
   return relations;
 }
 

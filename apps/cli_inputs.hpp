@@ -2,7 +2,7 @@
 // loaders shared by the eval and bench commands.
 #pragma once
 
-#include <tessera/common/trajectory_metrics.hpp>
+#include <tessera/evaluation/trajectory_metrics.hpp>
 
 #include <string>
 #include <vector>
@@ -12,6 +12,7 @@ namespace tessera::app {
 /// Throws ConfigError "OPTION PATH: no such file" (or "not a regular file").
 void requireFile(const std::string& path, const char* option);
 /// A Kuemmerle et al. relations file as planar relations (checked with requireFile).
-std::vector<common::PoseRelation> loadPoseRelations(const std::string& path, const char* option);
+std::vector<tessera::evaluation::PoseRelation> loadPoseRelations(const std::string& path,
+                                                                 const char* option);
 
 }  // namespace tessera::app

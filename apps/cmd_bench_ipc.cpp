@@ -36,9 +36,9 @@
 #include <tessera/messages/types.hpp>
 #include <tessera/runtime/options.hpp>
 #include <tessera/runtime/process_stats.hpp>
-#include <tessera/runtime/roudi_host.hpp>
 #include <tessera/runtime/runtime.hpp>
-#include <tessera/runtime/shm_transport.hpp>
+#include <tessera/shm/roudi_host.hpp>
+#include <tessera/shm/shm_transport.hpp>
 
 #include <iceoryx_posh/popo/untyped_publisher.hpp>
 #include <iceoryx_posh/popo/untyped_subscriber.hpp>

@@ -1,4 +1,4 @@
-// `tessera bench landmarks`: the point-landmark SLAM filters (SPEC.md section C).
+// `tessera bench landmarks`: the point-landmark SLAM filters (docs/algorithms.md#landmark-slam).
 //  1. Accuracy: the sim_landmarks profile (seed 004 world) for each filter over several
 //     simulator seeds, in-process; per filter the mean ± std of ATE, landmark error, mean NIS and
 //     the odometry ATE of the same runs.
@@ -8,9 +8,9 @@
 //     robot, all mapped before timing, the robot turning on the spot between scans.
 #include "commands.hpp"
 
-#include <tessera/common/trajectory_io.hpp>
-#include <tessera/common/trajectory_metrics.hpp>
+#include <tessera/evaluation/trajectory_metrics.hpp>
 #include <tessera/landmark_slam/landmark_filter.hpp>
+#include <tessera/mapping/trajectory_io.hpp>
 #include <tessera/runtime/options.hpp>
 #include <tessera/runtime/process_stats.hpp>
 #include <tessera/runtime/profile.hpp>
@@ -86,9 +86,10 @@ nlohmann::json accuracy(const Options& o, const std::string& filter) {
       nis.push_back(summaryDouble(a.summary, "mean_nis"));
       us.push_back(summaryDouble(a.summary, "update_us_mean"));
     }
-    odom.push_back(common::computeAte(common::readTum(dir / "odometry.tum"),
-                                      common::readTum(dir / "ground_truth.tum"))
-                       .translation.rmse);
+    odom.push_back(
+        tessera::evaluation::computeAte(tessera::mapping::readTum(dir / "odometry.tum"),
+                                        tessera::mapping::readTum(dir / "ground_truth.tum"))
+            .translation.rmse);
     if (!o.json) std::cerr << "[bench landmarks] " << filter << " seed " << seed << "\n";
   }
   const auto j = [](const MeanStd& m) { return nlohmann::json{{"mean", m.mean}, {"std", m.std}}; };
@@ -133,7 +134,7 @@ double costPerUpdate(const Options& o, const std::string& filter, int n) {
   for (int i = 0; i < n; ++i) all.push_back(sight(i));
   f->update(all);
   std::uniform_int_distribution<int> pick(0, n - 1);
-  common::DriveInput turn;
+  tessera::landmark_slam::DriveInput turn;
   turn.turn_rate = 0.1;
   turn.dt = 0.1;
   double total = 0;

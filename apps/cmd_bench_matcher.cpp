@@ -4,10 +4,10 @@
 // within the window, and both searches are timed on each (same machine, same run).
 #include "commands.hpp"
 
-#include <tessera/common/correlative_matcher.hpp>
-#include <tessera/common/occupancy_grid.hpp>
+#include <tessera/grid/occupancy_grid.hpp>
 #include <tessera/runtime/options.hpp>
 #include <tessera/runtime/process_stats.hpp>
+#include <tessera/scan_matching/correlative_matcher.hpp>
 #include <tessera/sim/ray_caster.hpp>
 #include <tessera/sim/world.hpp>
 
@@ -86,7 +86,7 @@ void addBenchMatcherCommand(CLI::App& bench, int& result) {
 
     // The map: scans from free poses on a 2 m lattice.
     auto t0 = std::chrono::steady_clock::now();
-    common::OccupancyGrid grid;
+    tessera::grid::OccupancyGrid grid;
     int mapping_scans = 0;
     for (double y = 1.0; y < world.heightMeters(); y += 2.0)
       for (double x = 1.0; x < world.widthMeters(); x += 2.0) {
@@ -98,19 +98,21 @@ void addBenchMatcherCommand(CLI::App& bench, int& result) {
             {p.x, p.y, p.theta}, {o->range, o->range});
         ++mapping_scans;
       }
-    const common::OccupancyMap map = grid.toOccupancyMap();
+    const tessera::grid::OccupancyMap map = grid.toOccupancyMap();
     const double map_s = seconds(t0);
 
-    common::CorrelativeMatcherOptions mo;
+    tessera::scan_matching::CorrelativeMatcherOptions mo;
     mo.pyramid_depth = o->depth;
-    const common::CorrelativeMatcher bnb(mo);
-    mo.search = common::CorrelativeMatcherOptions::Search::kExhaustive;
-    const common::CorrelativeMatcher exhaustive(mo);
+    const tessera::scan_matching::CorrelativeMatcher bnb(mo);
+    mo.search = tessera::scan_matching::CorrelativeMatcherOptions::Search::kExhaustive;
+    const tessera::scan_matching::CorrelativeMatcher exhaustive(mo);
     t0 = std::chrono::steady_clock::now();
-    const common::MatchGrid pyramid = bnb.precompute(common::GridView::of(map));
+    const tessera::scan_matching::MatchGrid pyramid =
+        bnb.precompute(tessera::scan_matching::GridView::of(map));
     const double precompute_s = seconds(t0);
 
-    const common::SearchWindow window{o->linear, o->angular * std::numbers::pi / 180.0};
+    const tessera::scan_matching::SearchWindow window{o->linear,
+                                                      o->angular * std::numbers::pi / 180.0};
     std::uniform_real_distribution<double> off(-o->offset, o->offset),
         turn(-window.angular, window.angular);
     nlohmann::json runs = nlohmann::json::array();
@@ -125,18 +127,18 @@ void addBenchMatcherCommand(CLI::App& bench, int& result) {
         const double a = laser.angle_min + b * laser.angle_increment;
         pts.emplace_back(r * std::cos(a), r * std::sin(a));
       }
-      const common::Pose2 t(truth.x, truth.y, truth.theta);
-      const common::Pose2 initial(t.x + off(rng), t.y + off(rng), t.theta + turn(rng));
+      const tessera::Pose2 t(truth.x, truth.y, truth.theta);
+      const tessera::Pose2 initial(t.x + off(rng), t.y + off(rng), t.theta + turn(rng));
       t0 = std::chrono::steady_clock::now();
       const auto r = bnb.match(pyramid, pts, initial, window);
       const double bnb_s = seconds(t0);
       bnb_total += bnb_s;
       nlohmann::json run{{"points", pts.size()},
-                         {"status", common::toString(r.status)},
+                         {"status", tessera::scan_matching::toString(r.status)},
                          {"score", r.score},
                          {"second_best", r.second_best_score},
                          {"error_m", (r.pose.translation() - t.translation()).norm()},
-                         {"error_deg", std::abs(common::angleDiff(r.pose.theta, t.theta)) * 180.0 /
+                         {"error_deg", std::abs(tessera::angleDiff(r.pose.theta, t.theta)) * 180.0 /
                                            std::numbers::pi},
                          {"angular_step_deg", r.angular_step * 180.0 / std::numbers::pi},
                          {"bnb_s", bnb_s},

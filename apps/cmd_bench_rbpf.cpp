@@ -4,8 +4,8 @@
 #include "cli_inputs.hpp"
 #include "commands.hpp"
 
-#include <tessera/common/trajectory_io.hpp>
-#include <tessera/common/trajectory_metrics.hpp>
+#include <tessera/evaluation/trajectory_metrics.hpp>
+#include <tessera/mapping/trajectory_io.hpp>
 #include <tessera/runtime/options.hpp>
 #include <tessera/runtime/process_stats.hpp>
 
@@ -114,8 +114,8 @@ void addBenchRbpfCommand(CLI::App& bench, int& result) {
                                  (dir / "run.log").string());
       nlohmann::json summary;
       std::ifstream(dir / "summary.json") >> summary;
-      const auto r =
-          common::computeRelationsError(common::readTum(dir / "trajectory.tum"), relations);
+      const auto r = tessera::evaluation::computeRelationsError(
+          tessera::mapping::readTum(dir / "trajectory.tum"), relations);
       runs.push_back({{"particles", n},
                       {"scans_read", summary.value("scans_read", 0)},
                       {"scans_processed", summary.value("scans_processed", 0)},

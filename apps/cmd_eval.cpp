@@ -6,10 +6,10 @@
 #include "cli_inputs.hpp"
 #include "commands.hpp"
 
-#include <tessera/common/landmark_io.hpp>
-#include <tessera/common/trajectory_io.hpp>
-#include <tessera/common/trajectory_metrics.hpp>
 #include <tessera/datasets/relations.hpp>
+#include <tessera/evaluation/landmark_io.hpp>
+#include <tessera/evaluation/trajectory_metrics.hpp>
+#include <tessera/mapping/trajectory_io.hpp>
 #include <tessera/runtime/options.hpp>
 
 #include <nlohmann/json.hpp>
@@ -24,7 +24,8 @@
 namespace tessera::app {
 
 namespace fs = std::filesystem;
-using namespace tessera::common;
+using namespace tessera::evaluation;
+using namespace tessera::mapping;
 
 namespace {
 

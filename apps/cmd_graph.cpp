@@ -1,11 +1,12 @@
 // `tessera graph optimize` (one g2o/TORO file through a solver) and `tessera bench graph` (the
 // shared pose graphs through every solver, from the file's poses and from odometry chaining,
-// beside the g2o figures of issue 5, in one run so the ratios are honest).
+// beside g2o's figures, docs/benchmarks.md#pose-graphs-tessera-bench-graph, in one run so the
+// ratios are honest).
 #include "cli_inputs.hpp"
 #include "commands.hpp"
 
-#include <tessera/datasets/pose_graph_io.hpp>
 #include <tessera/pose_graph/optimizer.hpp>
+#include <tessera/pose_graph/pose_graph_io.hpp>
 #include <tessera/runtime/options.hpp>
 #include <tessera/runtime/process_stats.hpp>
 
@@ -22,11 +23,10 @@ namespace {
 
 namespace fs = std::filesystem;
 namespace pg = tessera::pose_graph;
-namespace ds = tessera::datasets;
 
 // --- file graphs <-> solver graphs (dense indices in increasing id order) --------------------
 
-pg::Graph2D toSolverGraph(const ds::PoseGraph2D& in) {
+pg::Graph2D toSolverGraph(const pg::PoseGraph2D& in) {
   pg::Graph2D g;
   for (const auto& [id, pose] : in.vertices) g.addNode(id, pose);
   for (auto id : in.fixed) g.fixed[g.index(id)] = true;
@@ -37,27 +37,24 @@ pg::Graph2D toSolverGraph(const ds::PoseGraph2D& in) {
   return g;
 }
 
-pg::Graph3D toSolverGraph(const ds::PoseGraph3D& in) {
+pg::Graph3D toSolverGraph(const pg::PoseGraph3D& in) {
   pg::Graph3D g;
-  for (const auto& [id, pose] : in.vertices) g.addNode(id, {pose.translation, pose.rotation});
+  for (const auto& [id, pose] : in.vertices) g.addNode(id, pose);
   for (auto id : in.fixed) g.fixed[g.index(id)] = true;
   for (const auto& e : in.edges) {
     const int a = g.index(e.from), b = g.index(e.to);
-    g.edges.push_back({a,
-                       b,
-                       {e.measurement.translation, e.measurement.rotation},
-                       e.information,
-                       std::abs(a - b) != 1});
+    g.edges.push_back(
+        {a, b, e.measurement, e.information, std::abs(a - b) != 1});
   }
   return g;
 }
 
-void copyPoses(const pg::Graph2D& g, ds::PoseGraph2D& out) {
+void copyPoses(const pg::Graph2D& g, pg::PoseGraph2D& out) {
   for (int i = 0; i < g.size(); ++i) out.vertices[g.ids[i]] = g.poses[i];
 }
 
-void copyPoses(const pg::Graph3D& g, ds::PoseGraph3D& out) {
-  for (int i = 0; i < g.size(); ++i) out.vertices[g.ids[i]] = {g.poses[i].t, g.poses[i].q};
+void copyPoses(const pg::Graph3D& g, pg::PoseGraph3D& out) {
+  for (int i = 0; i < g.size(); ++i) out.vertices[g.ids[i]] = g.poses[i];
 }
 
 nlohmann::json summaryJson(const pg::OptimizerSummary& s, int nodes, std::size_t edges) {
@@ -77,7 +74,7 @@ nlohmann::json summaryJson(const pg::OptimizerSummary& s, int nodes, std::size_t
 /// Takes the start poses from another file's vertices (e.g. an earlier solution); every node of
 /// the graph must be there.
 void startFrom(pg::Graph2D& graph, const std::string& path) {
-  const auto other = ds::readPoseGraph2D(path);
+  const auto other = pg::readPoseGraph2D(path);
   for (int i = 0; i < graph.size(); ++i) {
     const auto it = other.vertices.find(graph.ids[i]);
     if (it == other.vertices.end())
@@ -87,12 +84,12 @@ void startFrom(pg::Graph2D& graph, const std::string& path) {
 }
 
 void startFrom(pg::Graph3D& graph, const std::string& path) {
-  const auto other = ds::readPoseGraph3D(path);
+  const auto other = pg::readPoseGraph3D(path);
   for (int i = 0; i < graph.size(); ++i) {
     const auto it = other.vertices.find(graph.ids[i]);
     if (it == other.vertices.end())
       throw ConfigError("--init-poses: " + path + " has no vertex " + std::to_string(graph.ids[i]));
-    graph.poses[i] = {it->second.translation, it->second.rotation};
+    graph.poses[i] = it->second;
   }
 }
 
@@ -129,7 +126,7 @@ nlohmann::json optimizeFile(FileGraph file_graph, const OptimizeOptions& o,
   const auto summary = pg::optimize(graph, options);
   if (!o.out.empty()) {
     copyPoses(graph, file_graph);
-    ds::writeG2o(file_graph, o.out);
+    pg::writeG2o(file_graph, o.out);
   }
   return summaryJson(summary, graph.size(), graph.edges.size());
 }
@@ -139,7 +136,8 @@ nlohmann::json optimizeFile(FileGraph file_graph, const OptimizeOptions& o,
 struct BenchCase {
   std::string file;  // under the data root
   std::string init;  // file | odometry
-  double g2o_chi2;   // issue 5's g2o figure (Gauss-Newton, CHOLMOD, 20 iterations); 0 = none
+  double g2o_chi2;   // g2o's figure (docs/benchmarks.md#pose-graphs-tessera-bench-graph)
+                     // (Gauss-Newton, CHOLMOD, 20 iterations); 0 = none
   double g2o_seconds;
 };
 
@@ -207,7 +205,7 @@ void addGraphCommand(CLI::App& app, int& result) {
     } catch (const std::invalid_argument& e) {
       throw ConfigError(std::string("--solver/--method: ") + e.what());
     }
-    const auto file = ds::readPoseGraph(o->input);
+    const auto file = pg::readPoseGraph(o->input);
     nlohmann::json j = file.dimension == 2 ? optimizeFile(file.graph2d, *o, options)
                                            : optimizeFile(file.graph3d, *o, options);
     j["dimension"] = file.dimension;
@@ -261,7 +259,7 @@ void addBenchGraphCommand(CLI::App& bench, int& result) {
     for (const auto& c : benchCases()) {
       const fs::path path = fs::path(o->data) / c.file;
       requireFile(path.string(), "--data");
-      const auto file = ds::readPoseGraph(path);
+      const auto file = pg::readPoseGraph(path);
       for (const auto& solver : o->solvers)
         for (const auto& method : o->methods) {
           OptimizeOptions opt;
@@ -307,8 +305,9 @@ void addBenchGraphCommand(CLI::App& bench, int& result) {
                 << std::setprecision(3) << std::setw(9) << r["seconds"].get<double>()
                 << std::setprecision(2) << std::setw(8) << r["g2o_seconds"].get<double>() << "\n";
     }
-    std::cout << "\ng2o: Gauss-Newton, CHOLMOD, 20 iterations, as measured for issue 5 (loaded "
-                 "machine; manhattan.g2o from odometry: g2o stuck at 3549.04).\n";
+    std::cout
+        << "\ng2o: Gauss-Newton, CHOLMOD, 20 iterations, as measured in docs/benchmarks.md (loaded "
+           "machine; manhattan.g2o from odometry: g2o stuck at 3549.04).\n";
     result = 0;
   });
 }

@@ -6,10 +6,10 @@
 // everything cleanly on Ctrl-C (a second Ctrl-C terminates the workers, a third kills them).
 #include "commands.hpp"
 
-#include <tessera/runtime/deployment.hpp>
 #include <tessera/runtime/process_stats.hpp>
-#include <tessera/runtime/roudi_host.hpp>
-#include <tessera/runtime/shm_transport.hpp>
+#include <tessera/shm/deployment.hpp>
+#include <tessera/shm/roudi_host.hpp>
+#include <tessera/shm/shm_transport.hpp>
 
 #include <fcntl.h>
 #include <poll.h>

@@ -5,7 +5,7 @@ set -euo pipefail
 
 PACKAGES=(
   # toolchain
-  build-essential cmake ninja-build ccache pkg-config git
+  build-essential cmake ninja-build ccache pkg-config git clang-format
   # design-card libraries
   libeigen3-dev libopencv-dev libpcl-dev liboctomap-dev libceres-dev libtbb-dev
   iceoryx libiceoryx-posh-dev libiceoryx-hoofs-dev libacl1-dev

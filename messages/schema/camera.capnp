@@ -1,4 +1,4 @@
-# Environment camera network (SPEC.md §A): fixed ceiling cameras that see a marker on the robot.
+# Environment camera network (docs/algorithms.md#simulated-motion-and-sensors): fixed ceiling cameras that see a marker on the robot.
 # Evolve by Cap'n Proto rules: add fields, never renumber.
 @0x9f0646620a43b2e5;
 

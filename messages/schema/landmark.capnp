@@ -1,4 +1,4 @@
-# Point-landmark messages (SPEC.md §C): range-bearing observations, drive controls of car-like
+# Point-landmark messages (docs/algorithms.md#landmark-slam): range-bearing observations, drive controls of car-like
 # robots, and landmark maps. Evolve by Cap'n Proto rules: add fields, never renumber.
 @0x9833d95b83bfdbcd;
 
@@ -27,7 +27,7 @@ struct LandmarkScan {
 }
 
 # Control of a car-like (or differential-drive) base over the interval that starts at the
-# stamp: speed of the reference point and front-wheel steering angle (SPEC.md §B/§C model
+# stamp: speed of the reference point and front-wheel steering angle (the model of docs/algorithms.md#landmark-slam
 # x += dt V cos(theta + gamma), y += dt V sin(theta + gamma), theta += dt V sin(gamma) / L).
 # A differential-drive source fills turnRate instead and sets steering = 0, wheelbase = 0.
 struct DriveControl {

@@ -1,4 +1,4 @@
-# Line-feature maps (SPEC.md §B): infinite lines in polar form with the extent seen so far.
+# Line-feature maps (docs/algorithms.md#line-ekf-slam): infinite lines in polar form with the extent seen so far.
 # Evolve by Cap'n Proto rules: add fields, never renumber.
 @0xd4b5f8c0b177e472;
 

@@ -1,4 +1,4 @@
-# Two-level laser SLAM messages (SPEC §A): finished local maps and the constraints between them.
+# Two-level laser SLAM messages (docs/algorithms.md#submap-hand-over-and-loop-detection): finished local maps and the constraints between them.
 # Evolve by Cap'n Proto rules: add fields, never renumber.
 @0x801dd893863307a2;
 
@@ -37,7 +37,7 @@ struct SubmapConstraint {
   relative @3 :Common.Pose2D;
   kind @4 :Kind;
   enum Kind {
-    handOver @0;                # the robot's pose in i when j started (SPEC §A)
+    handOver @0;                # the robot's pose in i when j started (docs/algorithms.md#submap-hand-over-and-loop-detection)
     revisit @1;                 # a relocalisation in an existing submap (camera, loop closure)
   }
   # Revisits found by matching one scan (loop detector): the robot's pose at the header's stamp
@@ -47,7 +47,7 @@ struct SubmapConstraint {
   scanInTo @5 :Common.Pose2D;
 }
 
-# The global level's answer: every submap's optimised origin in the map frame (SPEC §A).
+# The global level's answer: every submap's optimised origin in the map frame (docs/algorithms.md#submap-hand-over-and-loop-detection).
 struct SubmapPoses {
   header @0 :Common.Header;     # stamp of the newest constraint in the graph; frameId = map
   poses @1 :List(SubmapPose);   # by increasing id

@@ -16,7 +16,7 @@ inline Nanos stampOf(double s) {
   return static_cast<Nanos>(std::llround(s * 1e9));
 }
 
-inline void pushOdometry(ActorHarness& h, Nanos stamp, const common::Pose2& p) {
+inline void pushOdometry(ActorHarness& h, Nanos stamp, const tessera::Pose2& p) {
   h.push<msg::Odometry>("odom", [&](auto& b) {
     setHeader(b.initHeader(), stamp, "odom", 0);
     b.setChildFrameId("base_link");

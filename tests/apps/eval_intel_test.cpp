@@ -1,10 +1,10 @@
 // The relations metric on the Intel Research Lab log (Kümmerle et al. 2009 relations): raw
 // odometry and the GMapping-corrected trajectory, through the CARMEN reader, TUM files and the
 // `tessera eval relations` CLI. See ../shared/data/intel-lab-mrpt/PROVENANCE.md.
-#include <tessera/common/trajectory_io.hpp>
-#include <tessera/common/trajectory_metrics.hpp>
 #include <tessera/datasets/carmen_log.hpp>
 #include <tessera/datasets/relations.hpp>
+#include <tessera/evaluation/trajectory_metrics.hpp>
+#include <tessera/mapping/trajectory_io.hpp>
 
 #include <nlohmann/json.hpp>
 
@@ -17,8 +17,11 @@
 #include "../shared_data.hpp"
 
 namespace fs = std::filesystem;
-using namespace tessera::common;
+using namespace tessera::evaluation;
+using namespace tessera::mapping;
 using namespace tessera::datasets;
+using namespace tessera::io;
+using namespace tessera;
 
 namespace {
 

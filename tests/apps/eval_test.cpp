@@ -1,6 +1,6 @@
 // `tessera eval ...` end to end: runs the built CLI on files written here and reads its JSON.
-#include <tessera/common/landmark_io.hpp>
-#include <tessera/common/trajectory_io.hpp>
+#include <tessera/evaluation/landmark_io.hpp>
+#include <tessera/mapping/trajectory_io.hpp>
 
 #include <nlohmann/json.hpp>
 
@@ -15,7 +15,9 @@
 #include "cli_run.hpp"
 
 namespace fs = std::filesystem;
-using namespace tessera::common;
+using namespace tessera::evaluation;
+using namespace tessera::mapping;
+using namespace tessera;
 using tessera::test::CliRun;
 using tessera::test::runCli;
 

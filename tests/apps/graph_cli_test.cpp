@@ -1,5 +1,5 @@
 // `tessera graph optimize` end to end: a small g2o file written here, the CLI's JSON read back.
-#include <tessera/datasets/pose_graph_io.hpp>
+#include <tessera/pose_graph/pose_graph_io.hpp>
 
 #include <nlohmann/json.hpp>
 
@@ -16,7 +16,7 @@ namespace {
 
 /// A loop of 20 poses whose file poses carry a heading drift; its measurements are exact.
 void writeDriftedLoop(const std::filesystem::path& path) {
-  tessera::datasets::PoseGraph2D g;
+  tessera::pose_graph::PoseGraph2D g;
   const int n = 20;
   const double step = 2 * std::numbers::pi / n;
   Eigen::Vector3d at(0, 0, 0);
@@ -27,13 +27,13 @@ void writeDriftedLoop(const std::filesystem::path& path) {
     at = {at.x() + std::cos(th) * odo.x(), at.y() + std::sin(th) * odo.x(), th + odo.z()};
   }
   for (int i = 0; i < n; ++i) {
-    tessera::datasets::PoseGraph2D::Edge e;
+    tessera::pose_graph::PoseGraph2D::Edge e;
     e.from = i;
     e.to = (i + 1) % n;
     e.measurement = odo;  // a regular polygon: the closing edge n-1 -> 0 is the same step
     g.edges.push_back(e);
   }
-  tessera::datasets::writeG2o(g, path);
+  tessera::pose_graph::writeG2o(g, path);
 }
 
 }  // namespace
@@ -59,7 +59,7 @@ TEST_CASE("graph optimize closes a drifted loop and writes the result", "[graph_
     } else {
       CHECK(j["final_chi2"].get<double>() < 1e-9);
       // The written file holds the optimised poses: its χ² is the reported final one.
-      const auto back = tessera::datasets::readPoseGraph2D(dir / "out.g2o");
+      const auto back = tessera::pose_graph::readPoseGraph2D(dir / "out.g2o");
       const Eigen::Vector3d p10 = back.vertices.at(10);
       CHECK(std::hypot(p10.x(), p10.y()) > 5.0);  // across the polygon, not near the start
     }

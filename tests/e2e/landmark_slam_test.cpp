@@ -1,8 +1,8 @@
 // End to end: sim_landmarks (seed 004 world) with each filter; the SLAM trajectory must beat
 // dead reckoning of the same noisy controls by a wide margin, and the map must be close.
-#include <tessera/common/landmark_io.hpp>
-#include <tessera/common/trajectory_io.hpp>
-#include <tessera/common/trajectory_metrics.hpp>
+#include <tessera/evaluation/landmark_io.hpp>
+#include <tessera/evaluation/trajectory_metrics.hpp>
+#include <tessera/mapping/trajectory_io.hpp>
 
 #include <catch2/catch.hpp>
 
@@ -20,16 +20,18 @@ TEST_CASE("sim_landmarks: both filters track far better than odometry", "[e2e][l
     INFO(filter);
     const fs::path out = test::scratchDir("e2e_sim_landmarks_" + filter);
     const RunReport report = test::runProfile("sim_landmarks", out, {"filter=" + filter, "seed=3"});
-    const auto truth = common::readTum(out / "ground_truth.tum");
-    const auto slam = common::computeAte(common::readTum(out / "trajectory.tum"), truth);
-    const auto odom = common::computeAte(common::readTum(out / "odometry.tum"), truth);
+    const auto truth = tessera::mapping::readTum(out / "ground_truth.tum");
+    const auto slam =
+        tessera::evaluation::computeAte(tessera::mapping::readTum(out / "trajectory.tum"), truth);
+    const auto odom =
+        tessera::evaluation::computeAte(tessera::mapping::readTum(out / "odometry.tum"), truth);
     INFO("slam ATE " << slam.translation.rmse << " m, odometry " << odom.translation.rmse << " m");
     CHECK(slam.pairs > 300);
     CHECK(slam.translation.rmse < 0.25 * odom.translation.rmse);
     CHECK(slam.translation.rmse < 1.0);
-    const auto lm =
-        common::computeLandmarkError(common::readLandmarks(out / "landmarks.txt"),
-                                     common::readLandmarks(out / "landmarks_truth.txt"));
+    const auto lm = tessera::evaluation::computeLandmarkError(
+        tessera::evaluation::readLandmarks(out / "landmarks.txt"),
+        tessera::evaluation::readLandmarks(out / "landmarks_truth.txt"));
     CHECK(lm.pairs >= 20);
     CHECK(lm.error.rmse < 1.0);
     const double nis = std::get<double>(test::summaryOf(report, "slam").at("mean_nis"));
@@ -48,9 +50,9 @@ TEST_CASE("utias_landmarks maps the 15 MRCLAM landmarks with both filters",
                                               {"filter=" + filter, "player.path=" + data.string()});
     CHECK(test::summaryInt(report, "slam", "landmarks") == 15);
     CHECK(test::summaryInt(report, "slam", "filter_errors") == 0);
-    const auto lm =
-        common::computeLandmarkError(common::readLandmarks(out / "landmarks.txt"),
-                                     common::readLandmarks(out / "landmarks_truth.txt"));
+    const auto lm = tessera::evaluation::computeLandmarkError(
+        tessera::evaluation::readLandmarks(out / "landmarks.txt"),
+        tessera::evaluation::readLandmarks(out / "landmarks_truth.txt"));
     CHECK(lm.pairs == 15);
     // Median, not RMSE: two landmarks (subjects 11 and 17) come out exactly swapped against the
     // dataset's ground truth, about 6 m each; the rest lie within about 0.2 m.
@@ -70,7 +72,7 @@ TEST_CASE("victoria_park runs both filters over the whole file", "[e2e][landmark
     // Few sightings fail the gate when the filter stays consistent with the data.
     CHECK(test::summaryInt(report, "slam", "rejected_gate") < 100);
     CHECK(test::summaryInt(report, "slam", "filter_errors") == 0);
-    CHECK(common::readTum(out / "trajectory.tum").size() > 3000);
+    CHECK(tessera::mapping::readTum(out / "trajectory.tum").size() > 3000);
     CHECK(fs::exists(out / "landmark_slam.svg"));
   }
 }

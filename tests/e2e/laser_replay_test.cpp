@@ -1,7 +1,7 @@
 // End to end: apps/profiles/carmen_replay.yaml and urg_replay.yaml on the real logs in
 // ../shared/data (player -> grid mapper + trajectory writer -> files), read back what they wrote.
-#include <tessera/common/map_io.hpp>
-#include <tessera/common/trajectory_io.hpp>
+#include <tessera/mapping/map_io.hpp>
+#include <tessera/mapping/trajectory_io.hpp>
 #include <tessera/runtime/profile.hpp>
 
 #include <filesystem>
@@ -23,7 +23,7 @@ TEST_CASE("carmen_replay maps intel.clf with its raw odometry", "[e2e][players]"
     INFO(f);
     CHECK(fs::exists(out / f));
   }
-  const auto odom = common::readTum(out / "odometry.tum");
+  const auto odom = tessera::mapping::readTum(out / "odometry.tum");
   REQUIRE(odom.size() == 2726);
   CHECK(odom.front().stamp_ns == 976052856'338882000);  // the log's absolute time
   CHECK(odom.back().stamp_ns == 976055550'147778000);
@@ -33,7 +33,7 @@ TEST_CASE("carmen_replay maps intel.clf with its raw odometry", "[e2e][players]"
   CHECK(std::get<std::int64_t>(player.at("lines_skipped")) == 0);
   const Summary& mapper = summaryOf(report, "mapper");
   CHECK(std::get<std::int64_t>(mapper.at("scans_inserted")) == 2726);
-  const auto map = common::loadMap(out / "map.yaml");
+  const auto map = tessera::mapping::loadMap(out / "map.yaml");
   CHECK(map.width > 500);
 }
 
@@ -46,7 +46,7 @@ TEST_CASE("urg_replay maps MinesParisTech exp2 with wheel odometry", "[e2e][play
     INFO(f);
     CHECK(fs::exists(out / f));
   }
-  const auto odom = common::readTum(out / "odometry.tum");
+  const auto odom = tessera::mapping::readTum(out / "odometry.tum");
   REQUIRE(odom.size() == 641);
   CHECK(odom.front().stamp_ns == 361'431'443'000);
   const Summary& player = summaryOf(report, "player");

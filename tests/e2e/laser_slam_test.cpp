@@ -2,10 +2,10 @@
 // apps/profiles/sim_slam.yaml on a shortened simulated route (player/simulator -> RBPF submap
 // builder -> map assembler + writers -> files), read back what they wrote. Full-log figures come
 // from the benchmark (README), not from here.
-#include <tessera/common/map_io.hpp>
-#include <tessera/common/trajectory_io.hpp>
-#include <tessera/common/trajectory_metrics.hpp>
 #include <tessera/datasets/relations.hpp>
+#include <tessera/evaluation/trajectory_metrics.hpp>
+#include <tessera/mapping/map_io.hpp>
+#include <tessera/mapping/trajectory_io.hpp>
 #include <tessera/runtime/profile.hpp>
 
 #include <filesystem>
@@ -18,12 +18,13 @@ namespace fs = std::filesystem;
 
 namespace {
 
-common::RelationsResult relationsError(const fs::path& tum, const fs::path& relations_path) {
+tessera::evaluation::RelationsResult relationsError(const fs::path& tum,
+                                                    const fs::path& relations_path) {
   const auto file = datasets::readRelations(relations_path);
-  std::vector<common::PoseRelation> relations;
+  std::vector<tessera::evaluation::PoseRelation> relations;
   for (const auto& r : file.relations)
-    relations.push_back({r.t1_ns, r.t2_ns, common::Pose2(r.dx, r.dy, r.yaw)});
-  return common::computeRelationsError(common::readTum(tum), relations);
+    relations.push_back({r.t1_ns, r.t2_ns, tessera::Pose2(r.dx, r.dy, r.yaw)});
+  return tessera::evaluation::computeRelationsError(tessera::mapping::readTum(tum), relations);
 }
 
 }  // namespace
@@ -51,7 +52,7 @@ TEST_CASE("carmen_rbpf maps the first 500 scans of intel.clf better than odometr
   CHECK(processed > 100);
   CHECK(processed < 400);  // the 1 m / 0.5 rad gates skip most scans
   // The online estimate: one pose per input scan.
-  CHECK(common::readTum(out / "trajectory.tum").size() == 500);
+  CHECK(tessera::mapping::readTum(out / "trajectory.tum").size() == 500);
   const auto slam = relationsError(out / "trajectory.tum", relations);
   const auto odom = relationsError(out / "odometry.tum", relations);
   INFO("slam " << slam.matched << " relations: " << slam.translation.mean << " m, "
@@ -61,7 +62,7 @@ TEST_CASE("carmen_rbpf maps the first 500 scans of intel.clf better than odometr
   CHECK(slam.translation.mean < 0.5 * odom.translation.mean);
   CHECK(slam.rotation_deg.mean < 0.5 * odom.rotation_deg.mean);
   CHECK(slam.translation.mean < 0.2);
-  const auto map = common::loadMap(out / "map.yaml");
+  const auto map = tessera::mapping::loadMap(out / "map.yaml");
   CHECK(map.width > 200);
 }
 
@@ -70,12 +71,12 @@ TEST_CASE("sim_slam keeps the simulated robot on its true path while odometry dr
   const fs::path out = test::scratchDir("sim_slam");
   // A part of the office route keeps the test short; the full route is the benchmark.
   const RunReport report = test::runProfile("sim_slam", out, {"max_duration_s=120"});
-  const auto estimate = common::readTum(out / "trajectory.tum");
-  const auto truth = common::readTum(out / "ground_truth.tum");
-  const auto odometry = common::readTum(out / "odometry.tum");
+  const auto estimate = tessera::mapping::readTum(out / "trajectory.tum");
+  const auto truth = tessera::mapping::readTum(out / "ground_truth.tum");
+  const auto odometry = tessera::mapping::readTum(out / "odometry.tum");
   REQUIRE(estimate.size() > 500);
-  const auto slam = common::computeAte(estimate, truth);
-  const auto odom = common::computeAte(odometry, truth);
+  const auto slam = tessera::evaluation::computeAte(estimate, truth);
+  const auto odom = tessera::evaluation::computeAte(odometry, truth);
   INFO("ATE slam " << slam.translation.rmse << " m, odometry " << odom.translation.rmse << " m");
   CHECK(slam.translation.rmse < 0.1);
   CHECK(odom.translation.rmse > 2 * slam.translation.rmse);
@@ -88,9 +89,11 @@ TEST_CASE("sim_slam_global closes loops without a false one and straightens the 
   const fs::path out = test::scratchDir("sim_slam_global");
   const RunReport report = test::runProfile("sim_slam_global", out);
   CHECK(report.stop_reason == "all inputs finished");
-  const auto truth = common::readTum(out / "ground_truth.tum");
-  const auto online = common::computeAte(common::readTum(out / "trajectory.tum"), truth);
-  const auto final_ate = common::computeAte(common::readTum(out / "trajectory_final.tum"), truth);
+  const auto truth = tessera::mapping::readTum(out / "ground_truth.tum");
+  const auto online =
+      tessera::evaluation::computeAte(tessera::mapping::readTum(out / "trajectory.tum"), truth);
+  const auto final_ate = tessera::evaluation::computeAte(
+      tessera::mapping::readTum(out / "trajectory_final.tum"), truth);
   INFO("ATE online (chained submaps) " << online.translation.rmse << " m, after optimisation "
                                        << final_ate.translation.rmse << " m");
   const auto loops_true = test::summaryInt(report, "loops", "loops_true");

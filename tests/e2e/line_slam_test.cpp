@@ -1,10 +1,10 @@
 // End to end: apps/profiles/sim_lines.yaml (seed 001 room, drifting odometry) and
 // apps/profiles/carmen_lines.yaml on a prefix of the real Intel log (simulator/player -> line_slam
 // -> line map and trajectory writers), read back what they wrote.
-#include <tessera/common/line_map_io.hpp>
-#include <tessera/common/trajectory_io.hpp>
-#include <tessera/common/trajectory_metrics.hpp>
 #include <tessera/datasets/relations.hpp>
+#include <tessera/evaluation/trajectory_metrics.hpp>
+#include <tessera/line_slam/line_map_io.hpp>
+#include <tessera/mapping/trajectory_io.hpp>
 #include <tessera/runtime/profile.hpp>
 
 #include <filesystem>
@@ -54,8 +54,9 @@ TEST_CASE("sim_lines ends within 7 cm and half a degree while odometry drifts me
   CHECK(on_walls >= lines * 3 / 4);
   CHECK(lines <= walls + 10);
   // The whole estimated trajectory, not only its end.
-  const auto ate = common::computeAte(common::readTum(out / "trajectory.tum"),
-                                      common::readTum(out / "ground_truth.tum"));
+  const auto ate =
+      tessera::evaluation::computeAte(tessera::mapping::readTum(out / "trajectory.tum"),
+                                      tessera::mapping::readTum(out / "ground_truth.tum"));
   CHECK(ate.translation.rmse < 0.07);
 }
 
@@ -72,14 +73,15 @@ TEST_CASE("carmen_lines tracks the first 500 scans of intel.clf better than odom
   CHECK(report.stop_reason == "all inputs finished");
   CHECK(fs::exists(out / "lines.svg"));
   CHECK(test::summaryInt(report, "slam", "scans_read") == 500);
-  CHECK(common::readTum(out / "trajectory.tum").size() == 500);
+  CHECK(tessera::mapping::readTum(out / "trajectory.tum").size() == 500);
   const auto file = datasets::readRelations(relations_path);
-  std::vector<common::PoseRelation> relations;
+  std::vector<tessera::evaluation::PoseRelation> relations;
   for (const auto& r : file.relations)
-    relations.push_back({r.t1_ns, r.t2_ns, common::Pose2(r.dx, r.dy, r.yaw)});
-  const auto slam =
-      common::computeRelationsError(common::readTum(out / "trajectory.tum"), relations);
-  const auto odom = common::computeRelationsError(common::readTum(out / "odometry.tum"), relations);
+    relations.push_back({r.t1_ns, r.t2_ns, tessera::Pose2(r.dx, r.dy, r.yaw)});
+  const auto slam = tessera::evaluation::computeRelationsError(
+      tessera::mapping::readTum(out / "trajectory.tum"), relations);
+  const auto odom = tessera::evaluation::computeRelationsError(
+      tessera::mapping::readTum(out / "odometry.tum"), relations);
   INFO("slam " << slam.matched << " relations: " << slam.translation.mean << " m, "
                << slam.rotation_deg.mean << " deg; odometry " << odom.translation.mean << " m, "
                << odom.rotation_deg.mean << " deg");

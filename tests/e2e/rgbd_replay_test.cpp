@@ -1,6 +1,6 @@
 // End to end: apps/profiles/rgbd_replay.yaml on the real TUM folder (player -> trajectory writer),
 // and its refusal to run without a dataset folder.
-#include <tessera/common/trajectory_io.hpp>
+#include <tessera/mapping/trajectory_io.hpp>
 #include <tessera/runtime/profile.hpp>
 
 #include "../shared_data.hpp"
@@ -24,7 +24,7 @@ TEST_CASE("rgbd_replay writes the ground truth of the TUM sequence", "[e2e][rgbd
   auto runtime = buildRuntime(profile, options);
   const RunReport report = runtime->run();
   CHECK(report.stop_reason == "all inputs finished");
-  const auto truth = common::readTum(out / "ground_truth.tum");
+  const auto truth = tessera::mapping::readTum(out / "ground_truth.tum");
   REQUIRE(truth.size() == 9);
   CHECK(truth.front().stamp_ns == 0);
   CHECK(truth.back().stamp_ns == std::llround((1305031453.627706 - 1305031453.359684) * 1e9));

@@ -1,7 +1,7 @@
 // End to end: run apps/profiles/sim_mapping.yaml (simulator -> grid mapper -> writers) for two
 // simulated minutes, read back the files it wrote, and compare the map with the world.
-#include <tessera/common/map_io.hpp>
-#include <tessera/common/trajectory_io.hpp>
+#include <tessera/mapping/map_io.hpp>
+#include <tessera/mapping/trajectory_io.hpp>
 #include <tessera/runtime/profile.hpp>
 #include <tessera/sim/ray_caster.hpp>
 #include <tessera/sim/world.hpp>
@@ -37,10 +37,10 @@ TEST_CASE("sim_mapping builds a map that matches the simulated office", "[e2e]")
     INFO(f);
     CHECK(fs::exists(out / f));
   }
-  const auto map = common::loadMap(out / "map.yaml");
-  const auto truth = common::readTum(out / "ground_truth.tum");
+  const auto map = tessera::mapping::loadMap(out / "map.yaml");
+  const auto truth = tessera::mapping::readTum(out / "ground_truth.tum");
   REQUIRE(truth.size() > 1000);
-  CHECK(common::readTum(out / "odometry.tum").size() > 1000);
+  CHECK(tessera::mapping::readTum(out / "odometry.tum").size() > 1000);
 
   const sim::World world = sim::World::builtinOffice();
   const sim::RayCaster caster(world);

@@ -1,7 +1,7 @@
 // End to end: the seed 000 / 001 / 004 scenario profiles write the files later SLAM issues are
 // scored with (the camera network run is cut to 300 simulated seconds).
-#include <tessera/common/map_io.hpp>
-#include <tessera/common/trajectory_io.hpp>
+#include <tessera/mapping/map_io.hpp>
+#include <tessera/mapping/trajectory_io.hpp>
 #include <tessera/runtime/profile.hpp>
 
 #include <catch2/catch.hpp>
@@ -57,8 +57,8 @@ TEST_CASE("sim_camera_network writes trajectories, camera logs and camera truth"
     INFO(f);
     CHECK(fs::exists(out / f));
   }
-  CHECK(common::readTum(out / "ground_truth.tum").size() > 10000);
-  CHECK(common::readTum(out / "odometry.tum").size() > 10000);
+  CHECK(tessera::mapping::readTum(out / "ground_truth.tum").size() > 10000);
+  CHECK(tessera::mapping::readTum(out / "odometry.tum").size() > 10000);
   const auto det = rows(out / "camera_detections.csv", true);
   const auto ev = rows(out / "camera_events.csv", true);
   REQUIRE(ev.size() >= 2);  // under camera 0 at the start, then on to camera 1
@@ -74,18 +74,18 @@ TEST_CASE("sim_room writes trajectories, a map and the true walls", "[e2e]") {
   const fs::path out = test::scratchDir("e2e_sim_room");
   const RunReport report = runProfile("sim_room", out);
   CHECK(report.stop_reason == "all inputs finished");
-  const auto truth = common::readTum(out / "ground_truth.tum");
+  const auto truth = tessera::mapping::readTum(out / "ground_truth.tum");
   REQUIRE(truth.size() > 1000);
   double length = 0;
   for (std::size_t i = 1; i < truth.size(); ++i)
     length += (truth[i].position - truth[i - 1].position).norm();
   CHECK(length == Approx(15).margin(0.5));
   CHECK(report.sim_duration_s > 15 / 0.4);
-  CHECK(common::readTum(out / "odometry.tum").size() == truth.size());
+  CHECK(tessera::mapping::readTum(out / "odometry.tum").size() == truth.size());
   const auto walls = rows(out / "walls.txt", false);
   CHECK(walls.size() == 23);
   for (const auto& w : walls) CHECK(w.size() == 4);
-  const auto map = common::loadMap(out / "map.yaml");
+  const auto map = tessera::mapping::loadMap(out / "map.yaml");
   CHECK(map.resolution == Approx(0.05));
   fs::remove_all(out);
 }
@@ -100,8 +100,8 @@ TEST_CASE("sim_landmarks writes trajectories, true landmarks, observations and c
     REQUIRE(lms[i].size() == 3);
     CHECK(lms[i][0] == static_cast<double>(i));
   }
-  const auto truth = common::readTum(out / "ground_truth.tum");
-  const auto odom = common::readTum(out / "odometry.tum");
+  const auto truth = tessera::mapping::readTum(out / "ground_truth.tum");
+  const auto odom = tessera::mapping::readTum(out / "odometry.tum");
   REQUIRE(truth.size() > 3000);
   REQUIRE(odom.size() == truth.size());
   CHECK((truth.back().position - odom.back().position).norm() > 0.5);  // noisy controls drift

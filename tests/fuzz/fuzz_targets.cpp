@@ -2,12 +2,12 @@
 
 #include <tessera/datasets/carmen_log.hpp>
 #include <tessera/datasets/landmark_logs.hpp>
-#include <tessera/datasets/pose_graph_io.hpp>
 #include <tessera/datasets/relations.hpp>
 #include <tessera/datasets/rgbd_sequence.hpp>
-#include <tessera/datasets/text_reader.hpp>
 #include <tessera/datasets/urg_log.hpp>
+#include <tessera/io/text_reader.hpp>
 #include <tessera/messages/types.hpp>
+#include <tessera/pose_graph/pose_graph_io.hpp>
 #include <tessera/runtime/recording.hpp>
 
 #include <filesystem>
@@ -18,8 +18,8 @@
 namespace tessera::fuzz {
 namespace {
 
-using datasets::ParseReport;
-using datasets::TextReader;
+using io::ParseReport;
+using io::TextReader;
 
 TextReader reader(const char* name, const std::string& text) {
   return TextReader::fromString(name, text);
@@ -35,7 +35,7 @@ void urg(const std::string& text) {
 
 void poseGraph(const std::string& text) {
   auto r = reader("fuzz.g2o", text);
-  (void)datasets::readPoseGraph(r);
+  (void)pose_graph::readPoseGraph(r);
 }
 
 void relations(const std::string& text) {
@@ -101,7 +101,7 @@ void recording(const std::string& bytes) {
     RecordedMessage m;
     while (reader.next(m)) (void)m.message->root().targetSize();
   } catch (const RecordingError& e) {
-    throw datasets::DatasetError("fuzz.trec", 0, e.what());
+    throw io::DatasetError("fuzz.trec", 0, e.what());
   }
 }
 
@@ -214,7 +214,7 @@ const Target* findTarget(std::string_view name) {
 bool runOne(const Target& target, const std::string& text) {
   try {
     target.parse(text);
-  } catch (const datasets::DatasetError&) {
+  } catch (const io::DatasetError&) {
   } catch (const std::exception& e) {
     std::cerr << "fuzz " << target.name << ": a " << typeid(e).name()
               << " escaped the parser: " << e.what() << "\n";

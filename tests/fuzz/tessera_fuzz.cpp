@@ -5,7 +5,7 @@
 #include "../hw/datasets/mutate.hpp"
 #include "fuzz_targets.hpp"
 
-#include <tessera/datasets/text_reader.hpp>
+#include <tessera/io/text_reader.hpp>
 
 #include <CLI/CLI.hpp>
 
@@ -20,7 +20,7 @@ using tessera::fuzz::Target;
 namespace {
 
 std::string head(const fs::path& path, std::size_t max_lines) {
-  tessera::datasets::TextReader reader(path);
+  tessera::io::TextReader reader(path);
   std::string text, line;
   for (std::size_t n = 0; n < max_lines && reader.next(line); ++n) text += line + "\n";
   return text;

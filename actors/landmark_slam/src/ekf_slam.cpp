@@ -40,8 +40,10 @@ LandmarkEstimate EkfSlam::gaussian(std::size_t index) const {
   return e;
 }
 
-void EkfSlam::doPredict(const common::DriveInput& u, const Eigen::Matrix2d& control_cov) {
-  const common::MotionStep step = common::driveStep(x_.head<3>(), u);
+void EkfSlam::doPredict(const tessera::landmark_slam::DriveInput& u,
+                        const Eigen::Matrix2d& control_cov) {
+  const tessera::landmark_slam::MotionStep step =
+      tessera::landmark_slam::driveStep(x_.head<3>(), u);
   x_.head<3>() = step.pose;
   const Eigen::Index m = n_ - 3;
   const Eigen::Matrix3d Prr = P_.topLeftCorner<3, 3>();
@@ -56,9 +58,10 @@ void EkfSlam::doPredict(const common::DriveInput& u, const Eigen::Matrix2d& cont
 
 LandmarkFilter::Innovation EkfSlam::innovation(std::size_t index, const Eigen::Vector2d& z,
                                                const Eigen::Matrix2d& R,
-                                               const common::Pose2& mount) const {
+                                               const tessera::Pose2& mount) const {
   const Eigen::Index i0 = 3 + 2 * static_cast<Eigen::Index>(index);
-  const auto pred = common::predictRangeBearing(x_.head<3>(), x_.segment<2>(i0), mount);
+  const auto pred =
+      tessera::landmark_slam::predictRangeBearing(x_.head<3>(), x_.segment<2>(i0), mount);
   Eigen::Matrix<double, 2, 5> H;
   H << pred.H_pose, pred.H_landmark;
   Eigen::Matrix<double, 5, 5> C;
@@ -67,26 +70,27 @@ LandmarkFilter::Innovation EkfSlam::innovation(std::size_t index, const Eigen::V
   C.bottomLeftCorner<2, 3>() = P_.block<2, 3>(i0, 0);
   C.bottomRightCorner<2, 2>() = P_.block<2, 2>(i0, i0);
   Innovation in;
-  in.nu = {z[0] - pred.z[0], common::angleDiff(z[1], pred.z[1])};
+  in.nu = {z[0] - pred.z[0], tessera::angleDiff(z[1], pred.z[1])};
   in.S = H * C * H.transpose() + R;
   return in;
 }
 
 LandmarkFilter::Innovation EkfSlam::correct(std::size_t index, const Eigen::Vector2d& z,
-                                            const Eigen::Matrix2d& R, const common::Pose2& mount) {
+                                            const Eigen::Matrix2d& R, const tessera::Pose2& mount) {
   const Eigen::Index i0 = 3 + 2 * static_cast<Eigen::Index>(index);
-  const auto pred = common::predictRangeBearing(x_.head<3>(), x_.segment<2>(i0), mount);
+  const auto pred =
+      tessera::landmark_slam::predictRangeBearing(x_.head<3>(), x_.segment<2>(i0), mount);
   auto P = P_.topLeftCorner(n_, n_);
   // P Hᵀ touches only the pose and landmark columns: O(n); the covariance update is O(n²).
   const Eigen::MatrixXd PHt =
       P.leftCols<3>() * pred.H_pose.transpose() + P.middleCols<2>(i0) * pred.H_landmark.transpose();
   Innovation in;
-  in.nu = {z[0] - pred.z[0], common::angleDiff(z[1], pred.z[1])};
+  in.nu = {z[0] - pred.z[0], tessera::angleDiff(z[1], pred.z[1])};
   in.S = pred.H_pose * PHt.topRows<3>() + pred.H_landmark * PHt.middleRows<2>(i0) + R;
   in.S = 0.5 * (in.S + in.S.transpose()).eval();
   const Eigen::MatrixXd K = PHt * in.S.inverse();
   x_.head(n_) += K * in.nu;
-  x_[2] = common::normalizeAngle(x_[2]);
+  x_[2] = tessera::normalizeAngle(x_[2]);
   P.noalias() -= K * PHt.transpose();
   return in;
 }
@@ -104,8 +108,8 @@ void EkfSlam::grow(Eigen::Index capacity) {
 }
 
 void EkfSlam::augment(const Eigen::Vector2d& z, const Eigen::Matrix2d& R,
-                      const common::Pose2& mount) {
-  const auto lf = common::landmarkFromRangeBearing(x_.head<3>(), z, mount);
+                      const tessera::Pose2& mount) {
+  const auto lf = tessera::landmark_slam::landmarkFromRangeBearing(x_.head<3>(), z, mount);
   const Eigen::Index n = n_;
   if (n + 2 > P_.rows()) grow(std::max<Eigen::Index>(P_.rows() + P_.rows() / 2, n + 2));
   x_.segment<2>(n) = lf.m;

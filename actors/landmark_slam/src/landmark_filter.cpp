@@ -58,7 +58,7 @@ std::vector<LandmarkEstimate> LandmarkFilter::landmarks() const {
   return out;
 }
 
-void LandmarkFilter::predict(const common::DriveInput& u) {
+void LandmarkFilter::predict(const tessera::landmark_slam::DriveInput& u) {
   const bool finite_u = std::isfinite(u.speed) && std::isfinite(u.steer) &&
                         std::isfinite(u.turn_rate) && std::isfinite(u.wheelbase) &&
                         std::isfinite(u.dt);
@@ -75,7 +75,7 @@ void LandmarkFilter::predict(const common::DriveInput& u) {
 }
 
 UpdateResult LandmarkFilter::update(std::span<const Observation> observations,
-                                    const common::Pose2& mount) {
+                                    const tessera::Pose2& mount) {
   UpdateResult result;
   struct Match {
     std::size_t obs;
@@ -102,7 +102,7 @@ UpdateResult LandmarkFilter::update(std::span<const Observation> observations,
     const bool own = options_.use_observation_std;
     const double rs = own && o.range_std > 0 ? o.range_std : options_.range_std;
     const double bs = own && o.bearing_std > 0 ? o.bearing_std : options_.bearing_std;
-    zs[k] = {o.range, common::normalizeAngle(o.bearing)};
+    zs[k] = {o.range, tessera::normalizeAngle(o.bearing)};
     Rs[k] = Eigen::Vector2d(rs * rs, bs * bs).asDiagonal();
 
     if (options_.association == Association::kKnownIds) {
@@ -120,7 +120,7 @@ UpdateResult LandmarkFilter::update(std::span<const Observation> observations,
         continue;
       }
       const Innovation in = innovation(it->second, zs[k], Rs[k], mount);
-      const double d2 = common::mahalanobis2(in.nu, in.S);
+      const double d2 = tessera::landmark_slam::mahalanobis2(in.nu, in.S);
       if (options_.outlier_gate > 0 && !(d2 <= options_.outlier_gate)) {
         ++rejections_.gate;
         continue;
@@ -133,7 +133,7 @@ UpdateResult LandmarkFilter::update(std::span<const Observation> observations,
     std::size_t best_index = kNew;
     for (std::size_t i = 0; i < ids_.size(); ++i) {
       const Innovation in = innovation(i, zs[k], Rs[k], mount);
-      const double d2 = common::mahalanobis2(in.nu, in.S);
+      const double d2 = tessera::landmark_slam::mahalanobis2(in.nu, in.S);
       if (d2 < best) {
         second = best;
         best = d2;
@@ -189,7 +189,7 @@ UpdateResult LandmarkFilter::update(std::span<const Observation> observations,
   for (const Match& m : matches) {
     if (m.index == kNew) continue;
     const Innovation in = correct(m.index, zs[m.obs], Rs[m.obs], mount);
-    const double nis = common::mahalanobis2(in.nu, in.S);
+    const double nis = tessera::landmark_slam::mahalanobis2(in.nu, in.S);
     if (std::isfinite(nis)) {
       nis_sum_ += nis;
       ++nis_count_;
@@ -208,7 +208,7 @@ UpdateResult LandmarkFilter::update(std::span<const Observation> observations,
 }
 
 void LandmarkFilter::addLandmark(int id, const Eigen::Vector2d& z, const Eigen::Matrix2d& R,
-                                 const common::Pose2& mount) {
+                                 const tessera::Pose2& mount) {
   augment(z, R, mount);
   index_.emplace(id, ids_.size());
   ids_.push_back(id);

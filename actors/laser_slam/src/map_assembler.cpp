@@ -29,7 +29,7 @@ MapAssembler::MapAssembler(double resolution) : resolution_(resolution) {
     throw std::invalid_argument("map_assembler: resolution must be >= 0 [m] (0 = the submaps')");
 }
 
-void MapAssembler::setSubmap(int id, common::OccupancyMap grid) {
+void MapAssembler::setSubmap(int id, tessera::grid::OccupancyMap grid) {
   if (!(grid.resolution > 0) || !std::isfinite(grid.resolution) || !grid.origin.isFinite() ||
       grid.width < 0 || grid.height < 0 ||
       grid.cells.size() !=
@@ -40,7 +40,7 @@ void MapAssembler::setSubmap(int id, common::OccupancyMap grid) {
   submaps_[id].grid = std::move(grid);
 }
 
-void MapAssembler::setPose(int id, const common::Pose2& global_pose) {
+void MapAssembler::setPose(int id, const tessera::Pose2& global_pose) {
   if (!global_pose.isFinite())
     throw std::invalid_argument("map_assembler: submap " + std::to_string(id) +
                                 " has a non-finite global pose");
@@ -54,12 +54,12 @@ bool MapAssembler::hasPose(int id) const {
   return it != submaps_.end() && it->second.placed;
 }
 
-common::Pose2 MapAssembler::pose(int id) const {
+tessera::Pose2 MapAssembler::pose(int id) const {
   const auto it = submaps_.find(id);
-  return it == submaps_.end() ? common::Pose2{} : it->second.pose;
+  return it == submaps_.end() ? tessera::Pose2{} : it->second.pose;
 }
 
-common::OccupancyMap MapAssembler::assemble() const {
+tessera::grid::OccupancyMap MapAssembler::assemble() const {
   double res = resolution_;
   Eigen::Vector2d lo(std::numeric_limits<double>::infinity(),
                      std::numeric_limits<double>::infinity());
@@ -69,7 +69,7 @@ common::OccupancyMap MapAssembler::assemble() const {
     if (!e.placed || e.grid.empty()) continue;
     drawn.push_back(&e);
     if (resolution_ == 0) res = res == 0 ? e.grid.resolution : std::min(res, e.grid.resolution);
-    const common::Pose2 to_map = e.pose * e.grid.origin;
+    const tessera::Pose2 to_map = e.pose * e.grid.origin;
     for (const auto& corner :
          {Eigen::Vector2d(0, 0), Eigen::Vector2d(e.grid.width, 0),
           Eigen::Vector2d(0, e.grid.height), Eigen::Vector2d(e.grid.width, e.grid.height)}) {
@@ -78,11 +78,11 @@ common::OccupancyMap MapAssembler::assemble() const {
       hi = hi.cwiseMax(p);
     }
   }
-  common::OccupancyMap out;
+  tessera::grid::OccupancyMap out;
   if (drawn.empty()) return out;
   out.resolution = res;
   const Eigen::Vector2d corner = (lo / res).array().floor() * res;
-  out.origin = common::Pose2(corner, 0.0);
+  out.origin = tessera::Pose2(corner, 0.0);
   out.width = static_cast<int>(std::ceil((hi.x() - corner.x()) / res));
   out.height = static_cast<int>(std::ceil((hi.y() - corner.y()) / res));
   const std::size_t n = static_cast<std::size_t>(out.width) * static_cast<std::size_t>(out.height);
@@ -92,8 +92,8 @@ common::OccupancyMap MapAssembler::assemble() const {
     log_odds[static_cast<std::size_t>(v)] = logOddsOf(static_cast<std::int8_t>(v));
   for (const Entry* e : drawn) {
     // Walk the global cells under this submap's footprint; sample the submap at each centre.
-    const common::Pose2 to_map = e->pose * e->grid.origin;
-    const common::Pose2 to_grid = to_map.inverse();
+    const tessera::Pose2 to_map = e->pose * e->grid.origin;
+    const tessera::Pose2 to_grid = to_map.inverse();
     Eigen::Vector2d a(std::numeric_limits<double>::infinity(),
                       std::numeric_limits<double>::infinity());
     Eigen::Vector2d b = -a;
@@ -127,7 +127,7 @@ common::OccupancyMap MapAssembler::assemble() const {
       }
     }
   }
-  out.cells.assign(n, common::OccupancyMap::kUnknown);
+  out.cells.assign(n, tessera::grid::OccupancyMap::kUnknown);
   for (std::size_t k = 0; k < n; ++k) {
     if (sum[k] == kUnknownSum) continue;
     const double p = 1.0 - 1.0 / (1.0 + std::exp(static_cast<double>(sum[k]) / kFixedScale));

@@ -16,7 +16,7 @@
 namespace tessera::laser_slam {
 namespace {
 
-using common::Pose2;
+using tessera::Pose2;
 
 void require(bool ok, const std::string& what) {
   if (!ok) throw std::invalid_argument("rbpf: " + what);
@@ -60,7 +60,7 @@ Eigen::Matrix3d inMapFrame(const Eigen::Matrix3d& local, const Pose2& frame) {
 double poseKernel(const Pose2& a, const Pose2& b, double sigma_linear, double sigma_angular) {
   const double dx = (a.x - b.x) / sigma_linear;
   const double dy = (a.y - b.y) / sigma_linear;
-  const double dt = common::angleDiff(a.theta, b.theta) / sigma_angular;
+  const double dt = tessera::angleDiff(a.theta, b.theta) / sigma_angular;
   return std::exp(-0.5 * (dx * dx + dy * dy + dt * dt));
 }
 
@@ -96,7 +96,7 @@ Pose2 kernelMean(std::span<const Pose2> poses, std::span<const double> weights, 
     total += w;
     x += w * poses[i].x;
     y += w * poses[i].y;
-    dtheta += w * common::angleDiff(poses[i].theta, centre.theta);
+    dtheta += w * tessera::angleDiff(poses[i].theta, centre.theta);
   }
   if (!(total > 0)) return centre;
   return Pose2{x / total, y / total, centre.theta + dtheta / total};
@@ -125,8 +125,8 @@ std::vector<std::size_t> systematicResample(const std::vector<double>& weights, 
 
 namespace {
 // Invalid values are left out here, so that the constructor's checks name the option.
-common::ScanMatcherOptions trackingMatcherOptions(const RbpfOptions& o) {
-  common::ScanMatcherOptions t = o.matcher;
+tessera::scan_matching::ScanMatcherOptions trackingMatcherOptions(const RbpfOptions& o) {
+  tessera::scan_matching::ScanMatcherOptions t = o.matcher;
   if (std::isfinite(o.track_linear_step) && o.track_linear_step > 0)
     t.linear_step = o.track_linear_step;
   if (std::isfinite(o.track_angular_step) && o.track_angular_step > 0)
@@ -157,7 +157,7 @@ Rbpf::Rbpf(RbpfOptions options)
   for (double v : {m.srr, m.srt, m.str, m.stt})
     require(std::isfinite(v) && v >= 0, "motion noise srr/srt/str/stt must be >= 0");
   // The grid validates its own options; fail here, at configuration, not at the first scan.
-  common::TiledGrid probe(o.grid);
+  tessera::grid::TiledGrid probe(o.grid);
   require(std::isfinite(o.handover_sigma_linear) && o.handover_sigma_linear >= 0 &&
               std::isfinite(o.handover_sigma_angular) && o.handover_sigma_angular >= 0,
           "handover_sigma_linear and handover_sigma_angular must be >= 0");
@@ -182,7 +182,7 @@ Rbpf::Rbpf(RbpfOptions options)
               o.min_overlap_fraction <= 1,
           "min_overlap_fraction must be in [0, 1]");
   if (o.coarse_kernel_radius > 0) {
-    common::ScanMatcherOptions coarse = o.matcher;
+    tessera::scan_matching::ScanMatcherOptions coarse = o.matcher;
     coarse.kernel_radius = o.coarse_kernel_radius;
     coarse.beam_step = o.matcher.beam_step * o.coarse_beam_step;
     coarse.refinements = 2;  // only to get into the fine stage's basin
@@ -201,7 +201,7 @@ Eigen::Matrix3d Rbpf::motionCovariance(const Pose2& delta) const {
   return Eigen::Vector3d(sx * sx, sy * sy, st * st).asDiagonal();
 }
 
-RbpfStep Rbpf::addScan(double stamp_s, const common::RangeScan& scan, const Pose2& mount,
+RbpfStep Rbpf::addScan(double stamp_s, const tessera::grid::RangeScan& scan, const Pose2& mount,
                        const Pose2& odometry) {
   RbpfStep step;
   ++stats_.scans;
@@ -209,7 +209,7 @@ RbpfStep Rbpf::addScan(double stamp_s, const common::RangeScan& scan, const Pose
     ++stats_.invalid_odometry;
     return step;
   }
-  const common::ScanPoints points = matcher_.prepare(scan, mount);
+  const tessera::scan_matching::ScanPoints points = matcher_.prepare(scan, mount);
   const bool usable = !points.endpoints.empty();
   if (usable) {
     last_ranges_.assign(scan.ranges.begin(), scan.ranges.end());
@@ -232,7 +232,7 @@ RbpfStep Rbpf::addScan(double stamp_s, const common::RangeScan& scan, const Pose
     return step;
   }
 
-  const Pose2 moved = common::between(last_odometry_, odometry);
+  const Pose2 moved = tessera::between(last_odometry_, odometry);
   const double dist = std::hypot(moved.x, moved.y);
   travelled_since_update_ += dist;
   turned_since_update_ += std::abs(moved.theta);
@@ -251,10 +251,11 @@ RbpfStep Rbpf::addScan(double stamp_s, const common::RangeScan& scan, const Pose
   }
 
   ++update_index_;
-  const common::ScanPoints coarse_points =
-      coarse_matcher_ ? coarse_matcher_->prepare(scan, mount) : common::ScanPoints{};
+  const tessera::scan_matching::ScanPoints coarse_points =
+      coarse_matcher_ ? coarse_matcher_->prepare(scan, mount)
+                      : tessera::scan_matching::ScanPoints{};
   const std::size_t failures =
-      updateParticles(points, coarse_points, common::between(update_odometry_, odometry));
+      updateParticles(points, coarse_points, tessera::between(update_odometry_, odometry));
   step.updated = true;
   step.matched = failures < particles_.size();
   step.neff = normalizeWeights();
@@ -276,9 +277,9 @@ RbpfStep Rbpf::addScan(double stamp_s, const common::RangeScan& scan, const Pose
   return step;
 }
 
-void Rbpf::initialize(double stamp_s, const common::RangeScan& scan, const Pose2& mount,
+void Rbpf::initialize(double stamp_s, const tessera::grid::RangeScan& scan, const Pose2& mount,
                       const Pose2& odometry) {
-  auto map = std::make_shared<common::TiledGrid>(options_.grid);
+  auto map = std::make_shared<tessera::grid::TiledGrid>(options_.grid);
   map->insertScan(scan, mount, options_.insert);  // robot at the submap origin
   auto node = std::make_shared<const TrajectoryNode>(TrajectoryNode{stamp_s, Pose2{}, nullptr});
   const double uniform = -std::log(static_cast<double>(options_.particles));
@@ -295,8 +296,8 @@ void Rbpf::initialize(double stamp_s, const common::RangeScan& scan, const Pose2
   ++stats_.updates;
 }
 
-std::size_t Rbpf::updateParticles(const common::ScanPoints& points,
-                                  const common::ScanPoints& coarse_points,
+std::size_t Rbpf::updateParticles(const tessera::scan_matching::ScanPoints& points,
+                                  const tessera::scan_matching::ScanPoints& coarse_points,
                                   const Pose2& odom_delta) {
   const Eigen::Matrix3d local_cov = motionCovariance(odom_delta);
   const double divisor = options_.weight_divisor > 0 ? options_.weight_divisor
@@ -312,17 +313,17 @@ std::size_t Rbpf::updateParticles(const common::ScanPoints& points,
   struct Proposal {
     Pose2 prior;  // the motion model's mean and covariance (map frame)
     Eigen::Matrix3d prior_cov;
-    Pose2 start;                // where the fine stage started: the coarse pose or the prior
-    common::MatchResult match;  // the fine stage's
-    bool matched = false;       // trusted: `fit` is the proposal
-    bool weak = false;          // matched, but too little of the scan on the map to trust
-    bool searched = false;      // the prior's support was searched (searchPrior)
-    common::ProposalFit fit;    // when matched
+    Pose2 start;  // where the fine stage started: the coarse pose or the prior
+    tessera::scan_matching::MatchResult match;  // the fine stage's
+    bool matched = false;                       // trusted: `fit` is the proposal
+    bool weak = false;      // matched, but too little of the scan on the map to trust
+    bool searched = false;  // the prior's support was searched (searchPrior)
+    tessera::scan_matching::ProposalFit fit;  // when matched
   };
   std::vector<Proposal> proposals(n);
   std::atomic<std::uint64_t> failures{0}, coarse_evals{0}, fine_evals{0}, recoveries{0};
   // Too little overlap with the map to trust (RbpfOptions::min_overlap_fraction).
-  const auto overlaps = [&](const common::MatchResult& m) {
+  const auto overlaps = [&](const tessera::scan_matching::MatchResult& m) {
     return static_cast<double>(m.matched_beams) >=
            options_.min_overlap_fraction * static_cast<double>(points.size());
   };
@@ -333,8 +334,9 @@ std::size_t Rbpf::updateParticles(const common::ScanPoints& points,
   // best coarse score goes on to the fine stage. Its match replaces the proposal's when there
   // was none, or when it has more beams on the map than a weak one; returns whether it did.
   const auto searchPrior = [&](const Particle& p, Proposal& out, bool had_match) {
-    const common::ScanMatcher& coarse_stage = coarse_matcher_ ? *coarse_matcher_ : matcher_;
-    const common::ScanPoints& coarse_pts = coarse_matcher_ ? coarse_points : points;
+    const tessera::scan_matching::ScanMatcher& coarse_stage =
+        coarse_matcher_ ? *coarse_matcher_ : matcher_;
+    const tessera::scan_matching::ScanPoints& coarse_pts = coarse_matcher_ ? coarse_points : points;
     const Pose2& prior = out.prior;
     out.searched = true;
     const Eigen::Vector3d reach = options_.recovery_sigma * out.prior_cov.diagonal().cwiseSqrt();
@@ -350,7 +352,7 @@ std::size_t Rbpf::updateParticles(const common::ScanPoints& points,
         if (k == 0 && d.x == 0 && d.y == 0) continue;  // the prior mean: tried already
         const Pose2 from{prior.x + d.x, prior.y + d.y,
                          prior.theta + k * options_.recovery_angular_step};
-        const common::MatchResult c = coarse_stage.match(*p.map, coarse_pts, from);
+        const tessera::scan_matching::MatchResult c = coarse_stage.match(*p.map, coarse_pts, from);
         evals += static_cast<std::uint64_t>(c.evaluations);
         if (c.success && c.score > best_score) {
           best_score = c.score;
@@ -359,7 +361,7 @@ std::size_t Rbpf::updateParticles(const common::ScanPoints& points,
       }
     coarse_evals.fetch_add(evals, std::memory_order_relaxed);
     if (best_score < 0) return false;
-    common::MatchResult recovered = matcher_.match(*p.map, points, best_pose);
+    tessera::scan_matching::MatchResult recovered = matcher_.match(*p.map, points, best_pose);
     fine_evals.fetch_add(static_cast<std::uint64_t>(recovered.evaluations),
                          std::memory_order_relaxed);
     if (had_match && recovered.matched_beams <= out.match.matched_beams) return false;
@@ -386,7 +388,8 @@ std::size_t Rbpf::updateParticles(const common::ScanPoints& points,
     out.start = out.prior;
     bool matched = false;
     if (coarse_matcher_) {
-      const common::MatchResult coarse = coarse_matcher_->match(*p.map, coarse_points, out.prior);
+      const tessera::scan_matching::MatchResult coarse =
+          coarse_matcher_->match(*p.map, coarse_points, out.prior);
       coarse_evals.fetch_add(static_cast<std::uint64_t>(coarse.evaluations),
                              std::memory_order_relaxed);
       if (coarse.success) out.start = coarse.pose;
@@ -405,7 +408,7 @@ std::size_t Rbpf::updateParticles(const common::ScanPoints& points,
     std::mt19937_64 rng = streamFor(options_.seed, update_index_, i);
     double log_eta = 0.0;
     if (proposal.matched) {
-      const common::ProposalFit& fit = proposal.fit;
+      const tessera::scan_matching::ProposalFit& fit = proposal.fit;
       p.pose = options_.sample_proposal ? sampleGaussian(fit.mean, fit.covariance, rng) : fit.mean;
       log_eta = fit.log_eta;
     } else {
@@ -501,16 +504,16 @@ std::vector<std::size_t> Rbpf::copySources() const {
   return source;
 }
 
-void Rbpf::insertScan(const common::RangeScan& scan, const Pose2& mount) {
+void Rbpf::insertScan(const tessera::grid::RangeScan& scan, const Pose2& mount) {
   // Particles that hold the same map at the same pose (copies from resampling) insert once and
   // keep sharing; a map also held at another pose is copied first (tiles shared, copy on write).
   struct Group {
-    std::shared_ptr<common::TiledGrid> map;
+    std::shared_ptr<tessera::grid::TiledGrid> map;
     Pose2 pose;
     std::vector<std::size_t> members;
   };
   std::vector<Group> groups;
-  std::map<const common::TiledGrid*, int> groups_per_map;
+  std::map<const tessera::grid::TiledGrid*, int> groups_per_map;
   const std::vector<std::size_t> source = copySources();
   std::vector<std::size_t> group_of(particles_.size());
   for (std::size_t i = 0; i < particles_.size(); ++i) {
@@ -528,7 +531,7 @@ void Rbpf::insertScan(const common::RangeScan& scan, const Pose2& mount) {
     // The first group of a map keeps it when no other group needs it unchanged.
     int& holders = groups_per_map[g.map.get()];
     if (holders > 1) {
-      g.map = std::make_shared<common::TiledGrid>(*g.map);
+      g.map = std::make_shared<tessera::grid::TiledGrid>(*g.map);
       --holders;
     }
   }
@@ -559,13 +562,14 @@ int Rbpf::bestIndex() const {
                                              options_.best_support_angular));
 }
 
-void Rbpf::trackScan(const common::RangeScan& scan, const Pose2& mount,
-                     const common::ScanPoints& points, const Pose2& odometry) {
-  const Pose2 moved = common::between(tracked_odometry_, odometry);
+void Rbpf::trackScan(const tessera::grid::RangeScan& scan, const Pose2& mount,
+                     const tessera::scan_matching::ScanPoints& points, const Pose2& odometry) {
+  const Pose2 moved = tessera::between(tracked_odometry_, odometry);
   const Pose2 predicted = tracked_ * moved;
-  const common::ScanPoints beams = coarse_matcher_ ? coarse_matcher_->prepare(scan, mount) : points;
-  const common::TiledGrid& map = bestMap();
-  const common::MatchResult m = tracking_matcher_.match(map, beams, predicted);
+  const tessera::scan_matching::ScanPoints beams =
+      coarse_matcher_ ? coarse_matcher_->prepare(scan, mount) : points;
+  const tessera::grid::TiledGrid& map = bestMap();
+  const tessera::scan_matching::MatchResult m = tracking_matcher_.match(map, beams, predicted);
   ++stats_.tracked_scans;
   stats_.tracking_evaluations += static_cast<std::uint64_t>(m.evaluations);
   // The match is taken only when it beats the prediction in likelihood × motion prior: along a
@@ -575,7 +579,7 @@ void Rbpf::trackScan(const common::RangeScan& scan, const Pose2& mount,
   if (m.success) {
     const Eigen::Matrix3d cov = inMapFrame(motionCovariance(moved), tracked_);
     const Eigen::Vector3d d(m.pose.x - predicted.x, m.pose.y - predicted.y,
-                            common::angleDiff(m.pose.theta, predicted.theta));
+                            tessera::angleDiff(m.pose.theta, predicted.theta));
     const double log_prior = -0.5 * d.dot(cov.ldlt().solve(d));
     // On every beam: the subset is enough to find the match, not to judge it.
     better = matcher_.logLikelihood(map, points, m.pose) + log_prior >
@@ -596,7 +600,7 @@ void Rbpf::resetTracking(const Pose2& odometry) {
 
 Pose2 Rbpf::pose() const {
   if (!initialized_) return {};
-  return tracked_ * common::between(tracked_odometry_, last_odometry_);
+  return tracked_ * tessera::between(tracked_odometry_, last_odometry_);
 }
 
 PoseWithCovariance Rbpf::poseWithCovariance() const {
@@ -606,7 +610,7 @@ PoseWithCovariance Rbpf::poseWithCovariance() const {
   for (const auto& p : particles_) {
     const double w = std::exp(p.log_weight);
     const Eigen::Vector3d d(p.pose.x - out.pose.x, p.pose.y - out.pose.y,
-                            common::angleDiff(p.pose.theta, out.pose.theta));
+                            tessera::angleDiff(p.pose.theta, out.pose.theta));
     out.covariance += w * d * d.transpose();
   }
   return out;
@@ -617,7 +621,7 @@ FinishedSubmap Rbpf::currentSubmap() const {
   FinishedSubmap done;
   done.id = submap_id_;
   done.grid = *particles_[static_cast<std::size_t>(best_)].map;  // shares tiles
-  const Pose2 since_update = common::between(update_odometry_, last_odometry_);
+  const Pose2 since_update = tessera::between(update_odometry_, last_odometry_);
   done.next_in_this = poseWithCovariance();
   done.next_in_this.pose = pose();
   // Odometry since the last update adds its own uncertainty to the particle spread.
@@ -636,7 +640,7 @@ FinishedSubmap Rbpf::startSubmap() {
   ++submap_id_;
   submap_scans_ = 0;
   submap_travelled_ = 0.0;
-  auto map = std::make_shared<common::TiledGrid>(options_.grid);
+  auto map = std::make_shared<tessera::grid::TiledGrid>(options_.grid);
   if (last_scan_usable_) {
     map->insertScan(last_scan_, last_mount_, options_.insert);
     submap_scans_ = 1;
@@ -654,7 +658,7 @@ FinishedSubmap Rbpf::startSubmap() {
   return done;
 }
 
-const common::TiledGrid& Rbpf::bestMap() const {
+const tessera::grid::TiledGrid& Rbpf::bestMap() const {
   if (!initialized_) throw std::logic_error("rbpf: no map before the first usable scan");
   return *particles_[static_cast<std::size_t>(best_)].map;
 }
@@ -683,7 +687,7 @@ std::vector<double> Rbpf::weights() const {
 }
 
 int Rbpf::distinctMaps() const {
-  std::vector<const common::TiledGrid*> maps;
+  std::vector<const tessera::grid::TiledGrid*> maps;
   for (const auto& p : particles_) maps.push_back(p.map.get());
   std::sort(maps.begin(), maps.end());
   return static_cast<int>(std::unique(maps.begin(), maps.end()) - maps.begin());

@@ -9,11 +9,11 @@
 namespace tessera::laser_slam {
 namespace {
 
-Eigen::Vector3d vec(const common::Pose2& p) {
+Eigen::Vector3d vec(const tessera::Pose2& p) {
   return {p.x, p.y, p.theta};
 }
 
-common::Pose2 pose(const Eigen::Vector3d& v) {
+tessera::Pose2 pose(const Eigen::Vector3d& v) {
   return {v.x(), v.y(), v.z()};
 }
 
@@ -163,7 +163,7 @@ void ScanGraph::addScanNodes(int submap, Trajectory& t, const std::vector<std::i
   }
 }
 
-pose_graph::OptimizerSummary ScanGraph::optimize(const std::map<int, common::Pose2>& start) {
+pose_graph::OptimizerSummary ScanGraph::optimize(const std::map<int, tessera::Pose2>& start) {
   graph_ = pose_graph::Graph2D{};
   scan_nodes_ = loops_on_scans_ = loops_on_submaps_ = 0;
   // Submap nodes first, by id: the first one anchors the map frame.
@@ -217,8 +217,8 @@ pose_graph::OptimizerSummary ScanGraph::optimize(const std::map<int, common::Pos
   return summary;
 }
 
-std::map<int, common::Pose2> ScanGraph::submapPoses() const {
-  std::map<int, common::Pose2> out;
+std::map<int, tessera::Pose2> ScanGraph::submapPoses() const {
+  std::map<int, tessera::Pose2> out;
   for (int i = 0; i < graph_.size(); ++i)
     if (graph_.ids[static_cast<std::size_t>(i)] >= 0)
       out[static_cast<int>(graph_.ids[static_cast<std::size_t>(i)])] =
@@ -226,7 +226,7 @@ std::map<int, common::Pose2> ScanGraph::submapPoses() const {
   return out;
 }
 
-bool ScanGraph::scanPose(std::int64_t stamp_ns, common::Pose2& out) const {
+bool ScanGraph::scanPose(std::int64_t stamp_ns, tessera::Pose2& out) const {
   for (const auto& [id, t] : trajectories_) {
     const int i = find(t, stamp_ns);
     if (i < 0 || t.node_of.size() != t.scans.size()) continue;
@@ -241,15 +241,15 @@ bool ScanGraph::scanPose(std::int64_t stamp_ns, common::Pose2& out) const {
     while (a > 0 && t.node_of[a] < 0) --a;
     while (b + 1 < t.scans.size() && t.node_of[b] < 0) ++b;
     if (t.node_of[a] < 0 || t.node_of[b] < 0) continue;
-    const common::Pose2& s = t.scans[at].pose;
-    const common::Pose2 from_a = pose(graph_.poses[static_cast<std::size_t>(t.node_of[a])]) *
-                                 (t.scans[a].pose.inverse() * s);
-    const common::Pose2 from_b = pose(graph_.poses[static_cast<std::size_t>(t.node_of[b])]) *
-                                 (t.scans[b].pose.inverse() * s);
+    const tessera::Pose2& s = t.scans[at].pose;
+    const tessera::Pose2 from_a = pose(graph_.poses[static_cast<std::size_t>(t.node_of[a])]) *
+                                  (t.scans[a].pose.inverse() * s);
+    const tessera::Pose2 from_b = pose(graph_.poses[static_cast<std::size_t>(t.node_of[b])]) *
+                                  (t.scans[b].pose.inverse() * s);
     const double f = static_cast<double>(t.scans[at].stamp_ns - t.scans[a].stamp_ns) /
                      static_cast<double>(t.scans[b].stamp_ns - t.scans[a].stamp_ns);
     out = {from_a.x + f * (from_b.x - from_a.x), from_a.y + f * (from_b.y - from_a.y),
-           from_a.theta + f * common::angleDiff(from_b.theta, from_a.theta)};
+           from_a.theta + f * tessera::angleDiff(from_b.theta, from_a.theta)};
     return true;
   }
   return false;

@@ -9,7 +9,7 @@
 namespace tessera::laser_slam {
 namespace {
 
-Eigen::Vector3d vec(const common::Pose2& p) {
+Eigen::Vector3d vec(const tessera::Pose2& p) {
   return {p.x, p.y, p.theta};
 }
 
@@ -21,7 +21,7 @@ std::string describe(const SubmapConstraintInput& c) {
 
 SubmapGraph::SubmapGraph(SubmapGraphOptions options) : options_(std::move(options)) {}
 
-void SubmapGraph::addSubmap(int id, const common::Pose2& guess) {
+void SubmapGraph::addSubmap(int id, const tessera::Pose2& guess) {
   if (graph_.contains(id)) return;
   graph_.addNode(id, vec(guess));
   resolvePending();
@@ -113,13 +113,13 @@ pose_graph::OptimizerSummary SubmapGraph::optimize() {
   return pose_graph::optimize(graph_, options_.optimizer);
 }
 
-common::Pose2 SubmapGraph::pose(int id) const {
+tessera::Pose2 SubmapGraph::pose(int id) const {
   const auto& p = graph_.poses[graph_.index(id)];
   return {p.x(), p.y(), p.z()};
 }
 
-std::map<int, common::Pose2> SubmapGraph::poses() const {
-  std::map<int, common::Pose2> out;
+std::map<int, tessera::Pose2> SubmapGraph::poses() const {
+  std::map<int, tessera::Pose2> out;
   for (int i = 0; i < graph_.size(); ++i) {
     const auto& p = graph_.poses[i];
     out[static_cast<int>(graph_.ids[i])] = {p.x(), p.y(), p.z()};

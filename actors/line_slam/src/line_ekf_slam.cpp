@@ -13,10 +13,10 @@
 
 namespace tessera::line_slam {
 
-using common::angleDiff;
-using common::LineSegment;
-using common::normalizeAngle;
-using common::Pose2;
+using tessera::angleDiff;
+using tessera::normalizeAngle;
+using tessera::Pose2;
+using tessera::line_slam::LineSegment;
 
 namespace {
 
@@ -191,7 +191,7 @@ Eigen::Matrix2d LineEkfSlam::observationNoise(const LineSegment& s) const {
 }
 
 int LineEkfSlam::associate(const LineSegment& robot_segment, bool* ambiguous) const {
-  const LineSegment world = common::transformSegment(robot_segment, pose());
+  const LineSegment world = tessera::line_slam::transformSegment(robot_segment, pose());
   const Eigen::Matrix2d r = observationNoise(robot_segment);
   int best = -1, candidates = 0;
   double best_cost = std::numeric_limits<double>::infinity();
@@ -295,7 +295,7 @@ void LineEkfSlam::addLine(const LineSegment& seg) {
     gx.row(0) *= -1.0;
     gz.row(0) *= -1.0;
   }
-  common::normalizeLine(r_new, phi_new);
+  tessera::line_slam::normalizeLine(r_new, phi_new);
 
   const Eigen::Index n = state_.size();
   state_.conservativeResize(n + 2);
@@ -313,7 +313,7 @@ void LineEkfSlam::addLine(const LineSegment& seg) {
   LineMeta meta{next_id_++, std::numeric_limits<double>::infinity(),
                 -std::numeric_limits<double>::infinity(), 0};
   lines_.push_back(meta);
-  extend(lines_.size() - 1, common::transformSegment(seg, pose()));
+  extend(lines_.size() - 1, tessera::line_slam::transformSegment(seg, pose()));
   ++stats_.lines_added;
 }
 
@@ -401,7 +401,7 @@ int LineEkfSlam::update(const std::vector<LineSegment>& segments) {
       continue;
     }
     if (!ekfUpdate(static_cast<std::size_t>(k), seg)) continue;
-    extend(static_cast<std::size_t>(k), common::transformSegment(seg, pose()));
+    extend(static_cast<std::size_t>(k), tessera::line_slam::transformSegment(seg, pose()));
     ++stats_.matched;
     ++matched;
   }
@@ -413,7 +413,7 @@ int LineEkfSlam::update(const std::vector<LineSegment>& segments) {
       addLine(seg);
       continue;
     }
-    const LineSegment world = common::transformSegment(seg, pose());
+    const LineSegment world = tessera::line_slam::transformSegment(seg, pose());
     bool found = false;
     for (std::size_t t = 0; t < tentative_.size() && !found; ++t) {
       Tentative& cand = tentative_[t];

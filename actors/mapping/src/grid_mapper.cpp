@@ -7,8 +7,8 @@
 namespace tessera::mapping {
 namespace {
 
-common::OccupancyGrid::Options gridOptions(const GridMapperCoreOptions& o) {
-  common::OccupancyGrid::Options g;
+tessera::grid::OccupancyGrid::Options gridOptions(const GridMapperCoreOptions& o) {
+  tessera::grid::OccupancyGrid::Options g;
   g.resolution = o.resolution;
   g.log_odds.hit = static_cast<float>(o.l_occ);
   g.log_odds.miss = static_cast<float>(o.l_free);
@@ -44,14 +44,14 @@ GridMapper::GridMapper(const GridMapperCoreOptions& options)
       insert_options_{options.max_range, options.max_free_range},
       grid_(gridOptions(options)) {}
 
-bool GridMapper::insert(const common::RangeScan& scan, const common::Pose2& robot_pose,
-                        const common::Pose2& mount) {
+bool GridMapper::insert(const tessera::grid::RangeScan& scan, const tessera::Pose2& robot_pose,
+                        const tessera::Pose2& mount) {
   return insertFromSensorPose(scan, robot_pose * mount);
 }
 
-bool GridMapper::insertFromSensorPose(const common::RangeScan& scan,
-                                      const common::Pose2& sensor_pose) {
-  const common::ScanInsertResult r = grid_.insertScan(scan, sensor_pose, insert_options_);
+bool GridMapper::insertFromSensorPose(const tessera::grid::RangeScan& scan,
+                                      const tessera::Pose2& sensor_pose) {
+  const tessera::grid::ScanInsertResult r = grid_.insertScan(scan, sensor_pose, insert_options_);
   stats_.beams_hit += r.hits;
   stats_.beams_no_return += r.no_return;
   stats_.beams_beyond_range += r.beyond_range;

@@ -7,6 +7,10 @@
 #include <utility>
 
 namespace tessera::datasets {
+
+using io::DatasetError;
+using io::Fields;
+using io::TextReader;
 namespace {
 
 constexpr float kNoReturn = std::numeric_limits<float>::infinity();

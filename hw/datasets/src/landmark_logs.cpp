@@ -10,6 +10,11 @@
 #include <string>
 
 namespace tessera::datasets {
+
+using io::DatasetError;
+using io::Fields;
+using io::ParseReport;
+using io::TextReader;
 namespace {
 
 // Unix times up to the year 2286: anything larger is a corrupt field, and bounding it keeps the

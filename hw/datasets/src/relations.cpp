@@ -4,6 +4,9 @@
 #include <string>
 
 namespace tessera::datasets {
+
+using io::Fields;
+using io::TextReader;
 namespace {
 
 // Seconds to nanoseconds. Relation stamps are ~1e9 s with 6 decimals; a double holds them to

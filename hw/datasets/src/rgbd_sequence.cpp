@@ -18,6 +18,10 @@
 #include <tuple>
 
 namespace tessera::datasets {
+
+using io::DatasetError;
+using io::Fields;
+using io::TextReader;
 namespace fs = std::filesystem;
 
 namespace {

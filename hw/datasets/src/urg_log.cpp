@@ -6,6 +6,10 @@
 #include <utility>
 
 namespace tessera::datasets {
+
+using io::DatasetError;
+using io::Fields;
+using io::TextReader;
 namespace {
 
 UrgScan parseLine(const Fields& f, const UrgOptions& o) {

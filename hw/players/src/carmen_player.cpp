@@ -26,7 +26,7 @@ bool isLaserMessage(std::string_view name) {
 // it happens).
 void prescan(const std::filesystem::path& path, std::string& first_laser, bool& has_odom) {
   try {
-    datasets::TextReader reader(path);
+    io::TextReader reader(path);
     std::string line;
     while ((first_laser.empty() || !has_odom) && reader.next(line)) {
       const auto begin = line.find_first_not_of(" \t");
@@ -37,7 +37,7 @@ void prescan(const std::filesystem::path& path, std::string& first_laser, bool& 
       if (name == "ODOM") has_odom = true;
       if (first_laser.empty() && isLaserMessage(name)) first_laser = std::string(name);
     }
-  } catch (const datasets::DatasetError&) {
+  } catch (const io::DatasetError&) {
   }
 }
 
@@ -45,10 +45,10 @@ void prescan(const std::filesystem::path& path, std::string& first_laser, bool& 
 std::vector<Nanos> readScanTimes(const std::string& path) {
   std::vector<Nanos> out;
   try {
-    datasets::TextReader reader(path);
+    io::TextReader reader(path);
     std::string line;
     while (reader.next(line)) {
-      const datasets::Fields f(reader, line);
+      const io::Fields f(reader, line);
       if (f.empty() || f[0].front() == '#') continue;
       if (f.size() < 2 || f.size() > 3)
         reader.fail("expected `index seconds [flag]`, got " + std::to_string(f.size()) + " fields");
@@ -60,7 +60,7 @@ std::vector<Nanos> readScanTimes(const std::string& path) {
         reader.fail("time " + std::string(f[1]) + " is not after the previous one");
       out.push_back(*stamp);
     }
-  } catch (const datasets::DatasetError& e) {
+  } catch (const io::DatasetError& e) {
     fail("scan_times", e.what());
   }
   if (out.empty()) fail("scan_times", "'" + path + "' holds no times");
@@ -123,9 +123,9 @@ bool CarmenPlayer::readNext() {
   while (reader_->next(record)) {
     const auto stamp = datasetSecondsToNanos(recordTime(record));
     if (!stamp)
-      throw datasets::DatasetError(options_.path, 0,
-                                   "record " + std::to_string(reader_->report().records) +
-                                       ": timestamp outside the representable range");
+      throw io::DatasetError(options_.path, 0,
+                             "record " + std::to_string(reader_->report().records) +
+                                 ": timestamp outside the representable range");
     if (!first_record_) first_record_ = *stamp;
     const double since_first = nanosToSeconds(*stamp - *first_record_);
     if (options_.end_time > 0 && since_first > options_.end_time) return false;
@@ -135,9 +135,9 @@ bool CarmenPlayer::readNext() {
       wanted = l->message == laser_;
       if (wanted && !scan_times_.empty()) {
         if (laser_lines_ >= scan_times_.size())
-          throw datasets::DatasetError(options_.scan_times, 0,
-                                       "has " + std::to_string(scan_times_.size()) +
-                                           " times but the log has more " + laser_ + " lines");
+          throw io::DatasetError(options_.scan_times, 0,
+                                 "has " + std::to_string(scan_times_.size()) +
+                                     " times but the log has more " + laser_ + " lines");
         publish_stamp = scan_times_[laser_lines_];
       }
       if (wanted) ++laser_lines_;
@@ -247,7 +247,7 @@ void CarmenPlayer::finish(const std::string& error) {
 }
 
 void CarmenPlayer::summarize(Summary& out) const {
-  const datasets::ParseReport& r = reader_ ? reader_->report() : final_report_;
+  const io::ParseReport& r = reader_ ? reader_->report() : final_report_;
   out["records_read"] = static_cast<std::int64_t>(r.records);
   out["lines_skipped"] = static_cast<std::int64_t>(r.skipped);
   std::ostringstream skipped;

@@ -69,7 +69,7 @@ LandmarkPlayerActor::LandmarkPlayerActor(LandmarkPlayerOptions options)
       victoria_ = datasets::readVictoriaPark(o.path);
       buildVictoria();
     }
-  } catch (const datasets::DatasetError& e) {
+  } catch (const io::DatasetError& e) {
     fail("path", e.what());
   }
   std::stable_sort(events_.begin(), events_.end(), [](const Event& a, const Event& b) {
@@ -84,18 +84,17 @@ void LandmarkPlayerActor::buildMrclam() {
   if (!log.measurements.empty()) t0 = std::min(t0, log.measurements.front().time);
   if (!log.ground_truth.empty()) t0 = std::min(t0, log.ground_truth.front().time);
   if (!std::isfinite(t0))
-    throw datasets::DatasetError(options_.path, 0,
-                                 "robot " + str(options_.robot) + " has no records to play");
+    throw io::DatasetError(options_.path, 0,
+                           "robot " + str(options_.robot) + " has no records to play");
 
   double t1 = t0;
   if (!log.odometry.empty()) t1 = std::max(t1, log.odometry.back().time);
   if (!log.measurements.empty()) t1 = std::max(t1, log.measurements.back().time);
   if (!log.ground_truth.empty()) t1 = std::max(t1, log.ground_truth.back().time);
   if (t1 - t0 > kMaxSpan)
-    throw datasets::DatasetError(options_.path, 0,
-                                 "robot " + str(options_.robot) + "'s records span " +
-                                     str(t1 - t0) + " s; more than " + str(kMaxSpan) +
-                                     " s is not a recording");
+    throw io::DatasetError(options_.path, 0,
+                           "robot " + str(options_.robot) + "'s records span " + str(t1 - t0) +
+                               " s; more than " + str(kMaxSpan) + " s is not a recording");
 
   events_.push_back({0, Kind::kMap, 0});
   for (std::size_t i = 0; i < log.ground_truth.size(); ++i)

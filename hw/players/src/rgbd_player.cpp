@@ -39,7 +39,7 @@ datasets::RgbdSequence readSequence(const RgbdPlayerOptions& o) {
   read.seven_scenes.fps = o.fps;
   try {
     return datasets::readRgbdSequence(o.path, read);
-  } catch (const datasets::DatasetError& e) {
+  } catch (const io::DatasetError& e) {
     fail("path", e.what());
   }
 }

@@ -61,9 +61,9 @@ bool UrgPlayer::readNext() {
   datasets::UrgScan scan;
   while (reader_->next(scan)) {
     if (scan.timestamp_us > 9'000'000'000'000'000)
-      throw datasets::DatasetError(options_.path, 0,
-                                   "scan " + std::to_string(reader_->report().records) +
-                                       ": timestamp beyond the int64 ns range");
+      throw io::DatasetError(options_.path, 0,
+                             "scan " + std::to_string(reader_->report().records) +
+                                 ": timestamp beyond the int64 ns range");
     const Nanos stamp = scan.timestamp_us * 1000;
     // Dead reckoning over every line, so a later start keeps the odometry frame of the log.
     if (last_ticks_) {
@@ -153,7 +153,7 @@ void UrgPlayer::finish(const std::string& error) {
 }
 
 void UrgPlayer::summarize(Summary& out) const {
-  const datasets::ParseReport& r = reader_ ? reader_->report() : final_report_;
+  const io::ParseReport& r = reader_ ? reader_->report() : final_report_;
   out["records_read"] = static_cast<std::int64_t>(r.records);
   out["lines_skipped"] = static_cast<std::int64_t>(r.skipped);
   out["scans_published"] = scans_;

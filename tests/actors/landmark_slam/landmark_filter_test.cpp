@@ -27,7 +27,7 @@ double wrap(double a) {
   return std::atan2(std::sin(a), std::cos(a));
 }
 
-// The models written out again, independently of tessera/common/landmark_models.
+// The models written out again, independently of tessera/landmark_slam/landmark_models.
 VectorXd hPlain(const VectorXd& pose, const VectorXd& m) {
   const double dx = m[0] - pose[0], dy = m[1] - pose[1];
   return Eigen::Vector2d(std::sqrt(dx * dx + dy * dy), wrap(std::atan2(dy, dx) - pose[2]));
@@ -91,8 +91,8 @@ struct Toy {
     }
     return out;
   }
-  common::DriveInput control() const {
-    common::DriveInput u;
+  tessera::landmark_slam::DriveInput control() const {
+    tessera::landmark_slam::DriveInput u;
     u.speed = v;
     u.steer = gamma;
     u.wheelbase = L;
@@ -314,7 +314,7 @@ TEST_CASE("malformed observations are rejected with a counted reason", "[landmar
     f->update(twice);
     CHECK(f->rejections().duplicate == 1);
 
-    common::DriveInput u;
+    tessera::landmark_slam::DriveInput u;
     u.speed = nan;
     u.dt = 0.1;
     f->predict(u);

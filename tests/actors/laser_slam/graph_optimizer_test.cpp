@@ -10,7 +10,7 @@
 #include "../../shared_data.hpp"
 #include "submap_messages.hpp"
 
-#include <tessera/datasets/pose_graph_io.hpp>
+#include <tessera/pose_graph/pose_graph_io.hpp>
 
 #include <catch2/catch.hpp>
 
@@ -19,11 +19,11 @@
 #include <numbers>
 
 using namespace tessera;
-using common::Pose2;
 using laser_slam::GraphOptimizerActor;
 using laser_slam::GraphOptimizerActorOptions;
 using laser_slam::SubmapConstraintInput;
 using laser_slam::SubmapGraph;
+using tessera::Pose2;
 using Outcome = SubmapGraph::Outcome;
 
 namespace {
@@ -221,7 +221,7 @@ TEST_CASE("graph_optimizer writes the final graph as g2o that reads back to the 
   h.runUntilIdle();
   h.stop();
 
-  const auto graph = datasets::readPoseGraph2D(dir / "graph.g2o");
+  const auto graph = pose_graph::readPoseGraph2D(dir / "graph.g2o");
   REQUIRE(graph.vertices.size() == truth.size());
   REQUIRE(graph.edges.size() == truth.size());
   CHECK(graph.fixed == std::vector<std::int64_t>{0});

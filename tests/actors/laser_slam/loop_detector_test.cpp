@@ -1,6 +1,6 @@
 // loop_detector actor through the mock-mailbox harness: which pose of the robot in its own
 // submap a published closure uses.
-#include <tessera/common/occupancy_grid.hpp>
+#include <tessera/grid/occupancy_grid.hpp>
 #include <tessera/laser_slam/loop_detector_actor.hpp>
 #include <tessera/messages/types.hpp>
 #include <tessera/messages/views.hpp>
@@ -19,7 +19,7 @@
 #include <vector>
 
 using namespace tessera;
-using common::Pose2;
+using tessera::Pose2;
 
 namespace {
 
@@ -47,10 +47,10 @@ ClosureRun runClosure(const std::optional<Pose2>& smoothed, int copies = 1,
                       int closures_per_scan = 1) {
   const auto sim = test::simulateRoomLoop();
   const Pose2 frame0 = sim.scans[0].truth;
-  common::OccupancyGrid grid;
+  tessera::grid::OccupancyGrid grid;
   for (std::size_t k = 0; k < 120; k += 2)
     grid.insertScan(sim.range(sim.scans[k]), frame0.inverse() * sim.scans[k].truth);
-  const common::OccupancyMap map = grid.toOccupancyMap();
+  const tessera::grid::OccupancyMap map = grid.toOccupancyMap();
 
   laser_slam::LoopDetectorOptions o;
   o.skip_recent = 0;  // submap 0 is the most recent finished one
@@ -149,7 +149,7 @@ TEST_CASE("a loop closure uses the finished submap smoothed pose of its scan, el
   CHECK(smoothed.smoothed == 1);
   const Pose2 expect_smoothed = smoothed_in_1 * in_map.inverse();
   CHECK(apart(smoothed.relative, expect_smoothed) < 0.05);
-  CHECK(std::abs(common::angleDiff(smoothed.relative.theta, expect_smoothed.theta)) < 0.02);
+  CHECK(std::abs(tessera::angleDiff(smoothed.relative.theta, expect_smoothed.theta)) < 0.02);
   // The two answers are told apart: they lie 0.13 m apart, each found within 0.05 m.
   REQUIRE(apart(expect_smoothed, expect_online) > 0.12);
   CHECK(apart(smoothed.relative, expect_online) > 0.07);
@@ -166,7 +166,7 @@ TEST_CASE("a loop closure also carries the scan pose in the matched submap with 
     REQUIRE(run.published == 1);
     REQUIRE(run.has_scan);
     CHECK(apart(run.scan_in_matched, in_map) < 0.05);
-    CHECK(std::abs(common::angleDiff(run.scan_in_matched.theta, in_map.theta)) < 0.02);
+    CHECK(std::abs(tessera::angleDiff(run.scan_in_matched.theta, in_map.theta)) < 0.02);
     // Symmetric, positive definite, and at least the published floors (0.05 m, 0.02 rad).
     REQUIRE(run.scan_covariance.allFinite());
     CHECK((run.scan_covariance - run.scan_covariance.transpose()).norm() < 1e-12);

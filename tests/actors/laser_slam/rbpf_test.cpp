@@ -13,9 +13,9 @@
 #include "sim_scans.hpp"
 
 using namespace tessera;
-using common::Pose2;
 using laser_slam::Rbpf;
 using laser_slam::RbpfOptions;
+using tessera::Pose2;
 
 namespace {
 
@@ -51,7 +51,7 @@ test::SimScans roomLoopWithSlip(const Pose2& slip) {
   REQUIRE(first > 0);
   const Pose2 at = sim.scans[first - 1].odometry;
   for (std::size_t k = first; k < sim.scans.size(); ++k)
-    sim.scans[k].odometry = at * slip * common::between(at, sim.scans[k].odometry);
+    sim.scans[k].odometry = at * slip * tessera::between(at, sim.scans[k].odometry);
   return sim;
 }
 
@@ -61,7 +61,7 @@ double worstOnlineError(Rbpf& rbpf, const test::SimScans& sim) {
   double worst = 0;
   for (const auto& s : sim.scans) {
     rbpf.addScan(s.stamp_s, sim.range(s), Pose2{}, s.odometry);
-    worst = std::max(worst, translationError(rbpf.pose(), common::between(start, s.truth)));
+    worst = std::max(worst, translationError(rbpf.pose(), tessera::between(start, s.truth)));
   }
   return worst;
 }
@@ -137,7 +137,7 @@ TEST_CASE("the online mean averages the chosen hypothesis and leaves the other o
   CHECK(mean.x == Approx(0.01).margin(1e-3));
   CHECK(mean.y == Approx(0.01).margin(1e-3));
   // The headings average across the wrap to pi, not to 0.
-  CHECK(std::abs(common::angleDiff(mean.theta, pi)) < 1e-3);
+  CHECK(std::abs(tessera::angleDiff(mean.theta, pi)) < 1e-3);
   // No kernel: the centre itself.
   const Pose2 same = laser_slam::kernelMean(poses, weights, poses[1], 0.0, 0.1);
   CHECK(same.x == poses[1].x);
@@ -174,9 +174,9 @@ TEST_CASE("rbpf tracks a simulated robot whose odometry drifts", "[rbpf]") {
   double worst = 0, odom_final = 0;
   for (const auto& s : sim.scans) {
     rbpf.addScan(s.stamp_s, sim.range(s), Pose2{}, s.odometry);
-    const Pose2 truth = common::between(start, s.truth);
+    const Pose2 truth = tessera::between(start, s.truth);
     worst = std::max(worst, translationError(rbpf.pose(), truth));
-    odom_final = translationError(common::between(sim.scans.front().odometry, s.odometry), truth);
+    odom_final = translationError(tessera::between(sim.scans.front().odometry, s.odometry), truth);
   }
   INFO("scans " << sim.scans.size() << ", updates " << rbpf.stats().updates << ", worst error "
                 << worst << " m, odometry final error " << odom_final << " m");
@@ -288,9 +288,10 @@ TEST_CASE("particles that fall back to the motion model are weighted at the pose
       if (k == 0 || !step.updated) continue;
       REQUIRE(rbpf.stats().match_failures == 10);
       REQUIRE_FALSE(step.resampled);
-      const Pose2 truth = common::between(start, s.truth);
+      const Pose2 truth = tessera::between(start, s.truth);
       const auto error = [&](const Pose2& p) {
-        return translationError(p, truth) + 0.5 * std::abs(common::angleDiff(p.theta, truth.theta));
+        return translationError(p, truth) +
+               0.5 * std::abs(tessera::angleDiff(p.theta, truth.theta));
       };
       const auto poses = rbpf.particlePoses();
       const auto weights = rbpf.weights();
@@ -322,9 +323,9 @@ TEST_CASE("tracking between updates keeps the online pose on the scans instead o
     double sum = 0, heading = 0;
     for (const auto& s : sim.scans) {
       rbpf.addScan(s.stamp_s, sim.range(s), Pose2{}, s.odometry);
-      const Pose2 truth = common::between(start, s.truth);
+      const Pose2 truth = tessera::between(start, s.truth);
       sum += translationError(rbpf.pose(), truth);
-      heading += std::abs(common::angleDiff(rbpf.pose().theta, truth.theta));
+      heading += std::abs(tessera::angleDiff(rbpf.pose().theta, truth.theta));
     }
     const double n = static_cast<double>(sim.scans.size());
     return std::make_tuple(sum / n, heading / n, rbpf.stats());
@@ -360,7 +361,7 @@ TEST_CASE("tracking climbs from its own smaller steps with fewer evaluations", "
     double sum = 0;
     for (const auto& s : sim.scans) {
       rbpf.addScan(s.stamp_s, sim.range(s), Pose2{}, s.odometry);
-      sum += translationError(rbpf.pose(), common::between(start, s.truth));
+      sum += translationError(rbpf.pose(), tessera::between(start, s.truth));
     }
     return std::make_pair(sum / static_cast<double>(sim.scans.size()), rbpf.stats());
   };
@@ -383,9 +384,9 @@ TEST_CASE("particles copied by resampling share their map tiles", "[rbpf]") {
   o.sample_proposal = false;  // identical particles stay identical: nothing may be copied
   o.motion = {0, 0, 0, 0};
   Rbpf rbpf(o);
-  const auto before = common::TiledGrid::counters();
+  const auto before = tessera::grid::TiledGrid::counters();
   rbpf.addScan(0.0, sim.range(sim.scans[0]), Pose2{}, sim.scans[0].odometry);
-  const auto after_first = common::TiledGrid::counters();
+  const auto after_first = tessera::grid::TiledGrid::counters();
   CHECK(rbpf.distinctMaps() == 1);
   CHECK(after_first.tiles_cloned == before.tiles_cloned);
   const std::uint64_t tiles_one_map = after_first.tiles_allocated - before.tiles_allocated;
@@ -394,15 +395,15 @@ TEST_CASE("particles copied by resampling share their map tiles", "[rbpf]") {
     rbpf.addScan(sim.scans[k].stamp_s, sim.range(sim.scans[k]), Pose2{}, sim.scans[k].odometry);
   REQUIRE(rbpf.stats().updates > 3);
   CHECK(rbpf.distinctMaps() == 1);
-  CHECK(common::TiledGrid::counters().tiles_cloned == before.tiles_cloned);
+  CHECK(tessera::grid::TiledGrid::counters().tiles_cloned == before.tiles_cloned);
 
   // With sampling the particles diverge; each clones only the tiles its scans touch.
   RbpfOptions diverse = fastOptions(20);
   Rbpf rbpf2(diverse);
-  const auto start = common::TiledGrid::counters();
+  const auto start = tessera::grid::TiledGrid::counters();
   for (std::size_t k = 0; k < 40; ++k)
     rbpf2.addScan(sim.scans[k].stamp_s, sim.range(sim.scans[k]), Pose2{}, sim.scans[k].odometry);
-  const auto end = common::TiledGrid::counters();
+  const auto end = tessera::grid::TiledGrid::counters();
   const std::uint64_t tiles =
       end.tiles_allocated + end.tiles_cloned - start.tiles_allocated - start.tiles_cloned;
   const std::uint64_t map_tiles = rbpf2.bestMap().tileCount();
@@ -466,7 +467,7 @@ TEST_CASE("a submap hand-over publishes the robot pose in the old submap", "[rbp
   for (std::size_t k = 60; k < 120; ++k)
     rbpf.addScan(sim.scans[k].stamp_s, sim.range(sim.scans[k]), Pose2{}, sim.scans[k].odometry);
   const Pose2 chained = done.next_in_this.pose * rbpf.pose();
-  CHECK(translationError(chained, common::between(start, sim.scans[119].truth)) < 0.1);
+  CHECK(translationError(chained, tessera::between(start, sim.scans[119].truth)) < 0.1);
 }
 
 TEST_CASE("rbpf ignores empty, NaN and all-max-range scans and bad odometry", "[rbpf]") {
@@ -476,8 +477,8 @@ TEST_CASE("rbpf ignores empty, NaN and all-max-range scans and bad odometry", "[
   const float inf = std::numeric_limits<float>::infinity();
   const std::vector<float> nans(181, nan), maxed(181, inf), empty;
   const auto scanOf = [&](const std::vector<float>& r) {
-    return common::RangeScan{r, sim.laser.angle_min, sim.laser.angle_increment, sim.laser.range_min,
-                             sim.laser.range_max};
+    return tessera::grid::RangeScan{r, sim.laser.angle_min, sim.laser.angle_increment,
+                                    sim.laser.range_min, sim.laser.range_max};
   };
   // Before the first usable scan: nothing starts.
   CHECK(rbpf.addScan(0.0, scanOf(nans), Pose2{}, Pose2{}).scan_unusable);

@@ -15,12 +15,12 @@
 #include <limits>
 
 using namespace tessera;
-using common::Pose2;
 using laser_slam::ScanGraph;
 using laser_slam::ScanGraphOptions;
 using laser_slam::ScanLoopInput;
 using laser_slam::StampedPose2;
 using laser_slam::SubmapConstraintInput;
+using tessera::Pose2;
 
 namespace {
 

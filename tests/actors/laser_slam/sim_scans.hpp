@@ -3,8 +3,8 @@
 // 0.1 rad. Odometry has systematic scale and heading errors, so it drifts a lot.
 #pragma once
 
-#include <tessera/common/occupancy_grid.hpp>
-#include <tessera/common/pose2.hpp>
+#include <tessera/geometry/pose2.hpp>
+#include <tessera/grid/occupancy_grid.hpp>
 #include <tessera/sim/ray_caster.hpp>
 #include <tessera/sim/robot.hpp>
 #include <tessera/sim/world.hpp>
@@ -18,15 +18,15 @@ namespace tessera::test {
 struct SimScan {
   double stamp_s = 0;
   std::vector<float> ranges;
-  common::Pose2 truth;     // base_link in the world
-  common::Pose2 odometry;  // base_link in odom (starts at the true start pose)
+  tessera::Pose2 truth;     // base_link in the world
+  tessera::Pose2 odometry;  // base_link in odom (starts at the true start pose)
 };
 
 struct SimScans {
   sim::LaserConfig laser;
   std::vector<SimScan> scans;
 
-  common::RangeScan range(const SimScan& s) const {
+  tessera::grid::RangeScan range(const SimScan& s) const {
     return {s.ranges, laser.angle_min, laser.angle_increment, laser.range_min, laser.range_max};
   }
 };
@@ -41,9 +41,9 @@ inline SimScans simulateRoomLoop(int laps = 1, std::uint64_t seed = 7) {
   std::mt19937_64 rng(seed);
 
   const auto& route = world.defaultRoute();
-  common::Pose2 truth(route[0],
-                      std::atan2(route[1].y() - route[0].y(), route[1].x() - route[0].x()));
-  common::Pose2 odom = truth;
+  tessera::Pose2 truth(route[0],
+                       std::atan2(route[1].y() - route[0].y(), route[1].x() - route[0].x()));
+  tessera::Pose2 odom = truth;
   double t = 0;
   const auto emit = [&] {
     SimScan s;
@@ -55,16 +55,16 @@ inline SimScans simulateRoomLoop(int laps = 1, std::uint64_t seed = 7) {
     t += 0.25;
   };
   const auto step = [&](double dist, double rot) {
-    truth = truth * common::Pose2(dist, 0.0, rot);
+    truth = truth * tessera::Pose2(dist, 0.0, rot);
     // Systematic errors: 3 % distance scale, 4 % rotation scale, 0.6 deg of heading per metre.
-    odom = odom * common::Pose2(dist * 1.03, 0.0, rot * 1.04 + 0.01 * dist);
+    odom = odom * tessera::Pose2(dist * 1.03, 0.0, rot * 1.04 + 0.01 * dist);
   };
   emit();
   for (int lap = 0; lap < laps; ++lap) {
     for (std::size_t k = 1; k <= route.size(); ++k) {
       const Eigen::Vector2d goal = route[k % route.size()];
       const double heading = std::atan2(goal.y() - truth.y, goal.x() - truth.x);
-      for (double turn = common::angleDiff(heading, truth.theta); std::abs(turn) > 1e-9;) {
+      for (double turn = tessera::angleDiff(heading, truth.theta); std::abs(turn) > 1e-9;) {
         const double r = std::clamp(turn, -0.1, 0.1);
         step(0.0, r);
         turn -= r;

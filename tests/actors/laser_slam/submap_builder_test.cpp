@@ -17,10 +17,10 @@
 #include "../scan_messages.hpp"
 
 using namespace tessera;
-using common::Pose2;
 using laser_slam::MapAssembler;
 using laser_slam::SubmapBuilderActor;
 using laser_slam::SubmapBuilderOptions;
+using tessera::Pose2;
 using test::pushOdometry;
 using test::pushScan;
 using test::stampOf;
@@ -85,7 +85,7 @@ TEST_CASE("submap builder publishes a pose per scan, hand-over constraints and s
     CHECK(global.y == Approx(chained.y).margin(1e-9));
   }
   // The online estimate follows the truth (map frame = the first pose).
-  const Pose2 truth = common::between(sim.scans.front().truth, sim.scans[n - 1].truth);
+  const Pose2 truth = tessera::between(sim.scans.front().truth, sim.scans[n - 1].truth);
   const Pose2 last = poseOf(poses.back()->getPose());
   CHECK(std::hypot(last.x - truth.x, last.y - truth.y) < 0.15);
   // The smoothed trajectory: one pose per scan across all submaps (each the smoothed pose of
@@ -167,7 +167,7 @@ TEST_CASE("interpolate_updates spreads the correction found at an update over th
   // Near the truth either way (on the simulated room odometry drifts smoothly and both
   // stay within a few cm; on Intel blending is what brings the relations error down).
   for (std::size_t i = 0; i < n; ++i) {
-    const Pose2 truth = common::between(sim.scans.front().truth, sim.scans[i].truth);
+    const Pose2 truth = tessera::between(sim.scans.front().truth, sim.scans[i].truth);
     CHECK((blended.poses[i].translation() - truth.translation()).norm() < 0.25);
   }
 }
@@ -258,7 +258,7 @@ TEST_CASE("submap builder rejects bad options naming the key", "[rbpf][submap_bu
 
 TEST_CASE("map assembler draws submaps at their global poses", "[map_assembler]") {
   // Submap: 20 x 10 free cells at 0.1 m with one occupied cell at (15, 5) = (1.55, 0.55) m.
-  common::OccupancyMap grid;
+  tessera::grid::OccupancyMap grid;
   grid.resolution = 0.1;
   grid.width = 20;
   grid.height = 10;
@@ -285,10 +285,10 @@ TEST_CASE("map assembler draws submaps at their global poses", "[map_assembler]"
   CHECK(valueAt(5.0 - 0.55, 1.55) > 90);
   CHECK(valueAt(5.0 - 0.55, 0.55) < 10);
   CHECK(valueAt(3.0, 0.5) == -1);  // between the two: never seen
-  common::OccupancyMap bad = grid;
+  tessera::grid::OccupancyMap bad = grid;
   bad.cells.pop_back();
   CHECK_THROWS_WITH(assembler.setSubmap(2, bad), Catch::Contains("submap 2"));
-  common::OccupancyMap nan_origin = grid;
+  tessera::grid::OccupancyMap nan_origin = grid;
   nan_origin.origin.x = std::numeric_limits<double>::quiet_NaN();
   CHECK_THROWS_WITH(assembler.setSubmap(3, nan_origin), Catch::Contains("origin"));
   CHECK_THROWS_WITH(assembler.setPose(1, Pose2(std::numeric_limits<double>::infinity(), 0, 0)),

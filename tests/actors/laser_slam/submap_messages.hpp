@@ -3,14 +3,14 @@
 #pragma once
 
 #include <tessera/msg/submap.capnp.h>
-#include <tessera/common/pose2.hpp>
+#include <tessera/geometry/pose2.hpp>
 #include <tessera/messages/types.hpp>
 
 #include <cstdint>
 
 namespace tessera::test {
 
-inline void fillSubmap(msg::Submap::Builder b, int id, const common::Pose2& origin,
+inline void fillSubmap(msg::Submap::Builder b, int id, const tessera::Pose2& origin,
                        std::int64_t stamp) {
   setHeader(b.initHeader(), stamp, "map", 0);
   b.setId(static_cast<std::uint32_t>(id));

@@ -1,7 +1,7 @@
 // Tests for the LineEkfSlam core: observation model, motion models, association, tentative
 // lines, duplicate merging, rejected input, and a closed loop in the simulated room.
-#include <tessera/common/line_extraction.hpp>
 #include <tessera/line_slam/line_ekf_slam.hpp>
+#include <tessera/line_slam/line_extraction.hpp>
 
 #include <catch2/catch.hpp>
 
@@ -13,11 +13,11 @@
 #include "../laser_slam/sim_scans.hpp"
 
 using namespace tessera;
-using common::LineSegment;
-using common::Pose2;
 using line_slam::Association;
 using line_slam::LineEkfSlam;
 using line_slam::LineEkfSlamOptions;
+using tessera::Pose2;
+using tessera::line_slam::LineSegment;
 
 namespace {
 
@@ -27,7 +27,7 @@ LineSegment segment(const Eigen::Vector2d& a, const Eigen::Vector2d& b, double s
   const Eigen::Vector2d d = (b - a).normalized();
   s.line.phi = std::atan2(d.x(), -d.y());
   s.line.r = a.dot(Eigen::Vector2d(std::cos(s.line.phi), std::sin(s.line.phi)));
-  common::normalizeLine(s.line.r, s.line.phi);
+  tessera::line_slam::normalizeLine(s.line.r, s.line.phi);
   s.line.covariance = Eigen::Matrix2d::Identity() * sigma * sigma;
   s.line.valid = true;
   s.p0 = a;
@@ -51,7 +51,7 @@ TEST_CASE("observation model predicts a wall seen from the robot with its Jacobi
   // The wall x = 4 seen from (1, 0.5, 0.3).
   const Pose2 p = slam.pose();
   const LineSegment world = segment({4, -1}, {4, 2});
-  slam.update({common::transformSegment(world, p.inverse())});
+  slam.update({tessera::line_slam::transformSegment(world, p.inverse())});
   REQUIRE(slam.lineCount() == 1);
   const auto line = slam.lines()[0];
   CHECK(line.r == Approx(4.0).margin(1e-9));
@@ -64,7 +64,7 @@ TEST_CASE("observation model predicts a wall seen from the robot with its Jacobi
   const auto f = [](const Eigen::Matrix<double, 5, 1>& v) {
     double r = v(3) - (v(0) * std::cos(v(4)) + v(1) * std::sin(v(4)));
     double phi = v(4) - v(2);
-    common::normalizeLine(r, phi);
+    tessera::line_slam::normalizeLine(r, phi);
     return Eigen::Vector2d(r, phi);
   };
   Eigen::Matrix<double, 5, 1> v;
@@ -217,13 +217,13 @@ TEST_CASE("non-finite and too short segments are rejected with a count", "[lines
 TEST_CASE("line EKF SLAM keeps the pose in the simulated room while odometry drifts",
           "[lines][line_ekf_slam]") {
   const auto sim = test::simulateRoomLoop();
-  const common::LineExtractor extractor;
+  const tessera::line_slam::LineExtractor extractor;
   LineEkfSlam slam;
   slam.reset(sim.scans[0].odometry);
   double max_error = 0;
   for (std::size_t k = 0; k < sim.scans.size(); ++k) {
     const auto& s = sim.scans[k];
-    if (k > 0) slam.predictOdometry(common::between(sim.scans[k - 1].odometry, s.odometry));
+    if (k > 0) slam.predictOdometry(tessera::between(sim.scans[k - 1].odometry, s.odometry));
     slam.update(extractor.extract(sim.range(s)));
     max_error = std::max(max_error, (slam.pose().translation() - s.truth.translation()).norm());
   }
@@ -235,7 +235,7 @@ TEST_CASE("line EKF SLAM keeps the pose in the simulated room while odometry dri
   CHECK(odom_error > 0.5);
   CHECK(slam_error < 0.07);
   CHECK(max_error < 0.15);
-  CHECK(std::abs(common::angleDiff(slam.pose().theta, last.truth.theta)) <
+  CHECK(std::abs(tessera::angleDiff(slam.pose().theta, last.truth.theta)) <
         0.5 * std::numbers::pi / 180);
   CHECK(slam.lineCount() > 10);
   CHECK(slam.lineCount() < 45);

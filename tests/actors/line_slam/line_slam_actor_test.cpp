@@ -14,9 +14,9 @@
 #include "../scan_messages.hpp"
 
 using namespace tessera;
-using common::Pose2;
 using line_slam::LineSlamActor;
 using line_slam::LineSlamActorOptions;
+using tessera::Pose2;
 using test::pushOdometry;
 using test::pushScan;
 using test::stampOf;

@@ -1,8 +1,8 @@
 // Tests for the grid mapper core, the grid_mapper actor, and the map/trajectory writer actors.
-#include <tessera/common/map_io.hpp>
-#include <tessera/common/trajectory_io.hpp>
 #include <tessera/mapping/grid_mapper.hpp>
 #include <tessera/mapping/grid_mapper_actor.hpp>
+#include <tessera/mapping/map_io.hpp>
+#include <tessera/mapping/trajectory_io.hpp>
 #include <tessera/mapping/writer_actors.hpp>
 #include <tessera/messages/types.hpp>
 #include <tessera/messages/views.hpp>
@@ -20,10 +20,10 @@
 
 namespace fs = std::filesystem;
 using namespace tessera;
-using common::Pose2;
 using mapping::GridMapper;
 using mapping::GridMapperActor;
 using mapping::GridMapperOptions;
+using tessera::Pose2;
 
 namespace {
 
@@ -104,7 +104,7 @@ int mapValueAt(const Message<msg::OccupancyGrid>& m, double x, double y) {
 TEST_CASE("GridMapper places the laser with the robot pose and the mount", "[grid_mapper]") {
   GridMapper mapper;  // 5 cm cells
   const std::vector<float> r{1.0f};
-  const common::RangeScan scan{r, 0.0, 0.0, 0.05, 20.0};
+  const tessera::grid::RangeScan scan{r, 0.0, 0.0, 0.05, 20.0};
   // Robot at (1, 0.01) facing +y; laser 0.2 m ahead of it: the beam starts at (1, 0.21).
   CHECK(mapper.insert(scan, Pose2(1.0, 0.01, std::numbers::pi / 2), Pose2(0.2, 0.0, 0.0)));
   const auto& grid = mapper.grid();
@@ -250,7 +250,7 @@ TEST_CASE("grid_mapper publishes the map on its timer when changed and at stop",
   // Second beam at 1.5 rad, 2 m.
   CHECK(mapValueAt(m, 2.0 * std::cos(1.5), 0.01 + 2.0 * std::sin(1.5)) > 65);
   // Same content as the core's own export.
-  const common::OccupancyMap core = mapper->mapper().map();
+  const tessera::grid::OccupancyMap core = mapper->mapper().map();
   CHECK(static_cast<int>(m->getWidth()) == core.width);
   CHECK(static_cast<int>(m->getHeight()) == core.height);
   const auto cells = viewInt8(m->getCells());
@@ -308,7 +308,7 @@ TEST_CASE("map_writer writes the last map into the output folder at stop", "[wri
   REQUIRE(fs::exists(yaml));
   CHECK(fs::exists(dir.path / "final.pgm"));
   CHECK(fs::exists(dir.path / "final.png"));
-  const auto map = common::loadMap(yaml);
+  const auto map = tessera::mapping::loadMap(yaml);
   CHECK(map.resolution == 0.05);  // not 0.0500000007 from the Float32 field
   CHECK(map.origin.x == -1.0);
   CHECK(map.origin.y == 2.0);
@@ -356,7 +356,7 @@ TEST_CASE("trajectory_writer streams ground truth poses to a TUM file", "[writer
     h.runUntilIdle();
   }
   h.stop();
-  const auto poses = common::readTum(dir.path / "trajectory.tum");
+  const auto poses = tessera::mapping::readTum(dir.path / "trajectory.tum");
   REQUIRE(poses.size() == truth.size());
   for (std::size_t k = 0; k < truth.size(); ++k) {
     CHECK(poses[k].stamp_ns == static_cast<Nanos>(k) * kSec / 10 + 7);
@@ -377,7 +377,7 @@ TEST_CASE("trajectory_writer follows its message option", "[writers]") {
   });
   h.runUntilIdle();
   h.stop();
-  const auto poses = common::readTum(dir.path / "odometry.tum");
+  const auto poses = tessera::mapping::readTum(dir.path / "odometry.tum");
   REQUIRE(poses.size() == 1);
   CHECK(poses[0].stamp_ns == 5 * kSec);
   CHECK(poses[0].planar().x == 1.5);

@@ -12,6 +12,7 @@
 
 namespace fs = std::filesystem;
 using namespace tessera::datasets;
+using namespace tessera::io;
 using Catch::Matchers::Contains;
 
 namespace {
@@ -376,7 +377,11 @@ TEST_CASE("CARMEN parser survives random mutations of the real logs", "[datasets
   for (const char* rel :
        {"intel-lab-mrpt/intel.clf.gz", "intel-lab-carmen-gfs/intel-corrected.log.gz"}) {
     const fs::path path = tessera::test::sharedDataDir() / rel;
-    if (fs::exists(path)) sources.push_back(firstLines(path, 200));
+    if (fs::exists(path)) {
+      sources.push_back(firstLines(path, 200));
+    } else if (tessera::test::underCi()) {
+      FAIL("dataset " << path.string() << " is absent and CI=true");
+    }
   }
   // Without the datasets, still fuzz a synthetic log with every message type.
   sources.push_back("# c\nPARAM a 1 h 0\n" + flaserOfSize(10) +

@@ -10,6 +10,7 @@
 
 namespace fs = std::filesystem;
 using namespace tessera::datasets;
+using namespace tessera::io;
 
 namespace {
 

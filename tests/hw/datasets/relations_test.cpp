@@ -7,9 +7,9 @@
 #include "../../shared_data.hpp"
 
 namespace fs = std::filesystem;
-using tessera::datasets::DatasetError;
 using tessera::datasets::readRelations;
-using tessera::datasets::TextReader;
+using tessera::io::DatasetError;
+using tessera::io::TextReader;
 
 namespace {
 

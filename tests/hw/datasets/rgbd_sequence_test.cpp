@@ -18,6 +18,7 @@
 
 namespace fs = std::filesystem;
 using namespace tessera::datasets;
+using namespace tessera::io;
 
 namespace {
 

@@ -27,7 +27,10 @@ Pose circle(const Pose& p0, double v, double g, double l, double t) {
 
 }  // namespace
 
-TEST_CASE("carLikeStep: one step follows the SPEC formula", "[sim][carlike]") {
+TEST_CASE(
+    "carLikeStep: one step follows the the model of "
+    "docs/algorithms.md#simulated-motion-and-sensors",
+    "[sim][carlike]") {
   const Pose p = carLikeStep({1, 2, 0.3}, 3, 0.2, 0.03, 1.0);
   CHECK(p.x == Approx(1 + 0.09 * std::cos(0.5)));
   CHECK(p.y == Approx(2 + 0.09 * std::sin(0.5)));

@@ -53,7 +53,7 @@ struct ActorReport {
   std::uint64_t messages_in = 0;   // handled messages
   std::uint64_t messages_out = 0;  // published messages
   std::uint64_t timer_calls = 0;
-  std::uint64_t drops = 0;  // keep_latest evictions, all subscriptions
+  std::uint64_t drops = 0;      // keep_latest evictions, all subscriptions
   std::uint64_t malformed = 0;  // delivered messages that could not be read (dropped)
   std::uint64_t max_queue_depth = 0;
   double handler_p50_us = 0, handler_p99_us = 0, handler_total_s = 0;

@@ -1,5 +1,6 @@
-// Point-landmark SLAM filters (SPEC.md section C): the common part of EkfSlam (joint state) and
-// RbUkfSlam (the seed 004 Rao-Blackwellised filter). Plain C++ over Eigen, no runtime types.
+// Point-landmark SLAM filters (docs/algorithms.md#landmark-slam): the common part of EkfSlam (joint
+// state) and RbUkfSlam (the seed 004 Rao-Blackwellised filter). Plain C++ over Eigen, no runtime
+// types.
 //
 // One cycle: predict(control) moves the pose; update(observations) runs observe (validation and
 // data association against the state before this scan), update (one sequential correction per
@@ -7,8 +8,8 @@
 //
 // Frames and units: pose (x, y, theta) of base_link in the map frame [m, m, rad]; landmarks
 // (x, y) in the map frame [m]; observations (range [m], bearing [rad]) from the sensor mounted
-// at `mount` in base_link (models in tessera/common/landmark_models.hpp). The map frame is the
-// filter's start frame (initial_pose, default the origin).
+// at `mount` in base_link (models in tessera/landmark_slam/landmark_models.hpp). The map frame is
+// the filter's start frame (initial_pose, default the origin).
 //
 // Data association:
 //  - kKnownIds: the observation's id names the landmark; an unseen id adds a landmark. An
@@ -28,9 +29,9 @@
 // rejection is counted by reason and never throws.
 #pragma once
 
-#include <tessera/common/landmark_models.hpp>
-#include <tessera/common/pose2.hpp>
-#include <tessera/common/unscented.hpp>
+#include <tessera/geometry/pose2.hpp>
+#include <tessera/landmark_slam/landmark_models.hpp>
+#include <tessera/landmark_slam/unscented.hpp>
 
 #include <Eigen/Core>
 
@@ -59,10 +60,10 @@ struct LandmarkSlamOptions {
   double association_gate = 9.210340371976182;    ///< nearest neighbour: match below this
   double new_landmark_gate = 18.420680743952367;  ///< nearest neighbour: new landmark above
   double ambiguity_margin = 4.0;  ///< second candidate this close in d² -> ambiguous
-  common::Pose2 initial_pose;     ///< map frame = the start frame by default
+  tessera::Pose2 initial_pose;    ///< map frame = the start frame by default
   /// Initial pose 1-sigma [m, m, rad]; 0 = exactly known (the UKF handles a singular cov).
   Eigen::Vector3d initial_std = Eigen::Vector3d::Zero();
-  common::UnscentedParams unscented;  ///< RbUkfSlam only
+  tessera::landmark_slam::UnscentedParams unscented;  ///< RbUkfSlam only
   /// Throws std::invalid_argument naming the first bad field.
   void validate() const;
 };
@@ -101,9 +102,9 @@ class LandmarkFilter {
 
   /// Moves the pose by one control (DriveInput::dt seconds). A non-finite control, dt < 0 or a
   /// car-like steering angle outside (-pi/2, pi/2) is counted (bad_control) and ignored.
-  void predict(const common::DriveInput& u);
+  void predict(const tessera::landmark_slam::DriveInput& u);
   /// Observe, update, augment for one scan taken at the current pose.
-  UpdateResult update(std::span<const Observation> observations, const common::Pose2& mount = {});
+  UpdateResult update(std::span<const Observation> observations, const tessera::Pose2& mount = {});
 
   virtual Eigen::Vector3d pose() const = 0;
   virtual Eigen::Matrix3d poseCovariance() const = 0;
@@ -128,20 +129,21 @@ class LandmarkFilter {
   /// The linearised innovation of z against landmark `index` at the current state (gating).
   virtual LandmarkEstimate gaussian(std::size_t index) const = 0;  // id left 0
   virtual Innovation innovation(std::size_t index, const Eigen::Vector2d& z,
-                                const Eigen::Matrix2d& R, const common::Pose2& mount) const = 0;
-  virtual void doPredict(const common::DriveInput& u, const Eigen::Matrix2d& control_cov) = 0;
+                                const Eigen::Matrix2d& R, const tessera::Pose2& mount) const = 0;
+  virtual void doPredict(const tessera::landmark_slam::DriveInput& u,
+                         const Eigen::Matrix2d& control_cov) = 0;
   /// Corrects with z of landmark `index`; returns the innovation it used.
   virtual Innovation correct(std::size_t index, const Eigen::Vector2d& z, const Eigen::Matrix2d& R,
-                             const common::Pose2& mount) = 0;
+                             const tessera::Pose2& mount) = 0;
   /// Appends a landmark initialised from z (index = landmarkCount() before the call).
   virtual void augment(const Eigen::Vector2d& z, const Eigen::Matrix2d& R,
-                       const common::Pose2& mount) = 0;
+                       const tessera::Pose2& mount) = 0;
 
   LandmarkSlamOptions options_;
 
  private:
   void addLandmark(int id, const Eigen::Vector2d& z, const Eigen::Matrix2d& R,
-                   const common::Pose2& mount);
+                   const tessera::Pose2& mount);
 
   std::vector<int> ids_;                        // by index
   std::unordered_map<int, std::size_t> index_;  // id -> index
@@ -168,12 +170,13 @@ class EkfSlam final : public LandmarkFilter {
  private:
   LandmarkEstimate gaussian(std::size_t index) const override;
   Innovation innovation(std::size_t index, const Eigen::Vector2d& z, const Eigen::Matrix2d& R,
-                        const common::Pose2& mount) const override;
-  void doPredict(const common::DriveInput& u, const Eigen::Matrix2d& control_cov) override;
+                        const tessera::Pose2& mount) const override;
+  void doPredict(const tessera::landmark_slam::DriveInput& u,
+                 const Eigen::Matrix2d& control_cov) override;
   Innovation correct(std::size_t index, const Eigen::Vector2d& z, const Eigen::Matrix2d& R,
-                     const common::Pose2& mount) override;
+                     const tessera::Pose2& mount) override;
   void augment(const Eigen::Vector2d& z, const Eigen::Matrix2d& R,
-               const common::Pose2& mount) override;
+               const tessera::Pose2& mount) override;
   void grow(Eigen::Index capacity);
 
   Eigen::VectorXd x_;  // capacity >= n_
@@ -206,12 +209,13 @@ class RbUkfSlam final : public LandmarkFilter {
  private:
   LandmarkEstimate gaussian(std::size_t index) const override;
   Innovation innovation(std::size_t index, const Eigen::Vector2d& z, const Eigen::Matrix2d& R,
-                        const common::Pose2& mount) const override;
-  void doPredict(const common::DriveInput& u, const Eigen::Matrix2d& control_cov) override;
+                        const tessera::Pose2& mount) const override;
+  void doPredict(const tessera::landmark_slam::DriveInput& u,
+                 const Eigen::Matrix2d& control_cov) override;
   Innovation correct(std::size_t index, const Eigen::Vector2d& z, const Eigen::Matrix2d& R,
-                     const common::Pose2& mount) override;
+                     const tessera::Pose2& mount) override;
   void augment(const Eigen::Vector2d& z, const Eigen::Matrix2d& R,
-               const common::Pose2& mount) override;
+               const tessera::Pose2& mount) override;
 
   Eigen::Vector3d pose_;
   Eigen::Matrix3d P_;

@@ -9,8 +9,8 @@
 // origin in the map frame; metres, radians. Plain C++, not thread-safe.
 #pragma once
 
-#include <tessera/common/occupancy_map.hpp>
-#include <tessera/common/pose2.hpp>
+#include <tessera/geometry/pose2.hpp>
+#include <tessera/grid/occupancy_map.hpp>
 
 #include <cstddef>
 #include <map>
@@ -23,21 +23,21 @@ class MapAssembler {
   explicit MapAssembler(double resolution = 0.0);
 
   /// Adds or replaces submap `id` (its cells and their frame).
-  void setSubmap(int id, common::OccupancyMap grid);
+  void setSubmap(int id, tessera::grid::OccupancyMap grid);
   /// Places submap `id` (pose of its origin in the map frame). Submaps without a pose are not
   /// drawn.
-  void setPose(int id, const common::Pose2& global_pose);
+  void setPose(int id, const tessera::Pose2& global_pose);
   bool hasPose(int id) const;
-  common::Pose2 pose(int id) const;
+  tessera::Pose2 pose(int id) const;
   std::size_t size() const { return submaps_.size(); }
 
   /// The global map covering every placed submap (empty when none).
-  common::OccupancyMap assemble() const;
+  tessera::grid::OccupancyMap assemble() const;
 
  private:
   struct Entry {
-    common::OccupancyMap grid;
-    common::Pose2 pose;
+    tessera::grid::OccupancyMap grid;
+    tessera::Pose2 pose;
     bool placed = false;
   };
   double resolution_;

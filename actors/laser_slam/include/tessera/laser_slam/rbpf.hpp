@@ -1,6 +1,6 @@
-// Rbpf: the local level of the two-level laser SLAM (SPEC §A): a Rao-Blackwellised particle
-// filter that builds one occupancy-grid submap at a time from laser scans and wheel odometry,
-// in the style of Grisetti et al. 2007 (GMapping).
+// Rbpf: the local level of the two-level laser SLAM (docs/algorithms.md#rbpf-submaps): a
+// Rao-Blackwellised particle filter that builds one occupancy-grid submap at a time from laser
+// scans and wheel odometry, in the style of Grisetti et al. 2007 (GMapping).
 //
 // Per filter update, for every particle (in parallel, TBB):
 //   1. predict: prior mean = particle pose ⊕ odometry increment, prior covariance from the
@@ -30,10 +30,10 @@
 // Not thread-safe: one caller at a time (the filter parallelises internally).
 #pragma once
 
-#include <tessera/common/occupancy_grid.hpp>
-#include <tessera/common/pose2.hpp>
-#include <tessera/common/scan_matcher.hpp>
-#include <tessera/common/tiled_grid.hpp>
+#include <tessera/geometry/pose2.hpp>
+#include <tessera/grid/occupancy_grid.hpp>
+#include <tessera/grid/tiled_grid.hpp>
+#include <tessera/scan_matching/scan_matcher.hpp>
 
 #include <Eigen/Core>
 
@@ -69,9 +69,9 @@ struct RbpfOptions {
   double angular_update = 0.5;   ///< [rad] rotation that triggers a filter update
   double temporal_update = 0.0;  ///< [s] time that triggers an update; 0 disables
   MotionNoise motion;
-  common::TiledGridOptions grid;
-  common::ScanInsertOptions insert;
-  common::ScanMatcherOptions matcher;  ///< fine matching, proposal and weights
+  tessera::grid::TiledGridOptions grid;
+  tessera::grid::ScanInsertOptions insert;
+  tessera::scan_matching::ScanMatcherOptions matcher;  ///< fine matching, proposal and weights
   /// Coarse first stage: a wider kernel on fewer beams widens the basin of attraction cheaply
   /// (odometry after a 1 m gate can be off by more than the fine kernel reaches); the fine
   /// stage starts where it ends. coarse_kernel_radius 0 disables the stage.
@@ -133,14 +133,14 @@ struct RbpfOptions {
 
 /// A pose with its uncertainty, e.g. an inter-submap constraint.
 struct PoseWithCovariance {
-  common::Pose2 pose;
+  tessera::Pose2 pose;
   Eigen::Matrix3d covariance = Eigen::Matrix3d::Zero();  ///< over (x, y, theta)
 };
 
 /// A submap closed by startSubmap(): the best particle's map and the hand-over constraint.
 struct FinishedSubmap {
   int id = 0;
-  common::TiledGrid grid;           ///< in the submap's own frame (origin = its first pose)
+  tessera::grid::TiledGrid grid;    ///< in the submap's own frame (origin = its first pose)
   PoseWithCovariance next_in_this;  ///< the next submap's origin expressed in this submap
   std::uint64_t scans_inserted = 0;
   double travelled_m = 0.0;
@@ -181,7 +181,7 @@ std::vector<std::size_t> systematicResample(const std::vector<double>& weights, 
 /// exp(-½ (|Δxy|² / σ_linear² + Δθ² / σ_angular²)). Supports within 1e-9 (relative) tie, and
 /// ties go to the highest tie_break (the first of equals). σ = 0 (either): tie_break alone.
 /// The spans have one entry per particle; weights need not be normalised.
-std::size_t selectBestParticle(std::span<const common::Pose2> poses,
+std::size_t selectBestParticle(std::span<const tessera::Pose2> poses,
                                std::span<const double> weights, std::span<const double> tie_break,
                                double sigma_linear, double sigma_angular);
 
@@ -189,8 +189,8 @@ std::size_t selectBestParticle(std::span<const common::Pose2> poses,
 /// weights_i · exp(-½ (|Δxy|² / σ_linear² + Δθ² / σ_angular²)); headings are averaged as
 /// differences from the centre's, so the mean is continuous across ±π. `centre` itself when
 /// the kernel holds no weight or σ = 0 (either).
-common::Pose2 kernelMean(std::span<const common::Pose2> poses, std::span<const double> weights,
-                         const common::Pose2& centre, double sigma_linear, double sigma_angular);
+tessera::Pose2 kernelMean(std::span<const tessera::Pose2> poses, std::span<const double> weights,
+                          const tessera::Pose2& centre, double sigma_linear, double sigma_angular);
 
 class Rbpf {
  public:
@@ -200,8 +200,8 @@ class Rbpf {
   /// Feeds one scan with the robot's odometry pose at the scan's time (odom frame) and the
   /// laser mounting (laser in base_link). Never throws on bad data: NaN/empty scans and
   /// non-finite odometry are counted and leave the filter as it was.
-  RbpfStep addScan(double stamp_s, const common::RangeScan& scan, const common::Pose2& mount,
-                   const common::Pose2& odometry);
+  RbpfStep addScan(double stamp_s, const tessera::grid::RangeScan& scan,
+                   const tessera::Pose2& mount, const tessera::Pose2& odometry);
 
   /// True once the first usable scan has been inserted.
   bool initialized() const { return initialized_; }
@@ -209,7 +209,7 @@ class Rbpf {
   /// pose at the last update (with online_mean_*: the particles' mean around it) composed with
   /// the odometry travelled since (with track_between_updates: with the scan-matched motion
   /// since).
-  common::Pose2 pose() const;
+  tessera::Pose2 pose() const;
   /// Best particle's pose and the weighted spread of all particles around it, at the last
   /// update (in the current submap).
   PoseWithCovariance poseWithCovariance() const;
@@ -223,7 +223,7 @@ class Rbpf {
 
   int submapId() const { return submap_id_; }
   /// Current best map (best particle), in the current submap frame.
-  const common::TiledGrid& bestMap() const;
+  const tessera::grid::TiledGrid& bestMap() const;
   /// Scans inserted into the current submap; metres travelled in it (odometry).
   std::uint64_t submapScans() const { return submap_scans_; }
   double submapTravelled() const { return submap_travelled_; }
@@ -231,7 +231,7 @@ class Rbpf {
   /// Best particle's poses at its filter updates in the current submap (trajectory tree walk).
   struct StampedPose {
     double stamp_s;
-    common::Pose2 pose;
+    tessera::Pose2 pose;
   };
   std::vector<StampedPose> bestTrajectory() const;
 
@@ -241,7 +241,7 @@ class Rbpf {
   /// Normalised weights (sum 1), for tests and diagnostics.
   std::vector<double> weights() const;
   /// Every particle's pose at the last update (current submap frame), for tests and diagnostics.
-  std::vector<common::Pose2> particlePoses() const;
+  std::vector<tessera::Pose2> particlePoses() const;
   /// Distinct map objects the particles hold (copies made by resampling share one until they
   /// diverge), for tests and diagnostics.
   int distinctMaps() const;
@@ -249,64 +249,64 @@ class Rbpf {
  private:
   struct TrajectoryNode {
     double stamp_s;
-    common::Pose2 pose;
+    tessera::Pose2 pose;
     std::shared_ptr<const TrajectoryNode> parent;
   };
   struct Particle {
-    common::Pose2 pose;
+    tessera::Pose2 pose;
     double log_weight = 0.0;  ///< normalised after each update (log Σw = 0)
     double log_score = 0.0;   ///< accumulated log weight increments: picks the best particle
-    std::shared_ptr<common::TiledGrid> map;  ///< replaced, never written, when shared
+    std::shared_ptr<tessera::grid::TiledGrid> map;  ///< replaced, never written, when shared
     std::shared_ptr<const TrajectoryNode> node;
   };
 
-  void initialize(double stamp_s, const common::RangeScan& scan, const common::Pose2& mount,
-                  const common::Pose2& odometry);
+  void initialize(double stamp_s, const tessera::grid::RangeScan& scan, const tessera::Pose2& mount,
+                  const tessera::Pose2& odometry);
   /// Returns how many particles fell back to the motion model.
   /// For each particle, the first particle holding the same map at the same pose (itself when
   /// none does): copies made by resampling, whose matches and insertions are the same.
   std::vector<std::size_t> copySources() const;
-  std::size_t updateParticles(const common::ScanPoints& points,
-                              const common::ScanPoints& coarse_points,
-                              const common::Pose2& odom_delta);
+  std::size_t updateParticles(const tessera::scan_matching::ScanPoints& points,
+                              const tessera::scan_matching::ScanPoints& coarse_points,
+                              const tessera::Pose2& odom_delta);
   double normalizeWeights();
   void resample();
-  void insertScan(const common::RangeScan& scan, const common::Pose2& mount);
-  Eigen::Matrix3d motionCovariance(const common::Pose2& delta) const;
+  void insertScan(const tessera::grid::RangeScan& scan, const tessera::Pose2& mount);
+  Eigen::Matrix3d motionCovariance(const tessera::Pose2& delta) const;
   int bestIndex() const;
   /// Between updates: moves the online estimate by the odometry since the last tracked scan and
   /// matches `scan` against the best map there (track_between_updates).
-  void trackScan(const common::RangeScan& scan, const common::Pose2& mount,
-                 const common::ScanPoints& points, const common::Pose2& odometry);
+  void trackScan(const tessera::grid::RangeScan& scan, const tessera::Pose2& mount,
+                 const tessera::scan_matching::ScanPoints& points, const tessera::Pose2& odometry);
   /// Restarts between-update tracking at the best particle's pose and the odometry there.
-  void resetTracking(const common::Pose2& odometry);
+  void resetTracking(const tessera::Pose2& odometry);
 
   RbpfOptions options_;
-  common::ScanMatcher matcher_;
-  common::ScanMatcher tracking_matcher_;  // matcher_ with the tracking's steps
-  std::optional<common::ScanMatcher> coarse_matcher_;
+  tessera::scan_matching::ScanMatcher matcher_;
+  tessera::scan_matching::ScanMatcher tracking_matcher_;  // matcher_ with the tracking's steps
+  std::optional<tessera::scan_matching::ScanMatcher> coarse_matcher_;
   std::vector<Particle> particles_;
   bool initialized_ = false;
   int submap_id_ = 0;
   std::uint64_t submap_scans_ = 0;
   double submap_travelled_ = 0.0;
 
-  common::Pose2 last_odometry_;    // at the last scan
-  common::Pose2 update_odometry_;  // at the last filter update
+  tessera::Pose2 last_odometry_;    // at the last scan
+  tessera::Pose2 update_odometry_;  // at the last filter update
   double update_stamp_s_ = 0.0;
   double travelled_since_update_ = 0.0;
   double turned_since_update_ = 0.0;
   int best_ = 0;  // best particle at the last update
   // Online estimate at the last tracked scan and the odometry there (= the best particle and
   // update_odometry_ when tracking is off or nothing was tracked since the update).
-  common::Pose2 tracked_;
-  common::Pose2 tracked_odometry_;
+  tessera::Pose2 tracked_;
+  tessera::Pose2 tracked_odometry_;
   std::uint64_t update_index_ = 0;  // seeds the per-particle random streams
 
   // The last usable scan, kept so startSubmap() can seed the next submap with it.
   std::vector<float> last_ranges_;
-  common::RangeScan last_scan_;  // views last_ranges_
-  common::Pose2 last_mount_;
+  tessera::grid::RangeScan last_scan_;  // views last_ranges_
+  tessera::Pose2 last_mount_;
   bool last_scan_usable_ = false;  // the most recent scan was usable and is kept above
   double last_stamp_s_ = 0.0;
 

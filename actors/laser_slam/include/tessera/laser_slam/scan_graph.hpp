@@ -1,6 +1,6 @@
-// ScanGraph: a scan-level pose graph for the global level of SPEC §A (sparse pose adjustment in
-// the manner of Cartographer). Nodes are the submap origins and the robot poses at scans;
-// edges are
+// ScanGraph: a scan-level pose graph for the global level of docs/algorithms.md#scan-level-graph
+// (sparse pose adjustment in the manner of Cartographer). Nodes are the submap origins and the
+// robot poses at scans; edges are
 //   * intra-submap: submap k -> scan s, the scan's smoothed pose in k (a fixed, isotropic-in-xy
 //     information: every scan is as well placed in its own submap as the map built from it);
 //   * chain: scan s -> the next scan node of the same submap, their smoothed relative motion (so
@@ -24,7 +24,7 @@
 // Eigen; not thread-safe (one actor owns it).
 #pragma once
 
-#include <tessera/common/pose2.hpp>
+#include <tessera/geometry/pose2.hpp>
 #include <tessera/laser_slam/submap_graph.hpp>
 #include <tessera/pose_graph/optimizer.hpp>
 
@@ -72,7 +72,7 @@ struct ScanGraphOptions {
 /// A scan's pose with its stamp [ns].
 struct StampedPose2 {
   std::int64_t stamp_ns = 0;
-  common::Pose2 pose;
+  tessera::Pose2 pose;
 };
 
 /// A loop closure made by matching one scan: the robot's pose at `stamp_ns` in submap
@@ -80,7 +80,7 @@ struct StampedPose2 {
 struct ScanLoopInput {
   int matched = 0;
   std::int64_t stamp_ns = 0;
-  common::Pose2 pose;
+  tessera::Pose2 pose;
   Eigen::Matrix3d covariance = Eigen::Matrix3d::Identity();
 };
 
@@ -104,13 +104,13 @@ class ScanGraph {
   /// previous optimize() did not place starts; a submap in neither is left out, with its scans
   /// and the constraints naming it. Throws pose_graph::GraphError if the solver cannot work on
   /// the graph (e.g. nothing to optimise).
-  pose_graph::OptimizerSummary optimize(const std::map<int, common::Pose2>& start);
+  pose_graph::OptimizerSummary optimize(const std::map<int, tessera::Pose2>& start);
 
   /// After optimize(): each submap origin in the map frame.
-  std::map<int, common::Pose2> submapPoses() const;
+  std::map<int, tessera::Pose2> submapPoses() const;
   /// After optimize(): the robot at a scan of some submap's trajectory (a node, or interpolated
   /// between its submap's neighbouring nodes). False when no submap holds that stamp.
-  bool scanPose(std::int64_t stamp_ns, common::Pose2& out) const;
+  bool scanPose(std::int64_t stamp_ns, tessera::Pose2& out) const;
 
   std::size_t submaps() const { return trajectories_.size(); }
   std::size_t nodes() const { return static_cast<std::size_t>(graph_.size()); }

@@ -1,10 +1,11 @@
-// SubmapGraph: the global level of SPEC §A. Nodes are submap origins (local map poses) in the
-// map frame; edges are constraints between submaps (hand-overs from the submap builder,
-// revisits from the loop detector or the camera network). A second constraint between the same
-// two submaps is fused into the first by information weighting, so revisits do not grow the
-// graph. The graph is re-optimised (pose_graph::optimize, warm-started from the current poses)
-// whenever a constraint can change the optimum: a new revisit or a fusion. A hand-over to a new
-// submap only extends the graph by a leaf and places it by composition.
+// SubmapGraph: the global level of the two-level laser SLAM
+// (docs/algorithms.md#submap-hand-over-and-loop-detection). Nodes
+// are submap origins (local map poses) in the map frame; edges are constraints between submaps
+// (hand-overs from the submap builder, revisits from the loop detector or the camera network). A
+// second constraint between the same two submaps is fused into the first by information weighting,
+// so revisits do not grow the graph. The graph is re-optimised (pose_graph::optimize, warm-started
+// from the current poses) whenever a constraint can change the optimum: a new revisit or a fusion.
+// A hand-over to a new submap only extends the graph by a leaf and places it by composition.
 //
 // Arrival order does not matter: a constraint naming a submap the graph does not know yet waits
 // (pending) until that submap appears, through addSubmap() or a hand-over that places it.
@@ -13,7 +14,7 @@
 // Plain C++ over Eigen; not thread-safe (one actor owns it).
 #pragma once
 
-#include <tessera/common/pose2.hpp>
+#include <tessera/geometry/pose2.hpp>
 #include <tessera/pose_graph/optimizer.hpp>
 
 #include <Eigen/Core>
@@ -44,7 +45,7 @@ struct SubmapGraphOptions {
 struct SubmapConstraintInput {
   int from = 0;
   int to = 0;
-  common::Pose2 relative;  ///< pose of `to`'s origin in `from`'s frame
+  tessera::Pose2 relative;  ///< pose of `to`'s origin in `from`'s frame
   Eigen::Matrix3d covariance = Eigen::Matrix3d::Identity();
   bool revisit = false;  ///< false: the hand-over from `from` to the new submap `to`
 };
@@ -63,7 +64,7 @@ class SubmapGraph {
 
   /// A submap exists, with its origin guessed at `guess` in the map frame (used only when no
   /// constraint placed it yet). Resolves constraints that were waiting for it.
-  void addSubmap(int id, const common::Pose2& guess);
+  void addSubmap(int id, const tessera::Pose2& guess);
   /// Adds or fuses a constraint (see Outcome). Pending constraints it unblocks are added too.
   Outcome addConstraint(const SubmapConstraintInput& c);
 
@@ -72,9 +73,9 @@ class SubmapGraph {
   pose_graph::OptimizerSummary optimize();
 
   bool contains(int id) const { return graph_.contains(id); }
-  common::Pose2 pose(int id) const;
+  tessera::Pose2 pose(int id) const;
   /// Every known submap's origin in the map frame, by id.
-  std::map<int, common::Pose2> poses() const;
+  std::map<int, tessera::Pose2> poses() const;
   std::size_t nodes() const { return static_cast<std::size_t>(graph_.size()); }
   std::size_t edges() const { return graph_.edges.size(); }
   std::size_t pending() const { return pending_.size(); }

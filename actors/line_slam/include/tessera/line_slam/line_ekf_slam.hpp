@@ -1,4 +1,5 @@
-// LineEkfSlam: EKF SLAM over a planar robot pose and infinite lines (SPEC.md §B, seed 001).
+// LineEkfSlam: EKF SLAM over a planar robot pose and infinite lines
+// (docs/algorithms.md#line-ekf-slam, seed 001).
 //
 // State: [x, y, θ] of base_link in the map frame (m, m, rad), then one (r_i, φ_i) per map line in
 // polar form (p·(cos φ, sin φ) = r, r >= 0 [m], φ in (−π, π]); a dense covariance over all of it.
@@ -24,8 +25,8 @@
 // Plain C++ over Eigen, single-threaded; O(n²) per update in the number of lines.
 #pragma once
 
-#include <tessera/common/line_extraction.hpp>
-#include <tessera/common/pose2.hpp>
+#include <tessera/geometry/pose2.hpp>
+#include <tessera/line_slam/line_extraction.hpp>
 
 #include <Eigen/Core>
 
@@ -130,19 +131,19 @@ class LineEkfSlam {
   explicit LineEkfSlam(LineEkfSlamOptions options = {});
 
   /// Starts (or restarts) at `pose` with covariance `cov` and an empty map.
-  void reset(const common::Pose2& pose, const Eigen::Matrix3d& cov = Eigen::Matrix3d::Zero());
+  void reset(const tessera::Pose2& pose, const Eigen::Matrix3d& cov = Eigen::Matrix3d::Zero());
 
   /// Differential drive: moves by the odometry increment `delta` (in the robot frame). False
   /// (counted, nothing changed) for a non-finite increment.
-  bool predictOdometry(const common::Pose2& delta);
+  bool predictOdometry(const tessera::Pose2& delta);
   /// The paper's car-like model over dt [s]. False (counted) for non-finite or dt <= 0, L <= 0.
   bool predictCarLike(double speed, double steering, double wheelbase, double dt);
 
   /// Associates, updates, promotes tentative lines and (every merge_interval calls) merges
   /// duplicates. `segments` are in the robot frame. Returns the number of matched segments.
-  int update(const std::vector<common::LineSegment>& segments);
+  int update(const std::vector<tessera::line_slam::LineSegment>& segments);
 
-  common::Pose2 pose() const;
+  tessera::Pose2 pose() const;
   Eigen::Matrix3d poseCovariance() const { return cov_.topLeftCorner<3, 3>(); }
   std::size_t lineCount() const { return lines_.size(); }
   std::size_t tentativeCount() const { return tentative_.size(); }
@@ -159,7 +160,8 @@ class LineEkfSlam {
 
   /// The candidate map line for a robot-frame segment (-1 = none) and whether more than one
   /// passed the gates. Exposed for tests.
-  int associate(const common::LineSegment& robot_segment, bool* ambiguous = nullptr) const;
+  int associate(const tessera::line_slam::LineSegment& robot_segment,
+                bool* ambiguous = nullptr) const;
 
  private:
   struct LineMeta {
@@ -168,7 +170,7 @@ class LineEkfSlam {
     std::int64_t observations;
   };
   struct Tentative {
-    common::LineSegment world;  // last sighting in the map frame
+    tessera::line_slam::LineSegment world;  // last sighting in the map frame
     int sightings;
     std::uint64_t last_update;
   };
@@ -177,15 +179,15 @@ class LineEkfSlam {
   };
 
   Gates measure(double r, double phi, double t_min, double t_max,
-                const common::LineSegment& world) const;
+                const tessera::line_slam::LineSegment& world) const;
   bool passes(const Gates& g) const;
-  bool ekfUpdate(std::size_t i, const common::LineSegment& robot_segment);
-  void extend(std::size_t i, const common::LineSegment& world);
-  void addLine(const common::LineSegment& robot_segment);
+  bool ekfUpdate(std::size_t i, const tessera::line_slam::LineSegment& robot_segment);
+  void extend(std::size_t i, const tessera::line_slam::LineSegment& world);
+  void addLine(const tessera::line_slam::LineSegment& robot_segment);
   void mergeDuplicates();
   void removeLine(std::size_t i);
   void normalizeLineState(std::size_t i);
-  Eigen::Matrix2d observationNoise(const common::LineSegment& s) const;
+  Eigen::Matrix2d observationNoise(const tessera::line_slam::LineSegment& s) const;
 
   LineEkfSlamOptions options_;
   Eigen::VectorXd state_;

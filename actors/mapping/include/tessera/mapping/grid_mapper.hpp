@@ -1,14 +1,14 @@
 // GridMapper: occupancy grid mapping with known poses. Each laser scan is inserted into one
-// growing log-odds grid (common::OccupancyGrid) from the robot's pose in the map frame and the
-// laser's mounting on the robot. Plain C++: no runtime or message types; the grid_mapper actor
+// growing log-odds grid (tessera::grid::OccupancyGrid) from the robot's pose in the map frame and
+// the laser's mounting on the robot. Plain C++: no runtime or message types; the grid_mapper actor
 // (grid_mapper_actor.hpp) feeds it from topics.
 //
 // Frames: robot_pose = base_link in map; mount = laser in base_link; both x forward, y left,
 // theta counter-clockwise [rad]; lengths in metres.
 #pragma once
 
-#include <tessera/common/occupancy_grid.hpp>
-#include <tessera/common/pose2.hpp>
+#include <tessera/geometry/pose2.hpp>
+#include <tessera/grid/occupancy_grid.hpp>
 
 #include <cstdint>
 
@@ -60,21 +60,22 @@ class GridMapper {
 
   /// Inserts a scan taken with the robot at `robot_pose` (map frame) and the laser mounted at
   /// `mount` (base_link frame). Returns true when the scan contributed to the map.
-  bool insert(const common::RangeScan& scan, const common::Pose2& robot_pose,
-              const common::Pose2& mount = {});
+  bool insert(const tessera::grid::RangeScan& scan, const tessera::Pose2& robot_pose,
+              const tessera::Pose2& mount = {});
   /// Same with the laser's pose in the map frame given directly.
-  bool insertFromSensorPose(const common::RangeScan& scan, const common::Pose2& sensor_pose);
+  bool insertFromSensorPose(const tessera::grid::RangeScan& scan,
+                            const tessera::Pose2& sensor_pose);
 
-  const common::OccupancyGrid& grid() const { return grid_; }
+  const tessera::grid::OccupancyGrid& grid() const { return grid_; }
   const GridMapperStats& stats() const { return stats_; }
   const GridMapperCoreOptions& options() const { return options_; }
   /// The map cropped to the known cells, in ROS int8 convention.
-  common::OccupancyMap map() const { return grid_.toOccupancyMap(); }
+  tessera::grid::OccupancyMap map() const { return grid_.toOccupancyMap(); }
 
  private:
   GridMapperCoreOptions options_;
-  common::ScanInsertOptions insert_options_;
-  common::OccupancyGrid grid_;
+  tessera::grid::ScanInsertOptions insert_options_;
+  tessera::grid::OccupancyGrid grid_;
   GridMapperStats stats_;
 };
 

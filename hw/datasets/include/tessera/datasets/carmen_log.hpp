@@ -7,7 +7,7 @@
 //   RAWLASER1 .. RAWLASER4          -> CarmenLaser (own angles and max range, no pose)
 //   ODOM                            -> CarmenOdometry
 // PARAM, NEFF, SYNC, TRUEPOS and any other message name are skipped and counted in the
-// ParseReport under the message name; '#' comments and blank lines are ignored.
+// io::ParseReport under the message name; '#' comments and blank lines are ignored.
 //
 // Units and frames: metres, radians, seconds. Beam i points at angle_min + i * angle_increment in
 // the laser frame (x forward, counter-clockwise positive). Poses are (x, y, theta) in the log's
@@ -23,11 +23,11 @@
 //
 // Errors: a malformed known line (wrong field count, non-numbers, NaN/inf, negative range,
 // counts larger than the line or than max_readings — checked before allocating) throws
-// DatasetError "FILE:LINE: MESSAGE field N (label): ..." unless skip_malformed is set, in which
+// io::DatasetError "FILE:LINE: MESSAGE field N (label): ..." unless skip_malformed is set, in which
 // case it is skipped and counted under "malformed MESSAGE". A truncated gzip file always throws.
 #pragma once
 
-#include <tessera/datasets/text_reader.hpp>
+#include <tessera/io/text_reader.hpp>
 
 #include <cstddef>
 #include <filesystem>
@@ -84,7 +84,7 @@ struct CarmenOptions {
   double max_range_override = 0.0;
   // Largest accepted reading / remission count per line; larger counts are errors.
   std::size_t max_readings = 100000;
-  // Skip (and count) malformed lines of known messages instead of throwing DatasetError.
+  // Skip (and count) malformed lines of known messages instead of throwing io::DatasetError.
   bool skip_malformed = false;
   // GMapping's *.gfs logs follow each processed FLASER with an ODOM line holding the corrected
   // pose, zero velocities and a time of 0 (or a garbage denormal such as 1e-42): not odometry.
@@ -97,28 +97,28 @@ struct CarmenOptions {
 class CarmenReader {
  public:
   explicit CarmenReader(const std::filesystem::path& path, CarmenOptions options = {});
-  explicit CarmenReader(TextReader reader, CarmenOptions options = {});
+  explicit CarmenReader(io::TextReader reader, CarmenOptions options = {});
 
-  // Reads up to the next record; false at the end of the file. Throws DatasetError.
+  // Reads up to the next record; false at the end of the file. Throws io::DatasetError.
   bool next(CarmenRecord& record);
-  const ParseReport& report() const { return report_; }
+  const io::ParseReport& report() const { return report_; }
   double progress() const { return reader_.progress(); }
   const std::filesystem::path& path() const { return reader_.path(); }
 
  private:
-  TextReader reader_;
+  io::TextReader reader_;
   CarmenOptions options_;
-  ParseReport report_;
+  io::ParseReport report_;
   std::string line_;
   double latest_time_ = 0;  // latest timestamp seen [s]
 };
 
 struct CarmenLog {
   std::vector<CarmenRecord> records;  // in file order
-  ParseReport report;
+  io::ParseReport report;
 };
 
-// Reads a whole log. Throws DatasetError.
+// Reads a whole log. Throws io::DatasetError.
 CarmenLog readCarmenLog(const std::filesystem::path& path, const CarmenOptions& options = {});
 // Same for text in memory (tests, fuzzing); `name` is used in error messages.
 CarmenLog parseCarmenLog(const std::string& name, std::string text,

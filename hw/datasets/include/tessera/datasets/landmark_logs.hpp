@@ -34,7 +34,7 @@
 //   error, and a sighting at zero range (no bearing) is a counted skip.
 #pragma once
 
-#include <tessera/datasets/text_reader.hpp>
+#include <tessera/io/text_reader.hpp>
 
 #include <Eigen/Core>
 
@@ -84,23 +84,23 @@ struct MrclamRobotLog {
   std::vector<MrclamOdometry> odometry;
   std::vector<MrclamMeasurement> measurements;
   std::vector<MrclamPose> ground_truth;  // empty when RobotN_Groundtruth.dat is absent
-  ParseReport report;                    // summed over the files read
+  io::ParseReport report;                // summed over the files read
 };
 
 // Reads Barcodes.dat, Landmark_Groundtruth.dat and robot `robot`'s files from `folder`; each
-// RobotN_*.dat may also be RobotN_*.dat.gz. Throws DatasetError.
+// RobotN_*.dat may also be RobotN_*.dat.gz. Throws io::DatasetError.
 MrclamRobotLog readMrclam(const std::filesystem::path& folder, int robot);
 
 // The single files, for tests and tools.
-std::map<int, int> readMrclamBarcodes(TextReader& reader);  // barcode -> subject
-std::vector<MrclamLandmark> readMrclamLandmarks(TextReader& reader,
+std::map<int, int> readMrclamBarcodes(io::TextReader& reader);  // barcode -> subject
+std::vector<MrclamLandmark> readMrclamLandmarks(io::TextReader& reader,
                                                 const std::map<int, int>& barcode_to_subject);
-std::vector<MrclamOdometry> readMrclamOdometry(TextReader& reader, ParseReport& report);
-std::vector<MrclamMeasurement> readMrclamMeasurements(TextReader& reader,
+std::vector<MrclamOdometry> readMrclamOdometry(io::TextReader& reader, io::ParseReport& report);
+std::vector<MrclamMeasurement> readMrclamMeasurements(io::TextReader& reader,
                                                       const std::map<int, int>& barcode_to_subject,
                                                       const std::vector<MrclamLandmark>& landmarks,
-                                                      ParseReport& report);
-std::vector<MrclamPose> readMrclamGroundTruth(TextReader& reader, ParseReport& report);
+                                                      io::ParseReport& report);
+std::vector<MrclamPose> readMrclamGroundTruth(io::TextReader& reader, io::ParseReport& report);
 
 // ---- Victoria Park (GTSAM text) ----
 
@@ -125,10 +125,10 @@ struct VictoriaParkLog {
   std::vector<VictoriaObservation> observations;  // in file order (by pose)
   std::vector<std::int64_t> pose_ids;             // dense pose index -> original id
   std::vector<std::int64_t> landmark_ids;         // dense landmark index -> original id
-  ParseReport report;
+  io::ParseReport report;
 };
 
 VictoriaParkLog readVictoriaPark(const std::filesystem::path& path);
-VictoriaParkLog readVictoriaPark(TextReader& reader);
+VictoriaParkLog readVictoriaPark(io::TextReader& reader);
 
 }  // namespace tessera::datasets

@@ -8,11 +8,11 @@
 // uses (dx, dy, yaw). Blank lines and lines starting with '#' are skipped.
 //
 // The reader is strict: a line with the wrong number of fields, a non-number or a non-finite value
-// throws DatasetError naming file:line and field, since a relation silently dropped would bias
+// throws io::DatasetError naming file:line and field, since a relation silently dropped would bias
 // the metric.
 #pragma once
 
-#include <tessera/datasets/text_reader.hpp>
+#include <tessera/io/text_reader.hpp>
 
 #include <cstdint>
 #include <filesystem>
@@ -29,12 +29,12 @@ struct Relation {
 
 struct RelationsFile {
   std::vector<Relation> relations;  ///< in file order
-  ParseReport report;               ///< lines read; nothing is skipped except comments/blanks
+  io::ParseReport report;           ///< lines read; nothing is skipped except comments/blanks
 };
 
-/// Reads a (possibly gzip) relations file. Throws DatasetError.
+/// Reads a (possibly gzip) relations file. Throws io::DatasetError.
 RelationsFile readRelations(const std::filesystem::path& path);
-/// Same, from an open reader (e.g. TextReader::fromString in tests).
-RelationsFile readRelations(TextReader& reader);
+/// Same, from an open reader (e.g. io::TextReader::fromString in tests).
+RelationsFile readRelations(io::TextReader& reader);
 
 }  // namespace tessera::datasets

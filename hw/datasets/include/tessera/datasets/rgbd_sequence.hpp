@@ -29,11 +29,11 @@
 // metres = value / depth_scale.
 //
 // Errors: malformed text (wrong field count, NaN/inf, non-increasing time, bad rotation), a
-// missing image or a corrupt/truncated image throw DatasetError naming the file (and line).
+// missing image or a corrupt/truncated image throw io::DatasetError naming the file (and line).
 // Plain structs only: no OpenCV in this header.
 #pragma once
 
-#include <tessera/datasets/text_reader.hpp>
+#include <tessera/io/text_reader.hpp>
 
 #include <Eigen/Geometry>
 
@@ -54,7 +54,7 @@ std::string_view layoutName(RgbdLayout layout);
 /// Parses "tum" / "7scenes" (also "sevenscenes"); throws std::invalid_argument otherwise.
 RgbdLayout parseLayout(std::string_view name);
 /// TUM when rgb.txt and depth.txt exist, 7-Scenes when frame-*.depth.png files do; throws
-/// DatasetError naming the folder and what was looked for otherwise.
+/// io::DatasetError naming the folder and what was looked for otherwise.
 RgbdLayout detectRgbdLayout(const std::filesystem::path& folder);
 
 /// Pinhole intrinsics of the image the depth is given in [px].
@@ -92,7 +92,7 @@ struct RgbdSequence {
   bool has_ground_truth = false;  ///< the dataset provides poses (some frames may still lack one)
   std::size_t frames_without_pose = 0;  ///< frames outside the ground truth's time coverage
   std::size_t unmatched_color = 0;      ///< TUM: colour images with no depth within tolerance
-  ParseReport report;                   ///< lines read and anything skipped
+  io::ParseReport report;               ///< lines read and anything skipped
 };
 
 struct TumOptions {
@@ -107,7 +107,7 @@ struct TumOptions {
   double max_pose_time_difference = 0.02;
   /// "auto" (from the folder name or rgb.txt's header), or a tumIntrinsics() name.
   std::string camera = "auto";
-  /// Listed images that do not exist: false = DatasetError, true = skipped (counted in report).
+  /// Listed images that do not exist: false = io::DatasetError, true = skipped (counted in report).
   bool skip_missing_images = false;
 };
 
@@ -122,7 +122,7 @@ struct RgbdReadOptions {
 };
 
 /// Reads the index of a dataset folder (text files only; images are checked to exist, not
-/// decoded). Throws DatasetError.
+/// decoded). Throws io::DatasetError.
 RgbdSequence readRgbdSequence(const std::filesystem::path& folder,
                               const RgbdReadOptions& options = {});
 RgbdSequence readTumSequence(const std::filesystem::path& folder, const TumOptions& options = {});
@@ -137,13 +137,13 @@ struct TimedFile {
   std::size_t line = 0;  ///< line in the list file, for errors
 };
 /// rgb.txt / depth.txt: "timestamp file" lines, '#' comments; timestamps strictly increasing.
-std::vector<TimedFile> parseTumFileList(TextReader& reader);
+std::vector<TimedFile> parseTumFileList(io::TextReader& reader);
 
 struct TumAssociation {
   TimedFile color, depth;
 };
 /// associations.txt: "t_rgb rgb_file t_depth depth_file"; colour timestamps strictly increasing.
-std::vector<TumAssociation> parseTumAssociations(TextReader& reader);
+std::vector<TumAssociation> parseTumAssociations(io::TextReader& reader);
 
 struct TimedPose {
   double timestamp = 0;  ///< [s]
@@ -152,7 +152,7 @@ struct TimedPose {
 };
 /// groundtruth.txt: "t tx ty tz qx qy qz qw"; timestamps strictly increasing, quaternion norm
 /// within 1e-2 of 1 (then normalised).
-std::vector<TimedPose> parseTumGroundTruth(TextReader& reader);
+std::vector<TimedPose> parseTumGroundTruth(io::TextReader& reader);
 
 /// Pairs colour with depth as TUM's associate.py does (closest first, each used once); the
 /// result is sorted by colour time. Sets *unmatched_color to colour images left without depth.
@@ -168,10 +168,10 @@ std::optional<Eigen::Isometry3d> poseAt(const std::vector<TimedPose>& poses, dou
 
 /// 7-Scenes frame-NNNNNN.pose.txt: 4 rows of 4 numbers, last row 0 0 0 1, rotation orthonormal
 /// within 1e-2 (the files print ~7 digits) and det > 0; returned re-orthonormalised.
-Eigen::Isometry3d parseSevenScenesPose(TextReader& reader);
+Eigen::Isometry3d parseSevenScenesPose(io::TextReader& reader);
 /// camera-intrinsics.txt: 3x3 K with zero skew and last row 0 0 1. Width/height are set to
 /// 640x480 (7-Scenes' Kinect), which loadRgbdImages() checks against the images.
-CameraIntrinsics parseSevenScenesIntrinsics(TextReader& reader);
+CameraIntrinsics parseSevenScenesIntrinsics(io::TextReader& reader);
 
 // ---- images ----
 
@@ -186,7 +186,7 @@ struct RgbdImages {
 /// Decodes frame `i` of `sequence`. Checks that the colour image is 8-bit, the depth image
 /// single-channel 16-bit, that both match the intrinsics' size, and that PNG/JPEG files are
 /// complete (a truncated JPEG would otherwise decode as a grey-filled image). Throws
-/// DatasetError naming the image file. Thread-safe (no shared state).
+/// io::DatasetError naming the image file. Thread-safe (no shared state).
 RgbdImages loadRgbdImages(const RgbdSequence& sequence, std::size_t i);
 
 /// Depth in metres (NaN where there is no reading), same layout as images.depth.

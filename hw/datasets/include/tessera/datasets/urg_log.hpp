@@ -16,10 +16,10 @@
 // always 0 in these logs because the robot's body hides them.
 //
 // Errors: wrong field counts, non-integers, negative or absurd readings (> max_range_mm) throw
-// DatasetError naming file:line and field, unless skip_malformed (then counted skips).
+// io::DatasetError naming file:line and field, unless skip_malformed (then counted skips).
 #pragma once
 
-#include <tessera/datasets/text_reader.hpp>
+#include <tessera/io/text_reader.hpp>
 
 #include <cstddef>
 #include <cstdint>
@@ -52,24 +52,24 @@ struct UrgOptions {
 class UrgReader {
  public:
   explicit UrgReader(const std::filesystem::path& path, UrgOptions options = {});
-  explicit UrgReader(TextReader reader, UrgOptions options = {});
+  explicit UrgReader(io::TextReader reader, UrgOptions options = {});
 
-  // The next scan; false at the end. Throws DatasetError.
+  // The next scan; false at the end. Throws io::DatasetError.
   bool next(UrgScan& scan);
-  const ParseReport& report() const { return report_; }
+  const io::ParseReport& report() const { return report_; }
   double progress() const { return reader_.progress(); }
   const std::filesystem::path& path() const { return reader_.path(); }
 
  private:
-  TextReader reader_;
+  io::TextReader reader_;
   UrgOptions options_;
-  ParseReport report_;
+  io::ParseReport report_;
   std::string line_;
 };
 
 struct UrgLog {
   std::vector<UrgScan> scans;
-  ParseReport report;
+  io::ParseReport report;
 };
 
 UrgLog readUrgLog(const std::filesystem::path& path, const UrgOptions& options = {});

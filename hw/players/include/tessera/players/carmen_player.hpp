@@ -129,7 +129,7 @@ class CarmenPlayer final : public Actor {
   std::int64_t scans_ = 0, odom_ = 0, reference_ = 0, ignored_ = 0;
   std::optional<Nanos> first_stamp_, last_stamp_;
   std::string error_;
-  datasets::ParseReport final_report_;
+  io::ParseReport final_report_;
 };
 
 }  // namespace tessera::players

@@ -108,7 +108,7 @@ class UrgPlayer final : public Actor {
   std::int64_t scans_ = 0, odom_ = 0;
   std::optional<Nanos> first_stamp_, last_stamp_;
   std::string error_;
-  datasets::ParseReport final_report_;
+  io::ParseReport final_report_;
 };
 
 }  // namespace tessera::players

@@ -1,5 +1,5 @@
-// Environment camera network (SPEC.md section A): fixed ceiling cameras looking down at the floor,
-// each reporting a marker on the robot as a pixel position.
+// Environment camera network (docs/algorithms.md#simulated-motion-and-sensors): fixed ceiling
+// cameras looking down at the floor, each reporting a marker on the robot as a pixel position.
 //
 // Geometry. A camera hangs `ceiling_height` metres above the marker plane (the floor, or the
 // height of the marker on the robot; everything here happens in that plane), above its site's

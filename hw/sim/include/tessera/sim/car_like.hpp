@@ -1,5 +1,5 @@
-// Car-like robot of SPEC.md sections B and C and its waypoint steering, as in the seed 004
-// simulation (V = 3 m/s, L = 1 m, steering rate 0.2 pi rad/s, dT = 0.03 s).
+// Car-like robot of docs/algorithms.md#simulated-motion-and-sensors and its waypoint steering, as
+// in the seed 004 simulation (V = 3 m/s, L = 1 m, steering rate 0.2 pi rad/s, dT = 0.03 s).
 //
 // Model (explicit Euler step of length dt, speed V of the reference point, steering angle gamma,
 // wheelbase L; all poses in the world "map" frame, metres and radians):
@@ -34,7 +34,7 @@ struct CarLikeConfig {
   void validate() const;
 };
 
-/// One explicit Euler step of the SPEC model.
+/// One explicit Euler step of the the model of docs/algorithms.md#simulated-motion-and-sensors.
 Pose carLikeStep(const Pose& p, double speed, double steer, double dt, double wheelbase);
 
 /// Speed and steering angle over one step.

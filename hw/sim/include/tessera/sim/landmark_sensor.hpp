@@ -1,4 +1,4 @@
-// Range-bearing sensor for point landmarks (SPEC.md section C):
+// Range-bearing sensor for point landmarks (docs/algorithms.md#landmark-slam):
 //   z = [ sqrt((x_i - x)^2 + (y_i - y)^2),  atan2(y_i - y, x_i - x) - theta ]
 // from the sensor pose (base_link pose composed with the mount).
 //

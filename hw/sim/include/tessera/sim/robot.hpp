@@ -6,8 +6,9 @@
 //
 // Motion is integrated in fixed steps. Over one step the robot moves the increments
 // (D = v dt, theta = omega dt) and moveBy() applies them at the mid-step heading (second-order
-// accurate for arcs). Odometry applies the noise model of SPEC.md section D to the same
-// increments, D' = D + N(0, (sigma_d |D| + floor)^2), theta' = theta + N(0, (sigma_theta |theta|
+// accurate for arcs). Odometry applies the noise model of
+// docs/algorithms.md#simulated-motion-and-sensors to the same increments, D' = D + N(0, (sigma_d
+// |D| + floor)^2), theta' = theta + N(0, (sigma_theta |theta|
 // + floor)^2), and integrates D', theta' with moveBy() too, so zero noise reproduces the true
 // pose bit for bit. The noise is drawn once per step: the drift over a distance L grows like
 // sigma_d * sqrt(L * step_length), so it depends on the step rate, which is why the simulator

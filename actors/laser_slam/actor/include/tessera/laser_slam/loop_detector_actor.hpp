@@ -1,0 +1,184 @@
+// loop_detector actor: loop closures for the global level of the two-level laser SLAM
+// (docs/algorithms.md#submap-hand-over-and-loop-detection). Matches scans against
+// finished submaps with the branch-and-bound CorrelativeMatcher and publishes each verified
+// match as a revisit SubmapConstraint for the graph optimiser.
+//
+// Subscribes:
+//   scan          msg::LaserScan        keep_latest(scan_queue)  the laser (with its mounting)
+//   pose          msg::PoseStamped      keep_latest(pose_queue)  the submap builder's estimate of
+//                                                                 each scan (chained map frame)
+//   submaps       msg::Submap           reliable                 finished submaps: searched, and
+//                                                                 the end of the current one
+//   submap_poses  msg::SubmapPoses      keep_latest(1), with optimized_poses: where the graph
+//                                       optimiser put the submaps (better search centres)
+//   ground_truth  msg::GroundTruthPose  keep_latest(1000), with score_ground_truth: scores every
+//                                       accepted closure (simulation): loops_true/loops_false
+// Publishes:
+//   loop_constraints msg::SubmapConstraint  kind revisit, from the submap the robot was in to
+//                                       the matched one. A match is published when the robot's
+//                                       own submap is finished (its origin is known then), with
+//                                       the scan's smoothed pose in it from the finished submap's
+//                                       trajectory: the online estimate came from the particle
+//                                       that was best then, which need not be the one whose map
+//                                       the submap keeps. scanInTo carries the match itself (the
+//                                       scan's pose in the matched submap, with its covariance)
+//                                       for a scan-level graph.
+//
+// Search. Every `every_n_scans`-th scan with a pose is tried against the finished submaps whose
+// area (expanded by the window) holds the robot's estimate, nearest first, skipping the
+// `skip_recent` most recent ones (linked to the current one by hand-overs already). Of the
+// verified matches, the best `closures_per_scan` are published. The window
+// grows with the distance driven since the submap was finished (odometry-style drift):
+// linear = min(window_linear_max, window_linear + window_growth · d), angular likewise.
+// Verification (LoopClosureVerifier): score, ambiguity (second best / best), how well the scan
+// pins the position (the match covariance's largest std: on the simulated office every false
+// closure slid along a corridor or past a submap's edge with a std above 0.125 m, while 2/3 of
+// the true ones were below 0.12 m), and the distance from the prior in units of window/3. Every
+// decision is counted in the summary. Frames: submap grids in their own frame; robot poses in the
+// chained map frame (builder) or the optimised one; constraint = pose of the matched submap's
+// origin in the current submap's frame.
+#pragma once
+
+#include <tessera/msg/sensor.capnp.h>
+#include <tessera/msg/submap.capnp.h>
+#include <tessera/runtime/actor.hpp>
+#include <tessera/scan_matching/correlative_matcher.hpp>
+#include <tessera/scan_matching/scan_matcher.hpp>
+
+#include <cstdint>
+#include <deque>
+#include <map>
+#include <memory>
+#include <string>
+#include <utility>
+#include <vector>
+
+namespace tessera::laser_slam {
+
+struct LoopDetectorOptions {
+  int every_n_scans = 5;
+  int skip_recent = 1;
+  int max_candidates = 3;
+  int closures_per_scan = 1;
+  double window_linear = 1.0;
+  double window_growth = 0.01;
+  double window_linear_max = 3.0;
+  double window_angular = 0.3;
+  double window_angular_growth = 0.005;
+  double window_angular_max = 0.6;
+  double max_range = 20.0;
+  double min_score = 0.6;
+  double max_ambiguity = 0.9;
+  double max_prior_sigmas = 3.0;
+  double max_position_sigma = 0.12;
+  int pyramid_depth = 7;
+  /// Floors added to the matcher's covariance before publishing ([m], [rad] standard deviation):
+  /// a match is only as exact as the submap it was made against.
+  double sigma_floor_linear = 0.05;
+  double sigma_floor_angular = 0.02;
+  bool optimized_poses = false;
+  bool score_ground_truth = false;
+  double truth_tolerance_linear = 0.5;
+  double truth_tolerance_angular = 0.1;
+  int scan_queue = 20;
+  int pose_queue = 20;
+
+  template <class V>
+  void visit(V& v) {
+    v("every_n_scans", every_n_scans, "try every n-th scan (>= 1)");
+    v("skip_recent", skip_recent, "most recent finished submaps not searched (>= 0)");
+    v("max_candidates", max_candidates, "submaps searched per scan, nearest first (>= 1)");
+    v("closures_per_scan", closures_per_scan,
+      "verified matches of one scan published, best first (1..max_candidates): more than one "
+      "ties the scan to several submaps (for a scan-level graph)");
+    v("window_linear", window_linear, "[m] search half-width right after a submap is finished");
+    v("window_growth", window_growth, "[m per m driven] growth of the half-width");
+    v("window_linear_max", window_linear_max, "[m] largest half-width");
+    v("window_angular", window_angular, "[rad] heading half-width right after a submap");
+    v("window_angular_growth", window_angular_growth, "[rad per m driven] its growth");
+    v("window_angular_max", window_angular_max, "[rad] largest heading half-width");
+    v("max_range", max_range, "[m] scan points farther than this are not matched");
+    v("min_score", min_score, "lowest match score accepted, [0, 1]");
+    v("max_ambiguity", max_ambiguity, "reject when second best / best exceeds this, (0, 1]");
+    v("max_position_sigma", max_position_sigma,
+      "[m] reject matches whose largest position std exceeds this (corridors, submap edges); "
+      "0 = off");
+    v("max_prior_sigmas", max_prior_sigmas,
+      "reject matches farther than this from the estimate, in units of window/3");
+    v("pyramid_depth", pyramid_depth, "branch-and-bound pyramid levels (0..15)");
+    v("sigma_floor_linear", sigma_floor_linear, "[m] added to the published std (quadrature)");
+    v("sigma_floor_angular", sigma_floor_angular, "[rad] added to the published std");
+    v("optimized_poses", optimized_poses, "subscribe to submap_poses (graph_optimizer)");
+    v("score_ground_truth", score_ground_truth,
+      "subscribe to ground_truth and count accepted closures as true or false");
+    v("truth_tolerance_linear", truth_tolerance_linear,
+      "[m] a closure within this of the truth counts as true");
+    v("truth_tolerance_angular", truth_tolerance_angular, "[rad] the same for heading");
+    v("scan_queue", scan_queue, "scan mailbox size");
+    v("pose_queue", pose_queue, "pose mailbox size");
+  }
+};
+
+class LoopDetectorActor final : public Actor {
+ public:
+  /// Throws ConfigError on invalid options.
+  explicit LoopDetectorActor(LoopDetectorOptions options);
+  void configure(ActorContext& ctx) override;
+  void summarize(Summary& out) const override;
+
+ private:
+  struct FinishedSubmap {
+    int id = 0;
+    tessera::scan_matching::MatchGrid grid;
+    tessera::Pose2 chained;    // origin in the chained map frame (as published)
+    tessera::Pose2 optimized;  // origin in the optimised frame (= chained until told)
+    Eigen::Vector2d centre = Eigen::Vector2d::Zero();  // grid centre in the submap frame
+    double radius = 0.0;                               // [m] half-diagonal of the grid
+    double driven_at_finish = 0.0;                     // [m] robot path length then
+    Nanos start = 0, end = 0;                          // first and last scan stamps
+  };
+  struct PendingClosure {
+    Nanos stamp = 0;
+    int matched = 0;               // submap the scan matched
+    tessera::Pose2 in_matched;     // robot pose in that submap's frame (the match)
+    tessera::Pose2 robot_chained;  // robot pose in the chained map frame (the builder's)
+    Eigen::Matrix3d covariance = Eigen::Matrix3d::Zero();  // of in_matched
+  };
+
+  void onScan(const Message<msg::LaserScan>& m);
+  void onPose(const Message<msg::PoseStamped>& m);
+  void pairScansWithPoses();
+  void onSubmap(const Message<msg::Submap>& m);
+  void onSubmapPoses(const Message<msg::SubmapPoses>& m);
+  void onGroundTruth(const Message<msg::GroundTruthPose>& m);
+  void tryScan(const Message<msg::LaserScan>& scan, const tessera::Pose2& robot_chained);
+  /// `in_current`: the robot's pose in the current submap at the match.
+  void publishClosure(const PendingClosure& c, int current, const tessera::Pose2& in_current);
+  bool truthAt(Nanos stamp, tessera::Pose2& out) const;
+  /// With score_ground_truth: counts the closure as true or false.
+  void scoreClosure(const PendingClosure& c);
+  /// Search window for a submap: grows with the distance driven since it was finished.
+  tessera::scan_matching::SearchWindow windowFor(const FinishedSubmap& s) const;
+
+  LoopDetectorOptions options_;
+  tessera::scan_matching::ScanMatcher points_;  // only to turn scans into base-frame points
+  tessera::scan_matching::CorrelativeMatcher matcher_;
+  tessera::scan_matching::LoopClosureVerifier verifier_;
+  Publisher<msg::SubmapConstraint> loop_pub_;
+  std::vector<FinishedSubmap> submaps_;
+  std::deque<Message<msg::LaserScan>> scans_;           // waiting for their pose
+  std::deque<std::pair<Nanos, tessera::Pose2>> poses_;  // waiting for their scan
+  std::vector<PendingClosure> pending_;  // matched, waiting for their own submap to end
+  std::map<Nanos, tessera::Pose2> truth_;
+  Nanos last_end_ = -1;  // last stamp of the newest finished submap
+  Nanos first_stamp_ = -1;
+  bool have_last_pose_ = false;
+  tessera::Pose2 last_pose_;
+  double driven_ = 0.0;
+  std::uint64_t scans_seen_ = 0, scans_tried_ = 0, matches_run_ = 0, published_ = 0;
+  std::uint64_t published_smoothed_ = 0;  // of published_: with the submap's smoothed scan pose
+  std::uint64_t truth_true_ = 0, truth_false_ = 0, truth_unknown_ = 0, submaps_rejected_ = 0;
+  double match_seconds_ = 0.0;
+};
+
+}  // namespace tessera::laser_slam

@@ -1,0 +1,315 @@
+#include <tessera/laser_slam/graph_optimizer_actor.hpp>
+
+#include <tessera/messages/types.hpp>
+#include <tessera/pose_graph/pose_graph_io.hpp>
+#include <tessera/runtime/options.hpp>
+#include <tessera/runtime/registry.hpp>
+
+#include "message_pose.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <filesystem>
+#include <iostream>
+#include <stdexcept>
+
+namespace tessera::laser_slam {
+namespace {
+
+SubmapGraphOptions graphOptions(const GraphOptimizerActorOptions& o) {
+  SubmapGraphOptions g;
+  try {
+    g.optimizer.solver = pose_graph::parseSolver(o.solver);
+  } catch (const std::invalid_argument& e) {
+    throw ConfigError(std::string("graph_optimizer: solver: ") + e.what());
+  }
+  if (o.sgd_iterations < 0) throw ConfigError("graph_optimizer: sgd_iterations must be >= 0");
+  if (o.ceres_iterations < 1) throw ConfigError("graph_optimizer: ceres_iterations must be >= 1");
+  if (!(std::isfinite(o.huber_delta) && o.huber_delta >= 0))
+    throw ConfigError("graph_optimizer: huber_delta must be >= 0");
+  if (o.frame_id.empty()) throw ConfigError("graph_optimizer: frame_id must not be empty");
+  g.optimizer.sgd.iterations = o.sgd_iterations;
+  g.optimizer.ceres.max_iterations = o.ceres_iterations;
+  g.optimizer.ceres.huber_delta = o.huber_delta;
+  return g;
+}
+
+ScanGraphOptions scanGraphOptions(const GraphOptimizerActorOptions& o) {
+  ScanGraphOptions g;
+  g.node_every = o.scan_node_every;
+  g.intra_sigma_linear = o.scan_sigma_linear;
+  g.intra_sigma_angular = o.scan_sigma_angular;
+  g.chain_sigma_linear = o.chain_sigma_linear;
+  g.chain_sigma_angular = o.chain_sigma_angular;
+  g.shared_handovers = o.scan_shared_handovers;
+  if (o.scan_ceres_iterations < 1)
+    throw ConfigError("graph_optimizer: scan_ceres_iterations must be >= 1");
+  g.optimizer.ceres.max_iterations = o.scan_ceres_iterations;
+  if (!(std::isfinite(o.scan_huber_delta) && o.scan_huber_delta >= 0))
+    throw ConfigError("graph_optimizer: scan_huber_delta must be >= 0");
+  g.optimizer.ceres.huber_delta = o.scan_huber_delta;
+  try {
+    ScanGraph check(g);
+  } catch (const std::invalid_argument& e) {
+    throw ConfigError(std::string("graph_optimizer: scan graph: ") + e.what());
+  }
+  return g;
+}
+
+}  // namespace
+
+GraphOptimizerActor::GraphOptimizerActor(GraphOptimizerActorOptions options)
+    : options_(std::move(options)),
+      graph_(graphOptions(options_)),
+      scan_graph_(scanGraphOptions(options_)) {}
+
+void GraphOptimizerActor::configure(ActorContext& ctx) {
+  output_dir_ = ctx.outputDir();
+  ctx.subscribe<msg::Submap>("submaps", MailboxPolicy::reliable(),
+                             [this](const Message<msg::Submap>& m) { onSubmap(m); });
+  ctx.subscribe<msg::SubmapConstraint>(
+      "constraints", MailboxPolicy::reliable(),
+      [this](const Message<msg::SubmapConstraint>& m) { onConstraint(m); });
+  poses_pub_ = ctx.advertise<msg::SubmapPoses>("submap_poses");
+  if (options_.compose_trajectory) {
+    ctx.subscribe<msg::PoseStamped>("trajectory", MailboxPolicy::reliable(),
+                                    [this](const Message<msg::PoseStamped>& m) {
+                                      const tessera::Pose2 p = toPose2(m->getPose());
+                                      if (p.isFinite())
+                                        trajectory_.emplace_back(m->getHeader().getStampNs(), p);
+                                    });
+    trajectory_pub_ = ctx.advertise<msg::PoseStamped>("trajectory_final");
+  }
+}
+
+void GraphOptimizerActor::onSubmap(const Message<msg::Submap>& m) {
+  ++submaps_;
+  last_stamp_ = std::max(last_stamp_, m->getHeader().getStampNs());
+  const tessera::Pose2 guess = toPose2(m->getGlobalPose());
+  if (guess.isFinite()) spans_[static_cast<int>(m->getId())] = {m->getHeader().getStampNs(), guess};
+  // A non-finite guess is harmless only if a constraint places the submap: start it at the
+  // origin and let the constraints move it.
+  graph_.addSubmap(static_cast<int>(m->getId()), guess.isFinite() ? guess : tessera::Pose2{});
+  if (options_.scan_graph && m->getFinished() && m->getTrajectory().size() > 0) {
+    std::vector<StampedPose2> trajectory;
+    trajectory.reserve(m->getTrajectory().size());
+    for (const auto p : m->getTrajectory())
+      trajectory.push_back({p.getStampNs(), {p.getX(), p.getY(), p.getTheta()}});
+    if (!scan_graph_.addSubmap(static_cast<int>(m->getId()), std::move(trajectory))) {
+      std::cerr << "[graph_optimizer] scan graph: " << scan_graph_.lastError()
+                << "; its scans are moved with the submap\n";
+      ++scan_rejected_;
+    }
+  }
+  if (graph_.needsOptimization()) optimizeAndPublish();
+}
+
+void GraphOptimizerActor::onConstraint(const Message<msg::SubmapConstraint>& m) {
+  ++constraints_;
+  last_stamp_ = std::max(last_stamp_, m->getHeader().getStampNs());
+  SubmapConstraintInput c;
+  c.from = static_cast<int>(m->getFromId());
+  c.to = static_cast<int>(m->getToId());
+  c.relative = toPose2(m->getRelative());
+  c.revisit = m->getKind() == msg::SubmapConstraint::Kind::REVISIT;
+  if (!readCovariance(m->getRelative(), c.covariance)) {
+    std::cerr << "[graph_optimizer] constraint " << c.from << " -> " << c.to
+              << " has no covariance (9 values expected); rejected\n";
+    ++rejected_;
+    return;
+  }
+  const SubmapGraph::Outcome outcome = graph_.addConstraint(c);
+  switch (outcome) {
+    case SubmapGraph::Outcome::kAdded:
+      ++added_;
+      break;
+    case SubmapGraph::Outcome::kFused:
+      ++fused_;
+      break;
+    case SubmapGraph::Outcome::kDuplicate:
+      ++duplicates_;
+      break;
+    case SubmapGraph::Outcome::kPending:
+      break;
+    case SubmapGraph::Outcome::kRejected:
+      std::cerr << "[graph_optimizer] " << graph_.lastError() << "; rejected\n";
+      ++rejected_;
+      return;
+  }
+  if (!graph_.lastError().empty()) std::cerr << "[graph_optimizer] " << graph_.lastError() << "\n";
+  if (options_.scan_graph && outcome != SubmapGraph::Outcome::kDuplicate) addToScanGraph(m, c);
+  if (graph_.needsOptimization()) optimizeAndPublish();
+}
+
+void GraphOptimizerActor::addToScanGraph(const Message<msg::SubmapConstraint>& m,
+                                         const SubmapConstraintInput& c) {
+  // Exact repeats were counted as duplicates and are not passed here.
+  bool ok = true;
+  if (c.revisit && m->hasScanInTo()) {
+    ScanLoopInput loop;
+    loop.matched = c.to;
+    loop.stamp_ns = m->getHeader().getStampNs();
+    loop.pose = toPose2(m->getScanInTo());
+    if (readCovariance(m->getScanInTo(), loop.covariance)) {
+      ok = scan_graph_.addLoop(loop, c);
+    } else {
+      std::cerr << "[graph_optimizer] constraint " << c.from << " -> " << c.to
+                << ": scanInTo has no covariance (9 values expected); kept between submaps\n";
+      ++scan_rejected_;
+      ok = scan_graph_.addConstraint(c);
+    }
+  } else {
+    ok = scan_graph_.addConstraint(c);
+  }
+  if (!ok) {
+    std::cerr << "[graph_optimizer] scan graph: " << scan_graph_.lastError() << "; left out\n";
+    ++scan_rejected_;
+  }
+}
+
+void GraphOptimizerActor::optimizeAndPublish() {
+  try {
+    const auto s = graph_.optimize();
+    ++optimizations_;
+    optimize_seconds_ += s.seconds;
+    last_chi2_ = s.final_chi2;
+    publishPoses(graph_.poses(), s.final_chi2, s.iterations);
+  } catch (const pose_graph::GraphError& e) {
+    // Keep the last good poses; the next constraint tries again.
+    std::cerr << "[graph_optimizer] optimisation failed: " << e.what() << "\n";
+    ++solver_failures_;
+  }
+}
+
+void GraphOptimizerActor::publishPoses(const std::map<int, tessera::Pose2>& poses, double chi2,
+                                       int iterations) {
+  auto loan = poses_pub_.loan(64 * poses.size() + 256);
+  setHeader(loan->initHeader(), last_stamp_, options_.frame_id, poses_pub_.nextSeq());
+  auto list = loan->initPoses(static_cast<unsigned>(poses.size()));
+  unsigned k = 0;
+  for (const auto& [id, p] : poses) {
+    list[k].setId(static_cast<std::uint32_t>(id));
+    writePose(list[k].initPose(), PoseXYT{p.x, p.y, p.theta});
+    ++k;
+  }
+  loan->setChi2(chi2);
+  loan->setIterations(static_cast<std::uint32_t>(std::max(0, iterations)));
+  poses_pub_.publish(std::move(loan));
+  ++published_;
+}
+
+void GraphOptimizerActor::stop() {
+  for (const auto& d : graph_.pendingDescriptions())
+    std::cerr << "[graph_optimizer] constraint " << d
+              << " names a submap that never arrived; left out of the graph\n";
+  if (graph_.needsOptimization()) optimizeAndPublish();
+  if (options_.scan_graph && graph_.nodes() > 0 && optimizeScanGraph())
+    publishPoses(scan_graph_.submapPoses(), scan_chi2_, 0);
+  else if (graph_.nodes() > 0)
+    publishPoses(graph_.poses(), graph_.chi2(), 0);
+  if (options_.compose_trajectory) publishComposedTrajectory();
+  if (!options_.g2o_file.empty() && !output_dir_.empty() && graph_.nodes() > 0) writeGraph();
+}
+
+bool GraphOptimizerActor::optimizeScanGraph() {
+  try {
+    const auto s = scan_graph_.optimize(graph_.poses());
+    scan_seconds_ = s.seconds;
+    scan_chi2_ = s.final_chi2;
+    scan_iterations_ = s.iterations;
+    scan_optimized_ = true;
+  } catch (const pose_graph::GraphError& e) {
+    // stop() must not throw: the submap-level result stands.
+    std::cerr << "[graph_optimizer] scan-level optimisation failed: " << e.what()
+              << "; the final poses are the submap-level ones\n";
+    ++solver_failures_;
+  }
+  return scan_optimized_;
+}
+
+void GraphOptimizerActor::writeGraph() {
+  const pose_graph::Graph2D& g = graph_.graph();
+  pose_graph::PoseGraph2D out;
+  for (int i = 0; i < g.size(); ++i) {
+    const auto& p = g.poses[static_cast<std::size_t>(i)];
+    out.vertices[g.ids[static_cast<std::size_t>(i)]] = p;
+    // The solvers hold the first node where it is (it anchors the map frame): say so in the file.
+    if (i == 0 || g.fixed[static_cast<std::size_t>(i)])
+      out.fixed.push_back(g.ids[static_cast<std::size_t>(i)]);
+  }
+  for (const auto& e : g.edges)
+    out.edges.push_back({g.ids[static_cast<std::size_t>(e.from)],
+                         g.ids[static_cast<std::size_t>(e.to)], e.measurement, e.information});
+  // stop() must not throw: a failed write is logged and reported in the summary.
+  try {
+    const std::filesystem::path path = std::filesystem::path(output_dir_) / options_.g2o_file;
+    pose_graph::writeG2o(out, path);
+    graph_path_ = path.string();
+  } catch (const std::exception& e) {
+    write_error_ = e.what();
+    std::cerr << "[graph_optimizer] " << write_error_ << "\n";
+  }
+}
+
+void GraphOptimizerActor::publishComposedTrajectory() {
+  const std::map<int, tessera::Pose2> origins =
+      scan_optimized_ ? scan_graph_.submapPoses() : graph_.poses();
+  // Submaps by their last scan's stamp: a pose belongs to the first one not older than it.
+  std::map<Nanos, int> by_end;
+  for (const auto& [id, span] : spans_)
+    if (origins.count(id)) by_end.emplace(span.last_stamp, id);
+  if (by_end.empty()) return;
+  std::sort(trajectory_.begin(), trajectory_.end(),
+            [](const auto& a, const auto& b) { return a.first < b.first; });
+  for (const auto& [stamp, pose] : trajectory_) {
+    tessera::Pose2 moved;
+    if (!scan_optimized_ || !scan_graph_.scanPose(stamp, moved)) {
+      auto it = by_end.lower_bound(stamp);
+      if (it == by_end.end()) --it;  // after the last submap's last scan: still the last submap
+      const int id = it->second;
+      moved = origins.at(id) * (spans_.at(id).chained.inverse() * pose);
+      if (scan_optimized_) ++scan_composed_;
+    }
+    auto loan = trajectory_pub_.loan();
+    setHeader(loan->initHeader(), stamp, options_.frame_id, trajectory_pub_.nextSeq());
+    writePose(loan->initPose(), PoseXYT{moved.x, moved.y, moved.theta});
+    trajectory_pub_.publish(std::move(loan));
+  }
+}
+
+void GraphOptimizerActor::summarize(Summary& out) const {
+  const auto i64 = [](std::uint64_t v) { return static_cast<std::int64_t>(v); };
+  out["graph_nodes"] = i64(graph_.nodes());
+  out["graph_edges"] = i64(graph_.edges());
+  out["submaps_received"] = i64(submaps_);
+  out["constraints_received"] = i64(constraints_);
+  out["constraints_added"] = i64(added_);
+  out["constraints_fused"] = i64(fused_);
+  out["constraints_duplicate"] = i64(duplicates_);
+  out["constraints_rejected"] = i64(rejected_);
+  out["constraints_unresolved"] = i64(graph_.pending());
+  out["optimizations"] = i64(optimizations_);
+  out["optimize_s"] = optimize_seconds_;
+  out["final_chi2"] = last_chi2_;
+  if (solver_failures_ > 0) out["solver_failures"] = i64(solver_failures_);
+  if (options_.scan_graph) {
+    out["scan_graph_optimized"] = std::int64_t{scan_optimized_ ? 1 : 0};
+    out["scan_graph_nodes"] = i64(scan_graph_.nodes());
+    out["scan_graph_scan_nodes"] = i64(scan_graph_.scanNodes());
+    out["scan_graph_edges"] = i64(scan_graph_.edges());
+    out["scan_graph_loops_on_scans"] = i64(scan_graph_.loopsOnScans());
+    out["scan_graph_loops_on_submaps"] = i64(scan_graph_.loopsOnSubmaps());
+    out["scan_graph_rejected"] = i64(scan_rejected_);
+    out["scan_graph_poses_composed"] = i64(scan_composed_);
+    out["scan_graph_s"] = scan_seconds_;
+    out["scan_graph_chi2"] = scan_chi2_;
+    out["scan_graph_iterations"] = std::int64_t{scan_iterations_};
+  }
+  if (!graph_path_.empty()) out["graph_path"] = graph_path_;
+  if (!write_error_.empty()) out["graph_write_error"] = write_error_;
+}
+
+TESSERA_REGISTER_ACTOR("graph_optimizer", GraphOptimizerActor, GraphOptimizerActorOptions,
+                       "global laser SLAM: fuses submap constraints and optimises the pose graph");
+
+}  // namespace tessera::laser_slam

@@ -1,0 +1,399 @@
+#include <tessera/laser_slam/loop_detector_actor.hpp>
+
+#include <tessera/messages/types.hpp>
+#include <tessera/messages/views.hpp>
+#include <tessera/runtime/options.hpp>
+#include <tessera/runtime/registry.hpp>
+
+#include "message_pose.hpp"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <iostream>
+#include <iterator>
+#include <ranges>
+#include <stdexcept>
+
+namespace tessera::laser_slam {
+namespace {
+
+const LoopDetectorOptions& checked(const LoopDetectorOptions& o) {
+  auto positive = [](double v) { return std::isfinite(v) && v > 0; };
+  auto non_negative = [](double v) { return std::isfinite(v) && v >= 0; };
+  if (o.every_n_scans < 1) throw ConfigError("loop_detector: every_n_scans must be >= 1");
+  if (o.closures_per_scan < 1 || o.closures_per_scan > o.max_candidates)
+    throw ConfigError("loop_detector: closures_per_scan must be in [1, max_candidates]");
+  if (o.skip_recent < 0) throw ConfigError("loop_detector: skip_recent must be >= 0");
+  if (o.max_candidates < 1) throw ConfigError("loop_detector: max_candidates must be >= 1");
+  if (!positive(o.window_linear) || !positive(o.window_linear_max) ||
+      o.window_linear_max < o.window_linear)
+    throw ConfigError("loop_detector: need 0 < window_linear <= window_linear_max");
+  if (!non_negative(o.window_angular) || !non_negative(o.window_angular_max) ||
+      o.window_angular_max < o.window_angular)
+    throw ConfigError("loop_detector: need 0 <= window_angular <= window_angular_max");
+  if (!non_negative(o.window_growth) || !non_negative(o.window_angular_growth))
+    throw ConfigError("loop_detector: window growth rates must be >= 0");
+  if (!non_negative(o.sigma_floor_linear) || !non_negative(o.sigma_floor_angular))
+    throw ConfigError("loop_detector: sigma floors must be >= 0");
+  if (!positive(o.truth_tolerance_linear) || !positive(o.truth_tolerance_angular))
+    throw ConfigError("loop_detector: truth tolerances must be > 0");
+  if (o.scan_queue < 1 || o.pose_queue < 1)
+    throw ConfigError("loop_detector: scan_queue and pose_queue must be >= 1");
+  return o;
+}
+
+template <class Make>
+auto configError(const char* what, Make make) {
+  try {
+    return make();
+  } catch (const std::invalid_argument& e) {
+    throw ConfigError(std::string("loop_detector: ") + what + ": " + e.what());
+  }
+}
+
+tessera::scan_matching::ScanMatcher pointMaker(const LoopDetectorOptions& o) {
+  tessera::scan_matching::ScanMatcherOptions m;
+  m.max_range = o.max_range;
+  return configError("max_range", [&] { return tessera::scan_matching::ScanMatcher(m); });
+}
+
+tessera::scan_matching::CorrelativeMatcher correlativeMatcher(const LoopDetectorOptions& o) {
+  tessera::scan_matching::CorrelativeMatcherOptions m;
+  m.pyramid_depth = o.pyramid_depth;
+  m.max_range = o.max_range;
+  m.min_score = o.min_score;
+  return configError("matcher", [&] { return tessera::scan_matching::CorrelativeMatcher(m); });
+}
+
+tessera::scan_matching::LoopClosureVerifier verifier(const LoopDetectorOptions& o) {
+  tessera::scan_matching::LoopClosureVerifierOptions v;
+  v.min_score = o.min_score;
+  v.max_ambiguity = o.max_ambiguity;
+  v.max_prior_sigmas = o.max_prior_sigmas;
+  v.max_position_sigma = o.max_position_sigma;
+  return configError("verifier", [&] { return tessera::scan_matching::LoopClosureVerifier(v); });
+}
+
+/// Covariance of T = a ⊕ b⁻¹ from that of b, by a numeric Jacobian (the map is smooth and
+/// 3-dimensional; a closed form buys nothing here).
+Eigen::Matrix3d relativeCovariance(const tessera::Pose2& a, const tessera::Pose2& b,
+                                   const Eigen::Matrix3d& cov_b) {
+  const tessera::Pose2 t0 = a * b.inverse();
+  Eigen::Matrix3d j;
+  const double h = 1e-6;
+  for (int k = 0; k < 3; ++k) {
+    Eigen::Vector3d d = Eigen::Vector3d::Zero();
+    d[k] = h;
+    const tessera::Pose2 t = a * tessera::Pose2(b.x + d[0], b.y + d[1], b.theta + d[2]).inverse();
+    j.col(k) = Eigen::Vector3d(t.x - t0.x, t.y - t0.y, tessera::angleDiff(t.theta, t0.theta)) / h;
+  }
+  return j * cov_b * j.transpose();
+}
+
+}  // namespace
+
+LoopDetectorActor::LoopDetectorActor(LoopDetectorOptions options)
+    : options_(checked(options)),
+      points_(pointMaker(options_)),
+      matcher_(correlativeMatcher(options_)),
+      verifier_(verifier(options_)) {}
+
+void LoopDetectorActor::configure(ActorContext& ctx) {
+  ctx.subscribe<msg::LaserScan>(
+      "scan", MailboxPolicy::keepLatest(static_cast<std::size_t>(options_.scan_queue)),
+      [this](const Message<msg::LaserScan>& m) { onScan(m); });
+  ctx.subscribe<msg::PoseStamped>(
+      "pose", MailboxPolicy::keepLatest(static_cast<std::size_t>(options_.pose_queue)),
+      [this](const Message<msg::PoseStamped>& m) { onPose(m); });
+  ctx.subscribe<msg::Submap>("submaps", MailboxPolicy::reliable(),
+                             [this](const Message<msg::Submap>& m) { onSubmap(m); });
+  if (options_.optimized_poses)
+    ctx.subscribe<msg::SubmapPoses>(
+        "submap_poses", MailboxPolicy::keepLatest(1),
+        [this](const Message<msg::SubmapPoses>& m) { onSubmapPoses(m); });
+  if (options_.score_ground_truth)
+    ctx.subscribe<msg::GroundTruthPose>(
+        "ground_truth", MailboxPolicy::keepLatest(1000),
+        [this](const Message<msg::GroundTruthPose>& m) { onGroundTruth(m); });
+  loop_pub_ = ctx.advertise<msg::SubmapConstraint>("loop_constraints");
+}
+
+void LoopDetectorActor::onScan(const Message<msg::LaserScan>& m) {
+  scans_.push_back(m);
+  while (scans_.size() > static_cast<std::size_t>(options_.scan_queue)) scans_.pop_front();
+  pairScansWithPoses();
+}
+
+void LoopDetectorActor::onPose(const Message<msg::PoseStamped>& m) {
+  const tessera::Pose2 pose = toPose2(m->getPose());
+  if (!pose.isFinite()) return;
+  poses_.emplace_back(m->getHeader().getStampNs(), pose);
+  while (poses_.size() > static_cast<std::size_t>(options_.pose_queue)) poses_.pop_front();
+  pairScansWithPoses();
+}
+
+void LoopDetectorActor::pairScansWithPoses() {
+  // The builder stamps each pose with its scan's stamp; the two mailboxes may be served in
+  // either order, so whichever comes first waits for the other.
+  while (!scans_.empty() && !poses_.empty()) {
+    const Nanos scan_stamp = scans_.front()->getHeader().getStampNs();
+    const Nanos pose_stamp = poses_.front().first;
+    if (scan_stamp < pose_stamp) {
+      scans_.pop_front();  // a scan the builder gave no pose (skipped or unpaired)
+      continue;
+    }
+    const tessera::Pose2 pose = poses_.front().second;
+    poses_.pop_front();
+    if (first_stamp_ < 0) first_stamp_ = pose_stamp;
+    if (have_last_pose_) driven_ += std::hypot(pose.x - last_pose_.x, pose.y - last_pose_.y);
+    last_pose_ = pose;
+    have_last_pose_ = true;
+    if (scan_stamp > pose_stamp) continue;  // its scan is gone (dropped); keep the path length
+    const auto scan = scans_.front();
+    scans_.pop_front();
+    if (++scans_seen_ % static_cast<std::uint64_t>(options_.every_n_scans) == 0)
+      tryScan(scan, pose);
+  }
+}
+
+void LoopDetectorActor::tryScan(const Message<msg::LaserScan>& scan,
+                                const tessera::Pose2& robot_chained) {
+  const int searchable = static_cast<int>(submaps_.size()) - options_.skip_recent;
+  if (searchable <= 0) return;
+  ++scans_tried_;
+  // The robot in the optimised frame: moved like the newest finished submap was.
+  const FinishedSubmap& newest = submaps_.back();
+  const tessera::Pose2 robot = newest.optimized * newest.chained.inverse() * robot_chained;
+  struct Candidate {
+    std::size_t index;
+    double distance;
+    tessera::Pose2 local;
+  };
+  std::vector<Candidate> candidates;
+  for (int k = 0; k < searchable; ++k) {
+    const auto& s = submaps_[static_cast<std::size_t>(k)];
+    const tessera::Pose2 local = s.optimized.inverse() * robot;
+    const double d = (local.translation() - s.centre).norm();
+    if (d <= s.radius + windowFor(s).linear)
+      candidates.push_back({static_cast<std::size_t>(k), d, local});
+  }
+  std::sort(candidates.begin(), candidates.end(),
+            [](const Candidate& a, const Candidate& b) { return a.distance < b.distance; });
+  if (candidates.size() > static_cast<std::size_t>(options_.max_candidates))
+    candidates.resize(static_cast<std::size_t>(options_.max_candidates));
+  if (candidates.empty()) return;
+
+  const tessera::grid::RangeScan ranges{view<float>(scan->getRanges()), scan->getAngleMin(),
+                                        scan->getAngleIncrement(), scan->getRangeMin(),
+                                        scan->getRangeMax()};
+  const tessera::Pose2 mount(scan->getMountX(), scan->getMountY(), scan->getMountTheta());
+  const tessera::scan_matching::ScanPoints prepared = points_.prepare(ranges, mount);
+  std::vector<Eigen::Vector2d> points;
+  points.reserve(prepared.size());
+  for (const auto& p : prepared.endpoints) points.push_back(p.cast<double>());
+  if (points.empty()) return;
+
+  const auto start = std::chrono::steady_clock::now();
+  std::vector<std::pair<double, PendingClosure>> accepted;  // by score
+  for (const auto& c : candidates) {
+    const auto& s = submaps_[c.index];
+    const tessera::scan_matching::SearchWindow window = windowFor(s);
+    const auto result = matcher_.match(s.grid, points, c.local, window);
+    ++matches_run_;
+    const Eigen::Vector3d sigma(window.linear / 3, window.linear / 3,
+                                std::max(window.angular, 1e-3) / 3);
+    const Eigen::Matrix3d prior = sigma.cwiseAbs2().asDiagonal();
+    const auto verdict = verifier_.verify(result, c.local, prior);
+    if (!verdict.accepted) continue;
+    accepted.push_back(
+        {result.score,
+         {scan->getHeader().getStampNs(), s.id, result.pose, robot_chained, result.covariance}});
+  }
+  match_seconds_ += std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  // Best first (the nearer submap on a tie). Closures beyond the best tie the scan to further
+  // submaps; a scan-level graph uses each, a submap-level one fuses them.
+  std::stable_sort(accepted.begin(), accepted.end(),
+                   [](const auto& a, const auto& b) { return a.first > b.first; });
+  if (accepted.size() > static_cast<std::size_t>(options_.closures_per_scan))
+    accepted.resize(static_cast<std::size_t>(options_.closures_per_scan));
+  for (const auto& [score, closure] : accepted) {
+    if (options_.score_ground_truth) scoreClosure(closure);
+    pending_.push_back(closure);
+  }
+}
+
+void LoopDetectorActor::scoreClosure(const PendingClosure& c) {
+  const auto& s = *std::find_if(submaps_.begin(), submaps_.end(),
+                                [&](const auto& x) { return x.id == c.matched; });
+  tessera::Pose2 now, origin;
+  if (truthAt(c.stamp, now) && truthAt(s.start, origin)) {
+    const tessera::Pose2 truth = origin.inverse() * now;
+    const bool ok = std::hypot(truth.x - c.in_matched.x, truth.y - c.in_matched.y) <=
+                        options_.truth_tolerance_linear &&
+                    std::abs(tessera::angleDiff(truth.theta, c.in_matched.theta)) <=
+                        options_.truth_tolerance_angular;
+    ++(ok ? truth_true_ : truth_false_);
+  } else {
+    ++truth_unknown_;
+  }
+}
+
+tessera::scan_matching::SearchWindow LoopDetectorActor::windowFor(const FinishedSubmap& s) const {
+  const double driven = driven_ - s.driven_at_finish;
+  return {std::min(options_.window_linear_max,
+                   options_.window_linear + options_.window_growth * driven),
+          std::min(options_.window_angular_max,
+                   options_.window_angular + options_.window_angular_growth * driven)};
+}
+
+void LoopDetectorActor::onSubmap(const Message<msg::Submap>& m) {
+  if (!m->getFinished()) return;
+  const int id = static_cast<int>(m->getId());
+  const auto g = m->getGrid();
+  tessera::scan_matching::GridView view;
+  view.width = static_cast<int>(g.getWidth());
+  view.height = static_cast<int>(g.getHeight());
+  view.resolution = g.getResolution();
+  view.origin = toPose2(g.getOrigin());
+  const auto cells = viewInt8(g.getCells());
+  view.percent = std::span<const std::int8_t>(cells.data(), cells.size());
+  FinishedSubmap s{id, matcher_.precompute(view), toPose2(m->getGlobalPose()), {}};
+  const Nanos end = m->getHeader().getStampNs();
+  const Nanos start = last_end_ >= 0 ? last_end_ : std::max<Nanos>(first_stamp_, 0);
+  last_end_ = std::max(last_end_, end);
+  // This submap's own scans ran up to `end`: their closures can be expressed now.
+  const tessera::Pose2 chained = s.chained;
+  const auto trajectory = m->getTrajectory();  // by increasing stamp
+  // The smoothed pose of the scan at `stamp` (stamps went through seconds: 1 us tolerance).
+  auto smoothed = [&](Nanos stamp, tessera::Pose2& out) {
+    // Cap'n Proto 0.9 list iterators are not random access: search the indices.
+    const auto indices = std::views::iota(0u, trajectory.size());
+    const auto at = std::ranges::partition_point(
+        indices, [&](unsigned k) { return trajectory[k].getStampNs() < stamp - 1000; });
+    if (at == indices.end()) return false;
+    const auto p = trajectory[*at];
+    if (std::abs(p.getStampNs() - stamp) > 1000) return false;
+    out = {p.getX(), p.getY(), p.getTheta()};
+    return out.isFinite();
+  };
+  std::vector<PendingClosure> still;
+  for (const auto& c : pending_) {
+    if (c.stamp <= end && chained.isFinite()) {
+      tessera::Pose2 in_current;
+      if (smoothed(c.stamp, in_current)) {
+        if (c.matched != id) ++published_smoothed_;
+      } else {
+        in_current = chained.inverse() * c.robot_chained;  // the online estimate
+      }
+      publishClosure(c, id, in_current);
+    } else {
+      still.push_back(c);
+    }
+  }
+  pending_ = std::move(still);
+  if (s.grid.empty() || !chained.isFinite()) {
+    std::cerr << "[loop_detector] submap " << id << " cannot be searched: "
+              << (s.grid.empty() ? s.grid.error() : "non-finite global pose") << "\n";
+    ++submaps_rejected_;
+    return;
+  }
+  s.optimized = chained;
+  const double half_w = 0.5 * view.width * view.resolution,
+               half_h = 0.5 * view.height * view.resolution;
+  s.centre = view.origin * Eigen::Vector2d(half_w, half_h);
+  s.radius = std::hypot(half_w, half_h);
+  s.driven_at_finish = driven_;
+  s.start = start;
+  s.end = end;
+  submaps_.push_back(std::move(s));
+}
+
+void LoopDetectorActor::publishClosure(const PendingClosure& c, int current,
+                                       const tessera::Pose2& in_current) {
+  if (c.matched == current) return;
+  // The matched submap's origin seen from the current one's: robot-in-current ⊕ robot-in-matched⁻¹.
+  const tessera::Pose2 relative = in_current * c.in_matched.inverse();
+  const Eigen::Vector3d floor(options_.sigma_floor_linear * options_.sigma_floor_linear,
+                              options_.sigma_floor_linear * options_.sigma_floor_linear,
+                              options_.sigma_floor_angular * options_.sigma_floor_angular);
+  Eigen::Matrix3d cov = relativeCovariance(in_current, c.in_matched, c.covariance);
+  cov.diagonal() += floor;
+  Eigen::Matrix3d match_cov = c.covariance;
+  match_cov.diagonal() += floor;
+  auto loan = loop_pub_.loan();
+  setHeader(loan->initHeader(), c.stamp, "map", loop_pub_.nextSeq());
+  loan->setFromId(static_cast<std::uint32_t>(current));
+  loan->setToId(static_cast<std::uint32_t>(c.matched));
+  writePose(loan->initRelative(), PoseXYT{relative.x, relative.y, relative.theta}, &cov);
+  loan->setKind(msg::SubmapConstraint::Kind::REVISIT);
+  writePose(loan->initScanInTo(), PoseXYT{c.in_matched.x, c.in_matched.y, c.in_matched.theta},
+            &match_cov);
+  loop_pub_.publish(std::move(loan));
+  ++published_;
+}
+
+void LoopDetectorActor::onSubmapPoses(const Message<msg::SubmapPoses>& m) {
+  for (const auto p : m->getPoses()) {
+    const tessera::Pose2 pose = toPose2(p.getPose());
+    if (!pose.isFinite()) continue;
+    for (auto& s : submaps_)
+      if (s.id == static_cast<int>(p.getId())) s.optimized = pose;
+  }
+}
+
+void LoopDetectorActor::onGroundTruth(const Message<msg::GroundTruthPose>& m) {
+  const tessera::Pose2 p = toPose2(m->getPose());
+  if (p.isFinite()) truth_[m->getHeader().getStampNs()] = p;
+}
+
+bool LoopDetectorActor::truthAt(Nanos stamp, tessera::Pose2& out) const {
+  // Linear interpolation between the neighbouring truth poses (at most 0.5 s apart).
+  const auto after = truth_.lower_bound(stamp);
+  if (after == truth_.end()) return false;
+  if (after->first == stamp || after == truth_.begin()) {
+    if (std::abs(after->first - stamp) > 500'000'000) return false;
+    out = after->second;
+    return true;
+  }
+  const auto before = std::prev(after);
+  if (after->first - before->first > 500'000'000) return false;
+  const double f = static_cast<double>(stamp - before->first) /
+                   static_cast<double>(after->first - before->first);
+  const tessera::Pose2& a = before->second;
+  const tessera::Pose2& b = after->second;
+  out = {a.x + f * (b.x - a.x), a.y + f * (b.y - a.y),
+         a.theta + f * tessera::angleDiff(b.theta, a.theta)};
+  return true;
+}
+
+void LoopDetectorActor::summarize(Summary& out) const {
+  const auto i64 = [](std::uint64_t v) { return static_cast<std::int64_t>(v); };
+  const auto& c = verifier_.counts();
+  out["loop_scans_tried"] = i64(scans_tried_);
+  out["loop_matches_run"] = i64(matches_run_);
+  out["loop_match_s"] = match_seconds_;
+  out["loops_accepted"] = i64(c.accepted);
+  out["loops_published"] = i64(published_);
+  out["loops_published_smoothed"] = i64(published_smoothed_);
+  out["loops_rejected_no_match"] = i64(c.no_match);
+  out["loops_rejected_low_score"] = i64(c.low_score);
+  out["loops_rejected_ambiguous"] = i64(c.ambiguous);
+  out["loops_rejected_unconstrained"] = i64(c.unconstrained);
+  out["loops_rejected_inconsistent"] = i64(c.inconsistent);
+  out["loops_unpublished"] = i64(pending_.size());
+  if (submaps_rejected_ > 0) out["loop_submaps_rejected"] = i64(submaps_rejected_);
+  if (options_.score_ground_truth) {
+    out["loops_true"] = i64(truth_true_);
+    out["loops_false"] = i64(truth_false_);
+    out["loops_unscored"] = i64(truth_unknown_);
+    const auto scored = truth_true_ + truth_false_;
+    out["loop_precision"] = scored > 0 ? static_cast<double>(truth_true_) / scored : 1.0;
+  }
+}
+
+TESSERA_REGISTER_ACTOR("loop_detector", LoopDetectorActor, LoopDetectorOptions,
+                       "loop closures: scans matched against finished submaps (branch and "
+                       "bound), verified, published as revisit constraints");
+
+}  // namespace tessera::laser_slam

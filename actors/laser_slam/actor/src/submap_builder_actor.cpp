@@ -1,0 +1,326 @@
+#include <tessera/laser_slam/submap_builder_actor.hpp>
+
+#include <tessera/messages/views.hpp>
+#include <tessera/runtime/options.hpp>
+#include <tessera/runtime/registry.hpp>
+
+#include <cmath>
+#include <stdexcept>
+#include <string>
+
+namespace tessera::laser_slam {
+namespace {
+
+Rbpf checkedFilter(const SubmapBuilderOptions& o) {
+  const auto fail = [](const std::string& what) {
+    throw ConfigError("rbpf_submap_builder: " + what);
+  };
+  if (!(std::isfinite(o.submap_distance) && o.submap_distance >= 0))
+    fail("submap_distance must be >= 0 [m] (0 = never)");
+  if (o.submap_scans < 0) fail("submap_scans must be >= 0 (0 = never)");
+  if (o.scan_queue < 1 || o.odom_queue < 1 || o.scan_buffer < 1 || o.pose_history < 2)
+    fail("scan_queue, odom_queue, scan_buffer must be >= 1 and pose_history >= 2");
+  if (!(std::isfinite(o.max_pose_gap_s) && o.max_pose_gap_s > 0))
+    fail("max_pose_gap_s must be > 0");
+  if (o.frame_id.empty()) fail("frame_id must not be empty");
+  try {
+    return Rbpf(o.rbpf());  // the core owns the rules for its options
+  } catch (const std::invalid_argument& e) {
+    fail(e.what());
+  }
+  throw std::logic_error("unreachable");
+}
+
+Eigen::Matrix3d rotateCovariance(const Eigen::Matrix3d& c, const tessera::Pose2& frame) {
+  Eigen::Matrix3d r = Eigen::Matrix3d::Identity();
+  r.topLeftCorner<2, 2>() = frame.rotation();
+  return r * c * r.transpose();
+}
+
+PoseXYT xyt(const tessera::Pose2& p) {
+  return {p.x, p.y, p.theta};
+}
+
+}  // namespace
+
+RbpfOptions SubmapBuilderOptions::rbpf() const {
+  RbpfOptions o;
+  o.particles = particles;
+  o.resample_threshold = resample_threshold;
+  o.weight_divisor = weight_divisor;
+  o.linear_update = linear_update;
+  o.angular_update = angular_update;
+  o.temporal_update = temporal_update;
+  o.motion = {srr, srt, str, stt};
+  o.seed = seed;
+  o.parallel = parallel;
+  o.sample_proposal = sample_proposal;
+  o.handover_sigma_linear = handover_sigma_linear;
+  o.handover_sigma_angular = handover_sigma_angular;
+  o.grid.resolution = resolution;
+  o.grid.track_hit_points = hit_points;
+  o.grid.log_odds = {static_cast<float>(l_occ), static_cast<float>(l_free),
+                     static_cast<float>(l_min), static_cast<float>(l_max)};
+  o.insert.max_range = max_range;
+  o.insert.max_free_range = max_free_range;
+  o.matcher.max_range = max_range;
+  o.matcher.beam_step = match_beam_step;
+  o.matcher.kernel_radius = match_kernel_radius;
+  o.coarse_kernel_radius = coarse_kernel_radius;
+  o.coarse_beam_step = coarse_beam_step;
+  o.recovery_sigma = recovery_sigma;
+  o.recovery_angular_step = recovery_angular_step;
+  o.min_overlap_fraction = min_overlap_fraction;
+  o.best_support_linear = best_support_linear;
+  o.best_support_angular = best_support_angular;
+  o.online_mean_linear = online_mean_linear;
+  o.online_mean_angular = online_mean_angular;
+  o.track_between_updates = track_between_updates;
+  o.track_linear_step = track_linear_step;
+  o.track_angular_step = track_angular_step;
+  o.track_refinements = track_refinements;
+  o.matcher.sigma = match_sigma;
+  o.matcher.likelihood_sigma = match_likelihood_sigma;
+  o.matcher.likelihood_gain = match_likelihood_gain;
+  o.matcher.linear_step = match_linear_step;
+  o.matcher.angular_step = match_angular_step;
+  o.matcher.refinements = match_refinements;
+  o.matcher.min_score_fraction = match_min_fraction;
+  o.matcher.proposal_linear = match_proposal_linear;
+  o.matcher.no_hit_distance = match_no_hit_distance;
+  o.matcher.proposal_angular = match_proposal_angular;
+  o.matcher.compute_covariance = false;  // the filter fits its own proposal covariance
+  return o;
+}
+
+SubmapBuilderActor::SubmapBuilderActor(SubmapBuilderOptions options)
+    : options_(std::move(options)),
+      rbpf_(checkedFilter(options_)),
+      pairing_(static_cast<std::size_t>(options_.scan_buffer),
+               static_cast<std::size_t>(options_.pose_history), options_.max_pose_gap_s) {}
+
+void SubmapBuilderActor::configure(ActorContext& ctx) {
+  ctx.subscribe<msg::LaserScan>(
+      "scan", MailboxPolicy::keepLatest(static_cast<std::size_t>(options_.scan_queue)),
+      [this](const Message<msg::LaserScan>& m) { onScan(m); });
+  ctx.subscribe<msg::Odometry>(
+      "odom", MailboxPolicy::keepLatest(static_cast<std::size_t>(options_.odom_queue)),
+      [this](const Message<msg::Odometry>& m) {
+        const auto p = m->getPose();
+        onOdometry(m->getHeader().getStampNs(), {p.getX(), p.getY(), p.getTheta()});
+      });
+  if (options_.camera_trigger) {
+    ctx.subscribe<msg::CameraEvent>(
+        "camera_events", MailboxPolicy::reliable(),
+        [this](const Message<msg::CameraEvent>& m) { onCameraEvent(m); });
+  }
+  pose_pub_ = ctx.advertise<msg::PoseStamped>("pose");
+  correction_pub_ = ctx.advertise<msg::PoseStamped>("map_to_odom");
+  submap_pub_ = ctx.advertise<msg::Submap>("submaps");
+  constraint_pub_ = ctx.advertise<msg::SubmapConstraint>("constraints");
+  final_pub_ = ctx.advertise<msg::PoseStamped>("final_poses");
+}
+
+void SubmapBuilderActor::onScan(const Message<msg::LaserScan>& scan) {
+  ++scans_read_;
+  pairing_.addItem(scan, scan->getHeader().getStampNs(),
+                   [this](const auto& s, const tessera::Pose2& odom) { process(s, odom); });
+}
+
+void SubmapBuilderActor::onOdometry(Nanos stamp, const tessera::Pose2& pose) {
+  if (!pairing_.addPose(stamp, pose,
+                        [this](const auto& s, const tessera::Pose2& odom) { process(s, odom); }))
+    ++odometry_invalid_;
+}
+
+void SubmapBuilderActor::onCameraEvent(const Message<msg::CameraEvent>& event) {
+  if (!event->getEntered()) return;
+  const int camera = event->getCameraId();
+  if (camera == last_camera_) return;  // back in the view it just left: same submap
+  last_camera_ = camera;
+  handover_requested_ = true;
+}
+
+void SubmapBuilderActor::process(const Message<msg::LaserScan>& scan, const tessera::Pose2& odom) {
+  const Nanos stamp = scan->getHeader().getStampNs();
+  const tessera::grid::RangeScan ranges{view<float>(scan->getRanges()), scan->getAngleMin(),
+                                        scan->getAngleIncrement(), scan->getRangeMin(),
+                                        scan->getRangeMax()};
+  const tessera::Pose2 mount(scan->getMountX(), scan->getMountY(), scan->getMountTheta());
+  const RbpfStep step = rbpf_.addScan(nanosToSeconds(stamp), ranges, mount, odom);
+  last_stamp_ = stamp;
+  if (!rbpf_.initialized()) return;  // nothing to publish before the first usable scan
+  scan_odometry_.emplace_back(nanosToSeconds(stamp), odom);
+
+  const bool by_distance =
+      options_.submap_distance > 0 && rbpf_.submapTravelled() >= options_.submap_distance;
+  const bool by_scans = options_.submap_scans > 0 &&
+                        rbpf_.submapScans() >= static_cast<std::uint64_t>(options_.submap_scans);
+  if (handover_requested_ || (step.updated && (by_distance || by_scans))) {
+    if (handover_requested_) ++camera_handovers_;
+    handover_requested_ = false;
+    handOver(stamp);
+  }
+  publishPose(stamp, odom);
+}
+
+void SubmapBuilderActor::publishPose(Nanos stamp, const tessera::Pose2& odometry) {
+  const tessera::Pose2 global = submap_origin_ * rbpf_.pose();
+  const Eigen::Matrix3d cov =
+      rotateCovariance(rbpf_.poseWithCovariance().covariance, submap_origin_);
+  {
+    auto loan = pose_pub_.loan();
+    setHeader(loan->initHeader(), stamp, options_.frame_id, pose_pub_.nextSeq());
+    writePose(loan->initPose(), xyt(global), &cov);
+    pose_pub_.publish(std::move(loan));
+  }
+  {
+    auto loan = correction_pub_.loan();
+    setHeader(loan->initHeader(), stamp, options_.frame_id, correction_pub_.nextSeq());
+    writePose(loan->initPose(), xyt(global * odometry.inverse()));
+    correction_pub_.publish(std::move(loan));
+  }
+}
+
+void SubmapBuilderActor::handOver(Nanos stamp) {
+  appendBestTrajectory(finished_trajectory_);
+  const std::vector<Rbpf::StampedPose> smoothed = densify(rbpf_.bestTrajectory());
+  const FinishedSubmap done = rbpf_.startSubmap();
+  publishSubmap(done, stamp, smoothed);
+  auto loan = constraint_pub_.loan();
+  setHeader(loan->initHeader(), stamp, options_.frame_id, constraint_pub_.nextSeq());
+  loan->setFromId(static_cast<std::uint32_t>(done.id));
+  loan->setToId(static_cast<std::uint32_t>(done.id + 1));
+  writePose(loan->initRelative(), xyt(done.next_in_this.pose), &done.next_in_this.covariance);
+  loan->setKind(msg::SubmapConstraint::Kind::HAND_OVER);
+  constraint_pub_.publish(std::move(loan));
+  submap_origin_ = submap_origin_ * done.next_in_this.pose;
+}
+
+void SubmapBuilderActor::publishSubmap(const FinishedSubmap& submap, Nanos stamp,
+                                       const std::vector<Rbpf::StampedPose>& trajectory) {
+  const tessera::grid::OccupancyMap map = submap.grid.toOccupancyMap();
+  const std::size_t cells = map.cells.size();
+  auto loan = submap_pub_.loan(cells + 40 * trajectory.size() + 1024);
+  setHeader(loan->initHeader(), stamp, options_.frame_id, submap_pub_.nextSeq());
+  loan->setId(static_cast<std::uint32_t>(submap.id));
+  auto grid = loan->initGrid();
+  setHeader(grid.initHeader(), stamp, "submap_" + std::to_string(submap.id), 0);
+  grid.setResolution(static_cast<float>(map.resolution));
+  grid.setWidth(static_cast<std::uint32_t>(map.width));
+  grid.setHeight(static_cast<std::uint32_t>(map.height));
+  writePose(grid.initOrigin(), xyt(map.origin));
+  auto out = mutableViewInt8(grid.initCells(static_cast<unsigned>(cells)));
+  std::copy(map.cells.begin(), map.cells.end(), out.begin());
+  writePose(loan->initGlobalPose(), xyt(submap_origin_));
+  loan->setScans(static_cast<std::uint32_t>(submap.scans_inserted));
+  loan->setTravelledM(submap.travelled_m);
+  loan->setFinished(true);
+  auto poses = loan->initTrajectory(static_cast<unsigned>(trajectory.size()));
+  for (unsigned i = 0; i < trajectory.size(); ++i) {
+    poses[i].setStampNs(secondsToNanos(trajectory[i].stamp_s));
+    poses[i].setX(trajectory[i].pose.x);
+    poses[i].setY(trajectory[i].pose.y);
+    poses[i].setTheta(trajectory[i].pose.theta);
+  }
+  submap_pub_.publish(std::move(loan));
+  ++submaps_published_;
+}
+
+void SubmapBuilderActor::appendBestTrajectory(std::vector<Rbpf::StampedPose>& out) const {
+  // A submap starts at the scan that ended the previous one: keep that stamp once.
+  for (const auto& p : rbpf_.bestTrajectory())
+    if (out.empty() || p.stamp_s > out.back().stamp_s)
+      out.push_back({p.stamp_s, submap_origin_ * p.pose});
+}
+
+void SubmapBuilderActor::stop() {
+  // Upstream has stopped: no odometry will come for scans still waiting.
+  pairing_.finish();
+  if (!rbpf_.initialized()) return;
+  publishSubmap(rbpf_.currentSubmap(), last_stamp_, densify(rbpf_.bestTrajectory()));
+  std::vector<Rbpf::StampedPose> trajectory = finished_trajectory_;
+  appendBestTrajectory(trajectory);
+  for (const auto& p : densify(trajectory)) {
+    auto loan = final_pub_.loan();
+    setHeader(loan->initHeader(), secondsToNanos(p.stamp_s), options_.frame_id,
+              final_pub_.nextSeq());
+    writePose(loan->initPose(), xyt(p.pose));
+    final_pub_.publish(std::move(loan));
+  }
+}
+
+std::vector<Rbpf::StampedPose> SubmapBuilderActor::densify(
+    const std::vector<Rbpf::StampedPose>& updates) const {
+  // Every scan after the first update: the smoothed pose of the update before it, moved by the
+  // odometry since (the online estimate does the same with the pose the filter had then).
+  std::vector<Rbpf::StampedPose> out;
+  out.reserve(scan_odometry_.size());
+  std::size_t k = 0;     // next update to reach
+  std::size_t scan = 0;  // scan_odometry_ index of the current update
+  bool have_update = false;
+  for (std::size_t i = 0; i < scan_odometry_.size(); ++i) {
+    const auto& [stamp, odom] = scan_odometry_[i];
+    while (k < updates.size() && updates[k].stamp_s <= stamp + 1e-6) {
+      // The update's own scan: the latest scan not after it.
+      while (scan + 1 < scan_odometry_.size() &&
+             scan_odometry_[scan + 1].first <= updates[k].stamp_s + 1e-6)
+        ++scan;
+      have_update = true;
+      ++k;
+    }
+    if (!have_update) continue;
+    const Rbpf::StampedPose& base = updates[k - 1];
+    const tessera::Pose2& base_odom = scan_odometry_[scan].second;
+    tessera::Pose2 pose = base.pose * (base_odom.inverse() * odom);
+    if (options_.interpolate_updates && k < updates.size()) {
+      // The next update's scan: its correction (map ⊕ odometry⁻¹) is where the odometry drift
+      // since this update was found; blend toward it by time instead of jumping there.
+      std::size_t next = scan;
+      while (next + 1 < scan_odometry_.size() &&
+             scan_odometry_[next + 1].first <= updates[k].stamp_s + 1e-6)
+        ++next;
+      const double span = scan_odometry_[next].first - scan_odometry_[scan].first;
+      if (next > scan && span > 0) {
+        const tessera::Pose2 from = base.pose * base_odom.inverse();
+        const tessera::Pose2 to = updates[k].pose * scan_odometry_[next].second.inverse();
+        const double f = (stamp - scan_odometry_[scan].first) / span;
+        const tessera::Pose2 correction(from.x + f * (to.x - from.x), from.y + f * (to.y - from.y),
+                                        from.theta + f * tessera::angleDiff(to.theta, from.theta));
+        pose = correction * odom;
+      }
+    }
+    out.push_back({stamp, pose});
+  }
+  return out;
+}
+
+void SubmapBuilderActor::summarize(Summary& out) const {
+  const auto& s = rbpf_.stats();
+  const auto i64 = [](std::uint64_t v) { return static_cast<std::int64_t>(v); };
+  out["scans_read"] = i64(scans_read_);
+  out["scans_processed"] = i64(s.updates);
+  out["particles"] = static_cast<std::int64_t>(rbpf_.particleCount());
+  out["resamples"] = i64(s.resamples);
+  out["match_failures"] = i64(s.match_failures);
+  out["match_recoveries"] = i64(s.match_recoveries);
+  if (s.tracked_scans > 0) {
+    out["tracked_scans"] = i64(s.tracked_scans);
+    out["tracking_failures"] = i64(s.tracking_failures);
+    out["tracking_evaluations"] = i64(s.tracking_evaluations);
+  }
+  out["particle_updates"] = i64(s.particle_updates);
+  out["coarse_evaluations"] = i64(s.coarse_evaluations);
+  out["fine_evaluations"] = i64(s.fine_evaluations);
+  out["submaps"] = i64(submaps_published_);
+  out["scans_unpaired"] = i64(pairing_.unpaired());
+  out["scans_unusable"] = i64(s.unusable_scans);
+  if (camera_handovers_ > 0) out["camera_handovers"] = i64(camera_handovers_);
+  if (odometry_invalid_ + s.invalid_odometry > 0)
+    out["odometry_invalid"] = i64(odometry_invalid_ + s.invalid_odometry);
+}
+
+TESSERA_REGISTER_ACTOR("rbpf_submap_builder", SubmapBuilderActor, SubmapBuilderOptions,
+                       "local laser SLAM: RBPF occupancy-grid submaps from scans and odometry");
+
+}  // namespace tessera::laser_slam

@@ -1,0 +1,179 @@
+#include <tessera/mapping/writer_actors.hpp>
+
+#include "pose_source.hpp"
+
+#include <tessera/msg/image.capnp.h>
+#include <tessera/mapping/map_io.hpp>
+#include <tessera/messages/views.hpp>
+#include <tessera/runtime/options.hpp>
+#include <tessera/runtime/registry.hpp>
+
+#include <array>
+#include <charconv>
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <iostream>
+
+namespace tessera::mapping {
+namespace fs = std::filesystem;
+
+namespace {
+
+/// The double a Float32 field was meant to hold: 0.05f reads back as 0.05, not
+/// 0.0500000007, so the YAML says what the user configured.
+double intendedValue(float f) {
+  std::array<char, 32> buf{};
+  const auto end = std::to_chars(buf.data(), buf.data() + buf.size(), f).ptr;
+  double d = f;
+  std::from_chars(buf.data(), end, d);
+  return d;
+}
+
+tessera::grid::OccupancyMap toOccupancyMap(const msg::OccupancyGrid::Reader& m) {
+  tessera::grid::OccupancyMap map;
+  map.resolution = intendedValue(m.getResolution());
+  map.width = static_cast<int>(m.getWidth());
+  map.height = static_cast<int>(m.getHeight());
+  map.origin = detail::toPose2(m.getOrigin());
+  const auto cells = viewInt8(m.getCells());
+  if (cells.size() != static_cast<std::size_t>(map.width) * static_cast<std::size_t>(map.height))
+    throw tessera::mapping::MapIoError("map message holds " + std::to_string(cells.size()) +
+                                       " cells, header says " + std::to_string(map.width) + "x" +
+                                       std::to_string(map.height));
+  map.cells.assign(cells.begin(), cells.end());
+  return map;
+}
+
+}  // namespace
+
+// ---- map_writer ----
+
+MapWriterActor::MapWriterActor(MapWriterOptions options) : options_(std::move(options)) {
+  if (options_.basename.empty()) throw ConfigError("map_writer: basename must not be empty");
+  if (!(0 <= options_.free_thresh && options_.free_thresh < options_.occupied_thresh &&
+        options_.occupied_thresh <= 1))
+    throw ConfigError(
+        "map_writer: thresholds must satisfy 0 <= free_thresh < occupied_thresh <= 1");
+}
+
+void MapWriterActor::configure(ActorContext& ctx) {
+  ctx_ = &ctx;
+  ctx.subscribe<msg::OccupancyGrid>("map", MailboxPolicy::keepLatest(1),
+                                    [this](const Message<msg::OccupancyGrid>& m) {
+                                      latest_ = m;  // shares the bytes, no copy
+                                      ++maps_received_;
+                                    });
+}
+
+void MapWriterActor::stop() {
+  if (ctx_->outputDir().empty()) return;
+  if (!latest_) {
+    std::cerr << ctx_->name() << ": no map received, nothing written\n";
+    return;
+  }
+  // stop() must not throw (the run still has to stop the other actors and write its summary):
+  // report the failure instead.
+  try {
+    const tessera::grid::OccupancyMap map = toOccupancyMap(*latest_);
+    if (map.empty()) {
+      std::cerr << ctx_->name() << ": the last map is empty, nothing written\n";
+      return;
+    }
+    tessera::mapping::MapSaveOptions save;
+    save.occupied_thresh = options_.occupied_thresh;
+    save.free_thresh = options_.free_thresh;
+    save.write_png = options_.png;
+    const auto saved =
+        tessera::mapping::saveMap(map, fs::path(ctx_->outputDir()) / options_.basename, save);
+    map_path_ = saved.yaml.string();
+    std::cerr << "wrote map: " << map_path_ << " (" << map.width << "x" << map.height << " cells, "
+              << map.resolution << " m)\n";
+  } catch (const std::exception& e) {
+    error_ = e.what();
+    std::cerr << ctx_->name() << ": failed to write the map: " << error_ << "\n";
+  }
+}
+
+void MapWriterActor::summarize(Summary& out) const {
+  out["map_path"] = map_path_;
+  out["maps_received"] = static_cast<std::int64_t>(maps_received_);
+  if (!error_.empty()) out["error"] = error_;
+}
+
+TESSERA_REGISTER_ACTOR("map_writer", MapWriterActor, MapWriterOptions,
+                       "writes the last occupancy grid as PGM + YAML (map_server) and PNG");
+
+// ---- trajectory_writer ----
+
+namespace {
+// 3D poses (RGB-D ground truth) are written as they are; every other type goes through the
+// planar pose subscriptions shared with the mapper.
+constexpr const char* kPose3dMessage = "ground_truth_3d";
+}  // namespace
+
+TrajectoryWriterActor::TrajectoryWriterActor(TrajectoryWriterOptions options)
+    : options_(std::move(options)) {
+  if (options_.message != kPose3dMessage)
+    (void)detail::parsePoseMessage(options_.message, "trajectory_writer", "message");
+  if (options_.file.empty()) throw ConfigError("trajectory_writer: file must not be empty");
+}
+
+TrajectoryWriterActor::~TrajectoryWriterActor() = default;
+
+void TrajectoryWriterActor::configure(ActorContext& ctx) {
+  ctx_ = &ctx;
+  if (options_.message == kPose3dMessage) {
+    ctx.subscribe<msg::GroundTruthPose3D>(
+        "poses", MailboxPolicy::reliable(), [this](const Message<msg::GroundTruthPose3D>& m) {
+          if (!writer_) return;
+          const auto p = m->getPose();
+          tessera::mapping::TumPose pose;
+          pose.stamp_ns = m->getHeader().getStampNs();
+          pose.position = {p.getX(), p.getY(), p.getZ()};
+          pose.orientation =
+              Eigen::Quaterniond(p.getQw(), p.getQx(), p.getQy(), p.getQz()).normalized();
+          writer_->write(pose);
+          if (++poses_written_ % 256 == 0) writer_->flush();
+        });
+    return;
+  }
+  detail::subscribePoses(ctx, "poses", MailboxPolicy::reliable(),
+                         detail::parsePoseMessage(options_.message, "trajectory_writer", "message"),
+                         [this](Nanos stamp, const tessera::Pose2& pose) {
+                           if (!writer_) return;
+                           writer_->write(stamp, pose);
+                           // The file is flushed at stop(); flushing now and then as well bounds
+                           // what a crash (rather than a clean Ctrl-C) could lose.
+                           if (++poses_written_ % 256 == 0) writer_->flush();
+                         });
+}
+
+void TrajectoryWriterActor::start() {
+  if (ctx_->outputDir().empty()) return;
+  const fs::path path = fs::path(ctx_->outputDir()) / options_.file;
+  writer_ = std::make_unique<tessera::mapping::TumWriter>(path);  // throws naming the path
+  path_ = path.string();
+}
+
+void TrajectoryWriterActor::stop() {
+  if (!writer_) return;
+  try {
+    writer_->flush();
+  } catch (const std::exception& e) {
+    error_ = e.what();
+    std::cerr << ctx_->name() << ": " << error_ << "\n";
+  }
+  writer_.reset();
+}
+
+void TrajectoryWriterActor::summarize(Summary& out) const {
+  out["trajectory_path"] = path_;
+  out["poses_written"] = static_cast<std::int64_t>(poses_written_);
+  if (!error_.empty()) out["error"] = error_;
+}
+
+TESSERA_REGISTER_ACTOR("trajectory_writer", TrajectoryWriterActor, TrajectoryWriterOptions,
+                       "streams a pose topic to a TUM trajectory file");
+
+}  // namespace tessera::mapping

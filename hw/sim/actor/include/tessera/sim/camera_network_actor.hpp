@@ -1,0 +1,100 @@
+// CameraNetworkActor ("camera_network"): the environment camera network of
+// docs/algorithms.md#simulated-motion-and-sensors as a sensor actor driven by a simulator's ground
+// truth (see camera_network.hpp for the model).
+//
+// Subscribes (reliable):
+//   ground_truth       msg::GroundTruthPose  the true base_link pose in the map frame
+// Publishes:
+//   camera_events      msg::CameraEvent      the marker entered / left a camera's footprint
+//   camera_detections  msg::MarkerDetection  one per camera whose footprint holds the marker,
+//                                            per frame; detected = false when missed
+// Both carry the stamp of the ground-truth pose the frame was taken at, frame id "camera_<id>";
+// a frame's events come before its detections.
+//
+// Frames: one at the first pose stamped at or after each multiple of 1/camera_hz (with the
+// simulator's ground truth at 50 Hz and camera_hz dividing 50 that is exactly every multiple).
+// A separate actor rather than options of "simulator", so that the camera network works with any
+// pose source (both simulators, a dataset's ground truth) and the simulator stays as it is.
+//
+// File (in the run's output folder, at start, when named): `cameras_file` lists the true cameras
+// (site, tilt, image size and floor -> pixel homography), so calibrations can be scored.
+#pragma once
+
+#include <tessera/msg/camera.capnp.h>
+#include <tessera/messages/types.hpp>
+#include <tessera/runtime/actor.hpp>
+#include <tessera/runtime/options.hpp>
+#include <tessera/sim/camera_network.hpp>
+
+#include <array>
+#include <cstdint>
+#include <optional>
+#include <random>
+#include <string>
+#include <vector>
+
+namespace tessera::sim {
+
+struct CameraNetworkOptions {
+  std::string world = "builtin:camera_floor";
+  double world_resolution = 0.05;
+  std::vector<std::array<double, 2>> camera_sites;
+  int camera_hz = 10;
+  double ceiling_height = 3.0;
+  double focal_px = 320;
+  int image_width = 640;
+  int image_height = 480;
+  double pixel_noise = 1.0;
+  double miss_prob = 0.05;
+  std::vector<double> marker = {0, 0};
+  std::string cameras_file;
+  std::uint64_t seed = 1;
+
+  template <class V>
+  void visit(V& v) {
+    v("world", world, "world whose camera sites are used ('builtin:camera_floor' has 7)");
+    v("world_resolution", world_resolution, "metres per pixel of an image world");
+    v("camera_sites", camera_sites,
+      "camera floor points [[x, y], ...] [m] (untilted, image u along +x, ids 0, 1, ...); "
+      "empty = the world's sites");
+    v("camera_hz", camera_hz, "camera frame rate [Hz]");
+    v("ceiling_height", ceiling_height, "camera centre above the marker plane [m]");
+    v("focal_px", focal_px, "focal length [px]");
+    v("image_width", image_width, "image width [px]");
+    v("image_height", image_height, "image height [px]");
+    v("pixel_noise", pixel_noise, "std of the reported marker pixel per axis [px]");
+    v("miss_prob", miss_prob, "probability that a marker in view is not detected in a frame");
+    v("marker", marker, "marker position in base_link [x m, y m]");
+    v("cameras_file", cameras_file,
+      "write the true cameras to this file in the output folder; empty = none");
+    v("seed", seed, "random seed for noise and misses");
+  }
+};
+
+class CameraNetworkActor final : public Actor {
+ public:
+  /// Throws ConfigError naming the option.
+  explicit CameraNetworkActor(CameraNetworkOptions options);
+  void configure(ActorContext& ctx) override;
+  /// Writes cameras_file when named; throws std::runtime_error naming the file.
+  void start() override;
+  /// camera_count, frames, detections, misses, events.
+  void summarize(Summary& out) const override;
+
+  const CameraNetwork& network() const { return *network_; }
+
+ private:
+  void onPose(Nanos stamp, double x, double y, double theta);
+
+  CameraNetworkOptions options_;
+  std::optional<CameraNetwork> network_;
+  std::mt19937_64 rng_;
+  ActorContext* ctx_ = nullptr;
+  Publisher<msg::MarkerDetection> detection_pub_;
+  Publisher<msg::CameraEvent> event_pub_;
+  Nanos period_ = 0;
+  std::optional<Nanos> next_frame_;
+  std::int64_t frames_ = 0, detections_ = 0, misses_ = 0, events_ = 0;
+};
+
+}  // namespace tessera::sim

@@ -1,0 +1,222 @@
+#include <tessera/shm/orphaned_lock.hpp>
+#include <tessera/shm/roudi_host.hpp>
+
+#include <iceoryx_hoofs/log/logmanager.hpp>
+#include <iceoryx_hoofs/posix_wrapper/posix_access_rights.hpp>
+#include <iceoryx_posh/iceoryx_posh_config.hpp>
+#include <iceoryx_posh/iceoryx_posh_types.hpp>
+#include <iceoryx_posh/internal/popo/building_blocks/locking_policy.hpp>
+#include <iceoryx_posh/internal/roudi/roudi.hpp>
+#include <iceoryx_posh/roudi/iceoryx_roudi_components.hpp>
+
+#include <fcntl.h>
+#include <signal.h>
+#include <sys/file.h>
+#include <sys/stat.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <cerrno>
+#include <cstdlib>
+#include <filesystem>
+#include <map>
+#include <optional>
+#include <stdexcept>
+
+namespace tessera {
+
+namespace {
+
+std::string lockPath() {
+  return std::string("/tmp/") + iox::roudi::ROUDI_LOCK_NAME + ".lock";
+}
+
+std::string groupName() {
+  return iox::posix::PosixGroup::getGroupOfCurrentProcess().getName().c_str();
+}
+
+}  // namespace
+
+void setIceoryxLogLevel(const std::string& level) {
+  static const std::map<std::string, iox::log::LogLevel> levels{
+      {"off", iox::log::LogLevel::kOff},     {"fatal", iox::log::LogLevel::kFatal},
+      {"error", iox::log::LogLevel::kError}, {"warn", iox::log::LogLevel::kWarn},
+      {"info", iox::log::LogLevel::kInfo},   {"debug", iox::log::LogLevel::kDebug}};
+  auto it = levels.find(level);
+  if (it == levels.end()) {
+    throw std::invalid_argument("iceoryx log level '" + level +
+                                "' unknown; expected off, fatal, error, warn, info or debug");
+  }
+  iox::log::LogManager::GetLogManager().SetDefaultLogLevel(it->second,
+                                                           iox::log::LogLevelOutput::kHideLogLevel);
+}
+
+bool rouDiRunning() {
+  const int fd = ::open(lockPath().c_str(), O_RDONLY | O_CLOEXEC);
+  if (fd < 0) return false;  // never started on this machine since boot
+  const bool held = ::flock(fd, LOCK_EX | LOCK_NB) != 0;
+  ::close(fd);  // closing drops our lock if we took it
+  return held;
+}
+
+std::vector<std::string> removeStaleShm() {
+  if (rouDiRunning()) {
+    throw std::runtime_error(
+        "an iceoryx RouDi is already running on this machine (" + lockPath() +
+        " is locked): another deployment, benchmark or iox-roudi; iceoryx 2.0 allows one per "
+        "machine, stop it first");
+  }
+  namespace fs = std::filesystem;
+  std::vector<std::string> removed;
+  std::error_code ec;
+  for (const auto& path : {fs::path("/dev/shm") / iox::roudi::SHM_NAME,
+                           fs::path("/dev/shm") / groupName(), fs::path("/tmp/roudi")}) {
+    if (fs::exists(fs::symlink_status(path, ec)) && fs::remove(path, ec)) {
+      removed.push_back(path.string());
+    }
+  }
+  // Control blocks of launchers that no longer run (named /tessera_sync_<pid>).
+  for (const auto& entry : fs::directory_iterator("/dev/shm", ec)) {
+    const auto name = entry.path().filename().string();
+    if (name.rfind("tessera_sync_", 0) != 0) continue;
+    const long pid = std::strtol(name.c_str() + 13, nullptr, 10);
+    if (pid > 0 && ::kill(static_cast<pid_t>(pid), 0) != 0 && errno == ESRCH &&
+        fs::remove(entry.path(), ec)) {
+      removed.push_back(entry.path().string());
+    }
+  }
+  // Sockets of Tessera processes of the dead run.
+  for (const auto& entry : fs::directory_iterator("/tmp", ec)) {
+    const auto name = entry.path().filename().string();
+    if (name.rfind("tessera_", 0) == 0 && entry.is_socket(ec) && fs::remove(entry.path(), ec)) {
+      removed.push_back(entry.path().string());
+    }
+  }
+  return removed;
+}
+
+std::vector<MemPool> memPoolsFor(const std::vector<ChunkDemand>& demands,
+                                 std::size_t budget_bytes) {
+  std::map<std::size_t, std::uint64_t> classes;  // chunk bytes -> count
+  // Small messages of every kind (headers, poses, control) always have room.
+  classes[std::size_t{1} << 10] += 512;
+  classes[std::size_t{1} << 14] += 256;
+  for (const auto& d : demands) {
+    std::size_t size = std::size_t{1} << 10;
+    while (size < d.max_bytes) size <<= 1;
+    classes[size] += d.alive + d.alive / 2 + 8;
+  }
+  // Largest classes first give up count until the sum fits the budget (at least 4 each).
+  auto total = [&] {
+    std::size_t t = 0;
+    for (auto& [size, count] : classes) t += size * count;
+    return t;
+  };
+  for (auto it = classes.rbegin(); it != classes.rend() && total() > budget_bytes; ++it) {
+    const std::size_t others = total() - it->first * it->second;
+    const std::size_t room = budget_bytes > others ? (budget_bytes - others) / it->first : 0;
+    it->second = std::max<std::uint64_t>(4, std::min<std::uint64_t>(it->second, room));
+  }
+  std::vector<MemPool> pools;
+  for (auto& [size, count] : classes) {
+    pools.push_back({size, static_cast<std::uint32_t>(std::min<std::uint64_t>(count, 1u << 20))});
+  }
+  return pools;
+}
+
+struct RouDiHost::Impl {
+  std::vector<std::string> removed;
+  std::size_t max_chunk = 0;
+  std::optional<iox::roudi::IceOryxRouDiComponents> components;
+  std::optional<iox::roudi::RouDi> roudi;
+};
+
+RouDiHost::RouDiHost(RouDiHostOptions options) : impl_(std::make_unique<Impl>()) {
+  setIceoryxLogLevel(options.log_level);
+  impl_->removed = removeStaleShm();
+  if (options.pools.empty()) throw std::invalid_argument("RouDiHost: no memory pools");
+  if (options.pools.size() > iox::MAX_NUMBER_OF_MEMPOOLS) {
+    throw std::invalid_argument("RouDiHost: " + std::to_string(options.pools.size()) +
+                                " memory pools, iceoryx allows " +
+                                std::to_string(iox::MAX_NUMBER_OF_MEMPOOLS));
+  }
+  std::sort(options.pools.begin(), options.pools.end(),
+            [](const MemPool& a, const MemPool& b) { return a.chunk_bytes < b.chunk_bytes; });
+  iox::mepoo::MePooConfig mepoo;
+  for (const auto& p : options.pools) {
+    mepoo.addMemPool({static_cast<std::uint32_t>(p.chunk_bytes), p.count});
+    impl_->max_chunk = std::max(impl_->max_chunk, p.chunk_bytes);
+  }
+  iox::RouDiConfig_t config;
+  const auto group = iox::posix::PosixGroup::getGroupOfCurrentProcess().getName();
+  config.m_sharedMemorySegments.push_back({group, group, mepoo});
+  config.optimize();
+  impl_->components.emplace(config);
+  // Processes are stopped by their owner (the launcher), not by RouDi's destructor.
+  impl_->roudi.emplace(impl_->components->rouDiMemoryManager, impl_->components->portManager,
+                       iox::roudi::RouDi::RoudiStartupParameters{
+                           options.monitor_processes ? iox::roudi::MonitoringMode::ON
+                                                     : iox::roudi::MonitoringMode::OFF,
+                           false});
+  // iceoryx 2.0 creates its segments for the user's group (plus ACL entries); a deployment is
+  // one user's processes, so narrow them to the owner. Processes open them after this.
+  namespace fs = std::filesystem;
+  for (const auto& path :
+       {fs::path("/dev/shm") / iox::roudi::SHM_NAME, fs::path("/dev/shm") / groupName()}) {
+    std::error_code ec;
+    fs::permissions(path, fs::perms::owner_read | fs::perms::owner_write, fs::perm_options::replace,
+                    ec);
+    if (ec) {
+      throw std::runtime_error("cannot limit shared memory " + path.string() +
+                               " to its owner: " + ec.message());
+    }
+  }
+}
+
+RouDiHost::~RouDiHost() {
+  impl_->roudi.reset();
+  impl_->components.reset();
+}
+
+std::size_t RouDiHost::maxChunkBytes() const {
+  return impl_->max_chunk;
+}
+
+const std::vector<std::string>& RouDiHost::removedStale() const {
+  return impl_->removed;
+}
+
+namespace {
+/// The pthread mutex of a port's ThreadSafePolicy: its only member is iox::posix::mutex, whose
+/// only member is the native handle.
+pthread_mutex_t& nativeLock(const iox::popo::ThreadSafePolicy& policy) {
+  static_assert(sizeof(iox::popo::ThreadSafePolicy) == sizeof(pthread_mutex_t));
+  return *reinterpret_cast<pthread_mutex_t*>(const_cast<iox::popo::ThreadSafePolicy*>(&policy));
+}
+
+std::string describePort(const char* what, const iox::popo::BasePortData& port) {
+  return std::string(what) + " '" + port.m_serviceDescription.getInstanceIDString().c_str() +
+         "' of " + port.m_runtimeName.c_str();
+}
+}  // namespace
+
+std::vector<std::string> RouDiHost::releaseOrphanedPortLocks() {
+  // RouDi's threads may create or destroy ports meanwhile. Port slots stay mapped, and a lock is
+  // written only when its owner is dead, which no slot being built or torn down has.
+  std::vector<std::string> released;
+  auto pool = impl_->components->rouDiMemoryManager.portPool();
+  if (!pool.has_value()) return released;
+  for (auto* port : (*pool)->getPublisherPortDataList()) {
+    const iox::popo::ThreadSafePolicy& lock = port->m_chunkSenderData;
+    if (releaseIfOwnerDied(nativeLock(lock))) released.push_back(describePort("publisher", *port));
+  }
+  for (auto* port : (*pool)->getSubscriberPortDataList()) {
+    const iox::popo::ThreadSafePolicy& lock = port->m_chunkReceiverData;
+    if (releaseIfOwnerDied(nativeLock(lock))) {
+      released.push_back(describePort("subscriber", *port));
+    }
+  }
+  return released;
+}
+
+}  // namespace tessera

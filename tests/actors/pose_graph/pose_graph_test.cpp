@@ -1,0 +1,321 @@
+#include <tessera/pose_graph/optimizer.hpp>
+#include <tessera/pose_graph/pose_graph.hpp>
+
+#include "../../shared_data.hpp"
+
+#include <tessera/pose_graph/pose_graph_io.hpp>
+
+#include <catch2/catch.hpp>
+
+#include <cmath>
+#include <numbers>
+#include <random>
+
+namespace pg = tessera::pose_graph;
+using Catch::Matchers::WithinAbs;
+using Catch::Matchers::WithinRel;
+
+namespace {
+
+constexpr double kPi = std::numbers::pi;
+
+/// A robot driving `laps` times around a circle of `n` poses; odometry edges i -> i+1 and a
+/// loop closure from every pose of a later lap to the same pose on the first lap. Measurements
+/// are exact (plus optional noise); the returned graph starts at `truth` perturbed by
+/// `init_noise` (or at the odometry chain when init_noise < 0).
+struct CircleWorld {
+  pg::Graph2D graph;
+  std::vector<Eigen::Vector3d> truth;
+};
+
+CircleWorld circleWorld(int n, int laps, double meas_noise, double init_noise, unsigned seed) {
+  std::mt19937 rng(seed);
+  std::normal_distribution<double> gauss(0.0, 1.0);
+  CircleWorld w;
+  const double radius = 10.0;
+  for (int k = 0; k < n * laps; ++k) {
+    const double a = 2.0 * kPi * (k % n) / n;
+    w.truth.push_back({radius * std::cos(a), radius * std::sin(a), a + kPi / 2});
+    w.truth.back().z() = std::remainder(w.truth.back().z(), 2 * kPi);
+  }
+  auto measure = [&](int a, int b) {
+    Eigen::Vector3d z = pg::between(w.truth[a], w.truth[b]);
+    z += meas_noise * Eigen::Vector3d(gauss(rng), gauss(rng), 0.1 * gauss(rng));
+    return z;
+  };
+  for (int k = 0; k < n * laps; ++k) {
+    Eigen::Vector3d p = w.truth[k];
+    if (init_noise > 0 && k > 0)
+      p += init_noise * Eigen::Vector3d(gauss(rng), gauss(rng), 0.2 * gauss(rng));
+    w.graph.addNode(100 + k, p);
+  }
+  const Eigen::Matrix3d info = Eigen::Vector3d(100, 100, 1000).asDiagonal();
+  for (int k = 0; k + 1 < n * laps; ++k)
+    w.graph.edges.push_back({k, k + 1, measure(k, k + 1), info});
+  for (int k = n; k < n * laps; ++k)
+    w.graph.edges.push_back({k, k % n, measure(k, k % n), info, /*robust=*/true});
+  if (init_noise < 0) pg::initializeFromOdometry(w.graph);
+  return w;
+}
+
+double maxPositionError(const pg::Graph2D& g, const std::vector<Eigen::Vector3d>& truth) {
+  double worst = 0;
+  for (int i = 0; i < g.size(); ++i)
+    worst = std::max(worst, (g.poses[i].head<2>() - truth[i].head<2>()).norm());
+  return worst;
+}
+
+pg::OptimizerOptions with(pg::Solver solver) {
+  pg::OptimizerOptions o;
+  o.solver = solver;
+  return o;
+}
+
+}  // namespace
+
+TEST_CASE("chi2 of one SE2 edge matches a hand computation", "[pose_graph]") {
+  pg::Graph2D g;
+  g.addNode(0, {1.0, 2.0, kPi / 2});
+  g.addNode(1, {1.0, 4.0, kPi / 2 + 0.1});
+  // b seen from a: 2 m ahead, rotated by 0.1. The measurement says 1.5 m ahead, 0.5 m left, 0.
+  Eigen::Matrix3d info;
+  info << 2, 0.5, 0, 0.5, 3, 0, 0, 0, 10;
+  g.edges.push_back({0, 1, {1.5, 0.5, 0.0}, info});
+  // e = Z⁻¹ (a⁻¹ b) with Z a pure translation: (2 − 1.5, 0 − 0.5, 0.1).
+  const Eigen::Vector3d e(0.5, -0.5, 0.1);
+  CHECK((pg::edgeError(g, g.edges[0]) - e).norm() < 1e-12);
+  CHECK_THAT(pg::chi2(g), WithinAbs(e.dot(info * e), 1e-12));
+}
+
+TEST_CASE("SE2 error angle is wrapped across pi", "[pose_graph]") {
+  const Eigen::Vector3d e = pg::edgeError({0, 0, 3.1}, {0, 0, -3.1}, {0, 0, 0});
+  CHECK_THAT(e.z(), WithinAbs(2 * kPi - 6.2, 1e-12));
+}
+
+TEST_CASE("SE3 error uses the quaternion vector with a non-negative w as g2o does",
+          "[pose_graph]") {
+  pg::Pose3 a, b, z;
+  b.t = {1, 2, 3};
+  b.q = Eigen::Quaterniond(Eigen::AngleAxisd(0.3, Eigen::Vector3d::UnitZ()));
+  z.t = {1, 2, 2.5};
+  // The same rotation written with w < 0 must give the same error.
+  z.q = Eigen::Quaterniond(
+      -Eigen::Quaterniond(Eigen::AngleAxisd(0.1, Eigen::Vector3d::UnitZ())).coeffs());
+  const auto e = pg::edgeError(a, b, z);
+  // Z⁻¹ b: translation R(−0.1)(b.t − z.t) = (0, 0, 0.5) rotated about z (z unchanged), rotation
+  // 0.2.
+  CHECK((e.head<3>() - Eigen::Vector3d(0, 0, 0.5)).norm() < 1e-12);
+  CHECK_THAT(e[5], WithinAbs(std::sin(0.1), 1e-12));
+  CHECK_THAT(e[3], WithinAbs(0.0, 1e-12));
+}
+
+TEST_CASE("fusing two constraints gives the information-weighted mean", "[pose_graph]") {
+  pg::Measurement2D m1{{1.0, 0.0, kPi - 0.05}, Eigen::Vector3d(1, 4, 10).asDiagonal()};
+  pg::Measurement2D m2{{2.0, 1.0, -kPi + 0.05}, Eigen::Vector3d(3, 4, 30).asDiagonal()};
+  const auto f = pg::fuse(m1, m2);
+  CHECK((f.information - Eigen::Matrix3d(Eigen::Vector3d(4, 8, 40).asDiagonal())).norm() < 1e-12);
+  CHECK_THAT(f.mean.x(), WithinAbs((1 * 1.0 + 3 * 2.0) / 4, 1e-12));
+  CHECK_THAT(f.mean.y(), WithinAbs((4 * 0.0 + 4 * 1.0) / 8, 1e-12));
+  // The angles straddle ±π: the mean is 3/4 of the way from m1 to m2 across π, not near 0.
+  CHECK_THAT(f.mean.z(), WithinAbs(std::remainder(kPi - 0.05 + 0.75 * 0.1, 2 * kPi), 1e-12));
+}
+
+TEST_CASE("a constraint read from the other end fuses into the same edge", "[pose_graph]") {
+  pg::Graph2D g;
+  g.addNode(7, {0, 0, 0});
+  g.addNode(9, {1, 0, 0.2});
+  const Eigen::Vector3d z(1.0, 0.1, 0.2);
+  CHECK_FALSE(pg::addOrFuse(g, {0, 1, z, Eigen::Matrix3d::Identity()}));
+  const auto back = pg::invert({z, 2 * Eigen::Matrix3d::Identity()});
+  CHECK(pg::addOrFuse(g, {1, 0, back.mean, back.information, true}));
+  REQUIRE(g.edges.size() == 1);
+  CHECK((g.edges[0].measurement - z).norm() < 1e-12);
+  CHECK((g.edges[0].information - 3 * Eigen::Matrix3d::Identity()).norm() < 1e-9);
+  CHECK(g.edges[0].robust);
+}
+
+TEST_CASE("invert twice gives back the measurement and its information", "[pose_graph]") {
+  Eigen::Matrix3d info;
+  info << 5, 1, 0.5, 1, 4, 0.2, 0.5, 0.2, 9;
+  const pg::Measurement2D m{{1.5, -0.7, 2.0}, info};
+  const auto twice = pg::invert(pg::invert(m));
+  CHECK((twice.mean - m.mean).norm() < 1e-12);
+  CHECK((twice.information - info).norm() < 1e-9);
+}
+
+TEST_CASE("bad graphs are refused with the edge or node named", "[pose_graph]") {
+  pg::Graph2D g;
+  g.addNode(3, {0, 0, 0});
+  g.addNode(4, {1, 0, 0});
+  CHECK_THROWS_WITH(g.addNode(3, {0, 0, 0}), Catch::Contains("node 3 added twice"));
+  CHECK_THROWS_WITH(g.index(5), Catch::Contains("no node with id 5"));
+  g.edges.push_back({0, 2, {1, 0, 0}, Eigen::Matrix3d::Identity()});
+  CHECK_THROWS_WITH(pg::optimize(g), Catch::Contains("edge 0 names a node index outside"));
+  g.edges[0] = {0, 1, {1, 0, 0}, -Eigen::Matrix3d::Identity()};
+  CHECK_THROWS_WITH(pg::optimize(g), Catch::Contains("not symmetric positive semidefinite"));
+  g.edges[0] = {0, 1, {1, std::nan(""), 0}, Eigen::Matrix3d::Identity()};
+  CHECK_THROWS_WITH(pg::optimize(g), Catch::Contains("(3 -> 4) has a non-finite measurement"));
+  g.edges[0] = {0, 1, {1, 0, 0}, Eigen::Matrix3d::Identity()};
+  g.poses[1].x() = INFINITY;
+  CHECK_THROWS_WITH(pg::optimize(g), Catch::Contains("node 4 has a non-finite pose"));
+  CHECK_THROWS_AS(pg::parseSolver("gauss"), std::invalid_argument);
+}
+
+TEST_CASE("odometry initialisation chains edges and refuses a disconnected node", "[pose_graph]") {
+  pg::Graph2D g;
+  for (int i = 0; i < 4; ++i) g.addNode(i, {0, 0, 0});
+  g.edges.push_back({0, 1, {1, 0, kPi / 2}, Eigen::Matrix3d::Identity()});
+  g.edges.push_back({2, 1, pg::inverse({1, 0, kPi / 2}), Eigen::Matrix3d::Identity()});
+  g.edges.push_back({0, 3, {-1, 0, 0}, Eigen::Matrix3d::Identity()});
+  pg::initializeFromOdometry(g);
+  CHECK((g.poses[2] - Eigen::Vector3d(1, 1, kPi)).norm() < 1e-12);
+  CHECK((g.poses[3] - Eigen::Vector3d(-1, 0, 0)).norm() < 1e-12);
+  g.addNode(10, {0, 0, 0});
+  CHECK_THROWS_WITH(pg::initializeFromOdometry(g), Catch::Contains("node 10 is not connected"));
+}
+
+TEST_CASE("Ceres recovers an exact circle graph from perturbed poses", "[pose_graph]") {
+  auto w = circleWorld(40, 2, 0.0, 0.5, 1);
+  const auto s = pg::optimize(w.graph, with(pg::Solver::kCeres));
+  CHECK(s.initial_chi2 > 1e3);
+  CHECK(s.final_chi2 < 1e-12);
+  CHECK(maxPositionError(w.graph, w.truth) < 1e-6);
+  CHECK(s.ceres_iterations > 0);
+  CHECK(s.sgd_iterations == 0);
+}
+
+TEST_CASE("undamped Gauss-Newton recovers the exact circle in a few iterations", "[pose_graph]") {
+  auto w = circleWorld(40, 2, 0.0, 0.5, 1);
+  pg::OptimizerOptions o = with(pg::Solver::kCeres);
+  o.ceres.method = pg::CeresOptions::Method::kGaussNewton;
+  const auto s = pg::optimize(w.graph, o);
+  CHECK(s.final_chi2 < 1e-12);
+  CHECK(s.ceres_iterations <= 10);
+  CHECK(maxPositionError(w.graph, w.truth) < 1e-6);
+  CHECK(pg::parseMethod("gn") == pg::CeresOptions::Method::kGaussNewton);
+  CHECK_THROWS_AS(pg::parseMethod("newton"), std::invalid_argument);
+}
+
+TEST_CASE("SGD alone comes close to the optimum from the odometry chain", "[pose_graph]") {
+  auto reference = circleWorld(60, 3, 0.02, 0.0, 2);
+  const double optimum = pg::optimize(reference.graph, with(pg::Solver::kCeres)).final_chi2;
+  auto w = circleWorld(60, 3, 0.02, -1, 2);
+  pg::OptimizerOptions o = with(pg::Solver::kSgd);
+  o.sgd.iterations = 50;
+  const auto s = pg::optimize(w.graph, o);
+  CHECK(s.sgd_iterations == 50);
+  CHECK(s.initial_chi2 > 20 * optimum);
+  CHECK(s.final_chi2 < 2 * optimum);
+}
+
+TEST_CASE("SGD then Ceres reaches the optimum Ceres reaches from the truth", "[pose_graph]") {
+  auto from_truth = circleWorld(60, 3, 0.05, 0.0, 3);
+  const auto reference = pg::optimize(from_truth.graph, with(pg::Solver::kCeres));
+  auto from_odometry = circleWorld(60, 3, 0.05, -1, 3);
+  const auto combined = pg::optimize(from_odometry.graph, with(pg::Solver::kSgdCeres));
+  CHECK(combined.initial_chi2 > 100 * reference.final_chi2);
+  CHECK_THAT(combined.final_chi2, WithinRel(reference.final_chi2, 1e-6));
+  CHECK(combined.sgd_chi2 < combined.initial_chi2);
+}
+
+TEST_CASE("SGD then Ceres converges from a start bent by a heading drift", "[pose_graph]") {
+  // Poses chained with a heading error growing 0.04 rad per pose (a biased gyro): 70 degrees a lap,
+  // so the start is a spiral that never closes.
+  auto w = circleWorld(30, 2, 0.0, 0.0, 4);
+  Eigen::Vector3d p = w.graph.poses[0];
+  for (int i = 1; i < w.graph.size(); ++i) {
+    p = pg::compose(p, w.graph.edges[i - 1].measurement + Eigen::Vector3d(0, 0, 0.04));
+    w.graph.poses[i] = p;
+  }
+  pg::OptimizerOptions o = with(pg::Solver::kSgdCeres);
+  o.sgd.iterations = 30;
+  const auto s = pg::optimize(w.graph, o);
+  CHECK(s.initial_chi2 > 1e5);
+  CHECK(s.final_chi2 < 1e-9);
+  CHECK(maxPositionError(w.graph, w.truth) < 1e-4);
+}
+
+TEST_CASE("a robust loss keeps one false loop closure from bending the circle", "[pose_graph]") {
+  auto make = [] {
+    auto w = circleWorld(40, 2, 0.0, 0.0, 5);
+    // A loop closure that puts pose 50 two metres off pose 10.
+    Eigen::Vector3d wrong = pg::between(w.truth[50], w.truth[10]) + Eigen::Vector3d(2.0, 0, 0);
+    w.graph.edges.push_back({50, 10, wrong, Eigen::Vector3d(100, 100, 1000).asDiagonal(), true});
+    return w;
+  };
+  auto plain = make();
+  pg::optimize(plain.graph, with(pg::Solver::kCeres));
+  auto robust = make();
+  pg::OptimizerOptions o = with(pg::Solver::kCeres);
+  o.ceres.huber_delta = 1.0;
+  pg::optimize(robust.graph, o);
+  CHECK(maxPositionError(robust.graph, robust.truth) <
+        0.5 * maxPositionError(plain.graph, plain.truth));
+}
+
+TEST_CASE("Ceres and SGD then Ceres recover an exact SE3 ring", "[pose_graph]") {
+  for (auto solver : {pg::Solver::kCeres, pg::Solver::kSgdCeres}) {
+    pg::Graph3D g;
+    std::vector<pg::Pose3> truth;
+    std::mt19937 rng(6);
+    std::normal_distribution<double> gauss(0.0, 1.0);
+    const int n = 36;
+    for (int i = 0; i < 2 * n; ++i) {
+      const double a = 2 * kPi * (i % n) / n;
+      pg::Pose3 p;
+      p.t = {5 * std::cos(a), 5 * std::sin(a), 0.5 * std::sin(2 * a)};
+      p.q = Eigen::AngleAxisd(a, Eigen::Vector3d::UnitZ()) *
+            Eigen::AngleAxisd(0.2 * std::sin(a), Eigen::Vector3d::UnitX());
+      truth.push_back(p);
+      pg::Pose3 start = p;
+      if (i > 0) {
+        start.t += 0.3 * Eigen::Vector3d(gauss(rng), gauss(rng), gauss(rng));
+        start.q =
+            (start.q * Eigen::AngleAxisd(0.1 * gauss(rng), Eigen::Vector3d::UnitY())).normalized();
+      }
+      g.addNode(i, start);
+    }
+    for (int i = 0; i + 1 < 2 * n; ++i)
+      g.edges.push_back(
+          {i, i + 1, truth[i].inverse() * truth[i + 1], Eigen::Matrix<double, 6, 6>::Identity()});
+    for (int i = n; i < 2 * n; ++i)
+      g.edges.push_back({i - n, i, truth[i - n].inverse() * truth[i],
+                         Eigen::Matrix<double, 6, 6>::Identity(), true});
+    const auto s = pg::optimize(g, with(solver));
+    CHECK(s.initial_chi2 > 1.0);
+    CHECK(s.final_chi2 < 1e-12);
+    for (int i = 0; i < g.size(); ++i) CHECK((g.poses[i].t - truth[i].t).norm() < 1e-5);
+  }
+}
+
+TEST_CASE("M3500 from the file reaches the g2o optimum", "[pose_graph][data]") {
+  TESSERA_SHARED_DATA(path, "posegraphs/M3500.g2o");
+  const auto file = tessera::pose_graph::readPoseGraph2D(path);
+  pg::Graph2D g;
+  for (const auto& [id, p] : file.vertices) g.addNode(id, p);
+  for (const auto& e : file.edges)
+    g.edges.push_back({g.index(e.from), g.index(e.to), e.measurement, e.information});
+  // docs/benchmarks.md#pose-graphs-tessera-bench-graph quotes g2o: initial 2 566 667.66, final
+  // 137.912951 (χ² without ½).
+  const auto s = pg::optimize(g, with(pg::Solver::kSgdCeres));
+  CHECK_THAT(s.initial_chi2, WithinRel(2566667.66, 1e-8));
+  CHECK_THAT(s.final_chi2, WithinRel(137.912951, 1e-6));
+}
+
+TEST_CASE("Gauss-Newton reaches the g2o optimum on the badly started TORO Intel graph",
+          "[pose_graph][data]") {
+  TESSERA_SHARED_DATA(path, "posegraph-toro/input_INTEL_g2o.graph");
+  const auto file = tessera::pose_graph::readPoseGraph2D(path);
+  pg::Graph2D g;
+  for (const auto& [id, p] : file.vertices) g.addNode(id, p);
+  for (const auto& e : file.edges)
+    g.edges.push_back({g.index(e.from), g.index(e.to), e.measurement, e.information});
+  pg::OptimizerOptions o = with(pg::Solver::kCeres);
+  o.ceres.method = pg::CeresOptions::Method::kGaussNewton;
+  const auto s = pg::optimize(g, o);
+  // docs/benchmarks.md#pose-graphs-tessera-bench-graph quotes g2o: initial 5 149 721.0, final
+  // 215.830235.
+  CHECK_THAT(s.initial_chi2, WithinRel(5149721.0, 1e-6));
+  CHECK_THAT(s.final_chi2, WithinRel(215.830235, 1e-6));
+  CHECK(s.ceres_iterations <= 20);
+}

@@ -1,0 +1,374 @@
+// `tessera launch` end to end: the same outputs as `tessera run`, Ctrl-C, a killed worker
+// restarted while the other keeps receiving, and the launcher (with its RouDi) killed.
+#include "../../apps/cli_run.hpp"
+
+#include <tessera/shm/roudi_host.hpp>
+
+#include <catch2/catch.hpp>
+#include <nlohmann/json.hpp>
+
+#include <fcntl.h>
+#include <signal.h>
+#include <sys/prctl.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <chrono>
+#include <filesystem>
+#include <fstream>
+#include <regex>
+#include <sstream>
+#include <thread>
+
+namespace fs = std::filesystem;
+using namespace std::chrono_literals;
+
+namespace {
+
+fs::path freshDir(const std::string& name) {
+  const fs::path dir = fs::temp_directory_path() / ("tessera_test_" + name);
+  fs::remove_all(dir);
+  fs::create_directories(dir);
+  return dir;
+}
+
+std::string readFile(const fs::path& p) {
+  std::ifstream in(p, std::ios::binary);
+  std::ostringstream s;
+  s << in.rdbuf();
+  return s.str();
+}
+
+/// `tessera launch ...` in the background, output in dir/launch.txt. Reaps everything it
+/// started (the launcher, and workers re-parented to this process) when destroyed.
+class Launch {
+ public:
+  Launch(const std::vector<std::string>& args, const fs::path& dir) : log_(dir / "launch.txt") {
+    ::prctl(PR_SET_CHILD_SUBREAPER, 1);  // orphaned workers come back to this process
+    pid_ = ::fork();
+    if (pid_ == 0) {
+      const int fd = ::open(log_.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
+      ::dup2(fd, 1);
+      ::dup2(fd, 2);
+      std::vector<std::string> all = {TESSERA_CLI_PATH, "launch"};
+      all.insert(all.end(), args.begin(), args.end());
+      std::vector<char*> argv;
+      for (auto& s : all) argv.push_back(s.data());
+      argv.push_back(nullptr);
+      ::execv(TESSERA_CLI_PATH, argv.data());
+      ::_exit(127);
+    }
+  }
+  ~Launch() {
+    // A failed test must not leave a deployment or its shared memory behind: ask the launcher
+    // to stop, then kill what is left and remove what a killed RouDi could not.
+    if (pid_ > 0 && !reaped_) {
+      ::kill(pid_, SIGTERM);
+      if (wait(15s) < 0) ::kill(pid_, SIGKILL);
+    }
+    reapAll(10s);
+    if (!clean_up_) return;
+    try {
+      tessera::removeStaleShm();
+    } catch (const std::exception&) {
+      // another RouDi runs (not ours): leave its memory alone
+    }
+  }
+  pid_t pid() const { return pid_; }
+  /// Leaves a killed RouDi's shared memory for the next launch to find.
+  void keepLeftovers() { clean_up_ = false; }
+  std::string output() const { return readFile(log_); }
+
+  /// Waits until the output matches `pattern`; returns the first capture group (or "").
+  std::string waitFor(const std::string& pattern, std::chrono::seconds timeout = 30s) const {
+    const std::regex re(pattern);
+    const auto deadline = std::chrono::steady_clock::now() + timeout;
+    while (std::chrono::steady_clock::now() < deadline) {
+      std::smatch m;
+      const std::string out = output();
+      if (std::regex_search(out, m, re)) return m.size() > 1 ? m[1].str() : std::string("!");
+      std::this_thread::sleep_for(20ms);
+    }
+    return "";
+  }
+  /// Exit code of the launcher (-1: still running after `timeout`, then killed).
+  int wait(std::chrono::seconds timeout = 60s) {
+    const auto deadline = std::chrono::steady_clock::now() + timeout;
+    int status = 0;
+    while (::waitpid(pid_, &status, WNOHANG) != pid_) {
+      if (std::chrono::steady_clock::now() > deadline) {
+        ::kill(pid_, SIGKILL);
+        ::waitpid(pid_, &status, 0);
+        reaped_ = true;
+        return -1;
+      }
+      std::this_thread::sleep_for(10ms);
+    }
+    reaped_ = true;
+    return WIFEXITED(status) ? WEXITSTATUS(status) : 128 + WTERMSIG(status);
+  }
+  /// Reaps every child of this process; false when some still run after `timeout`.
+  static bool reapAll(std::chrono::seconds timeout) {
+    const auto deadline = std::chrono::steady_clock::now() + timeout;
+    for (;;) {
+      int status = 0;
+      const pid_t r = ::waitpid(-1, &status, WNOHANG);
+      if (r < 0) return true;  // no children left
+      if (r == 0) {
+        if (std::chrono::steady_clock::now() > deadline) return false;
+        std::this_thread::sleep_for(10ms);
+      }
+    }
+  }
+
+ private:
+  fs::path log_;
+  pid_t pid_ = -1;
+  bool reaped_ = false;
+  bool clean_up_ = true;
+};
+
+/// Every number of a TUM trajectory file, in order.
+std::vector<double> readNumbers(const fs::path& p) {
+  std::ifstream in(p);
+  std::vector<double> out;
+  std::string line;
+  while (std::getline(in, line)) {
+    if (line.empty() || line[0] == '#') continue;
+    std::istringstream s(line);
+    for (double v; s >> v;) out.push_back(v);
+  }
+  return out;
+}
+
+bool shmClean() {
+  for (const auto& e : fs::directory_iterator("/dev/shm")) {
+    const auto name = e.path().filename().string();
+    if (name == "iceoryx_mgmt" || name.rfind("tessera_sync_", 0) == 0) return false;
+  }
+  return true;
+}
+
+}  // namespace
+
+TEST_CASE("a launched profile writes the same outputs as the same profile run in one process",
+          "[launch]") {
+  const auto dir = freshDir("launch_same");
+  const auto run =
+      tessera::test::runCli("run sim_mapping --quiet --out " + (dir / "run").string(), dir);
+  REQUIRE(run.exit_code == 0);
+  Launch launch({"sim_mapping", "--out", (dir / "launch").string()}, dir);
+  const int rc = launch.wait(120s);
+  INFO(launch.output());
+  REQUIRE(rc == 0);
+  CHECK(launch.output().find("stopped: all inputs finished") != std::string::npos);
+  for (const char* f :
+       {"map.pgm", "map.yaml", "trajectory.tum", "odometry.tum", "ground_truth.tum"}) {
+    INFO(f);
+    REQUIRE(fs::exists(dir / "launch" / f));
+    CHECK(readFile(dir / "run" / f) == readFile(dir / "launch" / f));
+  }
+  const auto summary = nlohmann::json::parse(readFile(dir / "launch" / "summary.json"));
+  CHECK(summary["processes"].size() == 2);
+  const auto single = nlohmann::json::parse(readFile(dir / "run" / "summary.json"));
+  CHECK(summary["actors"]["mapper"]["messages_in"] == single["actors"]["mapper"]["messages_in"]);
+  CHECK(shmClean());
+}
+
+namespace {
+
+/// Runs sim_slam_global in one process and launched with `sets` (process placement); the map
+/// and online trajectory must be identical, the final trajectory equal to 1e-6.
+void checkSlamLaunchMatchesOneProcess(const std::string& name,
+                                      const std::vector<std::string>& sets) {
+  const auto dir = freshDir(name);
+  const auto run =
+      tessera::test::runCli("run sim_slam_global --quiet --out " + (dir / "run").string(), dir);
+  REQUIRE(run.exit_code == 0);
+  std::vector<std::string> args = {"sim_slam_global", "--out", (dir / "launch").string()};
+  for (const auto& s : sets) {
+    args.push_back("--set");
+    args.push_back(s);
+  }
+  Launch launch(args, dir);
+  const int rc = launch.wait(180s);
+  INFO(launch.output());
+  REQUIRE(rc == 0);
+  CHECK(launch.output().find("stopped: all inputs finished") != std::string::npos);
+  for (const char* f : {"map.pgm", "trajectory.tum"}) {
+    INFO(f);
+    REQUIRE(fs::exists(dir / "launch" / f));
+    CHECK(readFile(dir / "run" / f) == readFile(dir / "launch" / f));
+  }
+  // The optimiser may see the loop constraints in another interleaving with the submaps (they
+  // come from two processes) and so take other warm-started steps to the same optimum.
+  const auto single = readNumbers(dir / "run" / "trajectory_final.tum");
+  const auto multi = readNumbers(dir / "launch" / "trajectory_final.tum");
+  REQUIRE(single.size() == multi.size());
+  REQUIRE(single.size() > 1000);
+  double worst = 0;
+  for (std::size_t i = 0; i < single.size(); ++i)
+    worst = std::max(worst, std::abs(single[i] - multi[i]));
+  CHECK(worst < 1e-6);
+  CHECK(shmClean());
+}
+
+}  // namespace
+
+TEST_CASE("laser SLAM split over three processes gives the same trajectories and map as one",
+          "[launch]") {
+  // Submaps, constraints and the final poses published in stop() cross processes; the
+  // optimiser's stop-time output must still reach the writer in the last process.
+  checkSlamLaunchMatchesOneProcess(
+      "launch_slam", {"sim.process=robot", "loops.process=global", "optimizer.process=global",
+                      "assembler.process=global", "map_writer.process=global",
+                      "final_trajectory_writer.process=global"});
+}
+
+TEST_CASE(
+    "laser SLAM with the map and trajectory writers beside the builder gives the same outputs",
+    "[launch]") {
+  // The README split: main both sends and reads back submaps, poses and constraints, and reads
+  // the optimiser's poses from global through a keep_latest queue (whose discards must still
+  // count as received, or the clock stalls); the optimiser's stop-time output must reach the
+  // writers in main, which stop after it although main's builder stops before global.
+  checkSlamLaunchMatchesOneProcess("launch_slam_main", {"sim.process=robot", "loops.process=global",
+                                                        "optimizer.process=global"});
+}
+
+TEST_CASE("Ctrl-C stops a launched deployment cleanly and its outputs are written", "[launch]") {
+  const auto dir = freshDir("launch_interrupt");
+  Launch launch({"sim_mapping", "--out", (dir / "out").string(), "--set", "sim_rate=2"}, dir);
+  REQUIRE(!launch.waitFor(R"(started 'mapping')").empty());
+  std::this_thread::sleep_for(1500ms);
+  ::kill(launch.pid(), SIGINT);
+  const int rc = launch.wait(60s);
+  INFO(launch.output());
+  CHECK(rc == 130);
+  CHECK(launch.output().find("stopped: interrupted") != std::string::npos);
+  CHECK(fs::exists(dir / "out" / "map.pgm"));
+  CHECK(Launch::reapAll(10s));
+  CHECK(shmClean());
+}
+
+// Wall clock: the robot streams in real time, the mapper is fed by whichever robot is alive.
+constexpr const char* kWallMapping = R"(name: wall_mapping
+clock: wall
+restart: [robot]
+actors:
+  sim:
+    type: simulator
+    process: robot
+    params: {world: builtin:office, laps: 1, scan_hz: 10, odom_hz: 50}
+  mapper:
+    type: grid_mapper
+    process: mapping
+    remap: {pose: ground_truth}
+  map_writer:
+    type: map_writer
+    process: mapping
+)";
+
+namespace {
+/// Lets a launched kWallMapping run for `run_for`, kills its robot process with SIGKILL and
+/// waits until the launcher restarts it.
+void killRobotAndAwaitRestart(Launch& launch, std::chrono::milliseconds run_for) {
+  const std::string robot = launch.waitFor(R"(started 'robot' \(pid (\d+)\))");
+  REQUIRE(!robot.empty());
+  REQUIRE(!launch.waitFor(R"(started 'mapping')").empty());
+  std::this_thread::sleep_for(run_for);
+  ::kill(std::stoi(robot), SIGKILL);
+  CHECK(!launch.waitFor(R"(process 'robot' \(pid \d+\) was killed by SIGKILL)", 10s).empty());
+  REQUIRE(!launch.waitFor(R"(restarting 'robot')", 10s).empty());
+}
+}  // namespace
+
+TEST_CASE("a killed worker is reported and restarted while the other process keeps receiving",
+          "[launch]") {
+  const auto dir = freshDir("launch_restart");
+  std::ofstream(dir / "wall.yaml") << kWallMapping;
+  Launch launch({(dir / "wall.yaml").string(), "--out", (dir / "out").string()}, dir);
+  killRobotAndAwaitRestart(launch, 1500ms);
+  std::this_thread::sleep_for(2500ms);
+  ::kill(launch.pid(), SIGINT);
+  const int rc = launch.wait(60s);
+  INFO(launch.output());
+  CHECK(rc == 130);
+  const auto summary = nlohmann::json::parse(readFile(dir / "out" / "summary.json"));
+  CHECK(summary["processes"]["robot"]["restarts"] == 1);
+  CHECK(summary["processes"]["mapping"]["restarts"] == 0);
+  // About 15 scans before the kill; more arrived only from the restarted robot.
+  CHECK(summary["actors"]["mapper"]["messages_in"].get<int>() > 25);
+  CHECK(fs::exists(dir / "out" / "map.pgm"));
+  CHECK(shmClean());
+}
+
+TEST_CASE("Ctrl-C while a restarted process is still starting stops the deployment", "[launch]") {
+  // The new robot finds the run already stopping and leaves without running: the launcher must
+  // not wait for its stop stage.
+  const auto dir = freshDir("launch_restart_interrupt");
+  std::ofstream(dir / "wall.yaml") << kWallMapping;
+  Launch launch({(dir / "wall.yaml").string(), "--out", (dir / "out").string()}, dir);
+  killRobotAndAwaitRestart(launch, 1000ms);
+  ::kill(launch.pid(), SIGINT);
+  const int rc = launch.wait(60s);
+  INFO(launch.output());
+  CHECK(rc == 130);
+  CHECK(fs::exists(dir / "out" / "map.pgm"));
+  CHECK(shmClean());
+}
+
+TEST_CASE("a process still waiting for its peers leaves at once when the deployment stops",
+          "[launch]") {
+  // The mapping process is frozen before it subscribes, so the robot waits for a subscriber that
+  // never comes. Killing the mapping stops the run: the robot must notice instead of sitting out
+  // its 30 s connection timeout.
+  const auto dir = freshDir("launch_peer_wait");
+  std::ofstream(dir / "wall.yaml") << kWallMapping;
+  Launch launch({(dir / "wall.yaml").string()}, dir);
+  const std::string mapping = launch.waitFor(R"(started 'mapping' \(pid (\d+)\))");
+  REQUIRE(!mapping.empty());
+  ::kill(std::stoi(mapping), SIGSTOP);
+  std::this_thread::sleep_for(1500ms);
+  ::kill(std::stoi(mapping), SIGKILL);
+  const auto killed = std::chrono::steady_clock::now();
+  const int rc = launch.wait(60s);
+  const auto took = std::chrono::steady_clock::now() - killed;
+  INFO(launch.output());
+  CHECK(rc == 1);
+  CHECK(took < 10s);
+  CHECK(launch.output().find("process 'mapping' (pid " + mapping + ") was killed by SIGKILL") !=
+        std::string::npos);
+  CHECK(Launch::reapAll(10s));
+  CHECK(shmClean());
+}
+
+TEST_CASE("when the launcher and its RouDi die the workers stop and the next launch cleans up",
+          "[launch]") {
+  const auto dir = freshDir("launch_roudi_death");
+  {
+    Launch launch({"sim_mapping", "--set", "sim_rate=1"}, dir);
+    launch.keepLeftovers();
+    const std::string robot = launch.waitFor(R"(started 'robot' \(pid (\d+)\))");
+    const std::string mapping = launch.waitFor(R"(started 'mapping' \(pid (\d+)\))");
+    REQUIRE(!robot.empty());
+    REQUIRE(!mapping.empty());
+    std::this_thread::sleep_for(1000ms);
+    ::kill(launch.pid(), SIGKILL);
+    CHECK(launch.wait(10s) == 128 + SIGKILL);
+    // The workers notice (parent-death signal, re-parenting) and exit by themselves.
+    CHECK(Launch::reapAll(15s));
+    CHECK(::kill(std::stoi(robot), 0) != 0);
+    CHECK(::kill(std::stoi(mapping), 0) != 0);
+  }
+  CHECK_FALSE(shmClean());  // RouDi had no chance to remove its shared memory
+  const auto again = freshDir("launch_roudi_death_again");
+  Launch launch({"sim_mapping", "--set", "max_duration_s=20"}, again);
+  const int rc = launch.wait(60s);
+  INFO(launch.output());
+  CHECK(rc == 0);
+  CHECK(
+      launch.output().find("removed stale shared memory of a crashed run: /dev/shm/iceoryx_mgmt") !=
+      std::string::npos);
+  CHECK(shmClean());
+}
