@@ -13,7 +13,7 @@ tessera=./build/bin/tessera
 $tessera run sim_slam_global --out "$out"
 
 rmse() {  # ATE RMSE [m] of one trajectory against ground truth (SE(2) alignment)
-  $tessera eval ate --estimate "$out/$1" --reference "$out/ground_truth.tum" --json |
+  $tessera eval ate --estimate "$out/$1" --reference "$out/ground_truth.tum" --json 2>/dev/null |
     sed -n 's/.*"rmse_m": *\([0-9.eE+-]*\).*/\1/p' | xargs printf '%.3f m'
 }
 figure() {  # one number from summary.json
