@@ -42,12 +42,13 @@ double seconds(std::chrono::steady_clock::time_point t0) {
 }
 
 /// A free pose at least `clearance` from any wall.
-sim::Pose randomFreePose(const sim::World& w, std::mt19937_64& rng, double clearance) {
+tessera::Pose2 randomFreePose(const sim::World& w, std::mt19937_64& rng, double clearance) {
   std::uniform_real_distribution<double> ux(0.0, w.widthMeters()), uy(0.0, w.heightMeters()),
       ut(-std::numbers::pi, std::numbers::pi);
   for (;;) {
-    const sim::Pose p{ux(rng), uy(rng), ut(rng)};
-    if (!w.blocked(p.xy()) && w.clearance(p.xy(), clearance) >= clearance) return p;
+    const tessera::Pose2 p{ux(rng), uy(rng), ut(rng)};
+    if (!w.blocked(p.translation()) && w.clearance(p.translation(), clearance) >= clearance)
+      return p;
   }
 }
 
@@ -90,8 +91,8 @@ void addBenchMatcherCommand(CLI::App& bench, int& result) {
     int mapping_scans = 0;
     for (double y = 1.0; y < world.heightMeters(); y += 2.0)
       for (double x = 1.0; x < world.widthMeters(); x += 2.0) {
-        const sim::Pose p{x, y, 0.0};
-        if (world.blocked(p.xy()) || world.clearance(p.xy(), 0.3) < 0.3) continue;
+        const tessera::Pose2 p{x, y, 0.0};
+        if (world.blocked(p.translation()) || world.clearance(p.translation(), 0.3) < 0.3) continue;
         const auto ranges = model.scan(p, rng);
         grid.insertScan(
             {ranges, laser.angle_min, laser.angle_increment, laser.range_min, laser.range_max},
@@ -118,7 +119,7 @@ void addBenchMatcherCommand(CLI::App& bench, int& result) {
     nlohmann::json runs = nlohmann::json::array();
     double bnb_total = 0.0, ex_total = 0.0;
     for (int k = 0; k < o->scans; ++k) {
-      const sim::Pose truth = randomFreePose(world, rng, 0.4);
+      const tessera::Pose2 truth = randomFreePose(world, rng, 0.4);
       const auto ranges = model.scan(truth, rng);
       std::vector<Eigen::Vector2d> pts;
       for (int b = 0; b < o->beams; ++b) {

@@ -24,39 +24,6 @@ namespace {
 namespace fs = std::filesystem;
 namespace pg = tessera::pose_graph;
 
-// --- file graphs <-> solver graphs (dense indices in increasing id order) --------------------
-
-pg::Graph2D toSolverGraph(const pg::PoseGraph2D& in) {
-  pg::Graph2D g;
-  for (const auto& [id, pose] : in.vertices) g.addNode(id, pose);
-  for (auto id : in.fixed) g.fixed[g.index(id)] = true;
-  for (const auto& e : in.edges) {
-    const int a = g.index(e.from), b = g.index(e.to);
-    g.edges.push_back({a, b, e.measurement, e.information, std::abs(a - b) != 1});
-  }
-  return g;
-}
-
-pg::Graph3D toSolverGraph(const pg::PoseGraph3D& in) {
-  pg::Graph3D g;
-  for (const auto& [id, pose] : in.vertices) g.addNode(id, pose);
-  for (auto id : in.fixed) g.fixed[g.index(id)] = true;
-  for (const auto& e : in.edges) {
-    const int a = g.index(e.from), b = g.index(e.to);
-    g.edges.push_back(
-        {a, b, e.measurement, e.information, std::abs(a - b) != 1});
-  }
-  return g;
-}
-
-void copyPoses(const pg::Graph2D& g, pg::PoseGraph2D& out) {
-  for (int i = 0; i < g.size(); ++i) out.vertices[g.ids[i]] = g.poses[i];
-}
-
-void copyPoses(const pg::Graph3D& g, pg::PoseGraph3D& out) {
-  for (int i = 0; i < g.size(); ++i) out.vertices[g.ids[i]] = g.poses[i];
-}
-
 nlohmann::json summaryJson(const pg::OptimizerSummary& s, int nodes, std::size_t edges) {
   return {{"nodes", nodes},
           {"edges", edges},
@@ -73,24 +40,21 @@ nlohmann::json summaryJson(const pg::OptimizerSummary& s, int nodes, std::size_t
 
 /// Takes the start poses from another file's vertices (e.g. an earlier solution); every node of
 /// the graph must be there.
-void startFrom(pg::Graph2D& graph, const std::string& path) {
-  const auto other = pg::readPoseGraph2D(path);
+template <class G>
+void startFrom(G& graph, const G& other, const std::string& path) {
   for (int i = 0; i < graph.size(); ++i) {
-    const auto it = other.vertices.find(graph.ids[i]);
-    if (it == other.vertices.end())
+    if (!other.contains(graph.ids[i]))
       throw ConfigError("--init-poses: " + path + " has no vertex " + std::to_string(graph.ids[i]));
-    graph.poses[i] = it->second;
+    graph.poses[i] = other.poses[other.index(graph.ids[i])];
   }
 }
 
+void startFrom(pg::Graph2D& graph, const std::string& path) {
+  startFrom(graph, pg::readPoseGraph2D(path), path);
+}
+
 void startFrom(pg::Graph3D& graph, const std::string& path) {
-  const auto other = pg::readPoseGraph3D(path);
-  for (int i = 0; i < graph.size(); ++i) {
-    const auto it = other.vertices.find(graph.ids[i]);
-    if (it == other.vertices.end())
-      throw ConfigError("--init-poses: " + path + " has no vertex " + std::to_string(graph.ids[i]));
-    graph.poses[i] = it->second;
-  }
+  startFrom(graph, pg::readPoseGraph3D(path), path);
 }
 
 struct OptimizeOptions {
@@ -117,16 +81,17 @@ pg::OptimizerOptions solverOptions(const OptimizeOptions& o) {
 }
 
 /// Reads, optionally re-initialises, optimises and (if asked) writes one graph.
-template <class FileGraph>
-nlohmann::json optimizeFile(FileGraph file_graph, const OptimizeOptions& o,
+template <class Graph>
+nlohmann::json optimizeFile(Graph graph, const OptimizeOptions& o,
                             const pg::OptimizerOptions& options) {
-  auto graph = toSolverGraph(file_graph);
+  // Edges between consecutive nodes are odometry; the others are loop closures, which get the
+  // robust loss when one is asked for.
+  for (auto& e : graph.edges) e.robust = std::abs(e.from - e.to) != 1;
   if (o.init == "odometry") pg::initializeFromOdometry(graph);
   if (!o.init_poses.empty()) startFrom(graph, o.init_poses);
   const auto summary = pg::optimize(graph, options);
   if (!o.out.empty()) {
-    copyPoses(graph, file_graph);
-    pg::writeG2o(file_graph, o.out);
+    pg::writeG2o(graph, o.out);
   }
   return summaryJson(summary, graph.size(), graph.edges.size());
 }

@@ -20,7 +20,7 @@ inline void pushOdometry(ActorHarness& h, Nanos stamp, const tessera::Pose2& p) 
   h.push<msg::Odometry>("odom", [&](auto& b) {
     setHeader(b.initHeader(), stamp, "odom", 0);
     b.setChildFrameId("base_link");
-    writePose(b.initPose(), PoseXYT{p.x, p.y, p.theta});
+    writePose(b.initPose(), tessera::Pose2{p.x, p.y, p.theta});
   });
 }
 

@@ -16,18 +16,18 @@ namespace {
 
 /// A loop of 20 poses whose file poses carry a heading drift; its measurements are exact.
 void writeDriftedLoop(const std::filesystem::path& path) {
-  tessera::pose_graph::PoseGraph2D g;
+  tessera::pose_graph::Graph2D g;  // node index = id
   const int n = 20;
   const double step = 2 * std::numbers::pi / n;
   Eigen::Vector3d at(0, 0, 0);
   const Eigen::Vector3d odo(1.0, 0.0, step);
   for (int i = 0; i < n; ++i) {
-    g.vertices[i] = at;
+    g.addNode(i, at);
     const double th = at.z() + 0.02;  // drift in the start only
     at = {at.x() + std::cos(th) * odo.x(), at.y() + std::sin(th) * odo.x(), th + odo.z()};
   }
   for (int i = 0; i < n; ++i) {
-    tessera::pose_graph::PoseGraph2D::Edge e;
+    tessera::pose_graph::Edge2D e;
     e.from = i;
     e.to = (i + 1) % n;
     e.measurement = odo;  // a regular polygon: the closing edge n-1 -> 0 is the same step
@@ -60,7 +60,7 @@ TEST_CASE("graph optimize closes a drifted loop and writes the result", "[graph_
       CHECK(j["final_chi2"].get<double>() < 1e-9);
       // The written file holds the optimised poses: its χ² is the reported final one.
       const auto back = tessera::pose_graph::readPoseGraph2D(dir / "out.g2o");
-      const Eigen::Vector3d p10 = back.vertices.at(10);
+      const Eigen::Vector3d p10 = back.poses[back.index(10)];
       CHECK(std::hypot(p10.x(), p10.y()) > 5.0);  // across the polygon, not near the start
     }
   }

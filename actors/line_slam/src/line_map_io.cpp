@@ -1,3 +1,4 @@
+#include <tessera/geometry/pose2.hpp>
 #include <tessera/line_slam/line_map_io.hpp>
 
 #include <algorithm>
@@ -38,7 +39,7 @@ std::vector<MapSegment> readWallSegments(const fs::path& path) {
     s.r = s.p0.dot(Eigen::Vector2d(std::cos(s.phi), std::sin(s.phi)));
     if (s.r < 0) {
       s.r = -s.r;
-      s.phi = std::remainder(s.phi + std::numbers::pi, 2 * std::numbers::pi);
+      s.phi = normalizeAngle(s.phi + std::numbers::pi);
     }
     out.push_back(s);
   }

@@ -2,6 +2,8 @@
 // not only its diagonal), so χ² = 2 × Ceres' cost.
 #include "solvers.hpp"
 
+#include <tessera/geometry/pose2.hpp>
+
 #include <ceres/ceres.h>
 #include <ceres/manifold.h>
 
@@ -17,6 +19,8 @@
 namespace tessera::pose_graph::detail {
 namespace {
 
+// normalizeAngle() (base/geometry) for Ceres' Jet types: the residual is differentiated through
+// it, so it has to be written in operations Ceres overloads (floor on a Jet keeps the derivative).
 template <class T>
 T wrapAngle(const T& a) {
   const T two_pi = T(2.0 * M_PI);
@@ -207,7 +211,7 @@ StageResult runCeres(Graph2D& graph, const CeresOptions& options) {
     if ((i == 0 || graph.fixed[i]) && problem.HasParameterBlock(graph.poses[i].data()))
       problem.SetParameterBlockConstant(graph.poses[i].data());
   StageResult result = solve(problem, options);
-  for (auto& p : graph.poses) p.z() = std::remainder(p.z(), 2.0 * M_PI);
+  for (auto& p : graph.poses) p.z() = normalizeAngle(p.z());
   return result;
 }
 

@@ -13,10 +13,6 @@
 namespace tessera::pose_graph {
 namespace {
 
-double wrap(double a) {
-  return tessera::normalizeAngle(a);
-}
-
 template <class Matrix>
 bool symmetricPsd(const Matrix& m) {
   if (!m.allFinite()) return false;
@@ -140,18 +136,19 @@ template struct Graph<Pose3, 6>;
 
 Eigen::Vector3d compose(const Eigen::Vector3d& a, const Eigen::Vector3d& b) {
   const double c = std::cos(a.z()), s = std::sin(a.z());
-  return {a.x() + c * b.x() - s * b.y(), a.y() + s * b.x() + c * b.y(), wrap(a.z() + b.z())};
+  return {a.x() + c * b.x() - s * b.y(), a.y() + s * b.x() + c * b.y(),
+          normalizeAngle(a.z() + b.z())};
 }
 
 Eigen::Vector3d inverse(const Eigen::Vector3d& a) {
   const double c = std::cos(a.z()), s = std::sin(a.z());
-  return {-c * a.x() - s * a.y(), s * a.x() - c * a.y(), wrap(-a.z())};
+  return {-c * a.x() - s * a.y(), s * a.x() - c * a.y(), normalizeAngle(-a.z())};
 }
 
 Eigen::Vector3d between(const Eigen::Vector3d& a, const Eigen::Vector3d& b) {
   const double c = std::cos(a.z()), s = std::sin(a.z());
   const double dx = b.x() - a.x(), dy = b.y() - a.y();
-  return {c * dx + s * dy, -s * dx + c * dy, wrap(b.z() - a.z())};
+  return {c * dx + s * dy, -s * dx + c * dy, normalizeAngle(b.z() - a.z())};
 }
 
 Eigen::Vector3d edgeError(const Eigen::Vector3d& a, const Eigen::Vector3d& b,
@@ -190,11 +187,11 @@ void validate(const Graph3D& graph) {
 
 Measurement2D fuse(const Measurement2D& first, const Measurement2D& second) {
   Eigen::Vector3d z2 = second.mean;
-  z2.z() = first.mean.z() + wrap(z2.z() - first.mean.z());
+  z2.z() = first.mean.z() + normalizeAngle(z2.z() - first.mean.z());
   Measurement2D out;
   out.information = first.information + second.information;
   out.mean = out.information.ldlt().solve(first.information * first.mean + second.information * z2);
-  out.mean.z() = wrap(out.mean.z());
+  out.mean.z() = normalizeAngle(out.mean.z());
   return out;
 }
 

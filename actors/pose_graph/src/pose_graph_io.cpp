@@ -1,3 +1,4 @@
+#include <tessera/geometry/pose2.hpp>
 #include <tessera/pose_graph/pose_graph_io.hpp>
 
 #include <Eigen/Eigenvalues>
@@ -61,11 +62,6 @@ std::string number(double v) {
   return s.str();
 }
 
-double wrapAngle(double a) {
-  a = std::remainder(a, 2 * std::numbers::pi);
-  return a <= -std::numbers::pi ? a + 2 * std::numbers::pi : a;
-}
-
 // Symmetric positive semidefinite up to a relative tolerance; returns the smallest eigenvalue
 // through `min_eig` for the message.
 template <int N>
@@ -111,7 +107,7 @@ Eigen::Quaterniond readQuaternion(const Fields& f, std::size_t first) {
 // 2D and 3D pose algebra for building initial poses from edges.
 Eigen::Vector3d composeEdge(const Eigen::Vector3d& a, const Eigen::Vector3d& d) {
   const double c = std::cos(a[2]), s = std::sin(a[2]);
-  return {a[0] + c * d[0] - s * d[1], a[1] + s * d[0] + c * d[1], wrapAngle(a[2] + d[2])};
+  return {a[0] + c * d[0] - s * d[1], a[1] + s * d[0] + c * d[1], normalizeAngle(a[2] + d[2])};
 }
 Eigen::Vector3d invertEdge(const Eigen::Vector3d& d) {
   const double c = std::cos(d[2]), s = std::sin(d[2]);
@@ -128,6 +124,39 @@ Pose3 invertEdge(const Pose3& d) {
   r.q = d.q.conjugate();
   r.t = -(r.q * d.t);
   return r;
+}
+
+// The file as read, keyed by the file's ids: what the parsing rules (duplicates, references,
+// building poses for a file without vertices) are checked on before it becomes a Graph.
+template <class Pose, int Dim>
+struct FileGraph {
+  struct Edge {
+    std::int64_t from = 0, to = 0;
+    Pose measurement{};  // `to` in the frame of `from`
+    Eigen::Matrix<double, Dim, Dim> information = Eigen::Matrix<double, Dim, Dim>::Identity();
+  };
+  std::map<std::int64_t, Pose> vertices;
+  std::vector<Edge> edges;          // in file order
+  std::vector<std::int64_t> fixed;  // ids from FIX lines
+};
+using FileGraph2D = FileGraph<Eigen::Vector3d, 3>;
+using FileGraph3D = FileGraph<Pose3, 6>;
+
+// Nodes in increasing id order, edges in file order, FIX ids as fixed nodes.
+template <class G, class F>
+G toGraph(const F& file) {
+  G g;
+  for (const auto& [id, pose] : file.vertices) g.addNode(id, pose);
+  for (const auto id : file.fixed) g.fixed[static_cast<std::size_t>(g.index(id))] = true;
+  for (const auto& e : file.edges) {
+    typename G::EdgeType edge;
+    edge.from = g.index(e.from);
+    edge.to = g.index(e.to);
+    edge.measurement = e.measurement;
+    edge.information = e.information;
+    g.edges.push_back(edge);
+  }
+  return g;
 }
 
 Eigen::Vector3d origin(const Eigen::Vector3d*) {
@@ -231,6 +260,8 @@ void checkReferences(const Graph& g, const std::vector<std::size_t>& edge_lines,
 
 PoseGraphFile readPoseGraph(TextReader& reader) {
   PoseGraphFile out;
+  FileGraph2D file2d;
+  FileGraph3D file3d;
   ParseReport& report = out.report;
   enum class Family { kNone, kG2o, kToro } family = Family::kNone;
   std::size_t family_line = 0, dimension_line = 0;
@@ -288,7 +319,7 @@ PoseGraphFile readPoseGraph(TextReader& reader) {
         const std::int64_t id = vertexId(f, 1, "id");
         const Eigen::Vector3d pose(f.real(2, "x"), f.real(3, "y"), f.real(4, "theta"));
         newVertex(id, f);
-        out.graph2d.vertices.emplace(id, pose);
+        file2d.vertices.emplace(id, pose);
         break;
       }
       case Tag::kEdgeSE2:
@@ -297,7 +328,7 @@ PoseGraphFile readPoseGraph(TextReader& reader) {
         setFamily(toro ? Family::kToro : Family::kG2o, f);
         setDimension(2, f);
         f.requireExactly(12, f[0]);
-        PoseGraph2D::Edge e;
+        FileGraph2D::Edge e;
         std::tie(e.from, e.to) = endpoints(f);
         e.measurement = {f.real(3, "dx"), f.real(4, "dy"), f.real(5, "dtheta")};
         std::array<double, 6> v{};
@@ -309,7 +340,7 @@ PoseGraphFile readPoseGraph(TextReader& reader) {
           I << v[0], v[1], v[2], v[1], v[3], v[4], v[2], v[4], v[5];
         }
         checkInformation<3>(f, I);
-        out.graph2d.edges.push_back(e);
+        file2d.edges.push_back(e);
         break;
       }
       case Tag::kVertexSE3: {
@@ -321,14 +352,14 @@ PoseGraphFile readPoseGraph(TextReader& reader) {
         p.t = {f.real(2, "x"), f.real(3, "y"), f.real(4, "z")};
         p.q = readQuaternion(f, 5);
         newVertex(id, f);
-        out.graph3d.vertices.emplace(id, p);
+        file3d.vertices.emplace(id, p);
         break;
       }
       case Tag::kEdgeSE3: {
         setFamily(Family::kG2o, f);
         setDimension(3, f);
         f.requireExactly(31, f[0]);
-        PoseGraph3D::Edge e;
+        FileGraph3D::Edge e;
         std::tie(e.from, e.to) = endpoints(f);
         e.measurement.t = {f.real(3, "dx"), f.real(4, "dy"), f.real(5, "dz")};
         e.measurement.q = readQuaternion(f, 6);
@@ -339,14 +370,14 @@ PoseGraphFile readPoseGraph(TextReader& reader) {
           }
         }
         checkInformation<6>(f, e.information);
-        out.graph3d.edges.push_back(e);
+        file3d.edges.push_back(e);
         break;
       }
       case Tag::kFix: {
         setFamily(Family::kG2o, f);
         f.requireAtLeast(2, "FIX");
         for (std::size_t i = 1; i < f.size(); ++i) {
-          out.graph2d.fixed.push_back(vertexId(f, i, "id"));
+          file2d.fixed.push_back(vertexId(f, i, "id"));
           fix_lines.push_back(reader.lineNumber());
         }
         break;
@@ -380,11 +411,12 @@ PoseGraphFile readPoseGraph(TextReader& reader) {
     checkReferences(graph, edge_lines, fix_lines, reader.path());
   };
   if (dimension == 2) {
-    finish(out.graph2d);
+    finish(file2d);
+    out.graph2d = toGraph<Graph2D>(file2d);
   } else {
-    out.graph3d.fixed = std::move(out.graph2d.fixed);
-    out.graph2d.fixed.clear();
-    finish(out.graph3d);
+    file3d.fixed = std::move(file2d.fixed);
+    finish(file3d);
+    out.graph3d = toGraph<Graph3D>(file3d);
   }
   return out;
 }
@@ -394,14 +426,14 @@ PoseGraphFile readPoseGraph(const std::filesystem::path& path) {
   return readPoseGraph(reader);
 }
 
-PoseGraph2D readPoseGraph2D(const std::filesystem::path& path, ParseReport* report) {
+Graph2D readPoseGraph2D(const std::filesystem::path& path, ParseReport* report) {
   PoseGraphFile file = readPoseGraph(path);
   if (file.dimension != 2) throw DatasetError(path, 0, "holds a 3D pose graph; expected 2D");
   if (report) *report = std::move(file.report);
   return std::move(file.graph2d);
 }
 
-PoseGraph3D readPoseGraph3D(const std::filesystem::path& path, ParseReport* report) {
+Graph3D readPoseGraph3D(const std::filesystem::path& path, ParseReport* report) {
   PoseGraphFile file = readPoseGraph(path);
   if (file.dimension != 3) throw DatasetError(path, 0, "holds a 2D pose graph; expected 3D");
   if (report) *report = std::move(file.report);
@@ -456,61 +488,90 @@ std::string edgeWhat(std::int64_t a, std::int64_t b) {
   return "edge " + std::to_string(a) + " -> " + std::to_string(b);
 }
 
-void writeVertices2D(const PoseGraph2D& g, LineWriter& w, std::string_view tag) {
-  for (const auto& [id, p] : g.vertices) {
+// Node indices in increasing id order (files list vertices that way).
+template <class G>
+std::vector<std::size_t> byId(const G& g) {
+  std::vector<std::size_t> order(g.ids.size());
+  for (std::size_t i = 0; i < order.size(); ++i) order[i] = i;
+  std::sort(order.begin(), order.end(),
+            [&g](std::size_t a, std::size_t b) { return g.ids[a] < g.ids[b]; });
+  return order;
+}
+
+template <class G>
+std::int64_t idOf(const G& g, int node) {
+  return g.ids[static_cast<std::size_t>(node)];
+}
+
+void writeVertices2D(const Graph2D& g, const std::vector<std::size_t>& order, LineWriter& w,
+                     std::string_view tag) {
+  for (const std::size_t i : order) {
+    const std::int64_t id = g.ids[i];
+    const Eigen::Vector3d& p = g.poses[i];
     const std::string what = vertexWhat(id);
     w.tag(tag).id(id).num(p[0], what).num(p[1], what).num(p[2], what).endLine();
   }
 }
 
+template <class G>
+void writeFixed(const G& g, const std::vector<std::size_t>& order, LineWriter& w) {
+  for (const std::size_t i : order)
+    if (g.fixed[i]) w.tag("FIX").id(g.ids[i]).endLine();
+}
+
 }  // namespace
 
-void writeG2o(const PoseGraph2D& graph, const std::filesystem::path& path) {
+void writeG2o(const Graph2D& graph, const std::filesystem::path& path) {
   LineWriter w(path);
-  writeVertices2D(graph, w, "VERTEX_SE2");
+  const auto order = byId(graph);
+  writeVertices2D(graph, order, w, "VERTEX_SE2");
   for (const auto& e : graph.edges) {
-    const std::string what = edgeWhat(e.from, e.to);
-    w.tag("EDGE_SE2").id(e.from).id(e.to);
+    const std::int64_t from = idOf(graph, e.from), to = idOf(graph, e.to);
+    const std::string what = edgeWhat(from, to);
+    w.tag("EDGE_SE2").id(from).id(to);
     for (int i = 0; i < 3; ++i) w.num(e.measurement[i], what);
     for (int r = 0; r < 3; ++r)
       for (int c = r; c < 3; ++c) w.num(e.information(r, c), what);
     w.endLine();
   }
-  for (const auto id : graph.fixed) w.tag("FIX").id(id).endLine();
+  writeFixed(graph, order, w);
   w.save();
 }
 
-void writeG2o(const PoseGraph3D& graph, const std::filesystem::path& path) {
+void writeG2o(const Graph3D& graph, const std::filesystem::path& path) {
   LineWriter w(path);
+  const auto order = byId(graph);
   auto pose = [&w](const Pose3& p, const std::string& what) {
     for (int i = 0; i < 3; ++i) w.num(p.t[i], what);
     w.num(p.q.x(), what).num(p.q.y(), what).num(p.q.z(), what);
     w.num(p.q.w(), what);
   };
-  for (const auto& [id, p] : graph.vertices) {
-    w.tag("VERTEX_SE3:QUAT").id(id);
-    pose(p, vertexWhat(id));
+  for (const std::size_t i : order) {
+    w.tag("VERTEX_SE3:QUAT").id(graph.ids[i]);
+    pose(graph.poses[i], vertexWhat(graph.ids[i]));
     w.endLine();
   }
   for (const auto& e : graph.edges) {
-    const std::string what = edgeWhat(e.from, e.to);
-    w.tag("EDGE_SE3:QUAT").id(e.from).id(e.to);
+    const std::int64_t from = idOf(graph, e.from), to = idOf(graph, e.to);
+    const std::string what = edgeWhat(from, to);
+    w.tag("EDGE_SE3:QUAT").id(from).id(to);
     pose(e.measurement, what);
     for (int r = 0; r < 6; ++r)
       for (int c = r; c < 6; ++c) w.num(e.information(r, c), what);
     w.endLine();
   }
-  for (const auto id : graph.fixed) w.tag("FIX").id(id).endLine();
+  writeFixed(graph, order, w);
   w.save();
 }
 
-void writeToro(const PoseGraph2D& graph, const std::filesystem::path& path) {
+void writeToro(const Graph2D& graph, const std::filesystem::path& path) {
   LineWriter w(path);
-  writeVertices2D(graph, w, "VERTEX2");
+  writeVertices2D(graph, byId(graph), w, "VERTEX2");
   for (const auto& e : graph.edges) {
-    const std::string what = edgeWhat(e.from, e.to);
+    const std::int64_t from = idOf(graph, e.from), to = idOf(graph, e.to);
+    const std::string what = edgeWhat(from, to);
     const Eigen::Matrix3d& I = e.information;
-    w.tag("EDGE2").id(e.from).id(e.to);
+    w.tag("EDGE2").id(from).id(to);
     for (int i = 0; i < 3; ++i) w.num(e.measurement[i], what);
     w.num(I(0, 0), what).num(I(0, 1), what).num(I(1, 1), what);
     w.num(I(2, 2), what).num(I(0, 2), what).num(I(1, 2), what);

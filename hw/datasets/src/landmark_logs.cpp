@@ -1,5 +1,7 @@
 #include <tessera/datasets/landmark_logs.hpp>
 
+#include <tessera/geometry/pose2.hpp>
+
 #include <Eigen/Eigenvalues>
 
 #include <algorithm>
@@ -50,11 +52,6 @@ double nonNegative(const Fields& f, std::size_t i, std::string_view label) {
     f.fail("field " + std::to_string(i + 1) + " (" + std::string(label) + "): must be >= 0, got " +
            number(v));
   return v;
-}
-
-double wrapAngle(double a) {
-  a = std::remainder(a, 2 * std::numbers::pi);
-  return a <= -std::numbers::pi ? a + 2 * std::numbers::pi : a;
 }
 
 template <int N>
@@ -289,7 +286,7 @@ VictoriaParkLog readVictoriaPark(TextReader& reader) {
       if (!positiveSemidefinite<2>(o.covariance))
         f.fail("landmark covariance is not positive semidefinite");
       o.range = std::hypot(o.position.x(), o.position.y());
-      o.bearing = wrapAngle(std::atan2(o.position.y(), o.position.x()));
+      o.bearing = normalizeAngle(std::atan2(o.position.y(), o.position.x()));
       const double largest_eigenvalue = 0.5 * (vxx + vyy) + std::hypot(0.5 * (vxx - vyy), vxy);
       const double var = std::abs(vxx - vyy) < 1e-4 ? vxx : largest_eigenvalue;
       o.range_std = std::sqrt(var);

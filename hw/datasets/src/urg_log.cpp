@@ -97,18 +97,15 @@ DriveIncrement wheelIncrement(double d_left, double d_right, const DifferentialD
   return {0.5 * (left + right), (right - left) / (2.0 * m.half_axle)};
 }
 
-PlanarPose advancePose(const PlanarPose& p, const DriveIncrement& inc) {
+Pose2 advancePose(const Pose2& p, const DriveIncrement& inc) {
   const double mid = p.theta + 0.5 * inc.rotation;
-  PlanarPose out;
-  out.x = p.x + inc.distance * std::cos(mid);
-  out.y = p.y + inc.distance * std::sin(mid);
-  out.theta = std::remainder(p.theta + inc.rotation, 2.0 * std::numbers::pi);
-  return out;
+  return {p.x + inc.distance * std::cos(mid), p.y + inc.distance * std::sin(mid),
+          p.theta + inc.rotation};
 }
 
-std::vector<PlanarPose> urgOdometry(const std::vector<UrgScan>& scans,
-                                    const DifferentialDriveModel& model, const PlanarPose& start) {
-  std::vector<PlanarPose> poses;
+std::vector<Pose2> urgOdometry(const std::vector<UrgScan>& scans,
+                               const DifferentialDriveModel& model, const Pose2& start) {
+  std::vector<Pose2> poses;
   poses.reserve(scans.size());
   for (std::size_t i = 0; i < scans.size(); ++i) {
     if (i == 0) {

@@ -173,7 +173,7 @@ void CarmenPlayer::publish(const Pending& p) {
   if (!first_stamp_) first_stamp_ = stamp;
   last_stamp_ = stamp;
   auto publishOdom = [&](const datasets::CarmenPose& pose, const BodyVelocity* twist) {
-    const Pose2d now{pose.x, pose.y, pose.theta};
+    const Pose2 now{pose.x, pose.y, pose.theta};
     BodyVelocity v;
     if (twist)
       v = *twist;
@@ -185,7 +185,7 @@ void CarmenPlayer::publish(const Pending& p) {
     auto b = loan.builder();
     setHeader(b.initHeader(), stamp, "odom", odom_pub_.nextSeq());
     b.setChildFrameId("base_link");
-    writePose(b.initPose(), PoseXYT{pose.x, pose.y, pose.theta});
+    writePose(b.initPose(), tessera::Pose2{pose.x, pose.y, pose.theta});
     auto t = b.initTwist();
     t.setVx(v.vx);
     t.setVy(v.vy);
@@ -202,12 +202,11 @@ void CarmenPlayer::publish(const Pending& p) {
   const auto& l = std::get<datasets::CarmenLaser>(p.record);
   if (l.has_pose && odometry_ == "laser") publishOdom(l.robot_pose, nullptr);
   if (l.has_pose && options_.publish_reference) {
-    const Pose2d base =
-        compose(Pose2d{l.laser_pose.x, l.laser_pose.y, l.laser_pose.theta}, inverse(mount_));
+    const Pose2 base = Pose2{l.laser_pose.x, l.laser_pose.y, l.laser_pose.theta} * mount_.inverse();
     auto loan = gt_pub_.loan();
     auto b = loan.builder();
     setHeader(b.initHeader(), stamp, "map", gt_pub_.nextSeq());
-    writePose(b.initPose(), PoseXYT{base.x, base.y, base.theta});
+    writePose(b.initPose(), tessera::Pose2{base.x, base.y, base.theta});
     b.setChildFrameId("base_link");
     gt_pub_.publish(std::move(loan));
     ++reference_;

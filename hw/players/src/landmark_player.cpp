@@ -23,11 +23,6 @@ std::string str(const T& v) {
   return s.str();
 }
 
-double wrapAngle(double a) {
-  a = std::remainder(a, 2 * std::numbers::pi);
-  return a <= -std::numbers::pi ? a + 2 * std::numbers::pi : a;
-}
-
 // Longest recording played (about 3 years), far inside the int64 nanosecond range.
 constexpr double kMaxSpan = 1e8;
 
@@ -125,11 +120,11 @@ void LandmarkPlayerActor::buildVictoria() {
   const std::size_t poses = log.odometry.size() + 1;
   victoria_poses_.resize(poses);
   for (std::size_t k = 0; k + 1 < poses; ++k) {
-    const PoseXYT& p = victoria_poses_[k];
+    const tessera::Pose2& p = victoria_poses_[k];
     const Eigen::Vector3d& d = log.odometry[k].delta;
     const double c = std::cos(p.theta), s = std::sin(p.theta);
     victoria_poses_[k + 1] = {p.x + c * d[0] - s * d[1], p.y + s * d[0] + c * d[1],
-                              wrapAngle(p.theta + d[2])};
+                              normalizeAngle(p.theta + d[2])};
   }
   for (std::size_t k = 0; k < poses; ++k) {
     const Nanos t = static_cast<Nanos>(k) * step_;
@@ -213,7 +208,7 @@ void LandmarkPlayerActor::publish(const Event& e, Nanos stamp) {
       auto loan = gt_pub_.loan();
       auto b = loan.builder();
       setHeader(b.initHeader(), stamp, "map", gt_pub_.nextSeq());
-      writePose(b.initPose(), PoseXYT{p.x, p.y, p.theta});
+      writePose(b.initPose(), tessera::Pose2{p.x, p.y, p.theta});
       b.setChildFrameId("base_link");
       gt_pub_.publish(std::move(loan));
       ++ground_truth_;
@@ -294,7 +289,7 @@ void LandmarkPlayerActor::publishScan(const Group& g, bool robots, Nanos stamp) 
       auto o = list[n++];
       o.setId(robots ? m.subject : m.landmark_index);
       o.setRange(m.range);
-      o.setBearing(wrapAngle(m.bearing));
+      o.setBearing(normalizeAngle(m.bearing));
       o.setRangeStd(options_.range_std);
       o.setBearingStd(options_.bearing_std);
     }

@@ -177,8 +177,9 @@ void RgbdPlayerActor::playNext() {
     const Eigen::Vector3d axis = frame.pose->rotation().col(2);  // optical axis in the world
     auto gt2 = gt2d_pub_.loan();
     setHeader(gt2->initHeader(), stamp, options_.world_frame, gt2d_pub_.nextSeq());
-    writePose(gt2->initPose(), PoseXYT{frame.pose->translation().x(), frame.pose->translation().y(),
-                                       std::atan2(axis.y(), axis.x())});
+    writePose(gt2->initPose(),
+              tessera::Pose2{frame.pose->translation().x(), frame.pose->translation().y(),
+                             std::atan2(axis.y(), axis.x())});
     gt2->setChildFrameId(options_.frame_id);
     gt2d_pub_.publish(std::move(gt2));
     ++gt_published_;

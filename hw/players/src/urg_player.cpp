@@ -113,7 +113,7 @@ void UrgPlayer::publish(const Pending& p) {
     auto b = loan.builder();
     setHeader(b.initHeader(), stamp, "odom", odom_pub_.nextSeq());
     b.setChildFrameId("base_link");
-    writePose(b.initPose(), PoseXYT{pose_.x, pose_.y, pose_.theta});
+    writePose(b.initPose(), tessera::Pose2{pose_.x, pose_.y, pose_.theta});
     auto t = b.initTwist();
     if (last_dt_ > 0) {
       t.setVx(last_increment_.distance / last_dt_);

@@ -24,13 +24,13 @@ void CarLikeConfig::validate() const {
     bad("sigma_steer", sigma_steer, "must be >= 0");
 }
 
-Pose carLikeStep(const Pose& p, double speed, double steer, double dt, double wheelbase) {
+Pose2 carLikeStep(const Pose2& p, double speed, double steer, double dt, double wheelbase) {
   return {p.x + dt * speed * std::cos(p.theta + steer),
           p.y + dt * speed * std::sin(p.theta + steer),
-          wrapAngle(p.theta + dt * speed * std::sin(steer) / wheelbase)};
+          normalizeAngle(p.theta + dt * speed * std::sin(steer) / wheelbase)};
 }
 
-CarLikeRobot::CarLikeRobot(const Pose& start, CarLikeConfig config, std::uint64_t seed)
+CarLikeRobot::CarLikeRobot(const Pose2& start, CarLikeConfig config, std::uint64_t seed)
     : true_pose_(start), odom_pose_(start), config_(config), rng_(seed) {
   config_.validate();
 }
@@ -64,18 +64,19 @@ WaypointSteering::WaypointSteering(Route waypoints, double tolerance)
                                   " and " + std::to_string(i) + " coincide");
 }
 
-double WaypointSteering::demand(const Pose& pose) {
-  while (next_ < route_.size() && (route_[next_] - pose.xy()).norm() <= tolerance_) ++next_;
+double WaypointSteering::demand(const Pose2& pose) {
+  while (next_ < route_.size() && (route_[next_] - pose.translation()).norm() <= tolerance_)
+    ++next_;
   if (done()) return 0.0;
-  const Eigen::Vector2d d = route_[next_] - pose.xy();
-  return wrapAngle(std::atan2(d.y(), d.x()) - pose.theta);
+  const Eigen::Vector2d d = route_[next_] - pose.translation();
+  return normalizeAngle(std::atan2(d.y(), d.x()) - pose.theta);
 }
 
 double WaypointSteering::progress() const {
   return static_cast<double>(next_) / static_cast<double>(route_.size());
 }
 
-Pose WaypointSteering::startPose() const {
+Pose2 WaypointSteering::startPose() const {
   const Eigen::Vector2d d = route_[1] - route_[0];
   return {route_[0].x(), route_[0].y(), std::atan2(d.y(), d.x())};
 }

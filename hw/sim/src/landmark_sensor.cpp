@@ -11,10 +11,6 @@
 
 namespace tessera::sim {
 
-double wrapBearing(double a) {
-  return -wrapAngle(-a);
-}
-
 void LandmarkSensorConfig::validate() const {
   auto bad = [](const char* name, double v, const char* what) {
     std::ostringstream s;
@@ -50,27 +46,28 @@ LandmarkSensor::LandmarkSensor(std::vector<PointLandmark> landmarks, LandmarkSen
   }
 }
 
-RangeBearing LandmarkSensor::measure(const Pose& sensor, const Eigen::Vector2d& p) {
-  const Eigen::Vector2d d = p - sensor.xy();
+RangeBearing LandmarkSensor::measure(const Pose2& sensor, const Eigen::Vector2d& p) {
+  const Eigen::Vector2d d = p - sensor.translation();
   RangeBearing z;
   z.range = d.norm();
-  z.bearing = wrapBearing(std::atan2(d.y(), d.x()) - sensor.theta);
+  z.bearing = normalizeAngle(std::atan2(d.y(), d.x()) - sensor.theta);
   return z;
 }
 
-bool LandmarkSensor::visible(const Pose& sensor, const PointLandmark& lm) const {
+bool LandmarkSensor::visible(const Pose2& sensor, const PointLandmark& lm) const {
   const RangeBearing z = measure(sensor, lm.position);
   if (z.range < config_.min_range || z.range > config_.max_range) return false;
   if (std::abs(z.bearing) > 0.5 * config_.fov) return false;
   if (config_.occlusion && z.range > 0) {
-    const double hit = RayCaster(*world_).cast(sensor.xy(), sensor.theta + z.bearing, z.range);
+    const double hit =
+        RayCaster(*world_).cast(sensor.translation(), sensor.theta + z.bearing, z.range);
     if (hit < z.range - world_->resolution()) return false;
   }
   return true;
 }
 
-std::vector<RangeBearing> LandmarkSensor::observe(const Pose& base, std::mt19937_64& rng) const {
-  const Pose sensor = sensorPose(base);
+std::vector<RangeBearing> LandmarkSensor::observe(const Pose2& base, std::mt19937_64& rng) const {
+  const Pose2 sensor = sensorPose(base);
   std::normal_distribution<double> normal(0.0, 1.0);
   std::vector<RangeBearing> out;
   for (const PointLandmark& lm : landmarks_) {
@@ -78,7 +75,7 @@ std::vector<RangeBearing> LandmarkSensor::observe(const Pose& base, std::mt19937
     RangeBearing z = measure(sensor, lm.position);
     const double nr = normal(rng), nb = normal(rng);
     z.range = std::max(0.0, z.range + config_.range_noise * nr);
-    z.bearing = wrapBearing(z.bearing + config_.bearing_noise * nb);
+    z.bearing = normalizeAngle(z.bearing + config_.bearing_noise * nb);
     z.true_id = lm.id;
     z.id = config_.with_ids ? lm.id : -1;
     out.push_back(z);

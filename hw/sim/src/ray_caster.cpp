@@ -121,17 +121,17 @@ LaserModel::LaserModel(const World& world, LaserConfig config) : caster_(world),
   config_.validate();
 }
 
-void LaserModel::scan(const Pose& base, std::mt19937_64& rng, std::span<float> ranges) const {
+void LaserModel::scan(const Pose2& base, std::mt19937_64& rng, std::span<float> ranges) const {
   if (ranges.size() != static_cast<std::size_t>(config_.beams))
     throw std::invalid_argument("laser: output holds " + std::to_string(ranges.size()) +
                                 " ranges, the laser has " + std::to_string(config_.beams));
-  const Pose laser = laserPose(base);
+  const Pose2 laser = laserPose(base);
   std::normal_distribution<double> noise(0.0, 1.0);
   std::uniform_real_distribution<double> uniform(0.0, 1.0);
   constexpr float kNoReturn = std::numeric_limits<float>::infinity();
   for (int i = 0; i < config_.beams; ++i) {
     const double angle = laser.theta + config_.angle_min + i * config_.angle_increment;
-    const double r = caster_.cast(laser.xy(), angle, config_.range_max);
+    const double r = caster_.cast(laser.translation(), angle, config_.range_max);
     // Draw for every beam, hit or not, so one beam's outcome does not shift the noise of the
     // others.
     const double z = noise(rng);
@@ -150,7 +150,7 @@ void LaserModel::scan(const Pose& base, std::mt19937_64& rng, std::span<float> r
   }
 }
 
-std::vector<float> LaserModel::scan(const Pose& base, std::mt19937_64& rng) const {
+std::vector<float> LaserModel::scan(const Pose2& base, std::mt19937_64& rng) const {
   std::vector<float> out(config_.beams);
   scan(base, rng, out);
   return out;

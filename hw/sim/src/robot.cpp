@@ -8,20 +8,10 @@
 
 namespace tessera::sim {
 
-double wrapAngle(double a) {
-  constexpr double kTwoPi = 2 * std::numbers::pi;
-  return a - kTwoPi * std::floor((a + std::numbers::pi) / kTwoPi);
-}
-
-Pose compose(const Pose& a, const Pose& b) {
-  const double c = std::cos(a.theta), s = std::sin(a.theta);
-  return {a.x + c * b.x - s * b.y, a.y + s * b.x + c * b.y, wrapAngle(a.theta + b.theta)};
-}
-
-Pose moveBy(const Pose& p, double distance, double rotation) {
+Pose2 moveBy(const Pose2& p, double distance, double rotation) {
   const double mid = p.theta + rotation / 2;
   return {p.x + distance * std::cos(mid), p.y + distance * std::sin(mid),
-          wrapAngle(p.theta + rotation)};
+          normalizeAngle(p.theta + rotation)};
 }
 
 // ---- Odometry ----
@@ -117,7 +107,7 @@ RouteFollower::RouteFollower(std::vector<Eigen::Vector2d> waypoints, FollowerCon
   }
 }
 
-Pose RouteFollower::startPose() const {
+Pose2 RouteFollower::startPose() const {
   const Leg& l = legs_.front();
   return {l.a.x(), l.a.y(), std::atan2(l.b.y() - l.a.y(), l.b.x() - l.a.x())};
 }
@@ -127,7 +117,7 @@ double RouteFollower::progress() const {
   return std::clamp((legs_[leg_].start_s + along_) / total_length_, 0.0, 1.0);
 }
 
-Twist RouteFollower::command(const Pose& pose, double dt) {
+Twist RouteFollower::command(const Pose2& pose, double dt) {
   if (done_) return {};
   if (stopping_) {
     // At the end of the route: brake within the acceleration limits, then report done.
@@ -137,7 +127,7 @@ Twist RouteFollower::command(const Pose& pose, double dt) {
     if (last_.v == 0 && last_.omega == 0) done_ = true;
     return last_;
   }
-  const Eigen::Vector2d p = pose.xy();
+  const Eigen::Vector2d p = pose.translation();
 
   // Leave every leg whose end is reached (close to it, or passed its end line).
   Eigen::Vector2d dir;
@@ -161,7 +151,7 @@ Twist RouteFollower::command(const Pose& pose, double dt) {
   const double carrot_s = std::min(along_ + config_.lookahead, leg.length);
   const Eigen::Vector2d carrot = leg.a + dir * carrot_s;
   const double heading_error =
-      wrapAngle(std::atan2(carrot.y() - p.y(), carrot.x() - p.x()) - pose.theta);
+      normalizeAngle(std::atan2(carrot.y() - p.y(), carrot.x() - p.x()) - pose.theta);
 
   double w = std::clamp(config_.heading_gain * heading_error, -config_.w_max, config_.w_max);
   double v = 0;
@@ -184,7 +174,7 @@ Twist RouteFollower::command(const Pose& pose, double dt) {
 
 // ---- DiffDriveRobot ----
 
-DiffDriveRobot::DiffDriveRobot(const Pose& start, OdometryNoise noise, std::uint64_t seed)
+DiffDriveRobot::DiffDriveRobot(const Pose2& start, OdometryNoise noise, std::uint64_t seed)
     : true_pose_(start), odometry_(start, noise), rng_(seed) {}
 
 void DiffDriveRobot::step(const Twist& cmd, double dt) {

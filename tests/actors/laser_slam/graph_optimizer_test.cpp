@@ -14,6 +14,8 @@
 
 #include <catch2/catch.hpp>
 
+#include <algorithm>
+
 #include <cmath>
 #include <limits>
 #include <numbers>
@@ -160,7 +162,7 @@ void pushConstraint(ActorHarness& h, const SubmapConstraintInput& c, bool with_c
     setHeader(b.initHeader(), 2000, "map", 0);
     b.setFromId(static_cast<std::uint32_t>(c.from));
     b.setToId(static_cast<std::uint32_t>(c.to));
-    writePose(b.initRelative(), PoseXYT{c.relative.x, c.relative.y, c.relative.theta},
+    writePose(b.initRelative(), tessera::Pose2{c.relative.x, c.relative.y, c.relative.theta},
               with_covariance ? &c.covariance : nullptr);
     b.setKind(c.revisit ? msg::SubmapConstraint::Kind::REVISIT
                         : msg::SubmapConstraint::Kind::HAND_OVER);
@@ -222,13 +224,14 @@ TEST_CASE("graph_optimizer writes the final graph as g2o that reads back to the 
   h.stop();
 
   const auto graph = pose_graph::readPoseGraph2D(dir / "graph.g2o");
-  REQUIRE(graph.vertices.size() == truth.size());
+  REQUIRE(graph.size() == static_cast<int>(truth.size()));
   REQUIRE(graph.edges.size() == truth.size());
-  CHECK(graph.fixed == std::vector<std::int64_t>{0});
+  CHECK(graph.fixed[graph.index(0)]);
+  CHECK(std::count(graph.fixed.begin(), graph.fixed.end(), true) == 1);
   const auto published = h.published<msg::SubmapPoses>("submap_poses");
   REQUIRE(!published.empty());
   for (const auto& p : published.back()->getPoses()) {
-    const Eigen::Vector3d v = graph.vertices.at(p.getId());
+    const Eigen::Vector3d v = graph.poses[graph.index(p.getId())];
     CHECK(v.x() == Approx(p.getPose().getX()).margin(1e-12));
     CHECK(v.y() == Approx(p.getPose().getY()).margin(1e-12));
   }
@@ -286,9 +289,9 @@ TEST_CASE("map_assembler draws submaps at the optimised poses when asked to", "[
   h.push<msg::SubmapPoses>("submap_poses", [](auto& b) {
     auto poses = b.initPoses(2);
     poses[0].setId(0);
-    writePose(poses[0].initPose(), PoseXYT{0, 0, 0});
+    writePose(poses[0].initPose(), tessera::Pose2{0, 0, 0});
     poses[1].setId(1);
-    writePose(poses[1].initPose(), PoseXYT{2.5, 0.5, 0.1});
+    writePose(poses[1].initPose(), tessera::Pose2{2.5, 0.5, 0.1});
   });
   h.runUntilIdle();
   CHECK(actor.assembler().pose(1).x == Approx(2.5));
@@ -308,7 +311,7 @@ TEST_CASE("trajectory poses move with their optimised submap", "[graph_optimizer
   for (int k = 0; k < 4; ++k) {
     h.push<msg::PoseStamped>("trajectory", [&](auto& b) {
       setHeader(b.initHeader(), k < 2 ? 500 + k : 1001 + k, "map", 0);
-      writePose(b.initPose(), PoseXYT{k * 2.0, 0.0, 0.0});
+      writePose(b.initPose(), tessera::Pose2{k * 2.0, 0.0, 0.0});
     });
   }
   pushConstraint(h, constraint(0, 1, Pose2(4, 0.5, 0), true, 0.001));

@@ -65,10 +65,10 @@ ClosureRun runClosure(const std::optional<Pose2>& smoothed, int copies = 1,
       g.setResolution(static_cast<float>(map.resolution));
       g.setWidth(static_cast<std::uint32_t>(map.width));
       g.setHeight(static_cast<std::uint32_t>(map.height));
-      writePose(g.initOrigin(), PoseXYT{map.origin.x, map.origin.y, map.origin.theta});
+      writePose(g.initOrigin(), tessera::Pose2{map.origin.x, map.origin.y, map.origin.theta});
       auto cells = mutableViewInt8(g.initCells(static_cast<unsigned>(map.cells.size())));
       std::copy(map.cells.begin(), map.cells.end(), cells.begin());
-      writePose(b.initGlobalPose(), PoseXYT{0, 0, 0});
+      writePose(b.initGlobalPose(), tessera::Pose2{0, 0, 0});
       b.setFinished(true);
     });
   h.runUntilIdle();
@@ -79,7 +79,7 @@ ClosureRun runClosure(const std::optional<Pose2>& smoothed, int copies = 1,
   test::pushScan(h, stamp, sim, sim.scans[probe].ranges);
   h.push<msg::PoseStamped>("pose", [&](auto& b) {
     setHeader(b.initHeader(), stamp, "map", 0);
-    writePose(b.initPose(), PoseXYT{in_map.x, in_map.y, in_map.theta});
+    writePose(b.initPose(), tessera::Pose2{in_map.x, in_map.y, in_map.theta});
   });
   h.runUntilIdle();
 
@@ -92,7 +92,7 @@ ClosureRun runClosure(const std::optional<Pose2>& smoothed, int copies = 1,
     g.setWidth(1);
     g.setHeight(1);
     g.initCells(1);
-    writePose(b.initGlobalPose(), PoseXYT{origin1.x, origin1.y, origin1.theta});
+    writePose(b.initGlobalPose(), tessera::Pose2{origin1.x, origin1.y, origin1.theta});
     b.setFinished(true);
     if (smoothed) {
       auto t = b.initTrajectory(2);

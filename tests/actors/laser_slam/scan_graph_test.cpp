@@ -321,12 +321,12 @@ void pushConstraint(ActorHarness& h, std::int64_t stamp, const SubmapConstraintI
     setHeader(b.initHeader(), stamp, "map", 0);
     b.setFromId(static_cast<std::uint32_t>(c.from));
     b.setToId(static_cast<std::uint32_t>(c.to));
-    writePose(b.initRelative(), PoseXYT{c.relative.x, c.relative.y, c.relative.theta},
+    writePose(b.initRelative(), tessera::Pose2{c.relative.x, c.relative.y, c.relative.theta},
               &c.covariance);
     b.setKind(c.revisit ? msg::SubmapConstraint::Kind::REVISIT
                         : msg::SubmapConstraint::Kind::HAND_OVER);
     if (scan)
-      writePose(b.initScanInTo(), PoseXYT{scan->pose.x, scan->pose.y, scan->pose.theta},
+      writePose(b.initScanInTo(), tessera::Pose2{scan->pose.x, scan->pose.y, scan->pose.theta},
                 scan_covariance ? &scan->covariance : nullptr);
   });
 }
@@ -354,7 +354,7 @@ TEST_CASE("graph_optimizer with scan_graph takes the final trajectory from the s
   for (int s = 0; s <= 8; ++s)
     h.push<msg::PoseStamped>("trajectory", [&](auto& b) {
       setHeader(b.initHeader(), s * kSecond, "map", 0);
-      writePose(b.initPose(), PoseXYT{double(s), 0.0, 0.0});
+      writePose(b.initPose(), tessera::Pose2{double(s), 0.0, 0.0});
     });
   const auto [loop, fallback] = closure();
   pushConstraint(h, 8 * kSecond, fallback, &loop);

@@ -48,7 +48,7 @@ inline SimScans simulateRoomLoop(int laps = 1, std::uint64_t seed = 7) {
   const auto emit = [&] {
     SimScan s;
     s.stamp_s = t;
-    s.ranges = model.scan(sim::Pose{truth.x, truth.y, truth.theta}, rng);
+    s.ranges = model.scan(tessera::Pose2{truth.x, truth.y, truth.theta}, rng);
     s.truth = truth;
     s.odometry = odom;
     out.scans.push_back(std::move(s));

@@ -307,11 +307,11 @@ TEST_CASE("map assembler actor chains hand-over constraints", "[map_assembler]")
       g.setResolution(0.1f);
       g.setWidth(4);
       g.setHeight(4);
-      writePose(g.initOrigin(), PoseXYT{0, 0, 0});
+      writePose(g.initOrigin(), tessera::Pose2{0, 0, 0});
       auto cells = mutableViewInt8(g.initCells(16));
       std::fill(cells.begin(), cells.end(), std::int8_t{0});
       cells[5] = 100;
-      writePose(b.initGlobalPose(), PoseXYT{carried.x, carried.y, carried.theta});
+      writePose(b.initGlobalPose(), tessera::Pose2{carried.x, carried.y, carried.theta});
       b.setFinished(true);
     });
   };
@@ -319,7 +319,7 @@ TEST_CASE("map assembler actor chains hand-over constraints", "[map_assembler]")
   h.push<msg::SubmapConstraint>("constraints", [&](auto& b) {
     b.setFromId(0);
     b.setToId(1);
-    writePose(b.initRelative(), PoseXYT{2.0, 1.0, 0.0});
+    writePose(b.initRelative(), tessera::Pose2{2.0, 1.0, 0.0});
     b.setKind(msg::SubmapConstraint::Kind::HAND_OVER);
   });
   submap(1, Pose2(9.0, 9.0, 0.0));  // the chained pose wins over what the message carries
@@ -339,7 +339,7 @@ TEST_CASE("map assembler actor chains hand-over constraints", "[map_assembler]")
   h.push<msg::SubmapConstraint>("constraints", [&](auto& b) {
     b.setFromId(1);
     b.setToId(2);
-    writePose(b.initRelative(), PoseXYT{std::numeric_limits<double>::quiet_NaN(), 0.0, 0.0});
+    writePose(b.initRelative(), tessera::Pose2{std::numeric_limits<double>::quiet_NaN(), 0.0, 0.0});
     b.setKind(msg::SubmapConstraint::Kind::HAND_OVER);
   });
   h.runUntilIdle();

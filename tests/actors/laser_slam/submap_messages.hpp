@@ -18,9 +18,9 @@ inline void fillSubmap(msg::Submap::Builder b, int id, const tessera::Pose2& ori
   g.setResolution(0.1f);
   g.setWidth(2);
   g.setHeight(2);
-  writePose(g.initOrigin(), PoseXYT{0, 0, 0});
+  writePose(g.initOrigin(), tessera::Pose2{0, 0, 0});
   g.initCells(4);
-  writePose(b.initGlobalPose(), PoseXYT{origin.x, origin.y, origin.theta});
+  writePose(b.initGlobalPose(), tessera::Pose2{origin.x, origin.y, origin.theta});
   b.setFinished(true);
 }
 

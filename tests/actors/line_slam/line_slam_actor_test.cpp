@@ -26,7 +26,7 @@ namespace {
 void pushTruth(ActorHarness& h, Nanos stamp, const Pose2& p) {
   h.push<msg::GroundTruthPose>("ground_truth", [&](auto& b) {
     setHeader(b.initHeader(), stamp, "map", 0);
-    writePose(b.initPose(), PoseXYT{p.x, p.y, p.theta});
+    writePose(b.initPose(), tessera::Pose2{p.x, p.y, p.theta});
   });
 }
 

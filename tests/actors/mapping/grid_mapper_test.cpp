@@ -45,7 +45,7 @@ struct TempDir {
 void pushPose(ActorHarness& h, const std::string& topic, Nanos stamp, const Pose2& p) {
   h.push<msg::GroundTruthPose>(topic, [&](auto& b) {
     setHeader(b.initHeader(), stamp, "map", 0);
-    writePose(b.initPose(), PoseXYT{p.x, p.y, p.theta});
+    writePose(b.initPose(), tessera::Pose2{p.x, p.y, p.theta});
     b.setChildFrameId("base_link");
   });
 }
@@ -294,7 +294,7 @@ TEST_CASE("map_writer writes the last map into the output folder at stop", "[wri
       b.setResolution(0.05f);
       b.setWidth(3);
       b.setHeight(2);
-      writePose(b.initOrigin(), PoseXYT{-1.0, 2.0, 0.0});
+      writePose(b.initOrigin(), tessera::Pose2{-1.0, 2.0, 0.0});
       auto cells = mutableViewInt8(b.initCells(6));
       const std::int8_t values[6] = {first, 0, -1, 0, 0, 100};
       std::copy(values, values + 6, cells.begin());
@@ -373,7 +373,7 @@ TEST_CASE("trajectory_writer follows its message option", "[writers]") {
   ActorHarness h(std::make_unique<mapping::TrajectoryWriterActor>(opts), dir.path.string());
   h.push<msg::Odometry>("poses", [&](auto& b) {
     setHeader(b.initHeader(), 5 * kSec, "odom", 0);
-    writePose(b.initPose(), PoseXYT{1.5, -0.5, 0.25});
+    writePose(b.initPose(), tessera::Pose2{1.5, -0.5, 0.25});
   });
   h.runUntilIdle();
   h.stop();

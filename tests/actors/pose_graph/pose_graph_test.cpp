@@ -94,7 +94,7 @@ TEST_CASE("SE2 error angle is wrapped across pi", "[pose_graph]") {
 
 TEST_CASE("SE3 error uses the quaternion vector with a non-negative w as g2o does",
           "[pose_graph]") {
-  pg::Pose3 a, b, z;
+  tessera::Pose3 a, b, z;
   b.t = {1, 2, 3};
   b.q = Eigen::Quaterniond(Eigen::AngleAxisd(0.3, Eigen::Vector3d::UnitZ()));
   z.t = {1, 2, 2.5};
@@ -256,18 +256,18 @@ TEST_CASE("a robust loss keeps one false loop closure from bending the circle", 
 TEST_CASE("Ceres and SGD then Ceres recover an exact SE3 ring", "[pose_graph]") {
   for (auto solver : {pg::Solver::kCeres, pg::Solver::kSgdCeres}) {
     pg::Graph3D g;
-    std::vector<pg::Pose3> truth;
+    std::vector<tessera::Pose3> truth;
     std::mt19937 rng(6);
     std::normal_distribution<double> gauss(0.0, 1.0);
     const int n = 36;
     for (int i = 0; i < 2 * n; ++i) {
       const double a = 2 * kPi * (i % n) / n;
-      pg::Pose3 p;
+      tessera::Pose3 p;
       p.t = {5 * std::cos(a), 5 * std::sin(a), 0.5 * std::sin(2 * a)};
       p.q = Eigen::AngleAxisd(a, Eigen::Vector3d::UnitZ()) *
             Eigen::AngleAxisd(0.2 * std::sin(a), Eigen::Vector3d::UnitX());
       truth.push_back(p);
-      pg::Pose3 start = p;
+      tessera::Pose3 start = p;
       if (i > 0) {
         start.t += 0.3 * Eigen::Vector3d(gauss(rng), gauss(rng), gauss(rng));
         start.q =
@@ -290,11 +290,7 @@ TEST_CASE("Ceres and SGD then Ceres recover an exact SE3 ring", "[pose_graph]") 
 
 TEST_CASE("M3500 from the file reaches the g2o optimum", "[pose_graph][data]") {
   TESSERA_SHARED_DATA(path, "posegraphs/M3500.g2o");
-  const auto file = tessera::pose_graph::readPoseGraph2D(path);
-  pg::Graph2D g;
-  for (const auto& [id, p] : file.vertices) g.addNode(id, p);
-  for (const auto& e : file.edges)
-    g.edges.push_back({g.index(e.from), g.index(e.to), e.measurement, e.information});
+  pg::Graph2D g = tessera::pose_graph::readPoseGraph2D(path);
   // docs/benchmarks.md#pose-graphs-tessera-bench-graph quotes g2o: initial 2 566 667.66, final
   // 137.912951 (χ² without ½).
   const auto s = pg::optimize(g, with(pg::Solver::kSgdCeres));
@@ -305,11 +301,7 @@ TEST_CASE("M3500 from the file reaches the g2o optimum", "[pose_graph][data]") {
 TEST_CASE("Gauss-Newton reaches the g2o optimum on the badly started TORO Intel graph",
           "[pose_graph][data]") {
   TESSERA_SHARED_DATA(path, "posegraph-toro/input_INTEL_g2o.graph");
-  const auto file = tessera::pose_graph::readPoseGraph2D(path);
-  pg::Graph2D g;
-  for (const auto& [id, p] : file.vertices) g.addNode(id, p);
-  for (const auto& e : file.edges)
-    g.edges.push_back({g.index(e.from), g.index(e.to), e.measurement, e.information});
+  pg::Graph2D g = tessera::pose_graph::readPoseGraph2D(path);
   pg::OptimizerOptions o = with(pg::Solver::kCeres);
   o.ceres.method = pg::CeresOptions::Method::kGaussNewton;
   const auto s = pg::optimize(g, o);

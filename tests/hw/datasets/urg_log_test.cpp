@@ -106,13 +106,13 @@ TEST_CASE("Differential drive: straight runs, turns in place and arcs", "[datase
   CHECK(spin.distance == Approx(0).margin(1e-12));
   CHECK(spin.rotation == Approx(0.5 * rev / 0.25));
 
-  PlanarPose p{1, 2, std::numbers::pi / 2};
+  tessera::Pose2 p{1, 2, std::numbers::pi / 2};
   p = advancePose(p, straight);
   CHECK(p.x == Approx(1).margin(1e-12));
   CHECK(p.y == Approx(2 + rev));
   // Quarter circle: the step goes along the chord's direction (midpoint heading, 45 deg).
   const double arc = std::numbers::pi / 2;
-  const PlanarPose q = advancePose(PlanarPose{}, DriveIncrement{arc, std::numbers::pi / 2});
+  const tessera::Pose2 q = advancePose(tessera::Pose2{}, DriveIncrement{arc, std::numbers::pi / 2});
   CHECK(q.theta == Approx(std::numbers::pi / 2));
   CHECK(std::hypot(q.x, q.y) == Approx(arc));
   CHECK(q.y / q.x == Approx(1.0));
@@ -121,7 +121,7 @@ TEST_CASE("Differential drive: straight runs, turns in place and arcs", "[datase
   scans[1].left_ticks = scans[1].right_ticks = 1000;
   scans[2].left_ticks = 1000 - 500;
   scans[2].right_ticks = 1000 + 500;
-  const auto poses = urgOdometry(scans, m, PlanarPose{5, 0, 0});
+  const auto poses = urgOdometry(scans, m, tessera::Pose2{5, 0, 0});
   REQUIRE(poses.size() == 3);
   CHECK(poses[0].x == 5);
   CHECK(poses[1].x == Approx(5 + rev));

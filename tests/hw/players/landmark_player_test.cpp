@@ -156,7 +156,7 @@ TEST_CASE("LandmarkPlayer: Victoria Park poses play at a fixed step with dense l
 
   const auto odom = h.published<msg::Odometry>("odom");
   REQUIRE(stamps(odom) == std::vector<Nanos>{0, 500 * kMs, 1000 * kMs});
-  const PoseXYT p2 = readPose(odom[2]->getPose());
+  const tessera::Pose2 p2 = toPose2(odom[2]->getPose());
   CHECK(p2.x == Approx(1));
   CHECK(p2.y == Approx(2));  // 2 m ahead after turning left by 90 degrees
   CHECK(p2.theta == Approx(std::numbers::pi / 2));

@@ -31,7 +31,7 @@ void drive(ActorHarness& h) {
   for (int k = 0; k <= 2000; ++k) {
     h.push<msg::GroundTruthPose>("ground_truth", [&](msg::GroundTruthPose::Builder b) {
       setHeader(b.initHeader(), std::int64_t{k} * 20'000'000, "map", k);
-      writePose(b.initPose(), PoseXYT{0.01 * k, 0, 0});
+      writePose(b.initPose(), tessera::Pose2{0.01 * k, 0, 0});
     });
     h.runUntilIdle();
   }
@@ -94,7 +94,7 @@ TEST_CASE("CameraNetworkActor: the world's cameras and the cameras file", "[sim]
     ActorHarness h(std::make_unique<CameraNetworkActor>(o), dir.string());
     h.push<msg::GroundTruthPose>("ground_truth", [&](msg::GroundTruthPose::Builder b) {
       setHeader(b.initHeader(), 0, "map", 0);
-      writePose(b.initPose(), PoseXYT{7.5, 7.5, 0});  // under camera 0
+      writePose(b.initPose(), tessera::Pose2{7.5, 7.5, 0});  // under camera 0
     });
     h.runUntilIdle();
     CHECK(h.publishedCount("camera_events") == 1);

@@ -5,6 +5,7 @@
 #include <cmath>
 #include <random>
 
+using namespace tessera;
 using namespace tessera::sim;
 
 namespace {

@@ -7,6 +7,7 @@
 #include <numbers>
 #include <set>
 
+using namespace tessera;
 using namespace tessera::sim;
 
 namespace {
@@ -19,10 +20,10 @@ CarLikeConfig noiseless() {
 }
 
 // Closed form of the continuous model for constant V, gamma (omega = V sin(gamma) / L).
-Pose circle(const Pose& p0, double v, double g, double l, double t) {
+Pose2 circle(const Pose2& p0, double v, double g, double l, double t) {
   const double w = v * std::sin(g) / l, a0 = p0.theta + g, a1 = a0 + w * t;
   return {p0.x + v / w * (std::sin(a1) - std::sin(a0)),
-          p0.y - v / w * (std::cos(a1) - std::cos(a0)), wrapAngle(p0.theta + w * t)};
+          p0.y - v / w * (std::cos(a1) - std::cos(a0)), normalizeAngle(p0.theta + w * t)};
 }
 
 }  // namespace
@@ -31,7 +32,7 @@ TEST_CASE(
     "carLikeStep: one step follows the the model of "
     "docs/algorithms.md#simulated-motion-and-sensors",
     "[sim][carlike]") {
-  const Pose p = carLikeStep({1, 2, 0.3}, 3, 0.2, 0.03, 1.0);
+  const Pose2 p = carLikeStep({1, 2, 0.3}, 3, 0.2, 0.03, 1.0);
   CHECK(p.x == Approx(1 + 0.09 * std::cos(0.5)));
   CHECK(p.y == Approx(2 + 0.09 * std::sin(0.5)));
   CHECK(p.theta == Approx(0.3 + 0.09 * std::sin(0.2)));
@@ -39,7 +40,7 @@ TEST_CASE(
 
 TEST_CASE("CarLikeRobot: constant steering drives the closed-form circle", "[sim][carlike]") {
   const double v = 3, g = 0.3, l = 1.0;
-  const Pose start{5, -2, 0.4};
+  const Pose2 start{5, -2, 0.4};
   auto errorAfter = [&](double dt, double t_end) {
     CarLikeConfig c = noiseless();
     c.steer_rate = 1e6;  // reach the angle in the first step
@@ -47,7 +48,7 @@ TEST_CASE("CarLikeRobot: constant steering drives the closed-form circle", "[sim
     robot.step(0, g, dt);  // turn the wheels at rest
     const int n = static_cast<int>(std::lround(t_end / dt));
     for (int i = 0; i < n; ++i) robot.step(v, g, dt);
-    const Pose want = circle(start, v, g, l, t_end);
+    const Pose2 want = circle(start, v, g, l, t_end);
     return std::hypot(robot.truePose().x - want.x, robot.truePose().y - want.y);
   };
   // Radius L / sin(gamma) = 3.38 m; 5 s is more than two laps.
@@ -113,7 +114,7 @@ TEST_CASE("WaypointSteering: the seed 004 route is driven through all 14 waypoin
     if (steering.done()) break;
     robot.step(3, demand, dt);
     ++steps;
-    const Pose& p = robot.truePose();
+    const Pose2& p = robot.truePose();
     max_off = std::max({max_off, -p.x, -p.y, p.x - 100, p.y - 90});
   }
   CHECK(steering.done());

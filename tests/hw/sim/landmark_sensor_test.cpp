@@ -6,6 +6,7 @@
 #include <numbers>
 #include <random>
 
+using namespace tessera;
 using namespace tessera::sim;
 
 namespace {
@@ -90,7 +91,7 @@ TEST_CASE("LandmarkSensor: noise statistics and bearing wrap", "[sim][landmarks]
     CHECK(z[0].bearing > -std::numbers::pi);
     CHECK(z[0].bearing <= std::numbers::pi);
     const double er = z[0].range - std::hypot(10.0, 0.001);
-    const double eb = wrapAngle(z[0].bearing - std::atan2(0.001, -10.0));
+    const double eb = normalizeAngle(z[0].bearing - std::atan2(0.001, -10.0));
     sr += er;
     sr2 += er * er;
     sb2 += eb * eb;
@@ -98,7 +99,7 @@ TEST_CASE("LandmarkSensor: noise statistics and bearing wrap", "[sim][landmarks]
   CHECK(std::abs(sr / n) < 0.01);
   CHECK(std::sqrt(sr2 / n) == Approx(0.2).epsilon(0.05));
   CHECK(std::sqrt(sb2 / n) == Approx(0.05).epsilon(0.05));
-  CHECK(wrapBearing(-std::numbers::pi) == Approx(std::numbers::pi));
+  CHECK(normalizeAngle(-std::numbers::pi) == Approx(std::numbers::pi));
 }
 
 TEST_CASE("LandmarkSensor: walls occlude landmarks when asked", "[sim][landmarks]") {
@@ -108,7 +109,7 @@ TEST_CASE("LandmarkSensor: walls occlude landmarks when asked", "[sim][landmarks
   LandmarkSensorConfig c = noiseless();
   c.fov = 2 * std::numbers::pi;
   std::mt19937_64 rng(1);
-  const Pose robot{2, 3, 0};
+  const Pose2 robot{2, 3, 0};
   CHECK(LandmarkSensor(lms, c).observe(robot, rng).size() == 3);
   c.occlusion = true;
   const auto z = LandmarkSensor(lms, c, &world).observe(robot, rng);

@@ -62,7 +62,7 @@ TEST_CASE("LandmarkSimulatorActor: the seed 004 run", "[sim][actor][landmarks]")
     CHECK(std::abs(g) <= std::numbers::pi / 6 + 1e-12);
     CHECK(std::abs(g - prev) <= 0.2 * std::numbers::pi * 0.03 + 1e-12);
     prev = g;
-    const PoseXYT a = readPose(gt[k]->getPose()), b = readPose(gt[k + 1]->getPose());
+    const tessera::Pose2 a = toPose2(gt[k]->getPose()), b = toPose2(gt[k + 1]->getPose());
     CHECK(b.x == Approx(a.x + 0.09 * std::cos(a.theta + g)));
     CHECK(b.y == Approx(a.y + 0.09 * std::sin(a.theta + g)));
   }
@@ -71,7 +71,7 @@ TEST_CASE("LandmarkSimulatorActor: the seed 004 run", "[sim][actor][landmarks]")
   std::size_t checked = 0;
   for (std::size_t i = 0; i < scans.size(); i += 10) {
     const std::size_t k = i * 8;
-    const PoseXYT p = readPose(gt[k]->getPose());
+    const tessera::Pose2 p = toPose2(gt[k]->getPose());
     CHECK(scans[i]->getHeader().getStampNs() == gt[k]->getHeader().getStampNs());
     for (const auto z : scans[i]->getObservations()) {
       const auto lm = lms[static_cast<unsigned>(z.getId())];
@@ -103,7 +103,7 @@ TEST_CASE("LandmarkSimulatorActor: noisy controls drive the odometry, same seed 
     const auto gt = h.published<msg::GroundTruthPose>("ground_truth");
     for (const auto& sc : h.published<msg::LandmarkScan>("landmarks"))
       for (const auto z : sc->getObservations()) CHECK(z.getId() == -1);
-    return std::pair{readPose(odom.back()->getPose()), readPose(gt.back()->getPose())};
+    return std::pair{toPose2(odom.back()->getPose()), toPose2(gt.back()->getPose())};
   };
   const auto [o1, t1] = run(3);
   const auto [o2, t2] = run(3);

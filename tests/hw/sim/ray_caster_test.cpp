@@ -7,9 +7,9 @@
 #include <numbers>
 #include <random>
 
+using tessera::Pose2;
 using tessera::sim::LaserConfig;
 using tessera::sim::LaserModel;
-using tessera::sim::Pose;
 using tessera::sim::RayCaster;
 using tessera::sim::World;
 
@@ -129,8 +129,8 @@ TEST_CASE("LaserModel: noiseless scan equals ray casts from the laser pose", "[s
   cfg.range_noise = 0;
   cfg.mount = {0.3, -0.1, 0.2};
   const LaserModel laser(box, cfg);
-  const Pose base{4.0, 3.0, 0.7};
-  const Pose lp = laser.laserPose(base);
+  const Pose2 base{4.0, 3.0, 0.7};
+  const Pose2 lp = laser.laserPose(base);
   CHECK(lp.x == Approx(4.0 + 0.3 * std::cos(0.7) + 0.1 * std::sin(0.7)));
   CHECK(lp.y == Approx(3.0 + 0.3 * std::sin(0.7) - 0.1 * std::cos(0.7)));
   CHECK(lp.theta == Approx(0.9));
@@ -140,13 +140,13 @@ TEST_CASE("LaserModel: noiseless scan equals ray casts from the laser pose", "[s
   REQUIRE(ranges.size() == 181);
   for (int i = 0; i < 181; ++i) {
     const double a = lp.theta - kPi / 2 + i * kPi / 180;
-    CHECK(ranges[i] == Approx(rectExit(lp.xy(), a, 0.1, 0.1, 9.9, 7.9)).epsilon(1e-6));
+    CHECK(ranges[i] == Approx(rectExit(lp.translation(), a, 0.1, 0.1, 9.9, 7.9)).epsilon(1e-6));
   }
 }
 
 TEST_CASE("LaserModel: range noise, range limits and dropouts", "[sim][laser]") {
   const World box = World::box(10.0, 8.0, 0.1);
-  const Pose centre{5.0, 4.0, 0.0};
+  const Pose2 centre{5.0, 4.0, 0.0};
 
   SECTION("Gaussian range noise has the configured std and no bias") {
     LaserConfig cfg;
@@ -159,7 +159,8 @@ TEST_CASE("LaserModel: range noise, range limits and dropouts", "[sim][laser]") 
     for (int k = 0; k < 200; ++k) {
       const auto r = laser.scan(centre, rng);
       for (int i = 0; i < cfg.beams; ++i) {
-        const double e = r[i] - rc.cast(centre.xy(), cfg.angle_min + i * cfg.angle_increment, 30);
+        const double e =
+            r[i] - rc.cast(centre.translation(), cfg.angle_min + i * cfg.angle_increment, 30);
         sum += e;
         sum2 += e * e;
         ++n;

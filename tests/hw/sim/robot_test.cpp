@@ -8,40 +8,41 @@
 #include <numbers>
 #include <random>
 
+using namespace tessera;
 using namespace tessera::sim;
 
 namespace {
 constexpr double kPi = std::numbers::pi;
 }
 
-TEST_CASE("Pose math: wrap, compose, moveBy", "[sim][robot]") {
-  CHECK(wrapAngle(0.5) == Approx(0.5));
-  CHECK(wrapAngle(3 * kPi / 2) == Approx(-kPi / 2));
-  CHECK(wrapAngle(-3 * kPi / 2) == Approx(kPi / 2));
-  CHECK(wrapAngle(kPi) == Approx(-kPi));  // [-pi, pi)
-  CHECK(wrapAngle(7 * 2 * kPi + 0.25) == Approx(0.25));
+TEST_CASE("Pose2 math: wrap, compose, moveBy", "[sim][robot]") {
+  CHECK(normalizeAngle(0.5) == Approx(0.5));
+  CHECK(normalizeAngle(3 * kPi / 2) == Approx(-kPi / 2));
+  CHECK(normalizeAngle(-3 * kPi / 2) == Approx(kPi / 2));
+  CHECK(normalizeAngle(kPi) == Approx(kPi));  // (-pi, pi], as every pose in the tree
+  CHECK(normalizeAngle(7 * 2 * kPi + 0.25) == Approx(0.25));
 
-  const Pose a{1.0, 2.0, kPi / 2};
-  const Pose c = compose(a, {1.0, 0.0, kPi / 4});
+  const Pose2 a{1.0, 2.0, kPi / 2};
+  const Pose2 c = compose(a, {1.0, 0.0, kPi / 4});
   CHECK(c.x == Approx(1.0).margin(1e-12));
   CHECK(c.y == Approx(3.0));
   CHECK(c.theta == Approx(3 * kPi / 4));
 
-  const Pose straight = moveBy({0, 0, kPi / 2}, 2.0, 0.0);
+  const Pose2 straight = moveBy({0, 0, kPi / 2}, 2.0, 0.0);
   CHECK(straight.x == Approx(0.0).margin(1e-12));
   CHECK(straight.y == Approx(2.0));
-  const Pose turn = moveBy({1, 1, 0}, 0.0, 0.3);
+  const Pose2 turn = moveBy({1, 1, 0}, 0.0, 0.3);
   CHECK(turn.x == 1.0);
   CHECK(turn.y == 1.0);
   CHECK(turn.theta == Approx(0.3));
 
   // Many small steps along a circle of radius 1 stay on it (mid-step heading integration).
-  Pose p{0, 0, 0};
+  Pose2 p{0, 0, 0};
   const int n = 1000;
   for (int i = 0; i < n; ++i) p = moveBy(p, 2 * kPi / n, 2 * kPi / n);
   CHECK(p.x == Approx(0.0).margin(1e-5));
   CHECK(p.y == Approx(0.0).margin(1e-5));
-  CHECK(std::abs(wrapAngle(p.theta)) < 1e-9);
+  CHECK(std::abs(normalizeAngle(p.theta)) < 1e-9);
 }
 
 TEST_CASE("Odometry: zero noise reproduces the true pose exactly", "[sim][robot][odometry]") {
@@ -141,7 +142,7 @@ TEST_CASE("Odometry: deterministic for a seed", "[sim][robot][odometry]") {
     for (int i = 0; i < 1000; ++i) r.step({0.4, 0.3}, 0.01);
     return r.odometry().pose();
   };
-  const Pose a = run(5), b = run(5), c = run(6);
+  const Pose2 a = run(5), b = run(5), c = run(6);
   CHECK(a.x == b.x);
   CHECK(a.y == b.y);
   CHECK(a.theta == b.theta);
@@ -150,7 +151,7 @@ TEST_CASE("Odometry: deterministic for a seed", "[sim][robot][odometry]") {
 
 namespace {
 struct FollowResult {
-  std::vector<Pose> trajectory;
+  std::vector<Pose2> trajectory;
   double max_v = 0, max_w = 0, max_accel = 0;
   double time = 0;
   bool done = false;
@@ -175,9 +176,9 @@ FollowResult follow(RouteFollower& f, double dt, double time_limit) {
   return out;
 }
 
-double closestApproach(const std::vector<Pose>& traj, const Eigen::Vector2d& p) {
+double closestApproach(const std::vector<Pose2>& traj, const Eigen::Vector2d& p) {
   double best = std::numeric_limits<double>::infinity();
-  for (const Pose& q : traj) best = std::min(best, (q.xy() - p).norm());
+  for (const Pose2& q : traj) best = std::min(best, (q.translation() - p).norm());
   return best;
 }
 }  // namespace
@@ -188,7 +189,7 @@ TEST_CASE("RouteFollower: drives a square with limits respected", "[sim][robot][
   RouteFollower f(square, cfg);
   CHECK(f.totalLength() == Approx(14.0));
   CHECK(f.legCount() == 4);
-  const Pose start = f.startPose();
+  const Pose2 start = f.startPose();
   CHECK(start.theta == Approx(0.0));
 
   const FollowResult r = follow(f, 0.01, 200.0);
@@ -222,7 +223,7 @@ TEST_CASE("RouteFollower: laps and progress", "[sim][robot][follower]") {
   }
   CHECK(two.done());
   CHECK(monotone);
-  CHECK((robot.truePose().xy() - Eigen::Vector2d(3, 3)).norm() < 0.1);
+  CHECK((robot.truePose().translation() - Eigen::Vector2d(3, 3)).norm() < 0.1);
 }
 
 TEST_CASE("RouteFollower: bad routes and configs", "[sim][robot][follower]") {
@@ -252,7 +253,7 @@ TEST_CASE("RouteFollower: the office route is driven without touching walls",
   // The robot stays well clear of walls (the route keeps 0.35 m; corner cutting costs little).
   double min_clear = std::numeric_limits<double>::infinity();
   for (std::size_t i = 0; i < r.trajectory.size(); i += 5)
-    min_clear = std::min(min_clear, office.clearance(r.trajectory[i].xy(), 1.0));
+    min_clear = std::min(min_clear, office.clearance(r.trajectory[i].translation(), 1.0));
   CHECK(min_clear > 0.25);
 }
 

@@ -73,14 +73,14 @@ TEST_CASE("SimulatorActor: publishes scans at 10 Hz, odometry at 50 Hz, ground t
   REQUIRE(odom.size() == 51);
   REQUIRE(gt.size() == 51);  // every odometry or scan step; scan steps are odometry steps here
 
-  std::map<std::int64_t, PoseXYT> truth;
+  std::map<std::int64_t, tessera::Pose2> truth;
   for (std::size_t i = 0; i < gt.size(); ++i) {
     const auto hdr = gt[i]->getHeader();
     CHECK(hdr.getStampNs() == static_cast<std::int64_t>(i) * 20'000'000);
     CHECK(hdr.getSeq() == i);
     CHECK(std::string(hdr.getFrameId().cStr()) == "map");
     CHECK(std::string(gt[i]->getChildFrameId().cStr()) == "base_link");
-    truth[hdr.getStampNs()] = readPose(gt[i]->getPose());
+    truth[hdr.getStampNs()] = toPose2(gt[i]->getPose());
   }
   CHECK(truth.at(0).x == 7.5);
   CHECK(truth.at(0).y == 7.5);
@@ -108,7 +108,7 @@ TEST_CASE("SimulatorActor: publishes scans at 10 Hz, odometry at 50 Hz, ground t
     CHECK(odom[i]->getTwistCovariance().size() == 9);
   }
   // The robot moves forward at no more than v_max, and odometry reports it.
-  const PoseXYT last = truth.rbegin()->second;
+  const tessera::Pose2 last = truth.rbegin()->second;
   CHECK(last.x > 7.6);
   CHECK(last.x <= 7.5 + 0.5 * 1.0 + 1e-9);
   CHECK(odom.back()->getTwist().getVx() > 0.1);
@@ -122,15 +122,15 @@ TEST_CASE("SimulatorActor: noiseless scans are ray casts from the true pose", "[
   h.advance(secondsToNanos(3.0));
   const auto scans = h.published<msg::LaserScan>("scan");
   const auto gt = h.published<msg::GroundTruthPose>("ground_truth");
-  std::map<std::int64_t, PoseXYT> truth;
-  for (const auto& g : gt) truth[g->getHeader().getStampNs()] = readPose(g->getPose());
+  std::map<std::int64_t, tessera::Pose2> truth;
+  for (const auto& g : gt) truth[g->getHeader().getStampNs()] = toPose2(g->getPose());
 
   const auto world = tessera::sim::World::builtinOffice();
   const tessera::sim::RayCaster rc(world);
   REQUIRE(scans.size() == 31);
   for (const auto& s : scans) {
     CHECK(s->getMountX() == Approx(0.2f));
-    const PoseXYT p = truth.at(s->getHeader().getStampNs());
+    const tessera::Pose2 p = truth.at(s->getHeader().getStampNs());
     const Eigen::Vector2d laser(p.x + 0.2 * std::cos(p.theta), p.y + 0.2 * std::sin(p.theta));
     const auto ranges = view<float>(s->getRanges());
     for (std::size_t i = 0; i < ranges.size(); i += 10) {
@@ -165,7 +165,7 @@ TEST_CASE("SimulatorActor: odometry equals ground truth without noise and drifts
     REQUIRE(odom.size() > 100);
     for (std::size_t i = 0; i < odom.size(); ++i) {
       REQUIRE(odom[i]->getHeader().getStampNs() == gt[i]->getHeader().getStampNs());
-      const PoseXYT a = readPose(odom[i]->getPose()), b = readPose(gt[i]->getPose());
+      const tessera::Pose2 a = toPose2(odom[i]->getPose()), b = toPose2(gt[i]->getPose());
       REQUIRE(a.x == b.x);
       REQUIRE(a.y == b.y);
       REQUIRE(a.theta == b.theta);
@@ -180,7 +180,7 @@ TEST_CASE("SimulatorActor: odometry equals ground truth without noise and drifts
     const auto odom = noisy->published<msg::Odometry>("odom");
     const auto gt = noisy->published<msg::GroundTruthPose>("ground_truth");
     REQUIRE(odom.size() == gt.size());
-    const PoseXYT a = readPose(odom.back()->getPose()), b = readPose(gt.back()->getPose());
+    const tessera::Pose2 a = toPose2(odom.back()->getPose()), b = toPose2(gt.back()->getPose());
     const double drift = std::hypot(a.x - b.x, a.y - b.y);
     CHECK(drift > 1e-3);  // noise accumulates...
     CHECK(drift < 2.0);   // ...but stays plausible over ~22 m
@@ -208,7 +208,7 @@ TEST_CASE("SimulatorActor: finishes after the route and then publishes nothing",
   CHECK(h.publishedCount("odom") > 0);
 
   const auto gt = h.published<msg::GroundTruthPose>("ground_truth");
-  const PoseXYT end = readPose(gt.back()->getPose());
+  const tessera::Pose2 end = toPose2(gt.back()->getPose());
   CHECK(std::hypot(end.x - 12.5, end.y - 7.5) < 0.15);  // lap 2 ends on the last waypoint
 
   Summary s;
@@ -277,8 +277,7 @@ TEST_CASE("SimulatorActor: the same seed gives the same run", "[sim][actor]") {
     h.advance(secondsToNanos(5.0));
     const auto odom = h.published<msg::Odometry>("odom");
     const auto scans = h.published<msg::LaserScan>("scan");
-    return std::pair{readPose(odom.back()->getPose()).y,
-                     view<float>(scans.back()->getRanges())[90]};
+    return std::pair{toPose2(odom.back()->getPose()).y, view<float>(scans.back()->getRanges())[90]};
   };
   CHECK(finalOdom(3) == finalOdom(3));
   CHECK(finalOdom(3).first != finalOdom(4).first);

@@ -8,6 +8,7 @@
 #include <algorithm>
 #include <set>
 
+using namespace tessera;
 using namespace tessera::sim;
 
 TEST_CASE("wallSegments: a box has four inner faces, free space on their left", "[sim][worlds]") {

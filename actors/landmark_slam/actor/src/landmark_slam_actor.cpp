@@ -198,7 +198,7 @@ void LandmarkSlamActor::publishPose(Nanos stamp) {
   const Eigen::Matrix3d c = filter_->poseCovariance();
   auto loan = pose_pub_.loan();
   setHeader(loan->initHeader(), stamp, options_.frame_id, pose_pub_.nextSeq());
-  writePose(loan->initPose(), PoseXYT{p[0], p[1], p[2]}, &c);
+  writePose(loan->initPose(), tessera::Pose2{p[0], p[1], p[2]}, &c);
   pose_pub_.publish(std::move(loan));
   estimate_.emplace_back(stamp, tessera::Pose2(p[0], p[1], p[2]));
 }

@@ -5,8 +5,6 @@
 #include <tessera/runtime/options.hpp>
 #include <tessera/runtime/registry.hpp>
 
-#include "message_pose.hpp"
-
 #include <algorithm>
 #include <cmath>
 #include <filesystem>
@@ -189,7 +187,7 @@ void GraphOptimizerActor::publishPoses(const std::map<int, tessera::Pose2>& pose
   unsigned k = 0;
   for (const auto& [id, p] : poses) {
     list[k].setId(static_cast<std::uint32_t>(id));
-    writePose(list[k].initPose(), PoseXYT{p.x, p.y, p.theta});
+    writePose(list[k].initPose(), tessera::Pose2{p.x, p.y, p.theta});
     ++k;
   }
   loan->setChi2(chi2);
@@ -228,18 +226,9 @@ bool GraphOptimizerActor::optimizeScanGraph() {
 }
 
 void GraphOptimizerActor::writeGraph() {
-  const pose_graph::Graph2D& g = graph_.graph();
-  pose_graph::PoseGraph2D out;
-  for (int i = 0; i < g.size(); ++i) {
-    const auto& p = g.poses[static_cast<std::size_t>(i)];
-    out.vertices[g.ids[static_cast<std::size_t>(i)]] = p;
-    // The solvers hold the first node where it is (it anchors the map frame): say so in the file.
-    if (i == 0 || g.fixed[static_cast<std::size_t>(i)])
-      out.fixed.push_back(g.ids[static_cast<std::size_t>(i)]);
-  }
-  for (const auto& e : g.edges)
-    out.edges.push_back({g.ids[static_cast<std::size_t>(e.from)],
-                         g.ids[static_cast<std::size_t>(e.to)], e.measurement, e.information});
+  // The solvers hold the first node where it is (it anchors the map frame): say so in the file.
+  pose_graph::Graph2D out = graph_.graph();
+  if (out.size() > 0) out.fixed[0] = true;
   // stop() must not throw: a failed write is logged and reported in the summary.
   try {
     const std::filesystem::path path = std::filesystem::path(output_dir_) / options_.g2o_file;
@@ -272,7 +261,7 @@ void GraphOptimizerActor::publishComposedTrajectory() {
     }
     auto loan = trajectory_pub_.loan();
     setHeader(loan->initHeader(), stamp, options_.frame_id, trajectory_pub_.nextSeq());
-    writePose(loan->initPose(), PoseXYT{moved.x, moved.y, moved.theta});
+    writePose(loan->initPose(), tessera::Pose2{moved.x, moved.y, moved.theta});
     trajectory_pub_.publish(std::move(loan));
   }
 }

@@ -5,8 +5,6 @@
 #include <tessera/runtime/options.hpp>
 #include <tessera/runtime/registry.hpp>
 
-#include "message_pose.hpp"
-
 #include <algorithm>
 #include <chrono>
 #include <cmath>
@@ -325,10 +323,10 @@ void LoopDetectorActor::publishClosure(const PendingClosure& c, int current,
   setHeader(loan->initHeader(), c.stamp, "map", loop_pub_.nextSeq());
   loan->setFromId(static_cast<std::uint32_t>(current));
   loan->setToId(static_cast<std::uint32_t>(c.matched));
-  writePose(loan->initRelative(), PoseXYT{relative.x, relative.y, relative.theta}, &cov);
+  writePose(loan->initRelative(), tessera::Pose2{relative.x, relative.y, relative.theta}, &cov);
   loan->setKind(msg::SubmapConstraint::Kind::REVISIT);
-  writePose(loan->initScanInTo(), PoseXYT{c.in_matched.x, c.in_matched.y, c.in_matched.theta},
-            &match_cov);
+  writePose(loan->initScanInTo(),
+            tessera::Pose2{c.in_matched.x, c.in_matched.y, c.in_matched.theta}, &match_cov);
   loop_pub_.publish(std::move(loan));
   ++published_;
 }

@@ -4,8 +4,6 @@
 #include <tessera/runtime/options.hpp>
 #include <tessera/runtime/registry.hpp>
 
-#include "message_pose.hpp"
-
 #include <algorithm>
 #include <cmath>
 #include <cstring>
@@ -135,7 +133,7 @@ void MapAssemblerActor::publishMap() {
   loan->setResolution(static_cast<float>(map.resolution));
   loan->setWidth(static_cast<std::uint32_t>(map.width));
   loan->setHeight(static_cast<std::uint32_t>(map.height));
-  writePose(loan->initOrigin(), PoseXYT{map.origin.x, map.origin.y, map.origin.theta});
+  writePose(loan->initOrigin(), tessera::Pose2{map.origin.x, map.origin.y, map.origin.theta});
   std::memcpy(loan.blob().data(), map.cells.data(), map.cells.size());
   loan->adoptCells(loan.blobData());
   map_pub_.publish(std::move(loan));

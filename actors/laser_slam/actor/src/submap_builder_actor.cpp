@@ -37,10 +37,6 @@ Eigen::Matrix3d rotateCovariance(const Eigen::Matrix3d& c, const tessera::Pose2&
   return r * c * r.transpose();
 }
 
-PoseXYT xyt(const tessera::Pose2& p) {
-  return {p.x, p.y, p.theta};
-}
-
 }  // namespace
 
 RbpfOptions SubmapBuilderOptions::rbpf() const {
@@ -171,13 +167,13 @@ void SubmapBuilderActor::publishPose(Nanos stamp, const tessera::Pose2& odometry
   {
     auto loan = pose_pub_.loan();
     setHeader(loan->initHeader(), stamp, options_.frame_id, pose_pub_.nextSeq());
-    writePose(loan->initPose(), xyt(global), &cov);
+    writePose(loan->initPose(), global, &cov);
     pose_pub_.publish(std::move(loan));
   }
   {
     auto loan = correction_pub_.loan();
     setHeader(loan->initHeader(), stamp, options_.frame_id, correction_pub_.nextSeq());
-    writePose(loan->initPose(), xyt(global * odometry.inverse()));
+    writePose(loan->initPose(), global * odometry.inverse());
     correction_pub_.publish(std::move(loan));
   }
 }
@@ -191,7 +187,7 @@ void SubmapBuilderActor::handOver(Nanos stamp) {
   setHeader(loan->initHeader(), stamp, options_.frame_id, constraint_pub_.nextSeq());
   loan->setFromId(static_cast<std::uint32_t>(done.id));
   loan->setToId(static_cast<std::uint32_t>(done.id + 1));
-  writePose(loan->initRelative(), xyt(done.next_in_this.pose), &done.next_in_this.covariance);
+  writePose(loan->initRelative(), done.next_in_this.pose, &done.next_in_this.covariance);
   loan->setKind(msg::SubmapConstraint::Kind::HAND_OVER);
   constraint_pub_.publish(std::move(loan));
   submap_origin_ = submap_origin_ * done.next_in_this.pose;
@@ -209,10 +205,10 @@ void SubmapBuilderActor::publishSubmap(const FinishedSubmap& submap, Nanos stamp
   grid.setResolution(static_cast<float>(map.resolution));
   grid.setWidth(static_cast<std::uint32_t>(map.width));
   grid.setHeight(static_cast<std::uint32_t>(map.height));
-  writePose(grid.initOrigin(), xyt(map.origin));
+  writePose(grid.initOrigin(), map.origin);
   auto out = mutableViewInt8(grid.initCells(static_cast<unsigned>(cells)));
   std::copy(map.cells.begin(), map.cells.end(), out.begin());
-  writePose(loan->initGlobalPose(), xyt(submap_origin_));
+  writePose(loan->initGlobalPose(), submap_origin_);
   loan->setScans(static_cast<std::uint32_t>(submap.scans_inserted));
   loan->setTravelledM(submap.travelled_m);
   loan->setFinished(true);
@@ -245,7 +241,7 @@ void SubmapBuilderActor::stop() {
     auto loan = final_pub_.loan();
     setHeader(loan->initHeader(), secondsToNanos(p.stamp_s), options_.frame_id,
               final_pub_.nextSeq());
-    writePose(loan->initPose(), xyt(p.pose));
+    writePose(loan->initPose(), p.pose);
     final_pub_.publish(std::move(loan));
   }
 }

@@ -132,7 +132,7 @@ void LineSlamActor::process(const Message<msg::LaserScan>& scan, const tessera::
   const Eigen::Matrix3d cov = slam_.poseCovariance();
   auto loan = pose_pub_.loan();
   setHeader(loan->initHeader(), stamp, options_.frame_id, pose_pub_.nextSeq());
-  writePose(loan->initPose(), PoseXYT{p.x, p.y, p.theta}, &cov);
+  writePose(loan->initPose(), tessera::Pose2{p.x, p.y, p.theta}, &cov);
   pose_pub_.publish(std::move(loan));
   if (options_.ground_truth) compareWithTruth(stamp);
 }

@@ -117,7 +117,7 @@ void GridMapperActor::publishMap() {
   loan->setWidth(static_cast<std::uint32_t>(box.width()));
   loan->setHeight(static_cast<std::uint32_t>(box.height()));
   const Eigen::Vector2d corner = grid.cellCorner(box.min);
-  writePose(loan->initOrigin(), PoseXYT{corner.x(), corner.y(), 0.0});
+  writePose(loan->initOrigin(), tessera::Pose2{corner.x(), corner.y(), 0.0});
   grid.exportInt8(box, {reinterpret_cast<std::int8_t*>(loan.blob().data()), cells});
   loan->adoptCells(loan.blobData());
   map_pub_.publish(std::move(loan));

@@ -28,10 +28,6 @@ inline PoseMessage parsePoseMessage(const std::string& value, std::string_view a
                     "', expected one of " + kPoseMessageChoices);
 }
 
-inline tessera::Pose2 toPose2(msg::Pose2D::Reader p) {
-  return {p.getX(), p.getY(), p.getTheta()};
-}
-
 /// Subscribes `topic` with the message type `kind` selects; calls on_pose(stamp_ns, pose).
 template <typename OnPose>
 void subscribePoses(ActorContext& ctx, std::string_view topic, MailboxPolicy policy,

@@ -35,7 +35,7 @@ tessera::grid::OccupancyMap toOccupancyMap(const msg::OccupancyGrid::Reader& m) 
   map.resolution = intendedValue(m.getResolution());
   map.width = static_cast<int>(m.getWidth());
   map.height = static_cast<int>(m.getHeight());
-  map.origin = detail::toPose2(m.getOrigin());
+  map.origin = toPose2(m.getOrigin());
   const auto cells = viewInt8(m.getCells());
   if (cells.size() != static_cast<std::size_t>(map.width) * static_cast<std::size_t>(map.height))
     throw tessera::mapping::MapIoError("map message holds " + std::to_string(cells.size()) +

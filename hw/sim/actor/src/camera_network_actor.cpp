@@ -138,8 +138,8 @@ void CameraNetworkActor::onPose(Nanos stamp, double x, double y, double theta) {
   if (stamp < *next_frame_) return;
   while (*next_frame_ <= stamp) *next_frame_ += period_;
 
-  const Pose marker = compose({x, y, theta}, {options_.marker[0], options_.marker[1], 0});
-  const CameraNetwork::Frame frame = network_->observe(marker.xy(), rng_);
+  const Pose2 marker = compose({x, y, theta}, {options_.marker[0], options_.marker[1], 0});
+  const CameraNetwork::Frame frame = network_->observe(marker.translation(), rng_);
   ++frames_;
   for (const CameraTransition& t : frame.transitions) {
     auto loan = event_pub_.loan();

@@ -162,12 +162,12 @@ void LandmarkSimulatorActor::tick() {
   const Nanos stamp = ctx_->now();
   if (step_ == 0) publishLandmarkMap(stamp);
 
-  const Pose& truth = robot_->truePose();
+  const Pose2& truth = robot_->truePose();
   {
     auto loan = gt_pub_.loan();
     auto b = loan.builder();
     setHeader(b.initHeader(), stamp, "map", gt_pub_.nextSeq());
-    writePose(b.initPose(), PoseXYT{truth.x, truth.y, truth.theta});
+    writePose(b.initPose(), tessera::Pose2{truth.x, truth.y, truth.theta});
     b.setChildFrameId("base_link");
     gt_pub_.publish(std::move(loan));
   }
@@ -176,8 +176,8 @@ void LandmarkSimulatorActor::tick() {
     auto b = loan.builder();
     setHeader(b.initHeader(), stamp, "odom", odom_pub_.nextSeq());
     b.setChildFrameId("base_link");
-    const Pose& p = robot_->odometryPose();
-    writePose(b.initPose(), PoseXYT{p.x, p.y, p.theta});
+    const Pose2& p = robot_->odometryPose();
+    writePose(b.initPose(), tessera::Pose2{p.x, p.y, p.theta});
     if (step_ > 0) {
       // The reported control of the last step, as a velocity of the reference point.
       const DriveCommand& u = robot_->lastReportedControl();
@@ -192,7 +192,7 @@ void LandmarkSimulatorActor::tick() {
     auto loan = scan_pub_.loan(obs.size() * 64 + 256);
     auto b = loan.builder();
     setHeader(b.initHeader(), stamp, "landmark_sensor", scan_pub_.nextSeq());
-    const Pose& m = sensor_->config().mount;
+    const Pose2& m = sensor_->config().mount;
     b.setMountX(m.x);
     b.setMountY(m.y);
     b.setMountTheta(m.theta);
@@ -235,16 +235,16 @@ void LandmarkSimulatorActor::tick() {
 }
 
 void LandmarkSimulatorActor::summarize(Summary& out) const {
-  const Pose& truth = robot_->truePose();
-  const Pose& odom = robot_->odometryPose();
+  const Pose2& truth = robot_->truePose();
+  const Pose2& odom = robot_->odometryPose();
   out["route_length_m"] = steering_->totalLength();
   out["sim_time_s"] = static_cast<double>(step_) * dt_;
   out["waypoints_reached"] = static_cast<std::int64_t>(steering_->reached());
   out["waypoint_count"] = static_cast<std::int64_t>(steering_->waypointCount());
   out["route_completed"] = static_cast<std::int64_t>(steering_->done() ? 1 : 0);
   out["distance_travelled_m"] = robot_->distanceTravelled();
-  out["odom_drift_m"] = (odom.xy() - truth.xy()).norm();
-  out["odom_heading_drift_rad"] = std::abs(wrapAngle(odom.theta - truth.theta));
+  out["odom_drift_m"] = (odom.translation() - truth.translation()).norm();
+  out["odom_heading_drift_rad"] = std::abs(normalizeAngle(odom.theta - truth.theta));
   out["landmark_count"] = static_cast<std::int64_t>(sensor_->landmarks().size());
   out["landmarks_seen"] = static_cast<std::int64_t>(seen_.size());
   out["observations"] = observations_;

@@ -160,7 +160,7 @@ void SimulatorActor::tick() {
     odom_var_d_ += sd[0] * sd[0];
     odom_var_t_ += sd[1] * sd[1];
     ++odom_steps_;
-    if (world_.blocked(robot_->truePose().xy())) ++wall_contacts_;
+    if (world_.blocked(robot_->truePose().translation())) ++wall_contacts_;
   }
 
   const Nanos stamp = ctx_->now();
@@ -185,8 +185,8 @@ void SimulatorActor::publishGroundTruth(Nanos stamp) {
   auto loan = gt_pub_.loan();
   auto b = loan.builder();
   setHeader(b.initHeader(), stamp, "map", gt_pub_.nextSeq());
-  const Pose& p = robot_->truePose();
-  writePose(b.initPose(), PoseXYT{p.x, p.y, p.theta});
+  const Pose2& p = robot_->truePose();
+  writePose(b.initPose(), tessera::Pose2{p.x, p.y, p.theta});
   b.setChildFrameId("base_link");
   gt_pub_.publish(std::move(loan));
 }
@@ -196,9 +196,9 @@ void SimulatorActor::publishOdometry(Nanos stamp) {
   auto b = loan.builder();
   setHeader(b.initHeader(), stamp, "odom", odom_pub_.nextSeq());
   b.setChildFrameId("base_link");
-  const Pose& p = robot_->odometry().pose();
+  const Pose2& p = robot_->odometry().pose();
   const Eigen::Matrix3d cov = robot_->odometry().covariance();
-  writePose(b.initPose(), PoseXYT{p.x, p.y, p.theta}, &cov);
+  writePose(b.initPose(), tessera::Pose2{p.x, p.y, p.theta}, &cov);
 
   // Twist: the mean of the noisy wheel velocities since the last message, with the variance of
   // that mean (a differential drive has no lateral velocity).
@@ -238,15 +238,15 @@ void SimulatorActor::publishScan(Nanos stamp) {
 }
 
 void SimulatorActor::summarize(Summary& out) const {
-  const Pose& truth = robot_->truePose();
-  const Pose& odom = robot_->odometry().pose();
+  const Pose2& truth = robot_->truePose();
+  const Pose2& odom = robot_->odometry().pose();
   out["route_length_m"] = follower_->totalLength();
   out["sim_time_s"] = step_ > 0 ? static_cast<double>(step_ - 1) * dt_ : 0.0;
   out["scans_published"] = scans_published_;
   out["odom_published"] = odom_published_;
   out["distance_travelled_m"] = robot_->distanceTravelled();
-  out["odom_drift_m"] = (odom.xy() - truth.xy()).norm();
-  out["odom_heading_drift_rad"] = std::abs(wrapAngle(odom.theta - truth.theta));
+  out["odom_drift_m"] = (odom.translation() - truth.translation()).norm();
+  out["odom_heading_drift_rad"] = std::abs(normalizeAngle(odom.theta - truth.theta));
   out["route_completed"] = static_cast<std::int64_t>(follower_->done() ? 1 : 0);
   out["wall_contacts"] = wall_contacts_;
 }

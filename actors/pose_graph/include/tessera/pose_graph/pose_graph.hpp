@@ -13,6 +13,8 @@
 // in place and never the edges.
 #pragma once
 
+#include <tessera/geometry/pose3.hpp>
+
 #include <Eigen/Core>
 #include <Eigen/Geometry>
 
@@ -27,17 +29,6 @@ namespace tessera::pose_graph {
 /// Thrown for graphs a solver cannot work on (unknown node, non-finite values, empty graph).
 struct GraphError : std::runtime_error {
   using std::runtime_error::runtime_error;
-};
-
-struct Pose3 {
-  Eigen::Vector3d t = Eigen::Vector3d::Zero();
-  Eigen::Quaterniond q = Eigen::Quaterniond::Identity();  ///< unit norm
-
-  Pose3 operator*(const Pose3& b) const { return {t + q * b.t, (q * b.q).normalized()}; }
-  Pose3 inverse() const {
-    const Eigen::Quaterniond qi = q.conjugate();
-    return {-(qi * t), qi};
-  }
 };
 
 template <class Pose, int Dim>

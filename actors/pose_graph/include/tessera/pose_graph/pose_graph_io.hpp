@@ -1,5 +1,7 @@
-// Reading and writing pose graphs in the g2o and TORO text formats. Plain data over Eigen: the
-// optimiser owns the graph algorithms; this file only moves graphs between files and memory.
+// Reading and writing pose graphs in the g2o and TORO text formats, straight into and out of the
+// solvers' Graph2D / Graph3D (pose_graph.hpp): nodes in increasing id order, edges in file order
+// (every edge non-robust: which edges are loop closures is the caller's policy), FIX lines as
+// fixed nodes. Writers put vertices and FIX lines in increasing id order, edges in graph order.
 //
 // Formats (recognised from the content, never from the file name: some g2o files end in .graph):
 //   g2o   VERTEX_SE2 id x y theta
@@ -7,7 +9,7 @@
 //         VERTEX_SE3:QUAT id x y z qx qy qz qw
 //         EDGE_SE3:QUAT i j dx dy dz qx qy qz qw  + 21 upper-triangular entries of the 6x6
 //             information over (translation, rotation), row-major
-//         FIX id                                                       (kept in `fixed`)
+//         FIX id                                                    (the node is `fixed`)
 //   TORO  VERTEX2 id x y theta
 //         EDGE2 i j dx dy dtheta  inf_ff inf_fs inf_ss inf_rr inf_fr inf_sr
 //             f = forward (x), s = sideward (y), r = rotation (theta): the order is
@@ -52,36 +54,14 @@
 
 namespace tessera::pose_graph {
 
-struct PoseGraph2D {
-  struct Edge {
-    std::int64_t from = 0, to = 0;
-    Eigen::Vector3d measurement = Eigen::Vector3d::Zero();  // (dx, dy, dtheta): `to` in `from`
-    Eigen::Matrix3d information = Eigen::Matrix3d::Identity();
-  };
-  std::map<std::int64_t, Eigen::Vector3d> vertices;  // id -> (x, y, theta)
-  std::vector<Edge> edges;                           // in file order
-  std::vector<std::int64_t> fixed;                   // ids from g2o FIX lines
-};
-
-struct PoseGraph3D {
-  struct Edge {
-    std::int64_t from = 0, to = 0;
-    Pose3 measurement;  // `to` in the frame of `from`
-    Eigen::Matrix<double, 6, 6> information = Eigen::Matrix<double, 6, 6>::Identity();
-  };
-  std::map<std::int64_t, Pose3> vertices;
-  std::vector<Edge> edges;
-  std::vector<std::int64_t> fixed;
-};
-
 enum class GraphFormat { kG2o, kToro };
 
 // What one read produced. Exactly one of graph2d / graph3d is filled (dimension says which).
 struct PoseGraphFile {
   GraphFormat format = GraphFormat::kG2o;
   int dimension = 2;
-  PoseGraph2D graph2d;
-  PoseGraph3D graph3d;
+  Graph2D graph2d;
+  Graph3D graph3d;
   std::size_t vertex_lines = 0;      // vertices defined in the file
   std::size_t chained_vertices = 0;  // built from odometry edges (file without vertices)
   std::size_t walked_vertices = 0;   // built through other edges (gaps in the chain)
@@ -95,15 +75,15 @@ constexpr std::int64_t kMaxVertexId = 2147483647;
 PoseGraphFile readPoseGraph(const std::filesystem::path& path);
 PoseGraphFile readPoseGraph(io::TextReader& reader);
 // Same, but the file must hold a graph of that dimension (else DatasetError).
-PoseGraph2D readPoseGraph2D(const std::filesystem::path& path, io::ParseReport* report = nullptr);
-PoseGraph3D readPoseGraph3D(const std::filesystem::path& path, io::ParseReport* report = nullptr);
+Graph2D readPoseGraph2D(const std::filesystem::path& path, io::ParseReport* report = nullptr);
+Graph3D readPoseGraph3D(const std::filesystem::path& path, io::ParseReport* report = nullptr);
 
 // Writers: vertices by increasing id, then edges in order (then FIX lines for g2o). Numbers are
 // printed in their shortest exact form, so reading the file back gives identical values.
-// TORO has no FIX line and no 3D edge format here, so `fixed` is not written. Throws
+// TORO has no FIX line and no 3D edge format here, so fixed nodes are not marked. Throws
 // DatasetError if the file cannot be written or a value is not finite.
-void writeG2o(const PoseGraph2D& graph, const std::filesystem::path& path);
-void writeG2o(const PoseGraph3D& graph, const std::filesystem::path& path);
-void writeToro(const PoseGraph2D& graph, const std::filesystem::path& path);
+void writeG2o(const Graph2D& graph, const std::filesystem::path& path);
+void writeG2o(const Graph3D& graph, const std::filesystem::path& path);
+void writeToro(const Graph2D& graph, const std::filesystem::path& path);
 
 }  // namespace tessera::pose_graph

@@ -19,6 +19,7 @@
 // io::DatasetError naming file:line and field, unless skip_malformed (then counted skips).
 #pragma once
 
+#include <tessera/geometry/pose2.hpp>
 #include <tessera/io/text_reader.hpp>
 
 #include <cstddef>
@@ -95,16 +96,11 @@ struct DriveIncrement {
 DriveIncrement wheelIncrement(double d_left_ticks, double d_right_ticks,
                               const DifferentialDriveModel& model);
 
-struct PlanarPose {
-  double x = 0, y = 0, theta = 0;  // [m, m, rad]
-};
-
 // Applies an increment with the midpoint heading (exact for straight lines and turns in place).
-PlanarPose advancePose(const PlanarPose& pose, const DriveIncrement& inc);
+Pose2 advancePose(const Pose2& pose, const DriveIncrement& inc);
 
 // Dead-reckoned pose of the axle centre at each scan, the first at `start`.
-std::vector<PlanarPose> urgOdometry(const std::vector<UrgScan>& scans,
-                                    const DifferentialDriveModel& model = {},
-                                    const PlanarPose& start = {});
+std::vector<Pose2> urgOdometry(const std::vector<UrgScan>& scans,
+                               const DifferentialDriveModel& model = {}, const Pose2& start = {});
 
 }  // namespace tessera::datasets

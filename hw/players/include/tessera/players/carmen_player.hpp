@@ -110,7 +110,7 @@ class CarmenPlayer final : public Actor {
   CarmenPlayerOptions options_;
   datasets::CarmenOptions parse_options_;
   std::string laser_, odometry_;
-  Pose2d mount_;
+  Pose2 mount_;
   std::vector<Nanos> scan_times_;  // from options_.scan_times, one per laser line
   std::size_t laser_lines_ = 0;    // laser lines of the chosen type read so far
 
@@ -122,7 +122,7 @@ class CarmenPlayer final : public Actor {
 
   ReplayState<Pending> replay_;
   std::optional<Nanos> first_record_;  // dataset time of the first record read
-  std::optional<Pose2d> last_odom_pose_;
+  std::optional<Pose2> last_odom_pose_;
   Nanos last_odom_stamp_ = 0;
   bool done_ = false;
 

@@ -108,8 +108,8 @@ class LandmarkPlayerActor final : public Actor {
   LandmarkPlayerOptions options_;
   std::optional<datasets::MrclamRobotLog> mrclam_;
   std::optional<datasets::VictoriaParkLog> victoria_;
-  std::vector<std::size_t> victoria_order_;  // sightings sorted by pose
-  std::vector<PoseXYT> victoria_poses_;      // integrated odometry, pose k
+  std::vector<std::size_t> victoria_order_;     // sightings sorted by pose
+  std::vector<tessera::Pose2> victoria_poses_;  // integrated odometry, pose k
   std::vector<Group> groups_;
   std::vector<Event> events_;
   Nanos step_ = 0;

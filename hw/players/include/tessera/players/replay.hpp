@@ -10,6 +10,7 @@
 // timestamps. With relative_stamps, stamps are the runtime times instead.
 #pragma once
 
+#include <tessera/geometry/pose2.hpp>
 #include <tessera/runtime/clock.hpp>
 
 #include <algorithm>
@@ -80,28 +81,13 @@ struct ReplayState {
   }
 };
 
-struct Pose2d {
-  double x = 0, y = 0, theta = 0;
-};
-
-inline Pose2d compose(const Pose2d& a, const Pose2d& b) {
-  const double c = std::cos(a.theta), s = std::sin(a.theta);
-  return {a.x + c * b.x - s * b.y, a.y + s * b.x + c * b.y,
-          std::remainder(a.theta + b.theta, 2 * std::numbers::pi)};
-}
-
-inline Pose2d inverse(const Pose2d& p) {
-  const double c = std::cos(p.theta), s = std::sin(p.theta);
-  return {-(c * p.x + s * p.y), -(-s * p.x + c * p.y), -p.theta};
-}
-
 // Velocity of the body between two poses `dt` seconds apart, in the first pose's frame.
 struct BodyVelocity {
   double vx = 0, vy = 0, omega = 0;
 };
-inline BodyVelocity bodyVelocity(const Pose2d& from, const Pose2d& to, double dt) {
+inline BodyVelocity bodyVelocity(const Pose2& from, const Pose2& to, double dt) {
   if (!(dt > 0)) return {};
-  const Pose2d d = compose(inverse(from), to);
+  const Pose2 d = between(from, to);
   return {d.x / dt, d.y / dt, d.theta / dt};
 }
 

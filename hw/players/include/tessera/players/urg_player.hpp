@@ -88,7 +88,7 @@ class UrgPlayer final : public Actor {
   UrgPlayerOptions options_;
   datasets::UrgOptions parse_options_;
   datasets::DifferentialDriveModel model_;
-  Pose2d mount_;
+  Pose2 mount_;
 
   ActorContext* ctx_ = nullptr;
   std::unique_ptr<datasets::UrgReader> reader_;
@@ -99,7 +99,7 @@ class UrgPlayer final : public Actor {
   std::optional<Nanos> first_record_;
   // Odometry integrates over every line read, published or not, so start_time keeps the frame.
   std::optional<datasets::UrgScan> last_ticks_;
-  datasets::PlanarPose pose_;
+  tessera::Pose2 pose_;
   datasets::DriveIncrement last_increment_;
   double last_dt_ = 0;
   double distance_ = 0;

@@ -35,7 +35,7 @@ struct CarLikeConfig {
 };
 
 /// One explicit Euler step of the the model of docs/algorithms.md#simulated-motion-and-sensors.
-Pose carLikeStep(const Pose& p, double speed, double steer, double dt, double wheelbase);
+Pose2 carLikeStep(const Pose2& p, double speed, double steer, double dt, double wheelbase);
 
 /// Speed and steering angle over one step.
 struct DriveCommand {
@@ -45,14 +45,14 @@ struct DriveCommand {
 class CarLikeRobot {
  public:
   /// Throws std::invalid_argument for a bad config.
-  CarLikeRobot(const Pose& start, CarLikeConfig config, std::uint64_t seed);
+  CarLikeRobot(const Pose2& start, CarLikeConfig config, std::uint64_t seed);
 
   /// Moves for dt seconds at `speed` with the steering turned towards `steer_demand` (within the
   /// limits); updates truth and odometry. Returns the true command actually applied.
   DriveCommand step(double speed, double steer_demand, double dt);
 
-  const Pose& truePose() const { return true_pose_; }
-  const Pose& odometryPose() const { return odom_pose_; }
+  const Pose2& truePose() const { return true_pose_; }
+  const Pose2& odometryPose() const { return odom_pose_; }
   /// Current true steering angle [rad].
   double steering() const { return steer_; }
   /// The noisy (speed, steering) of the last step, as a filter would receive them.
@@ -61,7 +61,7 @@ class CarLikeRobot {
   const CarLikeConfig& config() const { return config_; }
 
  private:
-  Pose true_pose_, odom_pose_;
+  Pose2 true_pose_, odom_pose_;
   CarLikeConfig config_;
   std::mt19937_64 rng_;
   double steer_ = 0, travelled_ = 0;
@@ -78,7 +78,7 @@ class WaypointSteering {
   WaypointSteering(Route waypoints, double tolerance);
 
   /// Steering demand [rad] for the true pose; advances past reached waypoints.
-  double demand(const Pose& pose);
+  double demand(const Pose2& pose);
   bool done() const { return next_ >= route_.size(); }
   /// Waypoints reached so far (the first, the start, counts as reached).
   std::size_t reached() const { return next_; }
@@ -88,7 +88,7 @@ class WaypointSteering {
   /// Fraction of waypoints reached, in [0, 1].
   double progress() const;
   /// On the first waypoint, facing the second.
-  Pose startPose() const;
+  Pose2 startPose() const;
 
  private:
   Route route_;

@@ -29,7 +29,7 @@ struct LandmarkSensorConfig {
   double bearing_noise = 0.017453292519943295;  ///< std [rad] (1 deg)
   bool with_ids = true;                         ///< report landmark ids (known data association)
   bool occlusion = false;                       ///< walls of the World hide landmarks
-  Pose mount;                                   ///< sensor pose in base_link
+  Pose2 mount;                                  ///< sensor pose in base_link
   /// Throws std::invalid_argument naming the first bad field.
   void validate() const;
 };
@@ -48,14 +48,14 @@ class LandmarkSensor {
                  const World* world = nullptr);
 
   /// Noise-free measurement of point p from the sensor at `sensor` (world frame).
-  static RangeBearing measure(const Pose& sensor, const Eigen::Vector2d& p);
+  static RangeBearing measure(const Pose2& sensor, const Eigen::Vector2d& p);
   /// Whether landmark `lm` is seen from the sensor pose (ignoring noise).
-  bool visible(const Pose& sensor, const PointLandmark& lm) const;
+  bool visible(const Pose2& sensor, const PointLandmark& lm) const;
   /// Everything seen from base_link at `base`, with noise drawn from `rng` (two normals per
   /// visible landmark).
-  std::vector<RangeBearing> observe(const Pose& base, std::mt19937_64& rng) const;
+  std::vector<RangeBearing> observe(const Pose2& base, std::mt19937_64& rng) const;
 
-  Pose sensorPose(const Pose& base) const { return compose(base, config_.mount); }
+  Pose2 sensorPose(const Pose2& base) const { return compose(base, config_.mount); }
   const LandmarkSensorConfig& config() const { return config_; }
   const std::vector<PointLandmark>& landmarks() const { return landmarks_; }
 
@@ -64,8 +64,5 @@ class LandmarkSensor {
   LandmarkSensorConfig config_;
   const World* world_;
 };
-
-/// Angle wrapped to (-pi, pi] (the bearing convention of landmark.capnp).
-double wrapBearing(double a);
 
 }  // namespace tessera::sim

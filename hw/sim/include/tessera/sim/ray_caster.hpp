@@ -47,7 +47,7 @@ struct LaserConfig {
   double range_max = 30.0;    ///< [m] nothing at or beyond is seen (+inf)
   double range_noise = 0.01;  ///< std of additive Gaussian range noise [m]
   double dropout = 0.0;       ///< probability that a beam returns nothing (+inf)
-  Pose mount;                 ///< laser pose in base_link
+  Pose2 mount;                ///< laser pose in base_link
 
   /// A sweep of `fov_deg` degrees centred on the laser's x axis with `beams` evenly spaced
   /// beams, first and last on the edges of the field of view.
@@ -63,11 +63,11 @@ class LaserModel {
 
   /// Fills `ranges` (size config().beams) for base_link at `base` in the world frame, drawing
   /// range noise and dropouts from `rng`.
-  void scan(const Pose& base, std::mt19937_64& rng, std::span<float> ranges) const;
-  std::vector<float> scan(const Pose& base, std::mt19937_64& rng) const;
+  void scan(const Pose2& base, std::mt19937_64& rng, std::span<float> ranges) const;
+  std::vector<float> scan(const Pose2& base, std::mt19937_64& rng) const;
 
   /// The laser's pose in the world frame for base_link at `base`.
-  Pose laserPose(const Pose& base) const { return compose(base, config_.mount); }
+  Pose2 laserPose(const Pose2& base) const { return compose(base, config_.mount); }
   const LaserConfig& config() const { return config_; }
 
  private:

@@ -17,6 +17,8 @@
 // Everything is deterministic given the seed of the std::mt19937_64 passed in.
 #pragma once
 
+#include <tessera/geometry/pose2.hpp>
+
 #include <Eigen/Core>
 
 #include <cstdint>
@@ -25,18 +27,8 @@
 
 namespace tessera::sim {
 
-/// A planar pose: position [m] and heading [rad].
-struct Pose {
-  double x = 0, y = 0, theta = 0;
-  Eigen::Vector2d xy() const { return {x, y}; }
-};
-
-/// Angle wrapped to [-pi, pi).
-double wrapAngle(double a);
-/// a * b: pose b expressed in a's frame, moved to a's parent frame.
-Pose compose(const Pose& a, const Pose& b);
 /// The pose after moving forward `distance` while turning by `rotation` (mid-step heading).
-Pose moveBy(const Pose& p, double distance, double rotation);
+Pose2 moveBy(const Pose2& p, double distance, double rotation);
 
 struct OdometryNoise {
   double sigma_d = 0.05;      ///< distance noise std per metre of the step's distance
@@ -57,13 +49,13 @@ struct OdometryNoise {
 /// Dead reckoning from noisy wheel increments, with its growing covariance.
 class Odometry {
  public:
-  Odometry(const Pose& start, OdometryNoise noise) : pose_(start), noise_(noise) {}
+  Odometry(const Pose2& start, OdometryNoise noise) : pose_(start), noise_(noise) {}
 
   /// Corrupts the true increments of one step, integrates them, and returns the noisy
   /// (distance, rotation) actually integrated.
   Eigen::Vector2d integrate(double distance, double rotation, std::mt19937_64& rng);
 
-  const Pose& pose() const { return pose_; }
+  const Pose2& pose() const { return pose_; }
   /// Covariance of pose() over (x, y, theta), propagated with the model's Jacobians.
   const Eigen::Matrix3d& covariance() const { return covariance_; }
   /// Std of the noise added to increments (distance, rotation) of that size.
@@ -71,7 +63,7 @@ class Odometry {
   const OdometryNoise& noise() const { return noise_; }
 
  private:
-  Pose pose_;
+  Pose2 pose_;
   OdometryNoise noise_;
   Eigen::Matrix3d covariance_ = Eigen::Matrix3d::Zero();
 };
@@ -107,7 +99,7 @@ class RouteFollower {
   /// Velocity for the next `dt` seconds from the true pose (limited by the config's speeds and
   /// accelerations); advances past reached waypoints. After the last waypoint it brakes to a
   /// halt within the limits and then reports done(); zero from then on.
-  Twist command(const Pose& pose, double dt);
+  Twist command(const Pose2& pose, double dt);
 
   bool done() const { return done_; }
   /// Fraction of the route's total length completed (by segments finished plus the projection
@@ -119,7 +111,7 @@ class RouteFollower {
   std::size_t legIndex() const { return leg_; }
   std::size_t legCount() const { return legs_.size(); }
   /// The start pose: on the first waypoint, facing the second.
-  Pose startPose() const;
+  Pose2 startPose() const;
 
  private:
   struct Leg {
@@ -140,12 +132,12 @@ class RouteFollower {
 /// True state, odometry and follower together, stepped at a fixed rate.
 class DiffDriveRobot {
  public:
-  DiffDriveRobot(const Pose& start, OdometryNoise noise, std::uint64_t seed);
+  DiffDriveRobot(const Pose2& start, OdometryNoise noise, std::uint64_t seed);
 
   /// Moves with (v, omega) for dt seconds: updates the true pose and the odometry.
   void step(const Twist& cmd, double dt);
 
-  const Pose& truePose() const { return true_pose_; }
+  const Pose2& truePose() const { return true_pose_; }
   const Odometry& odometry() const { return odometry_; }
   /// Distance driven by the true robot [m].
   double distanceTravelled() const { return travelled_; }
@@ -154,7 +146,7 @@ class DiffDriveRobot {
   std::mt19937_64& rng() { return rng_; }
 
  private:
-  Pose true_pose_;
+  Pose2 true_pose_;
   Odometry odometry_;
   std::mt19937_64 rng_;
   double travelled_ = 0;
