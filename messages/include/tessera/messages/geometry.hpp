@@ -4,10 +4,10 @@
 // writers fill a builder in place.
 #pragma once
 
-#include <tessera/geometry/pose2.hpp>
-#include <tessera/geometry/pose3.hpp>
 #include <tessera/msg/common.capnp.h>
 #include <tessera/msg/image.capnp.h>
+#include <tessera/geometry/pose2.hpp>
+#include <tessera/geometry/pose3.hpp>
 
 #include <Eigen/Core>
 #include <Eigen/Geometry>
