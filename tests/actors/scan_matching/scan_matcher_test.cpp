@@ -4,9 +4,9 @@
 #include <tessera/geometry/pose2.hpp>
 #include <tessera/grid/occupancy_grid.hpp>
 #include <tessera/grid/tiled_grid.hpp>
-#include <tessera/scan_matching/scan_matcher.hpp>
 
 #include "../segment_world.hpp"
+#include "scan_matcher_impl.hpp"  // templates for the fake grids below
 
 #include <catch2/catch.hpp>
 
@@ -933,8 +933,8 @@ TEST_CASE("endpoint cells of several poses equal the scalar floor arithmetic", "
     }
     int cell_x[8], cell_y[8];
     float ux[8], uy[8];
-    tessera::scan_matching::detail::endpointCells(n, x, y, c, s, ex, ey, centre0, res, cell_x, cell_y, ux,
-                                         uy);
+    tessera::scan_matching::detail::endpointCells(n, x, y, c, s, ex, ey, centre0, res, cell_x,
+                                                  cell_y, ux, uy);
     for (int k = 0; k < n; ++k) {
       const double px = x[k] + c[k] * ex - s[k] * ey, py = y[k] + s[k] * ex + c[k] * ey;
       const double qx = (px - centre0.x()) * (1.0 / res), qy = (py - centre0.y()) * (1.0 / res);
