@@ -61,10 +61,10 @@
 // A ScanMatcher holds only its options: all methods are const, allocate nothing per score
 // evaluation and may be called concurrently on grids nobody is writing.
 //
-// The templates are defined in src/scan_matcher_impl.hpp (with the SIMD and bit-row helpers of
-// the inner loop) and instantiated in the library for grid::OccupancyGrid and grid::TiledGrid,
-// so users of those grids need only this header. Code matching on another grid type (tests'
-// fake grids) includes the implementation header.
+// The templates are defined in src/scan_matcher_impl.hpp (the inner loop's cell arithmetic and
+// SIMD helpers in src/matcher_cells.hpp) and instantiated in the library for grid::OccupancyGrid
+// and grid::TiledGrid, so users of those grids need only this header. Code matching on another grid
+// type (tests' fake grids) includes the implementation header.
 #pragma once
 
 #include <tessera/geometry/pose2.hpp>
