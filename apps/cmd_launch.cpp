@@ -234,7 +234,8 @@ int launch(const LaunchArgs& a) {
     // What workers wait for; a change (from this loop or from requestStop) rings their bells.
     auto decisions = [&] {
       return std::array<std::uint64_t, 4>{block.go.load(), block.grant_seq.load(),
-                                          block.command.load(), block.stop_turn.load()};
+                                          static_cast<std::uint64_t>(block.command.load()),
+                                          block.stop_turn.load()};
     };
     auto rung = decisions();
     int quiet_rounds = 0;
@@ -313,7 +314,7 @@ int launch(const LaunchArgs& a) {
       for (const auto& port : roudi.releaseOrphanedPortLocks()) {
         std::cerr << "[launch] released the lock it held on " << port << "\n";
       }
-      const bool ending = sync.block().command.load() != 0;
+      const bool ending = sync.block().command.load() != RunCommand::kRun;
       if (w.restart && !sim && !ending) {
         ++w.incarnation;
         clock.markRestarted(w.index);
@@ -336,7 +337,7 @@ int launch(const LaunchArgs& a) {
       }
     }
     if (!any_running) break;
-    if (sync.block().command.load() != 0) {
+    if (sync.block().command.load() != RunCommand::kRun) {
       // A stop that hangs (a process stuck in a handler) says what it waits for.
       const Nanos now = steadyNow();
       if (stopping_since == 0) {

@@ -7,7 +7,8 @@
 namespace tessera {
 
 namespace {
-/// The hidden actor that owns the harness's capture subscriptions; its slots are wired directly.
+/// The hidden actor that owns the harness's capture subscriptions; its mailboxes are wired
+/// directly.
 class CaptureActor final : public Actor {
  public:
   void configure(ActorContext&) override {}
@@ -32,22 +33,22 @@ ActorHarness::ActorHarness(std::unique_ptr<Actor> actor, std::string output_dir,
   actor_ = &runtime_.add(name_, std::move(actor));
   runtime_.configure(/*allow_unpublished=*/true);
   auto& impl = *runtime_.impl_;
-  // Every topic the actor publishes is captured by a reliable, unbounded subscriber slot that
-  // belongs to a hidden cell, so nothing it publishes is ever lost to the test.
-  auto cell = std::make_unique<detail::Cell>();
-  cell->index = static_cast<std::uint32_t>(impl.cells.size());
-  cell->name = "(harness capture)";
-  cell->actor = std::make_unique<CaptureActor>();
-  for (const auto& topic_name : impl.cells[0]->publishes) {
+  // Every topic the actor publishes is captured by a reliable, unbounded subscription that
+  // belongs to a hidden actor, so nothing it publishes is ever lost to the test.
+  auto capture = std::make_unique<detail::ActorSlot>();
+  capture->index = static_cast<std::uint32_t>(impl.actors.size());
+  capture->name = "(harness capture)";
+  capture->instance = std::make_unique<CaptureActor>();
+  for (const auto& topic_name : impl.actors[0]->publishes) {
     auto& topic = *impl.topics.at(topic_name);
     auto* sink = &captures_->by_topic[topic_name];
-    cell->slots.push_back(detail::Slot{
+    capture->subscriptions.push_back(detail::Subscription{
         topic_name, MailboxPolicy::reliable(std::size_t{1} << 40),
         [sink](const std::shared_ptr<const MessageStorage>& m) { sink->push_back(m); }});
-    topic.subscribers.push_back(
-        detail::Subscriber{cell->index, static_cast<std::uint32_t>(cell->slots.size() - 1)});
+    topic.subscribers.push_back(detail::Subscriber{
+        capture->index, static_cast<std::uint32_t>(capture->subscriptions.size() - 1)});
   }
-  impl.cells.push_back(std::move(cell));
+  impl.actors.push_back(std::move(capture));
 }
 
 ActorHarness::~ActorHarness() = default;

@@ -1,5 +1,5 @@
-// Tests for the executor's internals (runtime/src/runtime_impl.hpp).
-#include "runtime_impl.hpp"
+// Tests for the executor's internals (runtime/src/executor.hpp).
+#include "executor.hpp"
 
 #include <catch2/catch.hpp>
 

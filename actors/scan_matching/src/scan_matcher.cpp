@@ -1,4 +1,6 @@
-#include <tessera/scan_matching/scan_matcher.hpp>
+// ScanMatcher's non-template parts: option checks, kernel offsets, scan preparation, and the
+// proposal and covariance fits from sampled log-likelihoods.
+#include "scan_matcher_impl.hpp"
 
 #include <Eigen/Dense>
 

@@ -246,11 +246,11 @@ bool WorkerCoordinator::readyAndWait() {
     if (ending()) return false;
     b.pause();
   }
-  return block_.command.load() == 0;
+  return block_.command.load() == RunCommand::kRun;
 }
 
 bool WorkerCoordinator::ending() {
-  return block_.command.load() != 0 || orphaned();
+  return block_.command.load() != RunCommand::kRun || orphaned();
 }
 
 bool WorkerCoordinator::orphaned() {
@@ -266,7 +266,7 @@ RunCoordinator::Decision WorkerCoordinator::ended() const {
     d.reason = "the launcher (and its RouDi) died";
     return d;
   }
-  d.verdict = block_.command.load() == 1 ? Verdict::kFinish : Verdict::kStop;
+  d.verdict = block_.command.load() == RunCommand::kFinish ? Verdict::kFinish : Verdict::kStop;
   d.time = block_.end_time.load();
   d.reason = std::string(block_.reason, strnlen(block_.reason, sizeof(block_.reason)));
   return d;
@@ -301,7 +301,7 @@ RunCoordinator::Decision WorkerCoordinator::idle(const LocalState& state,
       return {Verdict::kWork, 0, {}};
     }
     publishIdle(true, received);
-    if (block_.command.load() != 0 || orphaned()) return ended();
+    if (block_.command.load() != RunCommand::kRun || orphaned()) return ended();
     const auto g = block_.grant_seq.load();
     if (g != last_grant_) {
       last_grant_ = g;
@@ -325,13 +325,13 @@ RunCoordinator::Decision WorkerCoordinator::poll(const LocalState& state,
   s.finished = state.finished_sources;
   const auto received = s.received.load();
   publishIdle(!busy(), received);
-  if (block_.command.load() != 0 || orphaned()) return ended();
+  if (block_.command.load() != RunCommand::kRun || orphaned()) return ended();
   return {Verdict::kWork, 0, {}};
 }
 
 std::vector<std::string> WorkerCoordinator::awaitStopTurn(const std::function<bool()>& busy) {
   auto& s = slot();
-  if (block_.command.load() == 0) {
+  if (block_.command.load() == RunCommand::kRun) {
     s.wants_stop = 1;  // a local stop (signal, fatal error)
     changed();
   }
@@ -340,7 +340,7 @@ std::vector<std::string> WorkerCoordinator::awaitStopTurn(const std::function<bo
   // actors), until every stage is done and the launcher lets it leave.
   const std::size_t turn = std::min(next_stage_, stages_.size());  // the last: leave
   Backoff b;
-  while (block_.command.load() == 0 || block_.stop_turn.load() <= turn) {
+  while (block_.command.load() == RunCommand::kRun || block_.stop_turn.load() <= turn) {
     if (orphaned()) {
       // Nobody grants turns any more: stop what is left here at once (outputs get written).
       std::vector<std::string> rest;
@@ -402,14 +402,14 @@ void DeploymentClock::markRestarted(int index) {
 
 void DeploymentClock::requestStop(const std::string& reason) {
   std::lock_guard lock(mutex_);
-  if (block_.command.load() == 0) issue(2, reason, 0);
+  if (block_.command.load() == RunCommand::kRun) issue(RunCommand::kStop, reason, 0);
 }
 
 std::vector<int> DeploymentClock::holdingUpStop() {
   std::lock_guard lock(mutex_);
   std::vector<int> out;
   const auto turn = block_.stop_turn.load();
-  if (block_.command.load() == 0 || turn > stage_owners_.size()) return out;
+  if (block_.command.load() == RunCommand::kRun || turn > stage_owners_.size()) return out;
   if (turn > 0) {
     const int owner = stage_owners_[turn - 1];
     if (!gone_[owner] && block_.stages_done.load() < turn) return {owner};
@@ -437,10 +437,10 @@ void DeploymentClock::step() {
     block_.go = 1;
     return;
   }
-  if (block_.command.load() == 0) {
+  if (block_.command.load() == RunCommand::kRun) {
     for (int i = 0; i < n_; ++i) {
       if (!gone_[i] && block_.slots[i].wants_stop.load() != 0) {
-        issue(2, "process stopped by itself (signal or actor error)", 0);
+        issue(RunCommand::kStop, "process stopped by itself (signal or actor error)", 0);
         return;
       }
     }
@@ -454,16 +454,16 @@ void DeploymentClock::step() {
       due = std::min<Nanos>(due, block_.slots[i].next_due.load());
     }
     if (finite > 0 && finished >= finite) {
-      issue(1, "all inputs finished", 0);
+      issue(RunCommand::kFinish, "all inputs finished", 0);
       return;
     }
     if (!sim_) return;
     if (due == std::numeric_limits<Nanos>::max()) {
-      issue(1, "nothing left to do (no timers, all mailboxes empty)", 0);
+      issue(RunCommand::kFinish, "nothing left to do (no timers, all mailboxes empty)", 0);
       return;
     }
     if (due > limit_) {
-      issue(1, "reached max_duration_s", limit_);
+      issue(RunCommand::kFinish, "reached max_duration_s", limit_);
       return;
     }
     if (rate_ > 0) {
@@ -521,7 +521,7 @@ bool DeploymentClock::quiescent(bool running) {
   return unbalanced_ || sa == ra;
 }
 
-void DeploymentClock::issue(std::uint64_t command, const std::string& reason, Nanos end_time) {
+void DeploymentClock::issue(RunCommand command, const std::string& reason, Nanos end_time) {
   std::memset(block_.reason, 0, sizeof(block_.reason));
   std::memcpy(block_.reason, reason.data(), std::min(reason.size(), sizeof(block_.reason) - 1));
   block_.end_time = end_time;

@@ -4,9 +4,9 @@
 #include <tessera/geometry/pose2.hpp>
 #include <tessera/grid/occupancy_grid.hpp>
 #include <tessera/grid/tiled_grid.hpp>
-#include <tessera/scan_matching/scan_matcher.hpp>
 
 #include "../segment_world.hpp"
+#include "scan_matcher_impl.hpp"  // templates for the fake grids below
 
 #include <catch2/catch.hpp>
 

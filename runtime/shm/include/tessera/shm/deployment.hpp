@@ -22,6 +22,7 @@
 
 #include <atomic>
 #include <chrono>
+#include <cstddef>
 #include <cstdint>
 #include <map>
 #include <memory>
@@ -74,12 +75,23 @@ struct SyncSlot {
   // run, and by the worker's receiving thread for every message; `waiting` while it sleeps.
   std::atomic<std::uint32_t> bell, waiting;
 };
+/// What the launcher tells the workers through SyncBlock::command. A 64-bit word, as the field
+/// was before it was named: the block's layout and size stay the same, and the zero-filled
+/// block a launcher creates reads as kRun.
+enum class RunCommand : std::uint64_t {
+  kRun = 0,     // the run goes on
+  kFinish = 1,  // the run ended normally (inputs finished, time limit): stop in turns
+  kStop = 2,    // stop now (a signal, a failed process)
+};
+static_assert(sizeof(std::atomic<RunCommand>) == sizeof(std::uint64_t) &&
+              std::atomic<RunCommand>::is_always_lock_free);
+
 struct SyncBlock {
   std::atomic<std::uint64_t> magic;
   std::atomic<std::uint64_t> go;  // all workers ready: start
   std::atomic<std::uint64_t> grant_seq;
   std::atomic<std::int64_t> grant_time;
-  std::atomic<std::uint64_t> command;  // 0 run, 1 finish, 2 stop
+  std::atomic<RunCommand> command;
   std::atomic<std::int64_t> end_time;
   std::atomic<std::uint64_t> stop_turn;    // stop stages with index < stop_turn may run
   std::atomic<std::uint64_t> stages_done;  // stop stages finished (their owner sets it)
@@ -88,6 +100,9 @@ struct SyncBlock {
   std::atomic<std::uint32_t> clock_bell, clock_waiting;
   SyncSlot slots[kMaxDeploymentProcesses];
 };
+// The block is shared between processes built from the same source; the layout is pinned all
+// the same, so that a change to it is a deliberate one.
+static_assert(sizeof(SyncBlock) == 3640 && offsetof(SyncBlock, command) == 32);
 
 /// Doorbells of the control block: futex words shared between processes. ringBell() wakes
 /// whoever waits on `bell` (when `waiting` says someone may); waitBell() sleeps until the bell
@@ -168,7 +183,7 @@ class DeploymentClock {
   /// While stopping: the processes the next stop turn waits for (the owner of an unfinished
   /// stage, or a process still busy), to say so when a stop takes long.
   std::vector<int> holdingUpStop();
-  /// Stops the run (command 2) unless it is already ending.
+  /// Stops the run (RunCommand::kStop) unless it is already ending.
   void requestStop(const std::string& reason);
   std::string reason() const;
 
@@ -178,7 +193,7 @@ class DeploymentClock {
   };
   bool wave(bool running, std::vector<Snapshot>& out, std::uint64_t& sent, std::uint64_t& recv);
   bool quiescent(bool running);
-  void issue(std::uint64_t command, const std::string& reason, Nanos end_time);
+  void issue(RunCommand command, const std::string& reason, Nanos end_time);
 
   SyncBlock& block_;
   int n_;
