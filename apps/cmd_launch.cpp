@@ -4,6 +4,7 @@
 // simulated time and the end of the run through a control block (runtime/deployment.hpp),
 // restarts processes the profile names under `restart:` when they die (wall clock), and stops
 // everything cleanly on Ctrl-C (a second Ctrl-C terminates the workers, a third kills them).
+#include "cli_inputs.hpp"
 #include "commands.hpp"
 
 #include <tessera/runtime/process_stats.hpp>

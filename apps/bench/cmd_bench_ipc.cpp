@@ -30,8 +30,8 @@
 // pong take. Streaming: the leader publishes 64 B messages as fast as it can for
 // --stream-seconds on a reliable (blocking) path; the follower counts them and reports the count
 // when told the end.
+#include "bench_commands.hpp"
 #include "bench_util.hpp"
-#include "commands.hpp"
 
 #include <tessera/messages/types.hpp>
 #include <tessera/runtime/options.hpp>
