@@ -17,17 +17,16 @@
 // prebuilt pong, which carries the ping's one-way latency and its own stamp. So no payload is
 // being written anywhere while a message is under way (writing MiBs slows this VM's wake-ups).
 // --fill says what building writes: `first-use` (default; iceperf's method, under which the
-// issue's reference figures were taken: raw iceoryx flat at every size) writes a buffer or chunk
-// in full the first time it is used and afterwards only its header; `every` writes every
-// payload in full, as a producer filling each image would. Writing MiBs before each message
-// evicts the caches the next wake-up runs from (every zero-copy transport then slows with size,
-// raw iceoryx too) and leaves the socket's source bytes hot for its copy: the two modes bracket
-// what an application sees.
-// CLOCK_MONOTONIC is system-wide, so stamps of two processes compare. The two directions are
-// kept apart: the ping wakes a process idle since the gap, the pong one that has just sent, so
-// they form two modes and a median over both pooled would land in either from run to run. The
-// one-way p50 is the mean of the two medians; p99 is over both. Round trip is ping stamp to
-// pong take. Streaming: the leader publishes 64 B messages as fast as it can for
+// reference figures in docs/benchmarks.md were taken: raw iceoryx flat at every size) writes a
+// buffer or chunk in full the first time it is used and afterwards only its header; `every`
+// writes every payload in full, as a producer filling each image would. Writing MiBs before each
+// message evicts the caches the next wake-up runs from (every zero-copy transport then slows with
+// size, raw iceoryx too) and leaves the socket's source bytes hot for its copy: the two modes
+// bracket what an application sees. CLOCK_MONOTONIC is system-wide, so stamps of two processes
+// compare. The two directions are kept apart: the ping wakes a process idle since the gap, the pong
+// one that has just sent, so they form two modes and a median over both pooled would land in either
+// from run to run. The one-way p50 is the mean of the two medians; p99 is over both. Round trip is
+// ping stamp to pong take. Streaming: the leader publishes 64 B messages as fast as it can for
 // --stream-seconds on a reliable (blocking) path; the follower counts them and reports the count
 // when told the end.
 //

@@ -42,9 +42,9 @@ std::vector<Target> evaluate(const std::vector<Row>& rows) {
                find("uds", kSizes[2]).r.p50_us / find("iceoryx", kSizes[2]).r.p50_us, 25, false});
   t.push_back({"uds_over_iceoryx_p50_4MiB", "one-way p50 at 4 MiB, Unix socket / ours",
                find("uds", kSizes[3]).r.p50_us / find("iceoryx", kSizes[3]).r.p50_us, 100, false});
-  // The same ratios on round trips, the figure iceperf reports (and the reference
-  // figures are): a round trip adds both directions, whose wake-ups on this VM are bimodal in
-  // different proportions, so its median need not be twice the pooled one-way median.
+  // The same ratios on round trips, the figure iceperf reports (and the reference figures in
+  // docs/benchmarks.md are): a round trip adds both directions, whose wake-ups on this VM are
+  // bimodal in different proportions, so its median need not be twice the pooled one-way median.
   const auto [rtt_worst, rtt_worst_at] = worstOverRaw(&SizeResult::rtt_p50_us);
   t.push_back(
       {"iceoryx_over_raw_rtt_p50_worst",
