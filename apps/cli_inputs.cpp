@@ -16,6 +16,10 @@ void requireFile(const std::string& path, const char* option) {
                       (fs::exists(path, ec) ? ": not a regular file" : ": no such file"));
 }
 
+std::vector<std::string> profileSearchDirs() {
+  return {std::string(TESSERA_SOURCE_DIR) + "/apps/profiles", "apps/profiles"};
+}
+
 std::vector<tessera::evaluation::PoseRelation> loadPoseRelations(const std::string& path,
                                                                  const char* option) {
   requireFile(path, option);

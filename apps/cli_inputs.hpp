@@ -1,5 +1,5 @@
-// Input files named on the `tessera` command line: checks that fail with the option's name, and
-// loaders shared by the eval and bench commands.
+// Input files named on the `tessera` command line: checks that fail with the option's name, the
+// folders profile names are looked up in, and loaders shared by the product and bench commands.
 #pragma once
 
 #include <tessera/evaluation/trajectory_metrics.hpp>
@@ -11,6 +11,8 @@ namespace tessera::app {
 
 /// Throws ConfigError "OPTION PATH: no such file" (or "not a regular file").
 void requireFile(const std::string& path, const char* option);
+/// Folders searched for profile names: the source tree's apps/profiles and ./apps/profiles.
+std::vector<std::string> profileSearchDirs();
 /// A Kuemmerle et al. relations file as planar relations (checked with requireFile).
 std::vector<tessera::evaluation::PoseRelation> loadPoseRelations(const std::string& path,
                                                                  const char* option);

@@ -1,5 +1,6 @@
 // tessera record / tessera replay: a profile run with a recorder actor added, and a recording
 // published again into a profile (or checked with --info). Format: docs/recording_format.md.
+#include "cli_inputs.hpp"
 #include "commands.hpp"
 
 #include <tessera/runtime/recording.hpp>

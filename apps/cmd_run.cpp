@@ -1,3 +1,4 @@
+#include "cli_inputs.hpp"
 #include "commands.hpp"
 
 #include <tessera/runtime/process_stats.hpp>
@@ -14,10 +15,6 @@
 namespace tessera::app {
 
 namespace fs = std::filesystem;
-
-std::vector<std::string> profileSearchDirs() {
-  return {std::string(TESSERA_SOURCE_DIR) + "/apps/profiles", "apps/profiles"};
-}
 
 namespace {
 

@@ -20,18 +20,9 @@ void addActorsCommand(CLI::App& app, int& result);
 void addEvalCommand(CLI::App& app, int& result);
 /// Adds `tessera graph optimize` (pose-graph files through SGD / Ceres).
 void addGraphCommand(CLI::App& app, int& result);
-/// Adds `tessera bench graph` (pose-graph solvers against g2o's figures).
-void addBenchGraphCommand(CLI::App& bench, int& result);
-/// Adds `tessera bench runtime`.
-void addBenchRuntimeCommand(CLI::App& bench, int& result);
-/// Adds `tessera bench ipc` (two processes: our iceoryx transport vs raw iceoryx, a Unix socket).
-void addBenchIpcCommand(CLI::App& bench, int& result);
-/// Adds `tessera bench rbpf` (laser SLAM accuracy, CPU and memory on a CARMEN log).
-void addBenchRbpfCommand(CLI::App& bench, int& result);
-/// Adds `tessera bench landmarks` (landmark SLAM accuracy over seeds, cost vs map size).
-void addBenchLandmarksCommand(CLI::App& bench, int& result);
-/// Adds `tessera bench matcher` (correlative matcher: branch and bound vs exhaustive search).
-void addBenchMatcherCommand(CLI::App& bench, int& result);
+/// Adds `tessera bench` and its sub-commands; defined apart from the product commands, in the
+/// tessera_bench library (apps/bench).
+void addBenchCommands(CLI::App& app, int& result);
 
 /// Adds `tessera launch` (a profile as several processes over shared memory) and the internal
 /// `tessera worker` it starts for each process.
@@ -58,8 +49,5 @@ void addRunOptions(CLI::App& cmd, RunSettings& settings);
 /// stopped the run with an error, 130 when interrupted. `verb` names the command in messages.
 int runProfile(const Profile& profile, const std::string& verb, const RunSettings& settings,
                RunReport* report = nullptr);
-
-/// Folders searched for profile names: the source tree's apps/profiles and ./apps/profiles.
-std::vector<std::string> profileSearchDirs();
 
 }  // namespace tessera::app

@@ -16,14 +16,7 @@ int main(int argc, char** argv) {
   tessera::app::addReplayCommand(app, result);
   tessera::app::addEvalCommand(app, result);
   tessera::app::addGraphCommand(app, result);
-  auto* bench = app.add_subcommand("bench", "benchmarks that print their figures and the machine");
-  bench->require_subcommand(1);
-  tessera::app::addBenchRuntimeCommand(*bench, result);
-  tessera::app::addBenchIpcCommand(*bench, result);
-  tessera::app::addBenchRbpfCommand(*bench, result);
-  tessera::app::addBenchGraphCommand(*bench, result);
-  tessera::app::addBenchLandmarksCommand(*bench, result);
-  tessera::app::addBenchMatcherCommand(*bench, result);
+  tessera::app::addBenchCommands(app, result);
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {

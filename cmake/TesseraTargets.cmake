@@ -7,7 +7,8 @@
 #
 # tessera_check_dependency_rule() runs at the end of configure and fails it when a core library
 # reaches the runtime or messages through its links, when an actor library links another
-# domain's actor library, or when a hw/ target links a library from actors/. The include-level
+# domain's actor library, when a hw/ target links a library from actors/, or when the `tessera`
+# CLI links iceoryx directly instead of through tessera_shm or tessera_bench. The include-level
 # half of the rule is the `dependency_rule` test (tests/dependency_rule.cmake).
 
 function(tessera_core_library name)
@@ -83,6 +84,18 @@ function(tessera_check_dependency_rule)
           if(dep_folder MATCHES "/actors/")
             string(APPEND errors "\n  hw library ${t} links ${dep} from actors/")
           endif()
+        endif()
+      endforeach()
+    endif()
+  endforeach()
+  # The product CLI reaches shared memory through tessera_shm; only its benchmarks
+  # (tessera_bench) link iceoryx themselves.
+  foreach(app tessera tessera_cli_common)
+    if(TARGET ${app})
+      get_target_property(app_libs ${app} LINK_LIBRARIES)
+      foreach(lib IN LISTS app_libs)
+        if(lib MATCHES "iceoryx")
+          string(APPEND errors "\n  ${app} links ${lib} directly (only tessera_bench may)")
         endif()
       endforeach()
     endif()

@@ -10,7 +10,8 @@
 #   hw actors     -> base, messages, runtime, hw core, their own folder
 #   actors core   -> base, actors core             (actors/<domain> without actor/)
 #   actors actors -> base, messages, runtime, actors core, their own folder
-# apps/ and tests/ may include anything. Cap'n Proto (<capnp/..>, <kj/..>) counts as messages.
+# apps/ and tests/ may include anything, except that apps/ outside apps/bench never includes
+# iceoryx. Cap'n Proto (<capnp/..>, <kj/..>) counts as messages.
 cmake_minimum_required(VERSION 3.22)
 if(NOT SOURCE_DIR)
   message(FATAL_ERROR "usage: cmake -DSOURCE_DIR=<tree> -P dependency_rule.cmake")
@@ -93,6 +94,16 @@ foreach(src IN LISTS sources)
           "\n  ${src} includes <${path}> from another actor library (${target_actor_folder})")
       endif()
     endif()
+  endforeach()
+endforeach()
+
+# The product commands (apps/, not apps/bench) reach shared memory through tessera_shm only; the
+# benchmarks in apps/bench may use iceoryx directly.
+file(GLOB app_sources RELATIVE ${SOURCE_DIR} ${SOURCE_DIR}/apps/*.[hc]pp)
+foreach(src IN LISTS app_sources)
+  file(STRINGS ${SOURCE_DIR}/${src} includes REGEX "^#include <iceoryx")
+  foreach(inc IN LISTS includes)
+    string(APPEND errors "\n  ${src} (apps) includes iceoryx directly: ${inc}")
   endforeach()
 endforeach()
 

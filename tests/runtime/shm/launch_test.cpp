@@ -1,6 +1,7 @@
 // `tessera launch` end to end: the same outputs as `tessera run`, Ctrl-C, a killed worker
 // restarted while the other keeps receiving, and the launcher (with its RouDi) killed.
 #include "../../apps/cli_run.hpp"
+#include "launch_fixtures.hpp"
 
 #include <tessera/shm/roudi_host.hpp>
 
@@ -22,22 +23,11 @@
 
 namespace fs = std::filesystem;
 using namespace std::chrono_literals;
+using tessera::test::freshDir;
+using tessera::test::readFile;
+using tessera::test::shmClean;
 
 namespace {
-
-fs::path freshDir(const std::string& name) {
-  const fs::path dir = fs::temp_directory_path() / ("tessera_test_" + name);
-  fs::remove_all(dir);
-  fs::create_directories(dir);
-  return dir;
-}
-
-std::string readFile(const fs::path& p) {
-  std::ifstream in(p, std::ios::binary);
-  std::ostringstream s;
-  s << in.rdbuf();
-  return s.str();
-}
 
 /// `tessera launch ...` in the background, output in dir/launch.txt. Reaps everything it
 /// started (the launcher, and workers re-parented to this process) when destroyed.
@@ -139,14 +129,6 @@ std::vector<double> readNumbers(const fs::path& p) {
     for (double v; s >> v;) out.push_back(v);
   }
   return out;
-}
-
-bool shmClean() {
-  for (const auto& e : fs::directory_iterator("/dev/shm")) {
-    const auto name = e.path().filename().string();
-    if (name == "iceoryx_mgmt" || name.rfind("tessera_sync_", 0) == 0) return false;
-  }
-  return true;
 }
 
 }  // namespace
@@ -251,25 +233,9 @@ TEST_CASE("Ctrl-C stops a launched deployment cleanly and its outputs are writte
   CHECK(shmClean());
 }
 
-// Wall clock: the robot streams in real time, the mapper is fed by whichever robot is alive.
-constexpr const char* kWallMapping = R"(name: wall_mapping
-clock: wall
-restart: [robot]
-actors:
-  sim:
-    type: simulator
-    process: robot
-    params: {world: builtin:office, laps: 1, scan_hz: 10, odom_hz: 50}
-  mapper:
-    type: grid_mapper
-    process: mapping
-    remap: {pose: ground_truth}
-  map_writer:
-    type: map_writer
-    process: mapping
-)";
-
 namespace {
+const std::string kWallMapping = tessera::test::wallMappingProfile("restart: [robot]");
+
 /// Lets a launched kWallMapping run for `run_for`, kills its robot process with SIGKILL and
 /// waits until the launcher restarts it.
 void killRobotAndAwaitRestart(Launch& launch, std::chrono::milliseconds run_for) {

@@ -2,7 +2,7 @@
 // on the same candidates. A map of the built-in office is made by ray casting scans into an
 // OccupancyGrid; probe scans from random free poses are matched from initial guesses offset
 // within the window, and both searches are timed on each (same machine, same run).
-#include "commands.hpp"
+#include "bench_commands.hpp"
 
 #include <tessera/grid/occupancy_grid.hpp>
 #include <tessera/runtime/options.hpp>

@@ -11,8 +11,8 @@
 // Throughput: the same publisher sends as fast as it can into reliable mailboxes while the
 // subscribers stay busy; msgs_per_s counts published messages fully delivered per second.
 // payload_copies counts deliveries whose bytes were not the published bytes.
+#include "bench_commands.hpp"
 #include "bench_util.hpp"
-#include "commands.hpp"
 
 #include <tessera/messages/types.hpp>
 #include <tessera/runtime/process_stats.hpp>

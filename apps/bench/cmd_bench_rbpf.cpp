@@ -1,8 +1,8 @@
 // `tessera bench rbpf`: the local laser SLAM on a CARMEN log at several particle counts. Each
 // count runs as its own `tessera run` child process (so peak RSS and CPU time are that run's
 // alone), then its online trajectory is scored with the relations metric.
+#include "bench_commands.hpp"
 #include "cli_inputs.hpp"
-#include "commands.hpp"
 
 #include <tessera/evaluation/trajectory_metrics.hpp>
 #include <tessera/mapping/trajectory_io.hpp>

@@ -6,7 +6,8 @@
 //     as the map grows, each filter, and the scaling exponent b of a least-squares fit
 //     t = a n^b over the landmark counts. Synthetic: landmarks uniform in a 25 m disc around the
 //     robot, all mapped before timing, the robot turning on the spot between scans.
-#include "commands.hpp"
+#include "bench_commands.hpp"
+#include "cli_inputs.hpp"
 
 #include <tessera/evaluation/trajectory_metrics.hpp>
 #include <tessera/landmark_slam/landmark_filter.hpp>

@@ -1,0 +1,19 @@
+// `tessera bench`: registers every benchmark sub-command (bench_commands.hpp) on the CLI.
+#include "bench_commands.hpp"
+
+#include "commands.hpp"
+
+namespace tessera::app {
+
+void addBenchCommands(CLI::App& app, int& result) {
+  auto* bench = app.add_subcommand("bench", "benchmarks that print their figures and the machine");
+  bench->require_subcommand(1);
+  addBenchRuntimeCommand(*bench, result);
+  addBenchIpcCommand(*bench, result);
+  addBenchRbpfCommand(*bench, result);
+  addBenchGraphCommand(*bench, result);
+  addBenchLandmarksCommand(*bench, result);
+  addBenchMatcherCommand(*bench, result);
+}
+
+}  // namespace tessera::app

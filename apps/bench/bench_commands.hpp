@@ -1,0 +1,22 @@
+// The `tessera bench ...` sub-commands, one per benchmark (cmd_bench_*.cpp); addBenchCommands()
+// (commands.hpp) registers them under `tessera bench`.
+#pragma once
+
+#include <CLI/CLI.hpp>
+
+namespace tessera::app {
+
+/// Adds `tessera bench runtime` (in-process message latency and throughput).
+void addBenchRuntimeCommand(CLI::App& bench, int& result);
+/// Adds `tessera bench ipc` (two processes: our iceoryx transport vs raw iceoryx, a Unix socket).
+void addBenchIpcCommand(CLI::App& bench, int& result);
+/// Adds `tessera bench rbpf` (laser SLAM accuracy, CPU and memory on a CARMEN log).
+void addBenchRbpfCommand(CLI::App& bench, int& result);
+/// Adds `tessera bench graph` (pose-graph solvers against g2o's figures).
+void addBenchGraphCommand(CLI::App& bench, int& result);
+/// Adds `tessera bench landmarks` (landmark SLAM accuracy over seeds, cost vs map size).
+void addBenchLandmarksCommand(CLI::App& bench, int& result);
+/// Adds `tessera bench matcher` (correlative matcher: branch and bound vs exhaustive search).
+void addBenchMatcherCommand(CLI::App& bench, int& result);
+
+}  // namespace tessera::app
