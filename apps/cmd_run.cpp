@@ -7,6 +7,7 @@
 
 #include <nlohmann/json.hpp>
 
+#include <algorithm>
 #include <filesystem>
 #include <fstream>
 #include <iomanip>
@@ -159,9 +160,12 @@ void addActorsCommand(CLI::App& app, int& result) {
       if (!type->empty() && name != *type) continue;
       found = true;
       std::cout << name << " - " << entry.summary << "\n";
-      for (const auto& row : entry.options()) {
-        std::cout << "    " << std::left << std::setw(22) << row[0] << std::setw(16) << row[1]
-                  << row[2] << "\n";
+      const auto rows = entry.options();
+      std::size_t width = 20;  // nested keys (rbpf.grid.log_odds.miss) widen the column
+      for (const auto& row : rows) width = std::max(width, row[0].size());
+      for (const auto& row : rows) {
+        std::cout << "    " << std::left << std::setw(static_cast<int>(width + 2)) << row[0]
+                  << std::setw(16) << row[1] << row[2] << "\n";
       }
     }
     if (!found) {

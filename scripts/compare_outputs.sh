@@ -8,8 +8,11 @@ old=$(realpath "$1"); new=$(realpath "$2")
 work=${3:-$(mktemp -d /tmp/tessera_compare.XXXXXX)}
 cd "$(dirname "$0")/.."
 data=$(realpath ../shared/data)
+# Option keys that differ between the two binaries (an option moved into a group): @NAME@ in a
+# run stands for the old binary's key on the old side and the new binary's on the new side.
+declare -A old_key=([seed]=slam.seed) new_key=([seed]=slam.rbpf.seed)
 intel=(--set player.path=$data/intel-lab-mrpt/intel.clf.gz
-       --set player.scan_times=$data/intel-lab-mrpt/frame_times.txt --set slam.seed=1)
+       --set player.scan_times=$data/intel-lab-mrpt/frame_times.txt --set @seed@=1)
 runs=(
   "sim_mapping|run sim_mapping"
   "carmen_rbpf|run carmen_rbpf ${intel[*]}"
@@ -40,9 +43,13 @@ PY
 }
 status=0
 for entry in "${runs[@]}"; do
-  name=${entry%%|*}; args=${entry#*|}
+  name=${entry%%|*}
   for side in old new; do
     bin=$old; [ $side = new ] && bin=$new
+    args=${entry#*|}
+    for k in "${!old_key[@]}"; do
+      if [ $side = old ]; then args=${args//@$k@/${old_key[$k]}}; else args=${args//@$k@/${new_key[$k]}}; fi
+    done
     out=$work/$side/$name; rm -rf "$out"; mkdir -p "$out"
     if [[ $args == graph* ]]; then
       # shellcheck disable=SC2086

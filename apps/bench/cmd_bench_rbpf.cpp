@@ -97,7 +97,7 @@ void addBenchRbpfCommand(CLI::App& bench, int& result) {
                                     "--set",
                                     "player.path=" + o->log,
                                     "--set",
-                                    "particles=" + std::to_string(n)};
+                                    "rbpf.particles=" + std::to_string(n)};
       if (!o->scan_times.empty()) {
         args.push_back("--set");
         args.push_back("player.scan_times=" + o->scan_times);

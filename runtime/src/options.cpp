@@ -128,16 +128,23 @@ void Params::read(const char* key, std::vector<std::array<double, 2>>& out) cons
   out = std::move(r);
 }
 
-void Params::rejectUnknown(const std::vector<std::string>& known) const {
+void Params::rejectUnknown(const std::vector<std::string>& known,
+                           std::span<const RenamedKey> renamed) const {
   for (const auto& kv : *node_) {
     const std::string key = kv.first.as<std::string>();
     bool ok = false;
     for (const auto& k : known) ok = ok || k == key;
     if (ok) continue;
+    // Keys added by --set have no line.
+    const int line = kv.first.Mark().line;
+    const std::string at =
+        where_ + "." + key + (line >= 0 ? ", line " + std::to_string(line + 1) : "");
+    for (const auto& r : renamed) {
+      if (key == r.old_key) throw ConfigError(at + ": moved to " + r.new_key);
+    }
     std::string list;
     for (const auto& k : known) list += (list.empty() ? "" : ", ") + k;
-    throw ConfigError(where_ + "." + key + ", line " + std::to_string(kv.first.Mark().line + 1) +
-                      ": unknown key (known keys: " + (list.empty() ? "none" : list) + ")");
+    throw ConfigError(at + ": unknown key (known keys: " + (list.empty() ? "none" : list) + ")");
   }
 }
 

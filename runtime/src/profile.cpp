@@ -64,27 +64,38 @@ void applyOverride(YAML::Node root, const std::string& text, const std::string& 
   const YAML::Node value = parseValue(text.substr(eq + 1));
   auto parts = split(key, '.');
   YAML::Node actors = root["actors"];
-  if (parts.size() == 1) {
-    if (kTopKeys.count(key) && key != "actors") {
-      root[key] = value;
-      return;
+  if (parts.size() == 1 && kTopKeys.count(key) && key != "actors") {
+    root[key] = value;
+    return;
+  }
+  const auto entryOf = [&](const YAML::Node& actor) -> const ActorRegistry::Entry* {
+    const YAML::Node type = actor["type"];
+    return type && type.IsScalar() ? ActorRegistry::instance().find(type.Scalar()) : nullptr;
+  };
+  const auto movedError = [&](const std::string& actor, const std::string& param) {
+    const auto* entry = entryOf(actors[actor]);
+    if (entry == nullptr) return;
+    for (const auto& r : entry->renamed) {
+      if (param != r.old_key) continue;
+      std::string moved;  // each new key with the actor in front
+      for (const auto& k : split(r.new_key, ' ')) moved += (k == "and" ? " and " : actor + "." + k);
+      throw ConfigError("--set " + text + ": moved to " + moved);
     }
-    // A bare parameter name: the one actor whose options declare it.
+  };
+  const bool names_actor = actors && actors.IsMap() && parts.size() > 1 && actors[parts[0]];
+  if (!names_actor && actors && actors.IsMap()) {
+    // A parameter name without an actor (`particles`, `rbpf.particles`): the one actor whose
+    // options declare it.
     std::vector<std::string> owners;
-    if (actors && actors.IsMap()) {
-      for (const auto& kv : actors) {
-        const YAML::Node type = kv.second["type"];
-        if (!type || !type.IsScalar()) continue;
-        const auto* entry = ActorRegistry::instance().find(type.Scalar());
-        if (entry == nullptr) continue;
-        for (const auto& row : entry->options()) {
-          if (row[0] == key) owners.push_back(kv.first.as<std::string>());
-        }
+    for (const auto& kv : actors) {
+      const auto* entry = entryOf(kv.second);
+      if (entry == nullptr) continue;
+      for (const auto& row : entry->options()) {
+        if (row[0] == key) owners.push_back(kv.first.as<std::string>());
       }
     }
     if (owners.empty()) {
-      throw ConfigError("--set " + text + ": no profile key or actor parameter named '" + key +
-                        "' in " + path);
+      for (const auto& kv : actors) movedError(kv.first.as<std::string>(), key);
     }
     if (owners.size() > 1) {
       std::string list;
@@ -92,7 +103,11 @@ void applyOverride(YAML::Node root, const std::string& text, const std::string& 
       throw ConfigError("--set " + text + ": '" + key +
                         "' is a parameter of several actors; use one of " + list);
     }
-    parts.insert(parts.begin(), owners.front());
+    if (owners.size() == 1) parts.insert(parts.begin(), owners.front());
+  }
+  if (parts.size() == 1) {
+    throw ConfigError("--set " + text + ": no profile key or actor parameter named '" + key +
+                      "' in " + path);
   }
   if (!actors || !actors.IsMap() || !actors[parts[0]]) {
     throw ConfigError("--set " + text + ": no actor named '" + parts[0] + "' in " + path);
@@ -102,13 +117,15 @@ void applyOverride(YAML::Node root, const std::string& text, const std::string& 
     actor[parts[1]] = value;
     return;
   }
+  if (parts.size() == 2) movedError(parts[0], parts[1]);
   if (!actor["params"] || actor["params"].IsNull())
     actor["params"] = YAML::Node(YAML::NodeType::Map);
   YAML::Node node = actor["params"];
   for (std::size_t i = 1; i + 1 < parts.size(); ++i) {
     if (!node[parts[i]] || !node[parts[i]].IsMap())
       node[parts[i]] = YAML::Node(YAML::NodeType::Map);
-    node = node[parts[i]];
+    // reset(), not `=`: assigning a yaml-cpp node replaces the content it refers to.
+    node.reset(node[parts[i]]);
   }
   node[parts.back()] = value;
 }

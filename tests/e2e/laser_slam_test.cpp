@@ -38,7 +38,7 @@ TEST_CASE("carmen_rbpf maps the first 500 scans of intel.clf better than odometr
   const RunReport report =
       test::runProfile("carmen_rbpf", out,
                        {"player.path=" + log.string(), "player.scan_times=" + times.string(),
-                        "player.max_scans=500", "particles=5"});
+                        "player.max_scans=500", "slam.rbpf.particles=5"});
   CHECK(report.stop_reason == "all inputs finished");
   for (const char* f : {"map.pgm", "map.yaml", "map.png", "trajectory.tum", "trajectory_final.tum",
                         "odometry.tum"}) {

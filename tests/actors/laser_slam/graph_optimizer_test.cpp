@@ -337,7 +337,7 @@ TEST_CASE("loop_detector refuses bad options and skips a malformed submap", "[lo
   o.window_linear_max = 1;
   CHECK_THROWS_AS(laser_slam::LoopDetectorActor(o), ConfigError);
   o = {};
-  o.min_score = 2;
+  o.matcher.min_score = 2;
   CHECK_THROWS_AS(laser_slam::LoopDetectorActor(o), ConfigError);
 
   ActorHarness h(

@@ -21,6 +21,15 @@ namespace {
 
 RbpfOptions fastOptions(int particles) {
   RbpfOptions o;
+  // These tests were tuned on the grid's and the scan matcher's own defaults, which the filter's
+  // differ from (RbpfOptions): a match needs 30 % of the beams (so the failure and recovery
+  // tests fail matches), no extra cost for unmatched beams, the grid's stronger miss, and no
+  // tracking between updates.
+  o.grid.log_odds.miss = -0.4f;
+  o.matcher.min_score_fraction = 0.3;
+  o.matcher.no_hit_distance = 0.0;
+  o.matcher.compute_covariance = true;
+  o.track_between_updates = false;
   o.particles = particles;
   o.linear_update = 0.3;
   o.angular_update = 0.3;

@@ -29,9 +29,9 @@ namespace {
 
 SubmapBuilderOptions fastOptions() {
   SubmapBuilderOptions o;
-  o.particles = 8;
-  o.linear_update = 0.3;
-  o.angular_update = 0.3;
+  o.rbpf.particles = 8;
+  o.rbpf.linear_update = 0.3;
+  o.rbpf.angular_update = 0.3;
   return o;
 }
 
@@ -112,7 +112,7 @@ struct SmoothedRun {
 
 SmoothedRun smoothedRun(const test::SimScans& sim, std::size_t n, bool interpolate) {
   SubmapBuilderOptions o = fastOptions();
-  o.parallel = false;  // the same filter run with either setting
+  o.rbpf.parallel = false;  // the same filter run with either setting
   o.submap_scans = 25;
   o.interpolate_updates = interpolate;
   ActorHarness h(std::make_unique<SubmapBuilderActor>(o));
@@ -249,7 +249,7 @@ TEST_CASE("submap builder starts a new submap when the robot enters another came
 
 TEST_CASE("submap builder rejects bad options naming the key", "[rbpf][submap_builder]") {
   SubmapBuilderOptions o;
-  o.particles = 0;
+  o.rbpf.particles = 0;
   CHECK_THROWS_WITH(SubmapBuilderActor(o), Catch::Contains("particles"));
   o = {};
   o.submap_distance = -1;

@@ -52,25 +52,18 @@ auto configError(const char* what, Make make) {
 
 tessera::scan_matching::ScanMatcher pointMaker(const LoopDetectorOptions& o) {
   tessera::scan_matching::ScanMatcherOptions m;
-  m.max_range = o.max_range;
+  m.max_range = o.matcher.max_range;  // points beyond the matcher's reach are not prepared
   return configError("max_range", [&] { return tessera::scan_matching::ScanMatcher(m); });
 }
 
 tessera::scan_matching::CorrelativeMatcher correlativeMatcher(const LoopDetectorOptions& o) {
-  tessera::scan_matching::CorrelativeMatcherOptions m;
-  m.pyramid_depth = o.pyramid_depth;
-  m.max_range = o.max_range;
-  m.min_score = o.min_score;
-  return configError("matcher", [&] { return tessera::scan_matching::CorrelativeMatcher(m); });
+  return configError("matcher",
+                     [&] { return tessera::scan_matching::CorrelativeMatcher(o.matcher); });
 }
 
 tessera::scan_matching::LoopClosureVerifier verifier(const LoopDetectorOptions& o) {
-  tessera::scan_matching::LoopClosureVerifierOptions v;
-  v.min_score = o.min_score;
-  v.max_ambiguity = o.max_ambiguity;
-  v.max_prior_sigmas = o.max_prior_sigmas;
-  v.max_position_sigma = o.max_position_sigma;
-  return configError("verifier", [&] { return tessera::scan_matching::LoopClosureVerifier(v); });
+  return configError("verifier",
+                     [&] { return tessera::scan_matching::LoopClosureVerifier(o.verifier); });
 }
 
 /// Covariance of T = a ⊕ b⁻¹ from that of b, by a numeric Jacobian (the map is smooth and

@@ -24,7 +24,7 @@ Rbpf checkedFilter(const SubmapBuilderOptions& o) {
     fail("max_pose_gap_s must be > 0");
   if (o.frame_id.empty()) fail("frame_id must not be empty");
   try {
-    return Rbpf(o.rbpf());  // the core owns the rules for its options
+    return Rbpf(o.rbpf);  // the core owns the rules for its options
   } catch (const std::invalid_argument& e) {
     fail(e.what());
   }
@@ -38,56 +38,6 @@ Eigen::Matrix3d rotateCovariance(const Eigen::Matrix3d& c, const tessera::Pose2&
 }
 
 }  // namespace
-
-RbpfOptions SubmapBuilderOptions::rbpf() const {
-  RbpfOptions o;
-  o.particles = particles;
-  o.resample_threshold = resample_threshold;
-  o.weight_divisor = weight_divisor;
-  o.linear_update = linear_update;
-  o.angular_update = angular_update;
-  o.temporal_update = temporal_update;
-  o.motion = {srr, srt, str, stt};
-  o.seed = seed;
-  o.parallel = parallel;
-  o.sample_proposal = sample_proposal;
-  o.handover_sigma_linear = handover_sigma_linear;
-  o.handover_sigma_angular = handover_sigma_angular;
-  o.grid.resolution = resolution;
-  o.grid.track_hit_points = hit_points;
-  o.grid.log_odds = {static_cast<float>(l_occ), static_cast<float>(l_free),
-                     static_cast<float>(l_min), static_cast<float>(l_max)};
-  o.insert.max_range = max_range;
-  o.insert.max_free_range = max_free_range;
-  o.matcher.max_range = max_range;
-  o.matcher.beam_step = match_beam_step;
-  o.matcher.kernel_radius = match_kernel_radius;
-  o.coarse_kernel_radius = coarse_kernel_radius;
-  o.coarse_beam_step = coarse_beam_step;
-  o.recovery_sigma = recovery_sigma;
-  o.recovery_angular_step = recovery_angular_step;
-  o.min_overlap_fraction = min_overlap_fraction;
-  o.best_support_linear = best_support_linear;
-  o.best_support_angular = best_support_angular;
-  o.online_mean_linear = online_mean_linear;
-  o.online_mean_angular = online_mean_angular;
-  o.track_between_updates = track_between_updates;
-  o.track_linear_step = track_linear_step;
-  o.track_angular_step = track_angular_step;
-  o.track_refinements = track_refinements;
-  o.matcher.sigma = match_sigma;
-  o.matcher.likelihood_sigma = match_likelihood_sigma;
-  o.matcher.likelihood_gain = match_likelihood_gain;
-  o.matcher.linear_step = match_linear_step;
-  o.matcher.angular_step = match_angular_step;
-  o.matcher.refinements = match_refinements;
-  o.matcher.min_score_fraction = match_min_fraction;
-  o.matcher.proposal_linear = match_proposal_linear;
-  o.matcher.no_hit_distance = match_no_hit_distance;
-  o.matcher.proposal_angular = match_proposal_angular;
-  o.matcher.compute_covariance = false;  // the filter fits its own proposal covariance
-  return o;
-}
 
 SubmapBuilderActor::SubmapBuilderActor(SubmapBuilderOptions options)
     : options_(std::move(options)),

@@ -12,13 +12,24 @@
 //
 // loadOptions<GridMapperOptions>(params) starts from the defaults, overrides what the YAML
 // gives, and rejects unknown keys and wrong types with an error naming the file, line and key.
+//
+// A field that is itself a struct with visit() is a nested group: `v("rbpf", rbpf, "doc")`
+// reads the YAML sub-mapping `rbpf:` (unknown keys inside it are errors too), and
+// `tessera actors` lists its keys as `rbpf.particles`. Core libraries write such visit()
+// templates without including this header: any callable visitor works.
+//
+// An options struct whose keys moved (e.g. into a group) lists them in
+//   static constexpr RenamedKey kRenamedKeys[] = {{"particles", "rbpf.particles"}, ...};
+// so a profile still using an old key fails with an error naming the new one.
 #pragma once
 
 #include <array>
 #include <cstdint>
 #include <memory>
+#include <span>
 #include <stdexcept>
 #include <string>
+#include <type_traits>
 #include <vector>
 
 namespace YAML {
@@ -31,6 +42,12 @@ namespace tessera {
 class ConfigError : public std::runtime_error {
  public:
   using std::runtime_error::runtime_error;
+};
+
+/// An option key that moved: a profile naming `old_key` is told to use `new_key` instead.
+struct RenamedKey {
+  const char* old_key;
+  const char* new_key;  ///< may name several keys ("a.x and b.x") when one key became several
 };
 
 /// The parameters of one actor instance: a YAML mapping plus where it came from.
@@ -58,8 +75,9 @@ class Params {
   void read(const char* key, std::vector<double>& v) const;
   void read(const char* key, std::vector<std::string>& v) const;
   void read(const char* key, std::vector<std::array<double, 2>>& v) const;
-  /// Rejects keys not in `known`.
-  void rejectUnknown(const std::vector<std::string>& known) const;
+  /// Rejects keys not in `known`; a key in `renamed` is rejected with its new name.
+  void rejectUnknown(const std::vector<std::string>& known,
+                     std::span<const RenamedKey> renamed = {}) const;
   /// Error text prefix for a key: "file:line: actors.x.params.key".
   std::string locate(const char* key) const;
 
@@ -72,17 +90,47 @@ class Params {
 };
 
 namespace detail {
+/// Option structs, and nested option groups, are the types with a visit() member.
+struct AnyVisitor {
+  template <typename T>
+  void operator()(const char*, T&, const char*) {}
+};
+template <typename T>
+concept OptionGroup = requires(T& t, AnyVisitor& v) {
+  t.visit(v);
+};
+}  // namespace detail
+
+/// The keys an options struct lists as moved (kRenamedKeys), or none.
+template <typename Options>
+std::span<const RenamedKey> renamedKeys() {
+  if constexpr (requires { Options::kRenamedKeys; }) {
+    return Options::kRenamedKeys;
+  } else {
+    return {};
+  }
+}
+
+namespace detail {
 struct OptionReader {
   const Params& params;
   std::vector<std::string> known;
   template <typename T>
   void operator()(const char* key, T& value, const char* /*doc*/) {
     known.emplace_back(key);
-    params.read(key, value);
+    if constexpr (OptionGroup<T>) {
+      const Params group = params.child(key);
+      OptionReader reader{group, {}};
+      value.visit(reader);
+      group.rejectUnknown(reader.known);
+    } else {
+      params.read(key, value);
+    }
   }
 };
 struct OptionDescriber {
-  std::vector<std::array<std::string, 3>> rows;  // key, default, doc
+  std::vector<std::array<std::string, 3>> rows;  // key (dotted inside groups), default, doc
+  std::string prefix;                            // "rbpf." while describing group rbpf
   template <typename T>
   void operator()(const char* key, T& value, const char* doc);
 };
@@ -99,7 +147,14 @@ std::string describeValue(const std::vector<std::string>& v);
 std::string describeValue(const std::vector<std::array<double, 2>>& v);
 template <typename T>
 void OptionDescriber::operator()(const char* key, T& value, const char* doc) {
-  rows.push_back({key, describeValue(value), doc});
+  if constexpr (OptionGroup<T>) {
+    const std::string outer = prefix;
+    prefix += std::string(key) + ".";
+    value.visit(*this);
+    prefix = outer;
+  } else {
+    rows.push_back({prefix + key, describeValue(value), doc});
+  }
 }
 }  // namespace detail
 
@@ -109,7 +164,7 @@ Options loadOptions(const Params& params) {
   Options options;
   detail::OptionReader reader{params, {}};
   options.visit(reader);
-  params.rejectUnknown(reader.known);
+  params.rejectUnknown(reader.known, renamedKeys<Options>());
   return options;
 }
 

@@ -28,6 +28,7 @@ class ActorRegistry {
     Factory create;
     Describer options;
     std::string summary;
+    std::span<const RenamedKey> renamed;  ///< option keys that moved (see options.hpp)
   };
 
   static ActorRegistry& instance();
@@ -57,6 +58,7 @@ struct ActorRegistration {
       [](const ::tessera::Params& p) -> std::unique_ptr<::tessera::Actor> {             \
         return std::make_unique<ActorClass>(::tessera::loadOptions<OptionsClass>(p));   \
       },                                                                                \
-          [] { return ::tessera::describeOptions<OptionsClass>(); }, summary_text       \
+          [] { return ::tessera::describeOptions<OptionsClass>(); }, summary_text,      \
+          ::tessera::renamedKeys<OptionsClass>()                                        \
     }                                                                                   \
   }

@@ -58,6 +58,14 @@ struct LogOddsModel {
   float miss = -0.4f;  ///< l_free added to cells a beam crosses (< 0)
   float min = -2.0f;   ///< lower clamp (< 0); keeps free cells able to turn occupied again
   float max = 3.5f;    ///< upper clamp (> 0)
+
+  template <class V>
+  void visit(V& v) {
+    v("hit", hit, "log-odds added at a beam endpoint (> 0)");
+    v("miss", miss, "log-odds added to cells a beam crosses (< 0)");
+    v("min", min, "lower log-odds clamp (< 0)");
+    v("max", max, "upper log-odds clamp (> 0)");
+  }
 };
 
 /// One planar sweep in the sensor frame (ROS LaserScan semantics). Borrowed, not owned.
@@ -78,6 +86,14 @@ struct ScanInsertOptions {
   double max_range = 30.0;
   /// [m] beams with no return (+inf or ≥ range_max) clear free space this far; 0 disables.
   double max_free_range = 10.0;
+
+  template <class V>
+  void visit(V& v) {
+    v("max_range", max_range,
+      "returns farther than this [m] are not obstacles: the beam clears free space up to it");
+    v("max_free_range", max_free_range,
+      "no-return beams clear free space this far [m]; 0 disables");
+  }
 };
 
 /// What one insertScan() did with its beams.

@@ -72,6 +72,17 @@ struct TiledGridOptions {
   /// settles within that of a steady wall). Costs 2.5× the tile memory and a little insert
   /// time. Off by default.
   bool track_hit_points = false;
+
+  template <class V>
+  void visit(V& v) {
+    v("resolution", resolution, "cell size [m]");
+    v("log_odds", log_odds, "log-odds model");
+    v("max_side_cells", max_side_cells,
+      "tile table limit per axis [cells]; updates beyond it are dropped");
+    v("track_hit_points", track_hit_points,
+      "keep each cell's mean hit position and match against it (sub-cell accuracy, 2.5x tile "
+      "memory)");
+  }
 };
 
 class TiledGrid {

@@ -52,6 +52,14 @@ struct MotionNoise {
   double srt = 0.2;  ///< [m/rad] translation error per radian turned
   double str = 0.1;  ///< [rad/m] rotation error per metre travelled
   double stt = 0.2;  ///< [rad/rad] rotation error per radian turned
+
+  template <class V>
+  void visit(V& v) {
+    v("srr", srr, "translation noise per metre travelled [m/m]");
+    v("srt", srt, "translation noise per radian turned [m/rad]");
+    v("str", str, "rotation noise per metre travelled [rad/m]");
+    v("stt", stt, "rotation noise per radian turned [rad/rad]");
+  }
 };
 
 /// Cap on the heading starts per side of the recovery search (RbpfOptions::recovery_sigma).
@@ -69,9 +77,27 @@ struct RbpfOptions {
   double angular_update = 0.5;   ///< [rad] rotation that triggers a filter update
   double temporal_update = 0.0;  ///< [s] time that triggers an update; 0 disables
   MotionNoise motion;
-  tessera::grid::TiledGridOptions grid;
+  /// The grid's defaults but a weaker miss than the known-pose mapper's: a wall cell crossed
+  /// by grazing beams keeps its evidence, so scan matching still finds it (GMapping counts a
+  /// cell hit by 10 % of its beams).
+  tessera::grid::TiledGridOptions grid = [] {
+    tessera::grid::TiledGridOptions g;
+    g.log_odds.miss = -0.2f;
+    return g;
+  }();
   tessera::grid::ScanInsertOptions insert;
-  tessera::scan_matching::ScanMatcherOptions matcher;  ///< fine matching, proposal and weights
+  /// Fine matching, proposal and weights. Differs from the matcher's defaults where a
+  /// particle filter wants it: a match counts with 10 % of the beams on the map (the particle
+  /// weights judge the rest), a beam without an obstacle near costs as if it were 0.27 m off
+  /// (so a particle whose map disagrees with the scan loses weight), and no covariance fit
+  /// (the filter fits its own proposal).
+  tessera::scan_matching::ScanMatcherOptions matcher = [] {
+    tessera::scan_matching::ScanMatcherOptions m;
+    m.min_score_fraction = 0.1;
+    m.no_hit_distance = 0.27;
+    m.compute_covariance = false;
+    return m;
+  }();
   /// Coarse first stage: a wider kernel on fewer beams widens the basin of attraction cheaply
   /// (odometry after a 1 m gate can be off by more than the fine kernel reaches); the fine
   /// stage starts where it ends. coarse_kernel_radius 0 disables the stage.
@@ -109,7 +135,7 @@ struct RbpfOptions {
   /// a 1 m / 0.5 rad gate drifts by degrees). A match is kept only when its likelihood (all
   /// beams) times the motion prior beats the odometry prediction's; otherwise the prediction
   /// stands. Particles, maps, weights and the best trajectory are unchanged.
-  bool track_between_updates = false;
+  bool track_between_updates = true;
   /// Hill climbing of that tracking: initial steps and step halvings; 0 = the fine matcher's
   /// (matcher.linear_step, angular_step, refinements). The prediction from the last tracked scan
   /// is off by millimetres to a few centimetres, less than an update's odometry prior, so it
@@ -129,6 +155,60 @@ struct RbpfOptions {
   /// particles share most of their history.
   double handover_sigma_linear = 0.02;
   double handover_sigma_angular = 0.005;
+
+  template <class V>
+  void visit(V& v) {
+    v("particles", particles, "particles per submap");
+    v("resample_threshold", resample_threshold,
+      "resample when N_eff < this fraction of the particle count (0..1]");
+    v("weight_divisor", weight_divisor,
+      "log-weight increments are divided by this (0 = the particle count, as GMapping)");
+    v("linear_update", linear_update, "filter update after this much travel [m]");
+    v("angular_update", angular_update, "filter update after this much rotation [rad]");
+    v("temporal_update", temporal_update, "filter update after this much time [s]; 0 disables");
+    v("motion", motion, "odometry noise model");
+    v("seed", seed, "random seed (runs are reproducible for a seed)");
+    v("parallel", parallel, "update particles on TBB worker threads");
+    v("sample_proposal", sample_proposal,
+      "draw poses from the fitted proposal (true) or keep its mean (false)");
+    v("grid", grid, "each particle's submap");
+    v("insert", insert, "how scans are drawn into the submaps");
+    v("matcher", matcher, "fine scan matching, proposal fit and particle weights");
+    v("coarse_kernel_radius", coarse_kernel_radius,
+      "coarse matching stage: cells searched around each endpoint (wider basin); 0 disables");
+    v("coarse_beam_step", coarse_beam_step, "coarse matching stage uses every n-th beam");
+    v("recovery_sigma", recovery_sigma,
+      "when matching from the odometry prior fails, retry the coarse stage from starts within "
+      "this many prior standard deviations; 0 disables");
+    v("recovery_angular_step", recovery_angular_step,
+      "heading spacing of the recovery search's starts [rad]");
+    v("min_overlap_fraction", min_overlap_fraction,
+      "a match with fewer than this fraction of the scan's beams on the map is not trusted: "
+      "the particle follows the motion model; 0 disables");
+    v("best_support_linear", best_support_linear,
+      "best particle = most posterior weight within a Gaussian kernel of this width [m] around "
+      "its pose; 0: highest accumulated weight alone");
+    v("best_support_angular", best_support_angular,
+      "angular width of that kernel [rad]; 0: highest accumulated weight alone");
+    v("online_mean_linear", online_mean_linear,
+      "online pose at updates = weighted mean of the particles within a Gaussian kernel of this "
+      "width [m] around the best particle; 0: the best particle's pose");
+    v("online_mean_angular", online_mean_angular,
+      "angular width of that kernel [rad]; 0: the best particle's pose");
+    v("track_between_updates", track_between_updates,
+      "between filter updates, match each scan against the best particle's map so the online "
+      "pose follows the scans rather than the odometry");
+    v("track_linear_step", track_linear_step,
+      "tracking's initial hill-climbing step [m]; 0: the fine matcher's");
+    v("track_angular_step", track_angular_step,
+      "tracking's initial hill-climbing step [rad]; 0: the fine matcher's");
+    v("track_refinements", track_refinements,
+      "tracking's step halvings before it stops; 0: the fine matcher's");
+    v("handover_sigma_linear", handover_sigma_linear,
+      "[m/sqrt(m)] hand-over covariance floor: variance += sigma^2 x metres travelled in the "
+      "submap (x, y)");
+    v("handover_sigma_angular", handover_sigma_angular, "[rad/sqrt(m)] the same for the heading");
+  }
 };
 
 /// A pose with its uncertainty, e.g. an inter-submap constraint.

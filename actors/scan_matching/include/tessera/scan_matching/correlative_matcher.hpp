@@ -112,6 +112,27 @@ struct CorrelativeMatcherOptions {
   /// kExhaustive scores every candidate (a reference for tests and benchmarks).
   enum class Search { kBranchAndBound, kExhaustive };
   Search search = Search::kBranchAndBound;
+
+  /// The options a profile sets (search is for tests and benchmarks).
+  template <class V>
+  void visit(V& v) {
+    v("pyramid_depth", pyramid_depth, "branch-and-bound pyramid levels (0..15)");
+    v("angular_step", angular_step, "[rad] heading step; 0 = from the scan's farthest point");
+    v("max_angular_steps", max_angular_steps, "most headings tried on each side");
+    v("max_range", max_range, "[m] scan points farther than this are not matched");
+    v("min_score", min_score, "lowest match score accepted (also the pruning floor), [0, 1]");
+    v("unknown_probability", unknown_probability,
+      "probability given to unknown cells, [0, 1]: low, so unexplored space scores badly");
+    v("exclusion_radius", exclusion_radius,
+      "[m] second best: at least this far from the best (or turned by exclusion_angle)");
+    v("exclusion_angle", exclusion_angle, "[rad] second best: or turned at least this much");
+    v("second_best_min_ratio", second_best_min_ratio,
+      "second best: only scores at least this fraction of the best are searched for");
+    v("compute_second_best", compute_second_best, "search for the second best (ambiguity)");
+    v("covariance_radius", covariance_radius, "[m] covariance: sampled span");
+    v("covariance_angle_steps", covariance_angle_steps, "covariance: headings per side");
+    v("covariance_temperature", covariance_temperature, "covariance: score temperature (> 0)");
+  }
 };
 
 /// Fixed-point occupancy pyramid of one grid, built once and matched against many times.
@@ -230,6 +251,17 @@ struct LoopClosureVerifierOptions {
   /// Reject as inconsistent when the match lies more than this many standard deviations of the
   /// prior covariance from the prior pose (Mahalanobis distance in x, y, θ). > 0.
   double max_prior_sigmas = 3.0;
+
+  template <class V>
+  void visit(V& v) {
+    v("min_score", min_score, "lowest match score accepted, [0, 1]");
+    v("max_ambiguity", max_ambiguity, "reject when second best / best exceeds this, (0, 1]");
+    v("max_position_sigma", max_position_sigma,
+      "[m] reject matches whose largest position std exceeds this (corridors, submap edges); "
+      "0 = off");
+    v("max_prior_sigmas", max_prior_sigmas,
+      "reject matches farther than this from the prior, in its standard deviations");
+  }
 };
 
 enum class LoopRejection {

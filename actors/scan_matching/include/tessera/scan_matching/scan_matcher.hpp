@@ -129,6 +129,44 @@ struct ScanMatcherOptions {
   /// more than the hill climbing itself). A filter that calls fitProposal() anyway should turn
   /// this off.
   bool compute_covariance = true;
+
+  template <class V>
+  void visit(V& v) {
+    v("max_range", max_range, "returns farther than this [m] are not used for matching");
+    v("beam_step", beam_step, "match with every n-th valid beam");
+    v("kernel_radius", kernel_radius, "cells searched around each beam endpoint");
+    v("sigma", sigma, "score kernel width [m]");
+    v("likelihood_sigma", likelihood_sigma, "likelihood kernel width [m]");
+    v("likelihood_gain", likelihood_gain,
+      "log-likelihood divided by this (flattens overconfident weights)");
+    v("no_hit_distance", no_hit_distance,
+      "[m] a beam with no obstacle within the kernel costs as much in the likelihood as one "
+      "whose obstacle is this far away (0 = the kernel's reach): makes particles whose map "
+      "disagrees with the scan lose weight");
+    v("occupied_threshold", occupied_threshold,
+      "log-odds above which a cell counts as an obstacle");
+    v("free_check_offset", free_check_offset,
+      "[m] the free-check cell lies this far before a candidate along the beam (at least one "
+      "cell); negative disables the check");
+    v("linear_step", linear_step, "initial hill-climbing step [m]");
+    v("angular_step", angular_step, "initial hill-climbing step [rad]");
+    v("refinements", refinements, "hill-climbing step halvings");
+    v("max_iterations", max_iterations, "cap on score evaluations per match");
+    v("min_score_fraction", min_score_fraction,
+      "a match succeeds when at least this fraction of the beams lands near an obstacle");
+    v("proposal_linear", proposal_linear,
+      "[m] proposal fit: spacing of the pose samples in x and y around the matched pose");
+    v("proposal_angular", proposal_angular,
+      "[rad] proposal fit: spacing of the pose samples in heading around the matched pose");
+    v("proposal_steps", proposal_steps, "proposal fit: samples per side and axis");
+    v("covariance_linear", covariance_linear,
+      "[m] match covariance: spacing of the pose samples in x and y");
+    v("covariance_angular", covariance_angular,
+      "[rad] match covariance: spacing of the pose samples in heading");
+    v("covariance_steps", covariance_steps, "match covariance: samples per side and axis");
+    v("compute_covariance", compute_covariance,
+      "fit the match covariance (costs (2c+1)^3 evaluations per match)");
+  }
 };
 
 /// A scan prepared once for matching: the used endpoints in the robot (base) frame.

@@ -42,6 +42,7 @@
 #include <tessera/msg/sensor.capnp.h>
 #include <tessera/msg/submap.capnp.h>
 #include <tessera/runtime/actor.hpp>
+#include <tessera/runtime/options.hpp>
 #include <tessera/scan_matching/correlative_matcher.hpp>
 #include <tessera/scan_matching/scan_matcher.hpp>
 
@@ -66,12 +67,22 @@ struct LoopDetectorOptions {
   double window_angular = 0.3;
   double window_angular_growth = 0.005;
   double window_angular_max = 0.6;
-  double max_range = 20.0;
-  double min_score = 0.6;
-  double max_ambiguity = 0.9;
-  double max_prior_sigmas = 3.0;
-  double max_position_sigma = 0.12;
-  int pyramid_depth = 7;
+  /// Submaps of loop closures are searched within a few metres and must agree well: a shorter
+  /// range than the matcher's and a higher floor. Its max_range also limits the points
+  /// prepared from each scan.
+  tessera::scan_matching::CorrelativeMatcherOptions matcher = [] {
+    tessera::scan_matching::CorrelativeMatcherOptions m;
+    m.max_range = 20.0;
+    m.min_score = 0.6;
+    return m;
+  }();
+  /// A closure must score as well as the matcher's floor and be well constrained.
+  tessera::scan_matching::LoopClosureVerifierOptions verifier = [] {
+    tessera::scan_matching::LoopClosureVerifierOptions v;
+    v.min_score = 0.6;
+    v.max_position_sigma = 0.12;
+    return v;
+  }();
   /// Floors added to the matcher's covariance before publishing ([m], [rad] standard deviation):
   /// a match is only as exact as the submap it was made against.
   double sigma_floor_linear = 0.05;
@@ -97,15 +108,8 @@ struct LoopDetectorOptions {
     v("window_angular", window_angular, "[rad] heading half-width right after a submap");
     v("window_angular_growth", window_angular_growth, "[rad per m driven] its growth");
     v("window_angular_max", window_angular_max, "[rad] largest heading half-width");
-    v("max_range", max_range, "[m] scan points farther than this are not matched");
-    v("min_score", min_score, "lowest match score accepted, [0, 1]");
-    v("max_ambiguity", max_ambiguity, "reject when second best / best exceeds this, (0, 1]");
-    v("max_position_sigma", max_position_sigma,
-      "[m] reject matches whose largest position std exceeds this (corridors, submap edges); "
-      "0 = off");
-    v("max_prior_sigmas", max_prior_sigmas,
-      "reject matches farther than this from the estimate, in units of window/3");
-    v("pyramid_depth", pyramid_depth, "branch-and-bound pyramid levels (0..15)");
+    v("matcher", matcher, "correlative scan matcher (branch and bound)");
+    v("verifier", verifier, "which matches become loop closures");
     v("sigma_floor_linear", sigma_floor_linear, "[m] added to the published std (quadrature)");
     v("sigma_floor_angular", sigma_floor_angular, "[rad] added to the published std");
     v("optimized_poses", optimized_poses, "subscribe to submap_poses (graph_optimizer)");
@@ -117,6 +121,16 @@ struct LoopDetectorOptions {
     v("scan_queue", scan_queue, "scan mailbox size");
     v("pose_queue", pose_queue, "pose mailbox size");
   }
+
+  /// The flat keys of earlier versions, now inside the matcher and verifier groups.
+  static constexpr RenamedKey kRenamedKeys[] = {
+      {"max_range", "matcher.max_range"},
+      {"min_score", "matcher.min_score and verifier.min_score"},
+      {"pyramid_depth", "matcher.pyramid_depth"},
+      {"max_ambiguity", "verifier.max_ambiguity"},
+      {"max_position_sigma", "verifier.max_position_sigma"},
+      {"max_prior_sigmas", "verifier.max_prior_sigmas"},
+  };
 };
 
 class LoopDetectorActor final : public Actor {

@@ -39,6 +39,7 @@
 #include <tessera/laser_slam/rbpf.hpp>
 #include <tessera/messages/types.hpp>
 #include <tessera/runtime/actor.hpp>
+#include <tessera/runtime/options.hpp>
 
 #include <cstdint>
 #include <string>
@@ -47,52 +48,10 @@
 namespace tessera::laser_slam {
 
 struct SubmapBuilderOptions {
-  // Filter (see RbpfOptions).
-  int particles = 30;
-  double resample_threshold = 0.5;
-  double weight_divisor = 0.0;
-  double linear_update = 1.0;
-  double angular_update = 0.5;
-  double temporal_update = 0.0;
-  double srr = 0.1, srt = 0.2, str = 0.1, stt = 0.2;
-  std::uint64_t seed = 1;
-  bool parallel = true;
-  bool sample_proposal = true;
-  // Grid.
-  double resolution = 0.05;
-  bool hit_points = false;
-  // A weaker miss than the known-pose mapper's: a wall cell crossed by grazing beams keeps its
-  // evidence, so scan matching still finds it (GMapping counts a cell hit by 10 % of its beams).
-  double l_occ = 0.85, l_free = -0.2, l_min = -2.0, l_max = 3.5;
-  double max_range = 30.0;
-  double max_free_range = 10.0;
-  // Scan matcher (see ScanMatcherOptions).
-  int match_beam_step = 1;
-  int match_kernel_radius = 1;
-  int coarse_kernel_radius = 4;
-  int coarse_beam_step = 4;
-  double recovery_sigma = 2.0;
-  double recovery_angular_step = 0.05;
-  double min_overlap_fraction = 0.0;
-  double best_support_linear = 0.0, best_support_angular = 0.0;
-  double online_mean_linear = 0.0, online_mean_angular = 0.0;
-  bool track_between_updates = true;
-  double track_linear_step = 0.0, track_angular_step = 0.0;
-  int track_refinements = 0;
-  double match_sigma = 0.05;
-  double match_likelihood_sigma = 0.075;
-  double match_likelihood_gain = 3.0;
-  double match_linear_step = 0.05;
-  double match_angular_step = 0.05;
-  int match_refinements = 5;
-  double match_min_fraction = 0.1;
-  double match_no_hit_distance = 0.27;
-  double match_proposal_linear = 0.02;
-  double match_proposal_angular = 0.01;
+  RbpfOptions rbpf;  // the filter, its grids and its scan matcher
   // Submaps.
   double submap_distance = 0.0;  // [m] travelled; 0 = never
-  double handover_sigma_linear = 0.02, handover_sigma_angular = 0.005;
-  int submap_scans = 0;  // inserted scans; 0 = never
+  int submap_scans = 0;          // inserted scans; 0 = never
   bool camera_trigger = false;
   bool interpolate_updates = false;
   // Plumbing.
@@ -105,90 +64,9 @@ struct SubmapBuilderOptions {
 
   template <class V>
   void visit(V& v) {
-    v("particles", particles, "particles per submap");
-    v("resample_threshold", resample_threshold,
-      "resample when N_eff < this fraction of the particle count (0..1]");
-    v("weight_divisor", weight_divisor,
-      "log-weight increments are divided by this (0 = the particle count, as GMapping)");
-    v("linear_update", linear_update, "filter update after this much travel [m]");
-    v("angular_update", angular_update, "filter update after this much rotation [rad]");
-    v("temporal_update", temporal_update, "filter update after this much time [s]; 0 disables");
-    v("srr", srr, "odometry noise: translation per metre travelled [m/m]");
-    v("srt", srt, "odometry noise: translation per radian turned [m/rad]");
-    v("str", str, "odometry noise: rotation per metre travelled [rad/m]");
-    v("stt", stt, "odometry noise: rotation per radian turned [rad/rad]");
-    v("seed", seed, "random seed (runs are reproducible for a seed)");
-    v("parallel", parallel, "update particles on TBB worker threads");
-    v("sample_proposal", sample_proposal,
-      "draw poses from the fitted proposal (true) or keep its mean (false)");
-    v("resolution", resolution, "submap cell size [m]");
-    v("hit_points", hit_points,
-      "keep each cell's mean hit position and match against it (sub-cell accuracy, 2.5x tile "
-      "memory)");
-    v("l_occ", l_occ, "log-odds added at a beam endpoint (> 0)");
-    v("l_free", l_free, "log-odds added along a beam (< 0)");
-    v("l_min", l_min, "lower log-odds clamp (< 0)");
-    v("l_max", l_max, "upper log-odds clamp (> 0)");
-    v("max_range", max_range,
-      "returns beyond this [m] are used neither for matching nor as obstacles");
-    v("max_free_range", max_free_range,
-      "no-return beams clear free space this far [m]; 0 disables");
-    v("match_beam_step", match_beam_step, "scan matching uses every n-th valid beam");
-    v("match_kernel_radius", match_kernel_radius, "cells searched around each beam endpoint");
-    v("coarse_kernel_radius", coarse_kernel_radius,
-      "coarse matching stage: cells searched around each endpoint (wider basin); 0 disables");
-    v("coarse_beam_step", coarse_beam_step, "coarse matching stage uses every n-th beam");
-    v("recovery_sigma", recovery_sigma,
-      "when matching from the odometry prior fails, retry the coarse stage from starts within "
-      "this many prior standard deviations; 0 disables");
-    v("recovery_angular_step", recovery_angular_step,
-      "heading spacing of the recovery search's starts [rad]");
-    v("min_overlap_fraction", min_overlap_fraction,
-      "a match with fewer than this fraction of the scan's beams on the map is not trusted: "
-      "the particle follows the motion model; 0 disables");
-    v("best_support_linear", best_support_linear,
-      "best particle = most posterior weight within a Gaussian kernel of this width [m] around "
-      "its pose; 0: highest accumulated weight alone");
-    v("best_support_angular", best_support_angular,
-      "angular width of that kernel [rad]; 0: highest accumulated weight alone");
-    v("online_mean_linear", online_mean_linear,
-      "online pose at updates = weighted mean of the particles within a Gaussian kernel of this "
-      "width [m] around the best particle; 0: the best particle's pose");
-    v("online_mean_angular", online_mean_angular,
-      "angular width of that kernel [rad]; 0: the best particle's pose");
-    v("track_between_updates", track_between_updates,
-      "between filter updates, match each scan against the best particle's map so the online "
-      "pose follows the scans rather than the odometry");
-    v("track_linear_step", track_linear_step,
-      "tracking's initial hill-climbing step [m]; 0: the fine matcher's");
-    v("track_angular_step", track_angular_step,
-      "tracking's initial hill-climbing step [rad]; 0: the fine matcher's");
-    v("track_refinements", track_refinements,
-      "tracking's step halvings before it stops; 0: the fine matcher's");
-    v("match_sigma", match_sigma, "score kernel width [m]");
-    v("match_likelihood_sigma", match_likelihood_sigma, "likelihood kernel width [m]");
-    v("match_likelihood_gain", match_likelihood_gain,
-      "log-likelihood divided by this (flattens overconfident weights)");
-    v("match_linear_step", match_linear_step, "initial hill-climbing step [m]");
-    v("match_angular_step", match_angular_step, "initial hill-climbing step [rad]");
-    v("match_refinements", match_refinements, "hill-climbing step halvings");
-    v("match_no_hit_distance", match_no_hit_distance,
-      "[m] a beam with no obstacle within the kernel costs as much in the likelihood as one "
-      "whose obstacle is this far away (0 = the kernel's reach): makes particles whose map "
-      "disagrees with the scan lose weight");
-    v("match_proposal_linear", match_proposal_linear,
-      "[m] proposal fit: spacing of the pose samples in x and y around the matched pose");
-    v("match_proposal_angular", match_proposal_angular,
-      "[rad] proposal fit: spacing of the pose samples in heading around the matched pose");
-    v("match_min_fraction", match_min_fraction,
-      "a match succeeds when at least this fraction of the beams lands near an obstacle; "
-      "otherwise the particle follows odometry");
+    v("rbpf", rbpf, "particle filter");
     v("submap_distance", submap_distance, "start a new submap after this travel [m]; 0 = never");
     v("submap_scans", submap_scans, "start a new submap after this many inserted scans; 0 = never");
-    v("handover_sigma_linear", handover_sigma_linear,
-      "[m/sqrt(m)] hand-over covariance floor: variance += sigma^2 x metres travelled in the "
-      "submap (x, y)");
-    v("handover_sigma_angular", handover_sigma_angular, "[rad/sqrt(m)] the same for the heading");
     v("camera_trigger", camera_trigger,
       "subscribe to camera_events: entering a new camera's view starts a new submap");
     v("interpolate_updates", interpolate_updates,
@@ -203,8 +81,57 @@ struct SubmapBuilderOptions {
       "do not interpolate odometry over gaps longer than this [s]");
   }
 
-  /// The filter options these parameters describe.
-  RbpfOptions rbpf() const;
+  /// The flat keys of earlier versions, now inside the rbpf group.
+  static constexpr RenamedKey kRenamedKeys[] = {
+      {"particles", "rbpf.particles"},
+      {"resample_threshold", "rbpf.resample_threshold"},
+      {"weight_divisor", "rbpf.weight_divisor"},
+      {"linear_update", "rbpf.linear_update"},
+      {"angular_update", "rbpf.angular_update"},
+      {"temporal_update", "rbpf.temporal_update"},
+      {"srr", "rbpf.motion.srr"},
+      {"srt", "rbpf.motion.srt"},
+      {"str", "rbpf.motion.str"},
+      {"stt", "rbpf.motion.stt"},
+      {"seed", "rbpf.seed"},
+      {"parallel", "rbpf.parallel"},
+      {"sample_proposal", "rbpf.sample_proposal"},
+      {"resolution", "rbpf.grid.resolution"},
+      {"hit_points", "rbpf.grid.track_hit_points"},
+      {"l_occ", "rbpf.grid.log_odds.hit"},
+      {"l_free", "rbpf.grid.log_odds.miss"},
+      {"l_min", "rbpf.grid.log_odds.min"},
+      {"l_max", "rbpf.grid.log_odds.max"},
+      {"max_range", "rbpf.insert.max_range and rbpf.matcher.max_range"},
+      {"max_free_range", "rbpf.insert.max_free_range"},
+      {"match_beam_step", "rbpf.matcher.beam_step"},
+      {"match_kernel_radius", "rbpf.matcher.kernel_radius"},
+      {"coarse_kernel_radius", "rbpf.coarse_kernel_radius"},
+      {"coarse_beam_step", "rbpf.coarse_beam_step"},
+      {"recovery_sigma", "rbpf.recovery_sigma"},
+      {"recovery_angular_step", "rbpf.recovery_angular_step"},
+      {"min_overlap_fraction", "rbpf.min_overlap_fraction"},
+      {"best_support_linear", "rbpf.best_support_linear"},
+      {"best_support_angular", "rbpf.best_support_angular"},
+      {"online_mean_linear", "rbpf.online_mean_linear"},
+      {"online_mean_angular", "rbpf.online_mean_angular"},
+      {"track_between_updates", "rbpf.track_between_updates"},
+      {"track_linear_step", "rbpf.track_linear_step"},
+      {"track_angular_step", "rbpf.track_angular_step"},
+      {"track_refinements", "rbpf.track_refinements"},
+      {"match_sigma", "rbpf.matcher.sigma"},
+      {"match_likelihood_sigma", "rbpf.matcher.likelihood_sigma"},
+      {"match_likelihood_gain", "rbpf.matcher.likelihood_gain"},
+      {"match_linear_step", "rbpf.matcher.linear_step"},
+      {"match_angular_step", "rbpf.matcher.angular_step"},
+      {"match_refinements", "rbpf.matcher.refinements"},
+      {"match_min_fraction", "rbpf.matcher.min_score_fraction"},
+      {"match_no_hit_distance", "rbpf.matcher.no_hit_distance"},
+      {"match_proposal_linear", "rbpf.matcher.proposal_linear"},
+      {"match_proposal_angular", "rbpf.matcher.proposal_angular"},
+      {"handover_sigma_linear", "rbpf.handover_sigma_linear"},
+      {"handover_sigma_angular", "rbpf.handover_sigma_angular"},
+  };
 };
 
 class SubmapBuilderActor final : public Actor {
