@@ -84,7 +84,7 @@ TEST_CASE("an old flat key fails with an error naming its new key", "[options]")
   CHECK_THROWS_WITH(profile("", {"count=7"}), Catch::Contains("moved to a.core.count"));
 }
 
-TEST_CASE("--set reaches nested keys, with or without the actor's name", "[options]") {
+TEST_CASE("a --set of a nested key reaches it, with or without the actor's name", "[options]") {
   CHECK(load(profile("      period_s: 1\n", {"a.core.count=9"})).core.count == 9);
   CHECK(load(profile("      period_s: 1\n", {"a.core.noise.sigma=2"})).core.noise.sigma == 2);
   CHECK(load(profile("      core: {count: 1}\n", {"core.count=4"})).core.count == 4);
