@@ -1,3 +1,6 @@
+// Recordings (tessera/runtime/recording.hpp, format in docs/recording_format.md): the block
+// layout, the writer and the reader with its damage reporting. Longer than ~600 lines on purpose:
+// writer and reader must agree on every byte of the layout, which is defined once above both.
 #include <tessera/runtime/recording.hpp>
 
 #include <capnp/serialize.h>

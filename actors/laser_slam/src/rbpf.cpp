@@ -1,3 +1,8 @@
+// Rbpf (rbpf.hpp; docs/algorithms.md#rbpf-submaps): motion sampling, two-stage scan matching with
+// recovery, the proposal and weights, resampling, the best particle and the online tracking.
+// Longer than ~600 lines on purpose: these steps share the filter's private state and its
+// invariants (particle maps shared copy-on-write, weights normalised at every update), and split
+// over files no part could be read on its own.
 #include <tessera/laser_slam/rbpf.hpp>
 
 #include <tbb/parallel_for.h>

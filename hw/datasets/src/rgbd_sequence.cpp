@@ -1,3 +1,6 @@
+// RGB-D sequences (tessera/datasets/rgbd_sequence.hpp): the TUM RGB-D and 7-Scenes folder layouts,
+// their text files, intrinsics and poses, and loading a frame's images. Longer than ~600 lines on
+// purpose: both layouts produce the same RgbdSequence through the same field and file checks.
 #include <tessera/datasets/rgbd_sequence.hpp>
 
 #include <tessera/io/image_file.hpp>

@@ -1,3 +1,7 @@
+// The iceoryx transport (tessera/shm/shm_transport.hpp): publishers loan chunks and build
+// messages in them, a receiving thread hands them to the runtime's mailboxes, and the chunk-extent
+// bookkeeping zeroes only what a reused chunk needs. Longer than ~600 lines on purpose: the
+// three share one ownership protocol over the chunks, which reads best in one place.
 #include <tessera/shm/shm_transport.hpp>
 
 #include "runtime_impl.hpp"

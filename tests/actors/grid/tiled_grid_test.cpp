@@ -1,5 +1,7 @@
 // Tests for the copy-on-write tiled occupancy grid: same cells as OccupancyGrid, tile sharing
 // between copies, bad input, growth and concurrent writes to copies; per-cell hit points.
+// Longer than ~600 lines on purpose: one test file per source file, and the tile sharing has many
+// cases.
 #include <tessera/geometry/pose2.hpp>
 #include <tessera/grid/occupancy_grid.hpp>
 #include <tessera/grid/tiled_grid.hpp>

@@ -1,6 +1,8 @@
 // Tests for the laser scan matcher: beam preparation, the score / likelihood model, hill
 // climbing, the match covariance, the improved-proposal fit and matching to per-cell hit points.
 // Worlds are sets of line segments ray-cast exactly here, so the map is the only discretised thing.
+// Longer than ~600 lines on purpose: one test file per source file (the tree is mirrored), and
+// the matcher is the hot path every laser SLAM result rests on.
 #include <tessera/geometry/pose2.hpp>
 #include <tessera/grid/occupancy_grid.hpp>
 #include <tessera/grid/tiled_grid.hpp>

@@ -1,3 +1,5 @@
+// Tests for the RGB-D sequence readers (hw/datasets/src/rgbd_sequence.cpp): both layouts on the
+// shared data and on malformed, truncated, NaN and empty files. Long because the reader is.
 #include <tessera/datasets/rgbd_sequence.hpp>
 
 #include <zlib.h>
