@@ -104,26 +104,20 @@ Eigen::Quaterniond readQuaternion(const Fields& f, std::size_t first) {
   return q;
 }
 
-// 2D and 3D pose algebra for building initial poses from edges.
+// 2D and 3D pose algebra for building initial poses from edges: the graph's own (pose_graph.hpp,
+// Pose3), except that an inverted 2D edge keeps its heading unwrapped, as the file gave it.
 Eigen::Vector3d composeEdge(const Eigen::Vector3d& a, const Eigen::Vector3d& d) {
-  const double c = std::cos(a[2]), s = std::sin(a[2]);
-  return {a[0] + c * d[0] - s * d[1], a[1] + s * d[0] + c * d[1], normalizeAngle(a[2] + d[2])};
+  return compose(a, d);
 }
 Eigen::Vector3d invertEdge(const Eigen::Vector3d& d) {
   const double c = std::cos(d[2]), s = std::sin(d[2]);
   return {-c * d[0] - s * d[1], s * d[0] - c * d[1], -d[2]};
 }
 Pose3 composeEdge(const Pose3& a, const Pose3& d) {
-  Pose3 r;
-  r.t = a.t + a.q * d.t;
-  r.q = (a.q * d.q).normalized();
-  return r;
+  return a * d;
 }
 Pose3 invertEdge(const Pose3& d) {
-  Pose3 r;
-  r.q = d.q.conjugate();
-  r.t = -(r.q * d.t);
-  return r;
+  return d.inverse();
 }
 
 // The file as read, keyed by the file's ids: what the parsing rules (duplicates, references,
