@@ -103,3 +103,35 @@ TEST_CASE("described options list nested keys by their dotted path", "[options]"
   REQUIRE(entry != nullptr);
   CHECK(entry->renamed.size() == 2);
 }
+
+namespace {
+// An enum option as a core declares it: the name table beside the enum, found by ADL.
+enum class Shape { kRound, kSquare };
+constexpr std::array<std::pair<const char*, Shape>, 2> optionNames(Shape) {
+  return {{{"round", Shape::kRound}, {"square", Shape::kSquare}}};
+}
+struct EnumOptions {
+  Shape shape = Shape::kSquare;
+  template <class V>
+  void visit(V& v) {
+    v("shape", shape, "outline");
+  }
+};
+EnumOptions loadEnum(const std::string& params) {
+  const Profile p =
+      parseProfile("actors:\n  a:\n    type: test_nested_source\n    params:\n" + params, "p.yaml");
+  return loadOptions<EnumOptions>(p.actors.at(0).params);
+}
+}  // namespace
+
+TEST_CASE("an enum option is read by name and a wrong name lists the accepted ones", "[options]") {
+  CHECK(loadEnum("      shape: round\n").shape == Shape::kRound);
+  CHECK(loadEnum("      {}\n").shape == Shape::kSquare);
+  CHECK_THROWS_WITH(loadEnum("      shape: oval\n"),
+                    Catch::Contains("actors.a.params.shape, line 5") &&
+                        Catch::Contains("expected one of round | square, got 'oval'"));
+  CHECK_THROWS_WITH(loadEnum("      shape: [1]\n"), Catch::Contains("expected a string"));
+  const auto rows = describeOptions<EnumOptions>();
+  REQUIRE(rows.size() == 1);
+  CHECK(rows[0] == std::array<std::string, 3>{"shape", "square", "outline (round | square)"});
+}

@@ -18,6 +18,16 @@
 // `tessera actors` lists its keys as `rbpf.particles`. Core libraries write such visit()
 // templates without including this header: any callable visitor works.
 //
+// An enum field is an option when its type has a name table found by argument-dependent lookup,
+// declared beside the enum in its core header (no runtime include needed):
+//
+//   enum class Solver { kSgd, kCeres };
+//   constexpr std::array<std::pair<const char*, Solver>, 2> optionNames(Solver) {
+//     return {{{"sgd", Solver::kSgd}, {"ceres", Solver::kCeres}}};
+//   }
+//
+// The YAML gives the name; any other value is an error listing the accepted names.
+//
 // An options struct whose keys moved (e.g. into a group) lists them in
 //   static constexpr RenamedKey kRenamedKeys[] = {{"particles", "rbpf.particles"}, ...};
 // so a profile still using an old key fails with an error naming the new one.
@@ -99,6 +109,26 @@ template <typename T>
 concept OptionGroup = requires(T& t, AnyVisitor& v) {
   t.visit(v);
 };
+/// Enums with a name table (optionNames, found by argument-dependent lookup).
+template <typename T>
+concept NamedEnum = std::is_enum_v<T> && requires(T t) {
+  optionNames(t);
+};
+/// The name of an enum value in its table ("?" for a value not in it).
+template <NamedEnum T>
+std::string enumName(T value) {
+  for (const auto& [name, v] : optionNames(value))
+    if (v == value) return name;
+  return "?";
+}
+/// "a | b | c": the accepted names, for errors and `tessera actors`.
+template <NamedEnum T>
+std::string enumChoices(T value) {
+  std::string out;
+  for (const auto& entry : optionNames(value))
+    out += (out.empty() ? "" : " | ") + std::string(entry.first);
+  return out;
+}
 }  // namespace detail
 
 /// The keys an options struct lists as moved (kRenamedKeys), or none.
@@ -123,6 +153,15 @@ struct OptionReader {
       OptionReader reader{group, {}};
       value.visit(reader);
       group.rejectUnknown(reader.known);
+    } else if constexpr (NamedEnum<T>) {
+      std::string name = enumName(value);
+      params.read(key, name);
+      bool found = false;
+      for (const auto& [n, v] : optionNames(value))
+        if (name == n) value = v, found = true;
+      if (!found)
+        throw ConfigError(params.locate(key) + ": expected one of " + enumChoices(value) +
+                          ", got '" + name + "'");
     } else {
       params.read(key, value);
     }
@@ -152,6 +191,9 @@ void OptionDescriber::operator()(const char* key, T& value, const char* doc) {
     prefix += std::string(key) + ".";
     value.visit(*this);
     prefix = outer;
+  } else if constexpr (NamedEnum<T>) {
+    rows.push_back(
+        {prefix + key, enumName(value), std::string(doc) + " (" + enumChoices(value) + ")"});
   } else {
     rows.push_back({prefix + key, describeValue(value), doc});
   }
