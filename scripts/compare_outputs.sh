@@ -11,8 +11,9 @@ data=$(realpath ../shared/data)
 # Option keys that differ between the two binaries (an option moved into a group): @NAME@ in a
 # run stands for the old binary's key on the old side and the new binary's on the new side.
 declare -A old_key=([seed]=slam.seed) new_key=([seed]=slam.rbpf.seed)
-intel=(--set player.path=$data/intel-lab-mrpt/intel.clf.gz
-       --set player.scan_times=$data/intel-lab-mrpt/frame_times.txt --set @seed@=1)
+intel_log=(--set player.path=$data/intel-lab-mrpt/intel.clf.gz
+           --set player.scan_times=$data/intel-lab-mrpt/frame_times.txt)
+intel=("${intel_log[@]}" --set @seed@=1)
 runs=(
   "sim_mapping|run sim_mapping"
   "carmen_rbpf|run carmen_rbpf ${intel[*]}"
@@ -20,6 +21,10 @@ runs=(
   "sim_lines|run sim_lines"
   "sim_landmarks_rbekf|run sim_landmarks --set filter=rbekf"
   "sim_landmarks_ekf|run sim_landmarks --set filter=ekf"
+  "victoria_park_rbekf|run victoria_park --set player.path=$data/victoria-park-gtsam/victoria_park.txt"
+  "utias_landmarks_ekf|run utias_landmarks --set filter=ekf --set player.path=$data/utias-mrclam-dataset1"
+  "carmen_lines|run carmen_lines ${intel_log[*]}"
+  "urg_replay|run urg_replay --set player.path=$data/mines-paristech-urg04lx-odometry/exp2.dat.gz"
   "urg_rbpf|run urg_rbpf --set player.path=$data/mines-paristech-urg04lx-odometry/exp2.dat.gz"
   "graph_m3500|graph optimize $data/posegraphs/M3500.g2o --json"
 )

@@ -11,9 +11,8 @@ namespace tessera::landmark_slam {
 // landmarks O(n³)).
 
 EkfSlam::EkfSlam(LandmarkSlamOptions options) : LandmarkFilter(std::move(options)) {
-  x_ = options_.initial_pose.vector();
-  P_ = Eigen::MatrixXd::Zero(3, 3);
-  P_.diagonal() = options_.initial_std.cwiseAbs2();
+  x_ = options_.startPose().vector();
+  P_ = options_.startCovariance();
 }
 
 Eigen::Vector3d EkfSlam::pose() const {

@@ -34,11 +34,23 @@ void LandmarkSlamOptions::validate() const {
   if (!(std::isfinite(new_landmark_gate) && new_landmark_gate >= association_gate))
     fail("new_landmark_gate must be >= association_gate");
   non_negative(ambiguity_margin, "ambiguity_margin");
-  if (!initial_pose.isFinite()) fail("initial_pose must be finite");
-  for (int i = 0; i < 3; ++i) non_negative(initial_std[i], "initial_std");
-  if (!(unscented.alpha > 0 && unscented.alpha <= 1)) fail("unscented alpha must be in (0, 1]");
-  if (!std::isfinite(unscented.beta) || !(3 + unscented.kappa > 0))
-    fail("unscented beta must be finite and kappa > -3");
+  if (initial_pose.size() != 3) fail("initial_pose needs 3 values [x, y, theta]");
+  for (const double x : initial_pose)
+    if (!std::isfinite(x)) fail("initial_pose must be finite");
+  if (initial_std.size() != 3) fail("initial_std needs 3 values");
+  for (const double s : initial_std) non_negative(s, "initial_std");
+  if (!(unscented.alpha > 0 && unscented.alpha <= 1)) fail("unscented.alpha must be in (0, 1]");
+  if (!std::isfinite(unscented.beta)) fail("unscented.beta must be finite");
+  if (!(3 + unscented.kappa > 0)) fail("unscented.kappa must be > -3");
+}
+
+tessera::Pose2 LandmarkSlamOptions::startPose() const {
+  return {initial_pose.at(0), initial_pose.at(1), initial_pose.at(2)};
+}
+
+Eigen::Matrix3d LandmarkSlamOptions::startCovariance() const {
+  const Eigen::Vector3d s(initial_std.at(0), initial_std.at(1), initial_std.at(2));
+  return s.cwiseAbs2().asDiagonal();
 }
 
 LandmarkFilter::LandmarkFilter(LandmarkSlamOptions options) : options_(std::move(options)) {

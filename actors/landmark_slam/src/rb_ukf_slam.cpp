@@ -20,8 +20,8 @@ Eigen::Matrix<double, N, N> nearestPsd(const Eigen::Matrix<double, N, N>& m) {
 }  // namespace
 
 RbUkfSlam::RbUkfSlam(LandmarkSlamOptions options) : LandmarkFilter(std::move(options)) {
-  pose_ = options_.initial_pose.vector();
-  P_ = options_.initial_std.cwiseAbs2().asDiagonal();
+  pose_ = options_.startPose().vector();
+  P_ = options_.startCovariance();
 }
 
 LandmarkEstimate RbUkfSlam::gaussian(std::size_t index) const {

@@ -1,5 +1,7 @@
 #include <tessera/line_slam/line_ekf_slam.hpp>
 
+#include "option_checks.hpp"
+
 #include <Eigen/Cholesky>
 #include <Eigen/LU>
 
@@ -50,29 +52,27 @@ Eigen::Vector2d MapLine::p1() const {
 }
 
 LineEkfSlam::LineEkfSlam(LineEkfSlamOptions o) : options_(o) {
-  const auto fail = [](const std::string& what) {
-    throw std::invalid_argument("line EKF SLAM: " + what);
-  };
-  const auto nonneg = [](double v) { return std::isfinite(v) && v >= 0; };
-  const auto positive = [](double v) { return std::isfinite(v) && v > 0; };
-  if (!nonneg(o.odom_sigma_d) || !nonneg(o.odom_sigma_theta_per_m) || !nonneg(o.odom_sigma_theta) ||
-      !positive(o.odom_sigma_min))
-    fail("odometry stds must be >= 0 and odom_sigma_min > 0");
-  if (!nonneg(o.speed_sigma) || !nonneg(o.steering_sigma))
-    fail("speed_sigma and steering_sigma must be >= 0");
-  if (!positive(o.obs_sigma_r) || !positive(o.obs_sigma_phi))
-    fail("obs_sigma_r and obs_sigma_phi must be > 0");
-  if (!positive(o.gate_angle) || !positive(o.gate_distance) || !nonneg(o.gate_overlap) ||
-      !nonneg(o.overlap_margin) || !nonneg(o.cost_overlap_weight))
-    fail(
-        "gate_angle, gate_distance must be > 0; gate_overlap, overlap_margin, "
-        "cost_overlap_weight >= 0");
-  if (o.tentative_sightings < 1) fail("tentative_sightings must be >= 1");
-  if (!nonneg(o.min_segment_length)) fail("min_segment_length must be >= 0");
-  if (o.merge_interval < 0) fail("merge_interval must be >= 0");
-  if (!nonneg(o.merge_angle) || !nonneg(o.merge_distance) || !nonneg(o.merge_gap) ||
-      !positive(o.merge_chi2))
-    fail("merge_angle, merge_distance, merge_gap must be >= 0 and merge_chi2 > 0");
+  using detail::nonNegative, detail::positive, detail::require;
+  require(nonNegative(o.odom_sigma_d), "odom_sigma_d", ">= 0");
+  require(nonNegative(o.odom_sigma_theta_per_m), "odom_sigma_theta_per_m", ">= 0");
+  require(nonNegative(o.odom_sigma_theta), "odom_sigma_theta", ">= 0");
+  require(positive(o.odom_sigma_min), "odom_sigma_min", "> 0");
+  require(nonNegative(o.speed_sigma), "speed_sigma", ">= 0");
+  require(nonNegative(o.steering_sigma), "steering_sigma", ">= 0");
+  require(positive(o.obs_sigma_r), "obs_sigma_r", "> 0");
+  require(positive(o.obs_sigma_phi), "obs_sigma_phi", "> 0");
+  require(positive(o.gate_angle), "gate_angle", "> 0");
+  require(positive(o.gate_distance), "gate_distance", "> 0");
+  require(nonNegative(o.gate_overlap), "gate_overlap", ">= 0");
+  require(nonNegative(o.overlap_margin), "overlap_margin", ">= 0");
+  require(nonNegative(o.cost_overlap_weight), "cost_overlap_weight", ">= 0");
+  require(o.tentative_sightings >= 1, "tentative_sightings", ">= 1");
+  require(nonNegative(o.min_segment_length), "min_segment_length", ">= 0");
+  require(o.merge_interval >= 0, "merge_interval", ">= 0");
+  require(nonNegative(o.merge_angle), "merge_angle", ">= 0");
+  require(nonNegative(o.merge_distance), "merge_distance", ">= 0");
+  require(nonNegative(o.merge_gap), "merge_gap", ">= 0");
+  require(positive(o.merge_chi2), "merge_chi2", "> 0");
   reset(Pose2());
 }
 

@@ -1,5 +1,7 @@
 #include <tessera/line_slam/line_extraction.hpp>
 
+#include "option_checks.hpp"
+
 #include <algorithm>
 #include <cmath>
 #include <limits>
@@ -115,28 +117,21 @@ LineSegment transformSegment(const LineSegment& s, const Pose2& pose) {
 }
 
 LineExtractor::LineExtractor(LineExtractorOptions o) : options_(o) {
-  const auto fail = [](const std::string& what) {
-    throw std::invalid_argument("line extractor: " + what);
-  };
-  const auto positive = [](double v) { return std::isfinite(v) && v > 0; };
-  if (!positive(o.range_sigma)) fail("range_sigma must be > 0");
-  if (!(std::isfinite(o.range_sigma_rel) && o.range_sigma_rel >= 0))
-    fail("range_sigma_rel must be >= 0");
-  if (!positive(o.breakpoint_distance)) fail("breakpoint_distance must be > 0");
-  if (!(std::isfinite(o.breakpoint_factor) && o.breakpoint_factor >= 0))
-    fail("breakpoint_factor must be >= 0");
-  if (!positive(o.split_mse) || !positive(o.split_max_distance))
-    fail("split_mse and split_max_distance must be > 0");
-  if (o.fuzzy_iterations < 0) fail("fuzzy_iterations must be >= 0");
-  if (!(std::isfinite(o.fuzzy_exponent) && o.fuzzy_exponent > 1))
-    fail("fuzzy_exponent must be > 1");
-  if (!positive(o.fuzzy_far_distance)) fail("fuzzy_far_distance must be > 0");
-  if (o.min_points < 2) fail("min_points must be >= 2");
-  if (!(std::isfinite(o.min_length) && o.min_length >= 0)) fail("min_length must be >= 0");
-  if (!(std::isfinite(o.merge_angle) && o.merge_angle >= 0) ||
-      !(std::isfinite(o.merge_distance) && o.merge_distance >= 0))
-    fail("merge_angle and merge_distance must be >= 0");
-  if (!positive(o.max_range)) fail("max_range must be > 0");
+  using detail::nonNegative, detail::positive, detail::require;
+  require(positive(o.range_sigma), "range_sigma", "> 0");
+  require(nonNegative(o.range_sigma_rel), "range_sigma_rel", ">= 0");
+  require(positive(o.breakpoint_distance), "breakpoint_distance", "> 0");
+  require(nonNegative(o.breakpoint_factor), "breakpoint_factor", ">= 0");
+  require(positive(o.split_mse), "split_mse", "> 0");
+  require(positive(o.split_max_distance), "split_max_distance", "> 0");
+  require(o.fuzzy_iterations >= 0, "fuzzy_iterations", ">= 0");
+  require(std::isfinite(o.fuzzy_exponent) && o.fuzzy_exponent > 1, "fuzzy_exponent", "> 1");
+  require(positive(o.fuzzy_far_distance), "fuzzy_far_distance", "> 0");
+  require(o.min_points >= 2, "min_points", ">= 2");
+  require(nonNegative(o.min_length), "min_length", ">= 0");
+  require(nonNegative(o.merge_angle), "merge_angle", ">= 0");
+  require(nonNegative(o.merge_distance), "merge_distance", ">= 0");
+  require(positive(o.max_range), "max_range", "> 0");
 }
 
 LineFit LineExtractor::fit(std::span<const Eigen::Vector2d> points, std::span<const double> sigmas,

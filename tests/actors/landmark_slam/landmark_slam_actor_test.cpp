@@ -4,6 +4,7 @@
 #include <tessera/runtime/harness.hpp>
 #include <tessera/runtime/options.hpp>
 
+#include <yaml-cpp/yaml.h>
 #include <catch2/catch.hpp>
 
 #include <cmath>
@@ -70,17 +71,17 @@ void pushTruth(ActorHarness& h, Nanos stamp, double x) {
 
 TEST_CASE("landmark_slam actor tracks a straight drive and reports its figures",
           "[landmark_slam][actor]") {
-  for (const char* filter : {"ekf", "rbekf"}) {
-    INFO(filter);
+  for (const FilterType filter : {FilterType::kEkf, FilterType::kRbEkf}) {
+    INFO(detail::enumName(filter));
     // Noise-free data: the EKF stays exact. The UKF predicts the mean of the motion under
     // control noise, a little short of the noise-free step (E[cos(theta + e)] < cos(theta)), so
     // it is only close.
-    const double tol = std::string(filter) == "ekf" ? 1e-6 : 3e-3;
+    const double tol = filter == FilterType::kEkf ? 1e-6 : 3e-3;
     LandmarkSlamActorOptions o;
     o.filter = filter;
     o.ground_truth = true;
     o.landmark_truth = true;
-    o.sigma_turn_rate_deg = 1;
+    o.estimator.sigma_turn_rate = kDegree;
     ActorHarness h(std::make_unique<LandmarkSlamActor>(o));
     h.push<msg::LandmarkMap>("landmark_truth", [&](auto& b) {
       setHeader(b.initHeader(), 0, "map", 0);
@@ -136,15 +137,33 @@ TEST_CASE("landmark_slam actor tracks a straight drive and reports its figures",
 
 TEST_CASE("landmark_slam actor rejects bad options", "[landmark_slam][actor]") {
   LandmarkSlamActorOptions o;
-  o.filter = "fastslam";
-  CHECK_THROWS_AS(LandmarkSlamActor(o), ConfigError);
+  o.estimator.range_std = -1;
+  CHECK_THROWS_WITH(LandmarkSlamActor(o), Catch::Contains("estimator.range_std"));
   o = {};
-  o.association = "guess";
-  CHECK_THROWS_AS(LandmarkSlamActor(o), ConfigError);
+  o.estimator.initial_pose = {1, 2};
+  CHECK_THROWS_WITH(LandmarkSlamActor(o), Catch::Contains("estimator.initial_pose"));
   o = {};
-  o.range_std = -1;
-  CHECK_THROWS_AS(LandmarkSlamActor(o), ConfigError);
-  o = {};
-  o.initial_pose = {1, 2};
-  CHECK_THROWS_AS(LandmarkSlamActor(o), ConfigError);
+  o.estimator.unscented.alpha = 0;
+  CHECK_THROWS_WITH(LandmarkSlamActor(o), Catch::Contains("estimator.unscented.alpha"));
+}
+
+TEST_CASE("landmark_slam options: the filter's keys in `estimator`, enums by name",
+          "[landmark_slam][actor][options]") {
+  const auto load = [](const std::string& yaml) {
+    return loadOptions<LandmarkSlamActorOptions>(Params(YAML::Load(yaml), "test"));
+  };
+  const auto o = load(
+      "filter: ekf\nestimator: {association: nearest, bearing_std: 0.05, unscented: {alpha: "
+      "0.5}}\n");
+  CHECK(o.filter == FilterType::kEkf);
+  CHECK(o.estimator.association == Association::kNearestNeighbour);
+  CHECK(o.estimator.bearing_std == 0.05);
+  CHECK(o.estimator.unscented.alpha == 0.5);
+  CHECK(o.estimator.range_std == LandmarkSlamOptions{}.range_std);
+  CHECK_THROWS_WITH(load("filter: fastslam\n"), Catch::Contains("ekf | rbekf"));
+  CHECK_THROWS_WITH(load("estimator: {association: guess}\n"), Catch::Contains("known | nearest"));
+  CHECK_THROWS_WITH(load("sigma_steer_deg: 3\n"),
+                    Catch::Contains("moved to estimator.sigma_steer"));
+  CHECK_THROWS_WITH(load("association: known\n"),
+                    Catch::Contains("moved to estimator.association"));
 }

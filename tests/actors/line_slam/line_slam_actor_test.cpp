@@ -6,6 +6,7 @@
 #include <tessera/runtime/harness.hpp>
 #include <tessera/runtime/options.hpp>
 
+#include <yaml-cpp/yaml.h>
 #include <catch2/catch.hpp>
 
 #include <cmath>
@@ -84,12 +85,32 @@ TEST_CASE("line_slam actor publishes a pose per scan and a line map, and scores 
 
 TEST_CASE("line_slam actor rejects bad options", "[lines][line_slam_actor]") {
   LineSlamActorOptions o;
-  o.association = "nearest";
-  CHECK_THROWS_AS(LineSlamActor(o), ConfigError);
-  o = {};
-  o.slam.tentative_sightings = 0;
-  CHECK_THROWS_AS(LineSlamActor(o), ConfigError);
+  o.ekf.tentative_sightings = 0;
+  CHECK_THROWS_WITH(LineSlamActor(o), Catch::Contains("ekf.tentative_sightings"));
   o = {};
   o.extractor.min_points = 0;
+  CHECK_THROWS_WITH(LineSlamActor(o), Catch::Contains("extractor.min_points"));
+  o = {};
+  o.map_every = 0;
   CHECK_THROWS_AS(LineSlamActor(o), ConfigError);
+}
+
+TEST_CASE("line_slam options: groups extractor and ekf, association by name",
+          "[lines][line_slam_actor][options]") {
+  const auto load = [](const std::string& yaml) {
+    return loadOptions<LineSlamActorOptions>(Params(YAML::Load(yaml), "test"));
+  };
+  const auto o = load(
+      "extractor: {min_points: 10, merge_angle: 0.1}\n"
+      "ekf: {association: threshold, merge_angle: 0.2}\nmin_travel: 0.1\n");
+  CHECK(o.extractor.min_points == 10);
+  CHECK(o.extractor.merge_angle == 0.1);
+  CHECK(o.ekf.association == line_slam::Association::kThreshold);
+  CHECK(o.ekf.merge_angle == 0.2);
+  CHECK(o.min_travel == 0.1);
+  CHECK_THROWS_WITH(load("ekf: {association: nearest}\n"), Catch::Contains("cost | threshold"));
+  CHECK_THROWS_WITH(load("segment_merge_angle: 0.1\n"),
+                    Catch::Contains("moved to extractor.merge_angle"));
+  CHECK_THROWS_WITH(load("tentative_sightings: 1\n"),
+                    Catch::Contains("moved to ekf.tentative_sightings"));
 }

@@ -7,8 +7,10 @@
 #include <tessera/messages/types.hpp>
 #include <tessera/messages/views.hpp>
 #include <tessera/runtime/harness.hpp>
+#include <tessera/runtime/options.hpp>
 #include <tessera/runtime/registry.hpp>
 
+#include <yaml-cpp/yaml.h>
 #include <catch2/catch.hpp>
 
 #include <cmath>
@@ -264,12 +266,25 @@ TEST_CASE("grid_mapper rejects invalid options with ConfigError", "[grid_mapper_
   o.pose_message = "twist";
   CHECK_THROWS_AS(GridMapperActor(o), ConfigError);
   o = {};
-  o.mapper.resolution = 0;
+  o.grid.resolution = 0;
   CHECK_THROWS_WITH(GridMapperActor(o), Catch::Matchers::Contains("grid_mapper") &&
-                                            Catch::Matchers::Contains("resolution"));
+                                            Catch::Matchers::Contains("grid.resolution"));
   o = {};
   o.publish_period_s = -1;
   CHECK_THROWS_AS(GridMapperActor(o), ConfigError);
+}
+
+TEST_CASE("grid_mapper reads the core's options as the group grid", "[grid_mapper_actor]") {
+  const auto load = [](const std::string& yaml) {
+    return loadOptions<GridMapperOptions>(Params(YAML::Load(yaml), "test"));
+  };
+  const auto o = load("grid: {resolution: 0.1, max_range: 5.6}\npublish_period_s: 0\n");
+  CHECK(o.grid.resolution == 0.1);
+  CHECK(o.grid.max_range == 5.6);
+  CHECK(o.grid.l_occ == mapping::GridMapperCoreOptions{}.l_occ);
+  CHECK(o.publish_period_s == 0);
+  CHECK_THROWS_WITH(load("resolution: 0.05\n"),
+                    Catch::Matchers::Contains("moved to grid.resolution"));
 }
 
 TEST_CASE("mapping actors are registered", "[grid_mapper_actor]") {

@@ -19,48 +19,24 @@
 namespace tessera::landmark_slam {
 namespace {
 
-constexpr double kDeg = std::numbers::pi / 180.0;
-
 [[noreturn]] void fail(const std::string& what) {
   throw ConfigError("landmark_slam: " + what);
-}
-
-LandmarkSlamOptions coreOptions(const LandmarkSlamActorOptions& a) {
-  LandmarkSlamOptions o;
-  if (a.association == "known")
-    o.association = Association::kKnownIds;
-  else if (a.association == "nearest")
-    o.association = Association::kNearestNeighbour;
-  else
-    fail("association must be 'known' or 'nearest', got '" + a.association + "'");
-  if (a.initial_pose.size() != 3) fail("initial_pose needs 3 values [x, y, theta]");
-  if (a.initial_std.size() != 3) fail("initial_std needs 3 values");
-  o.range_std = a.range_std;
-  o.bearing_std = a.bearing_std_deg * kDeg;
-  o.use_observation_std = a.use_observation_std;
-  o.sigma_speed = a.sigma_speed;
-  o.sigma_steer = a.sigma_steer_deg * kDeg;
-  o.sigma_turn_rate = a.sigma_turn_rate_deg * kDeg;
-  o.outlier_gate = a.outlier_gate;
-  o.association_gate = a.association_gate;
-  o.new_landmark_gate = a.new_landmark_gate;
-  o.ambiguity_margin = a.ambiguity_margin;
-  o.initial_pose = {a.initial_pose[0], a.initial_pose[1], a.initial_pose[2]};
-  o.initial_std = {a.initial_std[0], a.initial_std[1], a.initial_std[2]};
-  return o;
 }
 
 std::unique_ptr<LandmarkFilter> makeFilter(const LandmarkSlamActorOptions& a) {
   if (a.landmark_publish_every < 0) fail("landmark_publish_every must be >= 0");
   if (a.frame_id.empty()) fail("frame_id must not be empty");
-  const LandmarkSlamOptions o = coreOptions(a);
-  try {
-    if (a.filter == "ekf") return std::make_unique<EkfSlam>(o);
-    if (a.filter == "rbekf") return std::make_unique<RbUkfSlam>(o);
+  try {  // the core validates its options; its messages start with the key
+    switch (a.filter) {
+      case FilterType::kEkf:
+        return std::make_unique<EkfSlam>(a.estimator);
+      case FilterType::kRbEkf:
+        return std::make_unique<RbUkfSlam>(a.estimator);
+    }
   } catch (const std::invalid_argument& e) {
-    fail(e.what());
+    fail(std::string("estimator.") + e.what());
   }
-  fail("filter must be 'ekf' or 'rbekf', got '" + a.filter + "'");
+  fail("unknown filter");
 }
 
 double secondsSince(std::chrono::steady_clock::time_point t0) {
@@ -250,7 +226,8 @@ void LandmarkSlamActor::writeSvg(const std::string& path) const {
   out << std::fixed << std::setprecision(2) << "<svg xmlns=\"http://www.w3.org/2000/svg\" width=\""
       << X(box.max().x()) << "\" height=\"" << Y(box.min().y())
       << "\">\n<rect width=\"100%\" height=\"100%\" "
-      << "fill=\"white\"/>\n<!-- landmark_slam " << options_.filter << ": " << scale
+      << "fill=\"white\"/>\n<!-- landmark_slam " << detail::enumName(options_.filter) << ": "
+      << scale
       << " px/m; black = ground truth, blue = estimate, red = estimated landmarks with 2-sigma "
          "ellipses, green crosses = true landmarks -->\n";
   const auto polyline = [&](const auto& poses, const char* colour) {
@@ -283,8 +260,8 @@ void LandmarkSlamActor::writeSvg(const std::string& path) const {
 void LandmarkSlamActor::summarize(Summary& out) const {
   const auto i64 = [](std::uint64_t v) { return static_cast<std::int64_t>(v); };
   const RejectionCounts& r = filter_->rejections();
-  out["filter"] = options_.filter;
-  out["association"] = options_.association;
+  out["filter"] = detail::enumName(options_.filter);
+  out["association"] = detail::enumName(options_.estimator.association);
   out["scans"] = i64(scans_);
   out["controls"] = i64(controls_);
   out["observations"] = i64(observations_);

@@ -13,15 +13,8 @@
 namespace tessera::line_slam {
 namespace {
 
-LineEkfSlamOptions checkedSlamOptions(const LineSlamActorOptions& o) {
+const LineSlamActorOptions& checkedActorOptions(const LineSlamActorOptions& o) {
   const auto fail = [](const std::string& what) { throw ConfigError("line_slam: " + what); };
-  LineEkfSlamOptions s = o.slam;
-  if (o.association == "cost")
-    s.association = Association::kCost;
-  else if (o.association == "threshold")
-    s.association = Association::kThreshold;
-  else
-    fail("association must be 'cost' or 'threshold', not '" + o.association + "'");
   if (!(std::isfinite(o.min_travel) && o.min_travel >= 0) ||
       !(std::isfinite(o.min_rotation) && o.min_rotation >= 0))
     fail("min_travel and min_rotation must be >= 0");
@@ -31,15 +24,16 @@ LineEkfSlamOptions checkedSlamOptions(const LineSlamActorOptions& o) {
   if (!(std::isfinite(o.max_pose_gap_s) && o.max_pose_gap_s > 0))
     fail("max_pose_gap_s must be > 0");
   if (o.frame_id.empty()) fail("frame_id must not be empty");
-  return s;
+  return o;
 }
 
+/// The core built from its group; its errors start with the key, named here with the group.
 template <class Core, class Opts>
-Core checked(const Opts& o) {
+Core checked(const Opts& o, const char* group) {
   try {
     return Core(o);
   } catch (const std::invalid_argument& e) {
-    throw ConfigError(std::string("line_slam: ") + e.what());
+    throw ConfigError(std::string("line_slam: ") + group + "." + e.what());
   }
 }
 
@@ -52,9 +46,9 @@ bool scanUsable(const msg::LaserScan::Reader& s) {
 }  // namespace
 
 LineSlamActor::LineSlamActor(LineSlamActorOptions options)
-    : options_(std::move(options)),
-      extractor_(checked<tessera::line_slam::LineExtractor>(options_.extractor)),
-      slam_(checked<LineEkfSlam>(checkedSlamOptions(options_))),
+    : options_(checkedActorOptions(options)),
+      extractor_(checked<tessera::line_slam::LineExtractor>(options_.extractor, "extractor")),
+      slam_(checked<LineEkfSlam>(options_.ekf, "ekf")),
       pairing_(static_cast<std::size_t>(options_.scan_buffer),
                static_cast<std::size_t>(options_.pose_history), options_.max_pose_gap_s),
       truth_(static_cast<std::size_t>(options_.pose_history), options_.max_pose_gap_s) {}
@@ -197,7 +191,7 @@ void LineSlamActor::summarize(Summary& out) const {
   out["tentative_created"] = i64(s.tentative_created);
   out["tentative_promoted"] = i64(s.tentative_promoted);
   out["tentative_dropped"] = i64(s.tentative_dropped);
-  out["association"] = options_.association;
+  out["association"] = detail::enumName(options_.ekf.association);
   const tessera::Pose2 p = slam_.pose();
   out["final_x"] = p.x;
   out["final_y"] = p.y;

@@ -17,9 +17,9 @@ namespace {
 GridMapperCoreOptions checkedCore(const GridMapperOptions& o) {
   const auto fail = [](const std::string& what) { throw ConfigError("grid_mapper: " + what); };
   try {
-    GridMapper probe(o.mapper);  // the core owns the rules for its options
+    GridMapper probe(o.grid);  // the core owns the rules for its options
   } catch (const std::invalid_argument& e) {
-    fail(e.what());
+    fail(std::string("grid.") + e.what());  // the core's message starts with the key
   }
   if (!(std::isfinite(o.publish_period_s) && o.publish_period_s >= 0))
     fail("publish_period_s must be >= 0 (got " + std::to_string(o.publish_period_s) + ")");
@@ -29,7 +29,7 @@ GridMapperCoreOptions checkedCore(const GridMapperOptions& o) {
     fail("scan_queue, pose_queue, scan_buffer must be >= 1 and pose_history >= 2");
   if (o.frame_id.empty()) fail("frame_id must not be empty");
   (void)detail::parsePoseMessage(o.pose_message, "grid_mapper", "pose_message");
-  return o.mapper;
+  return o.grid;
 }
 
 }  // namespace

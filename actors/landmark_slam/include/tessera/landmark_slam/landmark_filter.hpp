@@ -35,37 +35,77 @@
 
 #include <Eigen/Core>
 
+#include <array>
 #include <cstddef>
 #include <cstdint>
+#include <numbers>
 #include <span>
 #include <unordered_map>
+#include <utility>
 #include <vector>
 
 namespace tessera::landmark_slam {
 
+/// One degree [rad], for defaults written in degrees.
+inline constexpr double kDegree = std::numbers::pi / 180;
+
+/// Which filter: the EKF-SLAM baseline (EkfSlam) or the seed 004 filter (RbUkfSlam).
+enum class FilterType { kEkf, kRbEkf };
+constexpr std::array<std::pair<const char*, FilterType>, 2> optionNames(FilterType) {
+  return {{{"ekf", FilterType::kEkf}, {"rbekf", FilterType::kRbEkf}}};
+}
+
 enum class Association { kKnownIds, kNearestNeighbour };
+constexpr std::array<std::pair<const char*, Association>, 2> optionNames(Association) {
+  return {{{"known", Association::kKnownIds}, {"nearest", Association::kNearestNeighbour}}};
+}
 
 struct LandmarkSlamOptions {
   Association association = Association::kKnownIds;
   /// Observation noise used when an observation carries no std (or use_observation_std is off).
-  double range_std = 0.1;                     ///< [m]
-  double bearing_std = 0.017453292519943295;  ///< [rad] (1 deg)
-  bool use_observation_std = true;            ///< prefer the stds an observation carries
+  double range_std = 0.1;            ///< [m]
+  double bearing_std = 1 * kDegree;  ///< [rad]
+  bool use_observation_std = true;   ///< prefer the stds an observation carries
   /// Control noise (1-sigma of the control as applied over one step).
-  double sigma_speed = 0.3;                      ///< [m/s]
-  double sigma_steer = 0.05235987755982988;      ///< [rad] car-like steering angle (3 deg)
-  double sigma_turn_rate = 0.05235987755982988;  ///< [rad/s] differential-drive turn rate
+  double sigma_speed = 0.3;              ///< [m/s]
+  double sigma_steer = 3 * kDegree;      ///< [rad] car-like steering angle
+  double sigma_turn_rate = 3 * kDegree;  ///< [rad/s] differential-drive turn rate
   /// Gates on squared Mahalanobis distances (2 dof): chi2(0.9999) = 18.4, chi2(0.99) = 9.21.
   double outlier_gate = 18.420680743952367;       ///< known ids; 0 = accept every known id
   double association_gate = 9.210340371976182;    ///< nearest neighbour: match below this
   double new_landmark_gate = 18.420680743952367;  ///< nearest neighbour: new landmark above
   double ambiguity_margin = 4.0;  ///< second candidate this close in d² -> ambiguous
-  tessera::Pose2 initial_pose;    ///< map frame = the start frame by default
+  /// Start pose [x m, y m, theta rad] in the map frame (map frame = the start frame by default).
+  std::vector<double> initial_pose = {0, 0, 0};
   /// Initial pose 1-sigma [m, m, rad]; 0 = exactly known (the UKF handles a singular cov).
-  Eigen::Vector3d initial_std = Eigen::Vector3d::Zero();
+  std::vector<double> initial_std = {0, 0, 0};
   tessera::landmark_slam::UnscentedParams unscented;  ///< RbUkfSlam only
-  /// Throws std::invalid_argument naming the first bad field.
+  /// Throws std::invalid_argument naming the first bad field (its key in visit()).
   void validate() const;
+  /// initial_pose (theta wrapped) and the diagonal covariance from initial_std; valid options.
+  tessera::Pose2 startPose() const;
+  Eigen::Matrix3d startCovariance() const;
+
+  template <class V>
+  void visit(V& v) {
+    v("association", association,
+      "'known': observation ids name landmarks; 'nearest': nearest neighbour, Mahalanobis gates");
+    v("range_std", range_std, "range 1-sigma [m] when an observation carries none");
+    v("bearing_std", bearing_std, "bearing 1-sigma [rad] when an observation carries none");
+    v("use_observation_std", use_observation_std, "use the stds observations carry when > 0");
+    v("sigma_speed", sigma_speed, "control speed noise 1-sigma [m/s]");
+    v("sigma_steer", sigma_steer, "car-like steering angle noise 1-sigma [rad]");
+    v("sigma_turn_rate", sigma_turn_rate, "differential-drive turn-rate noise 1-sigma [rad/s]");
+    v("outlier_gate", outlier_gate,
+      "known ids: reject a sighting with squared Mahalanobis distance above this (0 = off)");
+    v("association_gate", association_gate, "nearest: match below this squared distance");
+    v("new_landmark_gate", new_landmark_gate, "nearest: new landmark above this squared distance");
+    v("ambiguity_margin", ambiguity_margin,
+      "nearest: drop a sighting when the second candidate is inside the gate and this close");
+    v("initial_pose", initial_pose, "start pose in the map frame [x m, y m, theta rad]");
+    v("initial_std", initial_std, "start pose 1-sigma [m, m, rad]");
+    v("unscented", unscented, "unscented transform of the rbekf filter's pose");
+  }
 };
 
 /// One range-bearing sighting (tessera::msg::LandmarkObservation without the runtime types).

@@ -24,6 +24,13 @@ struct UnscentedParams {
   double alpha = 1.0;  ///< spread of the sigma points, (0, 1]
   double beta = 2.0;   ///< prior knowledge of the distribution (2 = Gaussian)
   double kappa = 0.0;  ///< secondary scaling
+
+  template <class V>
+  void visit(V& v) {
+    v("alpha", alpha, "spread of the sigma points, (0, 1]");
+    v("beta", beta, "prior knowledge of the distribution (2 = Gaussian)");
+    v("kappa", kappa, "secondary scaling (> -3)");
+  }
 };
 
 struct UnscentedResult {

@@ -30,13 +30,18 @@
 
 #include <Eigen/Core>
 
+#include <array>
 #include <cstdint>
 #include <string>
+#include <utility>
 #include <vector>
 
 namespace tessera::line_slam {
 
 enum class Association { kCost, kThreshold };
+constexpr std::array<std::pair<const char*, Association>, 2> optionNames(Association) {
+  return {{{"cost", Association::kCost}, {"threshold", Association::kThreshold}}};
+}
 
 struct LineEkfSlamOptions {
   // Odometry (differential drive) noise, std per increment.
@@ -80,6 +85,9 @@ struct LineEkfSlamOptions {
     v("steering_sigma", steering_sigma, "car-like model: steering angle std [rad]");
     v("obs_sigma_r", obs_sigma_r, "std added to each observed line's r [m]");
     v("obs_sigma_phi", obs_sigma_phi, "std added to each observed line's phi [rad]");
+    v("association", association,
+      "'cost': lowest weighted cost among gated candidates (the paper's); 'threshold': first "
+      "candidate within the gates (the paper's old method)");
     v("gate_angle", gate_angle, "association: largest angle difference [rad] (paper 5 deg)");
     v("gate_distance", gate_distance,
       "association: largest perpendicular distance of the segment to the line [m] (paper 3 cm)");

@@ -101,10 +101,8 @@ struct LineExtractorOptions {
       "fuzzy penalty distance [m]: points farther from both lines count as noise");
     v("min_points", min_points, "segments with fewer points are dropped");
     v("min_length", min_length, "segments shorter than this are dropped [m]");
-    // Prefixed: an actor may list these beside a SLAM filter's own merge options.
-    v("segment_merge_angle", merge_angle,
-      "neighbouring segments within this angle may merge [rad]");
-    v("segment_merge_distance", merge_distance, "... and within this r difference [m]");
+    v("merge_angle", merge_angle, "neighbouring segments within this angle may merge [rad]");
+    v("merge_distance", merge_distance, "... and within this r difference [m]");
     v("max_range", max_range, "returns farther than this are not used [m]");
     v("split_fuzzy", split_fuzzy, "split by fuzzy c-lines (true) or at the farthest point");
   }

@@ -14,7 +14,7 @@
 
 namespace tessera::mapping {
 
-/// Parameters of the mapper core. Keys (see visit) are the actor's params in a profile.
+/// Parameters of the mapper core; the grid_mapper actor reads them as its group `grid`.
 struct GridMapperCoreOptions {
   double resolution = 0.05;      ///< [m/cell]
   double l_occ = 0.85;           ///< log-odds added at a beam endpoint

@@ -1,6 +1,7 @@
 // landmark_slam actor: point-landmark SLAM (docs/algorithms.md#landmark-slam) from drive controls
 // and range-bearing scans, with the EKF-SLAM baseline (filter: ekf) or the seed 004
-// Rao-Blackwellised UKF/EKF filter (filter: rbekf). The filters are LandmarkFilter cores.
+// Rao-Blackwellised UKF/EKF filter (filter: rbekf). The filters are LandmarkFilter cores; their
+// options (LandmarkSlamOptions) are the group `estimator`.
 //
 // Subscribes (reliable; local names):
 //   control         msg::DriveControl   speed + steering (car-like) or turn rate (wheelbase 0)
@@ -28,6 +29,7 @@
 #include <tessera/landmark_slam/landmark_filter.hpp>
 #include <tessera/messages/types.hpp>
 #include <tessera/runtime/actor.hpp>
+#include <tessera/runtime/options.hpp>
 
 #include <cstdint>
 #include <deque>
@@ -39,20 +41,8 @@
 namespace tessera::landmark_slam {
 
 struct LandmarkSlamActorOptions {
-  std::string filter = "rbekf";
-  std::string association = "known";
-  double range_std = 0.1;
-  double bearing_std_deg = 1.0;
-  bool use_observation_std = true;
-  double sigma_speed = 0.3;
-  double sigma_steer_deg = 3.0;
-  double sigma_turn_rate_deg = 3.0;
-  double outlier_gate = 18.420680743952367;
-  double association_gate = 9.210340371976182;
-  double new_landmark_gate = 18.420680743952367;
-  double ambiguity_margin = 4.0;
-  std::vector<double> initial_pose = {0, 0, 0};
-  std::vector<double> initial_std = {0, 0, 0};
+  FilterType filter = FilterType::kRbEkf;
+  LandmarkSlamOptions estimator;  // noise, association, gates, start pose: the filter's own
   int landmark_publish_every = 0;
   bool ground_truth = false;
   bool landmark_truth = false;
@@ -61,24 +51,8 @@ struct LandmarkSlamActorOptions {
 
   template <class V>
   void visit(V& v) {
-    v("filter", filter, "'ekf' (joint EKF-SLAM) or 'rbekf' (seed 004: UKF pose + 2x2 EKFs)");
-    v("association", association,
-      "'known' (observation ids) or 'nearest' (nearest neighbour, Mahalanobis gates)");
-    v("range_std", range_std, "range 1-sigma [m] when an observation carries none");
-    v("bearing_std_deg", bearing_std_deg, "bearing 1-sigma [deg] when an observation carries none");
-    v("use_observation_std", use_observation_std, "use the stds observations carry when > 0");
-    v("sigma_speed", sigma_speed, "control speed noise 1-sigma [m/s]");
-    v("sigma_steer_deg", sigma_steer_deg, "car-like steering angle noise 1-sigma [deg]");
-    v("sigma_turn_rate_deg", sigma_turn_rate_deg,
-      "differential-drive turn-rate noise 1-sigma [deg/s]");
-    v("outlier_gate", outlier_gate,
-      "known ids: reject a sighting with squared Mahalanobis distance above this (0 = off)");
-    v("association_gate", association_gate, "nearest: match below this squared distance");
-    v("new_landmark_gate", new_landmark_gate, "nearest: new landmark above this squared distance");
-    v("ambiguity_margin", ambiguity_margin,
-      "nearest: drop a sighting when the second candidate is inside the gate and this close");
-    v("initial_pose", initial_pose, "start pose in the map frame [x m, y m, theta rad]");
-    v("initial_std", initial_std, "start pose 1-sigma [m, m, rad]");
+    v("filter", filter, "joint EKF-SLAM or the seed 004 filter (UKF pose + 2x2 EKFs)");
+    v("estimator", estimator, "the filter's noise, data association and start pose");
     v("landmark_publish_every", landmark_publish_every,
       "publish the landmark estimate every this many scans (0 = only at the end)");
     v("ground_truth", ground_truth, "subscribe ground_truth and report ATE in the summary");
@@ -89,6 +63,22 @@ struct LandmarkSlamActorOptions {
       "with --out: draw the trajectory, landmark estimates (2-sigma ellipses) and any true "
       "landmarks into this SVG file at the end (\"\" = none)");
   }
+  // The filter's keys moved into `estimator`; the angles there are in radians.
+  static constexpr RenamedKey kRenamedKeys[] = {
+      {"association", "estimator.association"},
+      {"range_std", "estimator.range_std"},
+      {"bearing_std_deg", "estimator.bearing_std"},
+      {"use_observation_std", "estimator.use_observation_std"},
+      {"sigma_speed", "estimator.sigma_speed"},
+      {"sigma_steer_deg", "estimator.sigma_steer"},
+      {"sigma_turn_rate_deg", "estimator.sigma_turn_rate"},
+      {"outlier_gate", "estimator.outlier_gate"},
+      {"association_gate", "estimator.association_gate"},
+      {"new_landmark_gate", "estimator.new_landmark_gate"},
+      {"ambiguity_margin", "estimator.ambiguity_margin"},
+      {"initial_pose", "estimator.initial_pose"},
+      {"initial_std", "estimator.initial_std"},
+  };
 };
 
 class LandmarkSlamActor final : public Actor {

@@ -2,6 +2,7 @@
 // with the odometry pose at its stamp, predicts the filter with the odometry increment since the
 // previous scan, extracts AIEPF line segments (common/line_extraction.hpp), moves them from the
 // laser to base_link with the scan's mounting and updates a LineEkfSlam (line_ekf_slam.hpp).
+// The two cores' options are the groups `extractor` and `ekf`.
 //
 // Subscribes (local names; remap in the profile):
 //   scan          msg::LaserScan        keep_latest(scan_queue)
@@ -23,6 +24,7 @@
 #include <tessera/line_slam/line_extraction.hpp>
 #include <tessera/messages/types.hpp>
 #include <tessera/runtime/actor.hpp>
+#include <tessera/runtime/options.hpp>
 
 #include <cstdint>
 #include <optional>
@@ -32,8 +34,7 @@ namespace tessera::line_slam {
 
 struct LineSlamActorOptions {
   tessera::line_slam::LineExtractorOptions extractor;
-  LineEkfSlamOptions slam;
-  std::string association = "cost";
+  LineEkfSlamOptions ekf;
   double min_travel = 0.0;    ///< [m] update after this much travel (0: every scan)
   double min_rotation = 0.0;  ///< [rad] ... or this much rotation
   bool ground_truth = false;
@@ -47,11 +48,8 @@ struct LineSlamActorOptions {
 
   template <class V>
   void visit(V& v) {
-    extractor.visit(v);
-    slam.visit(v);
-    v("association", association,
-      "'cost' (paper: lowest weighted cost among gated candidates) or 'threshold' (the paper's "
-      "old method: first candidate within the gates)");
+    v("extractor", extractor, "line segments from each scan (AIEPF)");
+    v("ekf", ekf, "the line EKF: motion and observation noise, association, map upkeep");
     v("min_travel", min_travel, "update the filter after this much travel [m]; 0 = every scan");
     v("min_rotation", min_rotation, "... or after this much rotation [rad]");
     v("ground_truth", ground_truth,
@@ -64,6 +62,46 @@ struct LineSlamActorOptions {
     v("pose_history", pose_history, "odometry poses remembered for pairing");
     v("max_pose_gap_s", max_pose_gap_s, "do not interpolate odometry over longer gaps [s]");
   }
+  // The extractor's and the filter's keys moved into their groups (the extractor's
+  // segment_merge_* lost the prefix they needed beside the filter's merge_*).
+  static constexpr RenamedKey kRenamedKeys[] = {
+      {"range_sigma", "extractor.range_sigma"},
+      {"range_sigma_rel", "extractor.range_sigma_rel"},
+      {"breakpoint_distance", "extractor.breakpoint_distance"},
+      {"breakpoint_factor", "extractor.breakpoint_factor"},
+      {"split_mse", "extractor.split_mse"},
+      {"split_max_distance", "extractor.split_max_distance"},
+      {"fuzzy_iterations", "extractor.fuzzy_iterations"},
+      {"fuzzy_exponent", "extractor.fuzzy_exponent"},
+      {"fuzzy_far_distance", "extractor.fuzzy_far_distance"},
+      {"min_points", "extractor.min_points"},
+      {"min_length", "extractor.min_length"},
+      {"segment_merge_angle", "extractor.merge_angle"},
+      {"segment_merge_distance", "extractor.merge_distance"},
+      {"max_range", "extractor.max_range"},
+      {"split_fuzzy", "extractor.split_fuzzy"},
+      {"odom_sigma_d", "ekf.odom_sigma_d"},
+      {"odom_sigma_theta_per_m", "ekf.odom_sigma_theta_per_m"},
+      {"odom_sigma_theta", "ekf.odom_sigma_theta"},
+      {"odom_sigma_min", "ekf.odom_sigma_min"},
+      {"speed_sigma", "ekf.speed_sigma"},
+      {"steering_sigma", "ekf.steering_sigma"},
+      {"obs_sigma_r", "ekf.obs_sigma_r"},
+      {"obs_sigma_phi", "ekf.obs_sigma_phi"},
+      {"association", "ekf.association"},
+      {"gate_angle", "ekf.gate_angle"},
+      {"gate_distance", "ekf.gate_distance"},
+      {"gate_overlap", "ekf.gate_overlap"},
+      {"overlap_margin", "ekf.overlap_margin"},
+      {"cost_overlap_weight", "ekf.cost_overlap_weight"},
+      {"tentative_sightings", "ekf.tentative_sightings"},
+      {"min_segment_length", "ekf.min_segment_length"},
+      {"merge_interval", "ekf.merge_interval"},
+      {"merge_angle", "ekf.merge_angle"},
+      {"merge_distance", "ekf.merge_distance"},
+      {"merge_gap", "ekf.merge_gap"},
+      {"merge_chi2", "ekf.merge_chi2"},
+  };
 };
 
 class LineSlamActor final : public Actor {

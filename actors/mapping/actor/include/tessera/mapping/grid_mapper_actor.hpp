@@ -10,13 +10,15 @@
 // Each scan is paired with the pose of equal stamp, or interpolated between the two poses that
 // bracket its stamp (at most max_pose_gap_s apart). A scan newer than every pose waits in a
 // small buffer until its pose arrives; scans that cannot be paired are dropped and counted.
-// The laser's pose is robot pose ⊕ the scan's mount fields.
+// The laser's pose is robot pose ⊕ the scan's mount fields. The core's options
+// (GridMapperCoreOptions) are the group `grid`.
 #pragma once
 
 #include <tessera/geometry/pose_history.hpp>
 #include <tessera/mapping/grid_mapper.hpp>
 #include <tessera/messages/types.hpp>
 #include <tessera/runtime/actor.hpp>
+#include <tessera/runtime/options.hpp>
 
 #include <cstdint>
 #include <deque>
@@ -25,7 +27,7 @@
 namespace tessera::mapping {
 
 struct GridMapperOptions {
-  GridMapperCoreOptions mapper;
+  GridMapperCoreOptions grid;
   double publish_period_s = 1.0;
   std::string frame_id = "map";
   std::string pose_message = "ground_truth";
@@ -37,7 +39,7 @@ struct GridMapperOptions {
 
   template <class V>
   void visit(V& v) {
-    mapper.visit(v);
+    v("grid", grid, "the grid: resolution, log-odds, beam insertion, growth");
     v("publish_period_s", publish_period_s,
       "publish the map this often [s of runtime time] when it changed; 0: only at stop");
     v("frame_id", frame_id, "frame of the published map (the pose stream's frame)");
@@ -50,6 +52,18 @@ struct GridMapperOptions {
     v("max_pose_gap_s", max_pose_gap_s,
       "do not interpolate between poses further apart than this [s]; drop the scan");
   }
+  // The core's keys moved into the group `grid`.
+  static constexpr RenamedKey kRenamedKeys[] = {
+      {"resolution", "grid.resolution"},
+      {"l_occ", "grid.l_occ"},
+      {"l_free", "grid.l_free"},
+      {"l_min", "grid.l_min"},
+      {"l_max", "grid.l_max"},
+      {"max_range", "grid.max_range"},
+      {"max_free_range", "grid.max_free_range"},
+      {"grow_chunk_cells", "grid.grow_chunk_cells"},
+      {"max_side_cells", "grid.max_side_cells"},
+  };
 };
 
 class GridMapperActor final : public Actor {
