@@ -78,10 +78,15 @@ void addBenchMatcherCommand(CLI::App& bench, int& result) {
     if (!(o->offset >= 0.0 && o->offset <= o->linear))
       throw ConfigError("--offset must be in [0, --linear]");
     const sim::World world = sim::World::builtinOffice();
-    sim::LaserConfig laser = sim::LaserConfig::fromFieldOfView(360.0, o->beams);
-    laser.angle_min = 0.0;
-    laser.angle_increment = 2.0 * std::numbers::pi / o->beams;
+    // A full circle with the first beam straight ahead: the centred sweep (first beam at -pi)
+    // on a laser turned by pi.
+    sim::LaserConfig laser;
+    laser.fov = 2.0 * std::numbers::pi;
+    laser.beams = o->beams;
     laser.range_max = o->range;
+    laser.mount.theta = std::numbers::pi;
+    const double angle_min = laser.mount.theta + laser.angleMin();  // 0 in base_link
+    const double angle_increment = laser.angleIncrement();
     const sim::LaserModel model(world, laser);
     std::mt19937_64 rng(o->seed);
 
@@ -94,9 +99,8 @@ void addBenchMatcherCommand(CLI::App& bench, int& result) {
         const tessera::Pose2 p{x, y, 0.0};
         if (world.blocked(p.translation()) || world.clearance(p.translation(), 0.3) < 0.3) continue;
         const auto ranges = model.scan(p, rng);
-        grid.insertScan(
-            {ranges, laser.angle_min, laser.angle_increment, laser.range_min, laser.range_max},
-            {p.x, p.y, p.theta}, {o->range, o->range});
+        grid.insertScan({ranges, angle_min, angle_increment, laser.range_min, laser.range_max},
+                        {p.x, p.y, p.theta}, {o->range, o->range});
         ++mapping_scans;
       }
     const tessera::grid::OccupancyMap map = grid.toOccupancyMap();
@@ -125,7 +129,7 @@ void addBenchMatcherCommand(CLI::App& bench, int& result) {
       for (int b = 0; b < o->beams; ++b) {
         const double r = ranges[static_cast<std::size_t>(b)];
         if (!std::isfinite(r)) continue;
-        const double a = laser.angle_min + b * laser.angle_increment;
+        const double a = angle_min + b * angle_increment;
         pts.emplace_back(r * std::cos(a), r * std::sin(a));
       }
       const tessera::Pose2 t(truth.x, truth.y, truth.theta);

@@ -28,8 +28,8 @@ inline void pushScan(ActorHarness& h, Nanos stamp, const SimScans& sim,
                      const std::vector<float>& ranges) {
   h.push<msg::LaserScan>("scan", [&](auto& b) {
     setHeader(b.initHeader(), stamp, "laser", 0);
-    b.setAngleMin(static_cast<float>(sim.laser.angle_min));
-    b.setAngleIncrement(static_cast<float>(sim.laser.angle_increment));
+    b.setAngleMin(static_cast<float>(sim.laser.angleMin()));
+    b.setAngleIncrement(static_cast<float>(sim.laser.angleIncrement()));
     b.setRangeMin(static_cast<float>(sim.laser.range_min));
     b.setRangeMax(static_cast<float>(sim.laser.range_max));
     auto r = b.initRanges(static_cast<unsigned>(ranges.size()));

@@ -14,32 +14,15 @@ namespace {
 
 constexpr double kMaxTilt = 0.5;  // [rad]; beyond this the camera could see the horizon
 
-void requireFinitePositive(double v, const char* name) {
-  if (!(v > 0) || !std::isfinite(v)) {
-    std::ostringstream s;
-    s << "camera: " << name << " must be a positive number, got " << v;
-    throw std::invalid_argument(s.str());
-  }
-}
-
 }  // namespace
 
-void CameraIntrinsics::validate() const {
-  requireFinitePositive(ceiling_height, "ceiling_height");
-  requireFinitePositive(focal_px, "focal_px");
-  if (width_px < 1 || height_px < 1)
-    throw std::invalid_argument("camera: image size must be positive, got " +
-                                std::to_string(width_px) + " x " + std::to_string(height_px));
-  if (!(pixel_noise >= 0) || !std::isfinite(pixel_noise)) {
-    std::ostringstream s;
-    s << "camera: pixel_noise must be >= 0, got " << pixel_noise;
-    throw std::invalid_argument(s.str());
-  }
-  if (!(miss_probability >= 0 && miss_probability <= 1)) {
-    std::ostringstream s;
-    s << "camera: miss_probability must be in [0, 1], got " << miss_probability;
-    throw std::invalid_argument(s.str());
-  }
+ConfigCheck CameraIntrinsics::check() const {
+  ConfigCheck c;
+  c.positive("ceiling_height", ceiling_height).positive("focal_px", focal_px);
+  c.require(width_px >= 1, "width_px", "must be positive", width_px);
+  c.require(height_px >= 1, "height_px", "must be positive", height_px);
+  c.nonNegative("pixel_noise", pixel_noise).probability("miss_probability", miss_probability);
+  return c;
 }
 
 EnvironmentCamera::EnvironmentCamera(const CameraSite& site, const CameraIntrinsics& intrinsics)

@@ -8,20 +8,14 @@
 
 namespace tessera::sim {
 
-void CarLikeConfig::validate() const {
-  auto bad = [](const char* name, double v, const char* what) {
-    std::ostringstream s;
-    s << "car-like robot: " << name << " " << what << ", got " << v;
-    throw std::invalid_argument(s.str());
-  };
-  if (!(wheelbase > 0) || !std::isfinite(wheelbase)) bad("wheelbase", wheelbase, "must be > 0");
-  if (!(max_steer > 0 && max_steer < 0.5 * std::numbers::pi))
-    bad("max_steer", max_steer, "must be in (0, pi/2) rad");
-  if (!(steer_rate > 0) || !std::isfinite(steer_rate)) bad("steer_rate", steer_rate, "must be > 0");
-  if (!(sigma_speed >= 0) || !std::isfinite(sigma_speed))
-    bad("sigma_speed", sigma_speed, "must be >= 0");
-  if (!(sigma_steer >= 0) || !std::isfinite(sigma_steer))
-    bad("sigma_steer", sigma_steer, "must be >= 0");
+ConfigCheck CarLikeConfig::check() const {
+  ConfigCheck c;
+  c.positive("wheelbase", wheelbase);
+  c.require(max_steer > 0 && max_steer < 0.5 * std::numbers::pi, "max_steer",
+            "must be in (0, pi/2) rad", max_steer);
+  c.positive("steer_rate", steer_rate);
+  c.nonNegative("sigma_speed", sigma_speed).nonNegative("sigma_steer", sigma_steer);
+  return c;
 }
 
 Pose2 carLikeStep(const Pose2& p, double speed, double steer, double dt, double wheelbase) {

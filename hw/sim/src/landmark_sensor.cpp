@@ -11,22 +11,15 @@
 
 namespace tessera::sim {
 
-void LandmarkSensorConfig::validate() const {
-  auto bad = [](const char* name, double v, const char* what) {
-    std::ostringstream s;
-    s << "landmark sensor: " << name << " " << what << ", got " << v;
-    throw std::invalid_argument(s.str());
-  };
-  if (!(fov > 0 && fov <= 2 * std::numbers::pi)) bad("fov", fov, "must be in (0, 2 pi] rad");
-  if (!(min_range >= 0) || !std::isfinite(min_range)) bad("min_range", min_range, "must be >= 0");
-  if (!(max_range > min_range) || !std::isfinite(max_range))
-    bad("max_range", max_range, "must be finite and above min_range");
-  if (!(range_noise >= 0) || !std::isfinite(range_noise))
-    bad("range_noise", range_noise, "must be >= 0");
-  if (!(bearing_noise >= 0) || !std::isfinite(bearing_noise))
-    bad("bearing_noise", bearing_noise, "must be >= 0");
-  if (!std::isfinite(mount.x) || !std::isfinite(mount.y) || !std::isfinite(mount.theta))
-    bad("mount", mount.x, "must be finite");
+ConfigCheck LandmarkSensorConfig::check() const {
+  ConfigCheck c;
+  c.require(fov > 0 && fov <= 2 * std::numbers::pi, "fov", "must be in (0, 2 pi] rad", fov);
+  c.nonNegative("min_range", min_range);
+  c.require(max_range > min_range && std::isfinite(max_range), "max_range",
+            "must be finite and above min_range", max_range);
+  c.nonNegative("range_noise", range_noise).nonNegative("bearing_noise", bearing_noise);
+  c.require(allFinite(mount), "mount", "must be finite", mount.theta);
+  return c;
 }
 
 LandmarkSensor::LandmarkSensor(std::vector<PointLandmark> landmarks, LandmarkSensorConfig config,

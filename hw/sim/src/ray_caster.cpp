@@ -71,50 +71,29 @@ double RayCaster::cast(const Eigen::Vector2d& origin, double angle, double max_r
 
 // ---- LaserModel ----
 
-LaserConfig LaserConfig::fromFieldOfView(double fov_deg, int beams) {
-  if (!(fov_deg > 0 && fov_deg <= 360)) {
-    std::ostringstream s;
-    s << "laser: field of view must be in (0, 360] degrees, got " << fov_deg;
-    throw std::invalid_argument(s.str());
-  }
-  if (beams < 1)
-    throw std::invalid_argument("laser: beam count must be at least 1, got " +
-                                std::to_string(beams));
-  LaserConfig c;
-  c.beams = beams;
-  const double fov = fov_deg * std::numbers::pi / 180;
-  if (beams == 1) {
-    c.angle_min = 0;
-    c.angle_increment = fov;  // unused for one beam, but kept positive
-  } else if (fov_deg >= 360) {
-    // A full circle: spread beams so the last one does not repeat the first.
-    c.angle_min = -std::numbers::pi;
-    c.angle_increment = fov / beams;
-  } else {
-    c.angle_min = -fov / 2;
-    c.angle_increment = fov / (beams - 1);
-  }
-  return c;
+double LaserConfig::angleMin() const {
+  if (beams == 1) return 0;
+  if (fov >= 2 * std::numbers::pi) return -std::numbers::pi;  // a full circle
+  return -fov / 2;
 }
 
-void LaserConfig::validate() const {
-  auto fail = [](const char* what, double v) {
-    std::ostringstream s;
-    s << "laser: " << what << ", got " << v;
-    throw std::invalid_argument(s.str());
-  };
-  if (beams < 1) fail("beam count must be at least 1", beams);
-  if (!(angle_increment > 0) || !std::isfinite(angle_increment))
-    fail("angle increment must be positive", angle_increment);
-  if (!std::isfinite(angle_min)) fail("angle_min must be finite", angle_min);
-  if (!(range_min >= 0) || !std::isfinite(range_min)) fail("minimum range must be >= 0", range_min);
-  if (!(range_max > range_min) || !std::isfinite(range_max))
-    fail("maximum range must be finite and above the minimum range", range_max);
-  if (!(range_noise >= 0) || !std::isfinite(range_noise))
-    fail("range noise std must be >= 0", range_noise);
-  if (!(dropout >= 0 && dropout <= 1)) fail("dropout probability must be in [0, 1]", dropout);
-  if (!std::isfinite(mount.x) || !std::isfinite(mount.y) || !std::isfinite(mount.theta))
-    fail("mounting pose must be finite", mount.x);
+double LaserConfig::angleIncrement() const {
+  if (beams == 1) return fov;  // unused for one beam, but kept positive
+  // A full circle: spread beams so the last one does not repeat the first.
+  if (fov >= 2 * std::numbers::pi) return fov / beams;
+  return fov / (beams - 1);
+}
+
+ConfigCheck LaserConfig::check() const {
+  ConfigCheck c;
+  c.require(fov > 0 && fov <= 2 * std::numbers::pi, "fov", "must be in (0, 2 pi] rad", fov);
+  c.require(beams >= 1, "beams", "must be at least 1", beams);
+  c.nonNegative("range_min", range_min);
+  c.require(range_max > range_min && std::isfinite(range_max), "range_max",
+            "must be finite and above range_min", range_max);
+  c.nonNegative("range_noise", range_noise).probability("dropout", dropout);
+  c.require(allFinite(mount), "mount", "must be finite", mount.theta);
+  return c;
 }
 
 LaserModel::LaserModel(const World& world, LaserConfig config) : caster_(world), config_(config) {
@@ -126,11 +105,12 @@ void LaserModel::scan(const Pose2& base, std::mt19937_64& rng, std::span<float> 
     throw std::invalid_argument("laser: output holds " + std::to_string(ranges.size()) +
                                 " ranges, the laser has " + std::to_string(config_.beams));
   const Pose2 laser = laserPose(base);
+  const double angle_min = config_.angleMin(), angle_increment = config_.angleIncrement();
   std::normal_distribution<double> noise(0.0, 1.0);
   std::uniform_real_distribution<double> uniform(0.0, 1.0);
   constexpr float kNoReturn = std::numeric_limits<float>::infinity();
   for (int i = 0; i < config_.beams; ++i) {
-    const double angle = laser.theta + config_.angle_min + i * config_.angle_increment;
+    const double angle = laser.theta + angle_min + i * angle_increment;
     const double r = caster_.cast(laser.translation(), angle, config_.range_max);
     // Draw for every beam, hit or not, so one beam's outcome does not shift the noise of the
     // others.

@@ -16,6 +16,18 @@ Pose2 moveBy(const Pose2& p, double distance, double rotation) {
 
 // ---- Odometry ----
 
+ConfigCheck OdometryNoise::check() const {
+  ConfigCheck c;
+  c.nonNegative("sigma_d", sigma_d).nonNegative("sigma_theta", sigma_theta);
+  c.nonNegative("floor_d", floor_d).nonNegative("floor_theta", floor_theta);
+  for (const auto& [key, value] : {std::pair<const char*, double>{"bias_d", bias_d},
+                                   {"bias_theta", bias_theta},
+                                   {"drift_theta", drift_theta}})
+    c.require(std::isfinite(value) && std::abs(value) < 0.5, key,
+              "must be finite and within (-0.5, 0.5)", value);
+  return c;
+}
+
 Eigen::Vector2d Odometry::incrementStd(double distance, double rotation) const {
   // Wheels at rest report exactly zero: no floor noise, so a stopped robot does not drift.
   if (distance == 0 && rotation == 0) return Eigen::Vector2d::Zero();
@@ -49,22 +61,13 @@ Eigen::Vector2d Odometry::integrate(double distance, double rotation, std::mt199
 
 // ---- RouteFollower ----
 
-void FollowerConfig::validate() const {
-  auto positive = [](double v, const char* name) {
-    if (!(v > 0) || !std::isfinite(v)) {
-      std::ostringstream s;
-      s << "route follower: " << name << " must be positive, got " << v;
-      throw std::invalid_argument(s.str());
-    }
-  };
-  positive(v_max, "v_max");
-  positive(w_max, "w_max");
-  positive(a_max, "a_max");
-  positive(alpha_max, "alpha_max");
-  positive(lookahead, "lookahead");
-  positive(waypoint_tolerance, "waypoint_tolerance");
-  positive(heading_gain, "heading_gain");
-  positive(turn_in_place, "turn_in_place");
+ConfigCheck FollowerConfig::check() const {
+  ConfigCheck c;
+  c.positive("v_max", v_max).positive("w_max", w_max).positive("a_max", a_max);
+  c.positive("alpha_max", alpha_max).positive("lookahead", lookahead);
+  c.positive("waypoint_tolerance", waypoint_tolerance).positive("heading_gain", heading_gain);
+  c.positive("turn_in_place", turn_in_place);
+  return c;
 }
 
 RouteFollower::RouteFollower(std::vector<Eigen::Vector2d> waypoints, FollowerConfig config,

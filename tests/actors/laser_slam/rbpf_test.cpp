@@ -486,7 +486,7 @@ TEST_CASE("rbpf ignores empty, NaN and all-max-range scans and bad odometry", "[
   const float inf = std::numeric_limits<float>::infinity();
   const std::vector<float> nans(181, nan), maxed(181, inf), empty;
   const auto scanOf = [&](const std::vector<float>& r) {
-    return tessera::grid::RangeScan{r, sim.laser.angle_min, sim.laser.angle_increment,
+    return tessera::grid::RangeScan{r, sim.laser.angleMin(), sim.laser.angleIncrement(),
                                     sim.laser.range_min, sim.laser.range_max};
   };
   // Before the first usable scan: nothing starts.

@@ -27,14 +27,13 @@ struct SimScans {
   std::vector<SimScan> scans;
 
   tessera::grid::RangeScan range(const SimScan& s) const {
-    return {s.ranges, laser.angle_min, laser.angle_increment, laser.range_min, laser.range_max};
+    return {s.ranges, laser.angleMin(), laser.angleIncrement(), laser.range_min, laser.range_max};
   }
 };
 
 inline SimScans simulateRoomLoop(int laps = 1, std::uint64_t seed = 7) {
   static const sim::World world = sim::World::builtinRoom();
   SimScans out;
-  out.laser = sim::LaserConfig::fromFieldOfView(180.0, 181);
   out.laser.range_max = 30.0;
   out.laser.range_noise = 0.01;
   const sim::LaserModel model(world, out.laser);

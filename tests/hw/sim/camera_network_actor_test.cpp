@@ -4,6 +4,8 @@
 #include <tessera/runtime/registry.hpp>
 #include <tessera/sim/camera_network_actor.hpp>
 
+#include <yaml-cpp/yaml.h>
+
 #include <catch2/catch.hpp>
 
 #include "../../shared_data.hpp"
@@ -51,7 +53,7 @@ std::string configErrorOf(const CameraNetworkOptions& o) {
 TEST_CASE("CameraNetworkActor: frames at camera_hz, enter/detections/leave on a straight pass",
           "[sim][actor][camera]") {
   CameraNetworkOptions o = oneCamera();
-  o.miss_prob = 0.1;
+  o.camera.miss_probability = 0.1;
   ActorHarness h(std::make_unique<CameraNetworkActor>(o));
   drive(h);
 
@@ -121,17 +123,31 @@ TEST_CASE("CameraNetworkActor: bad options are ConfigErrors", "[sim][actor][came
   o.camera_hz = 0;
   CHECK(configErrorOf(o).find("camera_hz") != std::string::npos);
   o = oneCamera();
-  o.miss_prob = 2;
-  CHECK(configErrorOf(o).find("miss_prob") != std::string::npos);
+  o.camera.miss_probability = 2;
+  CHECK(configErrorOf(o).find("option 'camera.miss_probability'") != std::string::npos);
   o = oneCamera();
   o.marker = {1};
   CHECK(configErrorOf(o).find("marker") != std::string::npos);
   o = oneCamera();
-  o.focal_px = -1;
-  CHECK(configErrorOf(o).find("focal_px") != std::string::npos);
+  o.camera.focal_px = -1;
+  CHECK(configErrorOf(o).find("option 'camera.focal_px'") != std::string::npos);
   o = {};
   o.world = "builtin:office";  // no cameras
   CHECK(configErrorOf(o).find("camera_sites") != std::string::npos);
   CHECK(ActorRegistry::instance().find("camera_network") != nullptr);
   CHECK(ActorRegistry::instance().find("world_writer") != nullptr);
+}
+
+TEST_CASE("CameraNetworkActor: the camera group from YAML, old flat keys name the new ones",
+          "[sim][actor][camera][options]") {
+  const auto read = [](const char* yaml) {
+    return loadOptions<CameraNetworkOptions>(Params(YAML::Load(yaml), "test"));
+  };
+  const CameraNetworkOptions o = read("{camera_hz: 5, camera: {focal_px: 400, width_px: 800}}");
+  CHECK(o.camera_hz == 5);
+  CHECK(o.camera.focal_px == 400);
+  CHECK(o.camera.width_px == 800);
+  CHECK(o.camera.height_px == 480);  // default kept inside the group
+  CHECK_THROWS_WITH(read("{miss_prob: 0.1}"), Catch::Contains("camera.miss_probability"));
+  CHECK_THROWS_WITH(read("{image_width: 800}"), Catch::Contains("camera.width_px"));
 }

@@ -8,6 +8,7 @@
 #include <catch2/catch.hpp>
 
 #include <cmath>
+#include <limits>
 #include <numbers>
 
 using namespace tessera;
@@ -29,10 +30,10 @@ std::string configErrorOf(const LandmarkSimulatorOptions& o) {
 
 TEST_CASE("LandmarkSimulatorActor: the seed 004 run", "[sim][actor][landmarks]") {
   LandmarkSimulatorOptions o;
-  o.sigma_speed = 0;
-  o.sigma_steer_deg = 0;
-  o.landmark_range_noise = 0;
-  o.landmark_bearing_noise_deg = 0;
+  o.car.sigma_speed = 0;
+  o.car.sigma_steer = 0;
+  o.sensor.range_noise = 0;
+  o.sensor.bearing_noise = 0;
   ActorHarness h(std::make_unique<LandmarkSimulatorActor>(o));
   h.advance(200 * kNanosPerSecond);
 
@@ -94,7 +95,7 @@ TEST_CASE("LandmarkSimulatorActor: the seed 004 run", "[sim][actor][landmarks]")
 TEST_CASE("LandmarkSimulatorActor: noisy controls drive the odometry, same seed same run",
           "[sim][actor][landmarks]") {
   LandmarkSimulatorOptions o;
-  o.landmark_ids = false;
+  o.sensor.with_ids = false;
   auto run = [&](std::uint64_t seed) {
     o.seed = seed;
     ActorHarness h(std::make_unique<LandmarkSimulatorActor>(o));
@@ -116,17 +117,29 @@ TEST_CASE("LandmarkSimulatorActor: noisy controls drive the odometry, same seed 
 
 TEST_CASE("LandmarkSimulatorActor: options from YAML, and bad options", "[sim][actor][landmarks]") {
   const auto o = loadOptions<LandmarkSimulatorOptions>(
-      Params(YAML::Load("{speed: 2, observe_every: 1, landmark_ids: false}"), "test"));
+      Params(YAML::Load("{speed: 2, observe_every: 1, sensor: {with_ids: false, mount: {y: 1}},"
+                        " car: {max_steer: 0.4}}"),
+             "test"));
   CHECK(o.speed == 2);
-  CHECK_FALSE(o.landmark_ids);
+  CHECK_FALSE(o.sensor.with_ids);
+  CHECK(o.sensor.mount.y == 1);
+  CHECK(o.sensor.max_range == 30);  // default kept inside the group
+  CHECK(o.car.max_steer == 0.4);
+  // A flat key of earlier versions names its new place.
+  CHECK_THROWS_WITH(
+      loadOptions<LandmarkSimulatorOptions>(Params(YAML::Load("{landmark_max_range: 20}"), "test")),
+      Catch::Contains("sensor.max_range"));
+  CHECK_THROWS_WITH(
+      loadOptions<LandmarkSimulatorOptions>(Params(YAML::Load("{max_steer_deg: 20}"), "test")),
+      Catch::Contains("car.max_steer"));
   CHECK(ActorRegistry::instance().find("landmark_simulator") != nullptr);
 
   LandmarkSimulatorOptions b;
   b.step_s = 1e-10;
   CHECK(configErrorOf(b).find("step_s") != std::string::npos);
   b = {};
-  b.max_steer_deg = 95;
-  CHECK(configErrorOf(b).find("max_steer_deg") != std::string::npos);
+  b.car.max_steer = 1.6;
+  CHECK(configErrorOf(b).find("option 'car.max_steer'") != std::string::npos);
   b = {};
   b.world = "builtin:office";  // no landmarks
   CHECK(configErrorOf(b).find("landmarks") != std::string::npos);
@@ -137,6 +150,9 @@ TEST_CASE("LandmarkSimulatorActor: options from YAML, and bad options", "[sim][a
   b.observe_every = 0;
   CHECK(configErrorOf(b).find("observe_every") != std::string::npos);
   b = {};
-  b.landmark_mount = {0, 0};
-  CHECK(configErrorOf(b).find("landmark_mount") != std::string::npos);
+  b.sensor.mount.x = std::numeric_limits<double>::quiet_NaN();
+  CHECK(configErrorOf(b).find("option 'sensor.mount'") != std::string::npos);
+  b = {};
+  b.sensor.max_range = -1;
+  CHECK(configErrorOf(b).find("option 'sensor.max_range'") != std::string::npos);
 }

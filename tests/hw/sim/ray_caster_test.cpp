@@ -97,17 +97,20 @@ TEST_CASE("RayCaster: range limit, open space, start in a wall or outside", "[si
 }
 
 TEST_CASE("LaserConfig: field of view and validation", "[sim][laser]") {
-  const LaserConfig c = LaserConfig::fromFieldOfView(180, 181);
+  const LaserConfig c;  // 180 deg, 181 beams
   CHECK(c.beams == 181);
-  CHECK(c.angle_min == Approx(-kPi / 2));
-  CHECK(c.angle_increment == Approx(kPi / 180));
-  const LaserConfig full = LaserConfig::fromFieldOfView(360, 360);
-  CHECK(full.angle_min == Approx(-kPi));
-  CHECK(full.angle_increment == Approx(kPi / 180));  // last beam does not repeat the first
+  CHECK(c.angleMin() == -kPi / 2);
+  CHECK(c.angleIncrement() == Approx(kPi / 180));
+  LaserConfig full;
+  full.fov = 2 * kPi;
+  full.beams = 360;
+  CHECK(full.angleMin() == -kPi);
+  CHECK(full.angleIncrement() == Approx(kPi / 180));  // last beam does not repeat the first
+  LaserConfig one;
+  one.beams = 1;
+  CHECK(one.angleMin() == 0);
+  CHECK(one.angleIncrement() > 0);
 
-  CHECK_THROWS_AS(LaserConfig::fromFieldOfView(0, 10), std::invalid_argument);
-  CHECK_THROWS_AS(LaserConfig::fromFieldOfView(400, 10), std::invalid_argument);
-  CHECK_THROWS_AS(LaserConfig::fromFieldOfView(180, 0), std::invalid_argument);
   auto bad = [](auto change) {
     LaserConfig cfg;
     change(cfg);
@@ -118,14 +121,18 @@ TEST_CASE("LaserConfig: field of view and validation", "[sim][laser]") {
                   std::invalid_argument);
   CHECK_THROWS_AS(bad([](LaserConfig& k) { k.range_max = 0.01; }).validate(),
                   std::invalid_argument);
-  CHECK_THROWS_AS(bad([](LaserConfig& k) { k.angle_increment = 0; }).validate(),
-                  std::invalid_argument);
+  CHECK_THROWS_AS(bad([](LaserConfig& k) { k.fov = 0; }).validate(), std::invalid_argument);
+  CHECK_THROWS_AS(bad([](LaserConfig& k) { k.fov = 7; }).validate(), std::invalid_argument);
+  CHECK_THROWS_AS(bad([](LaserConfig& k) { k.beams = 0; }).validate(), std::invalid_argument);
+  CHECK_THROWS_WITH(bad([](LaserConfig& k) { k.range_max = 0.01; }).validate(),
+                    Catch::Contains("laser: range_max must be finite"));
+  CHECK(bad([](LaserConfig& k) { k.dropout = -1; }).check().problem()->key == "dropout");
   LaserConfig{}.validate();  // defaults are valid
 }
 
 TEST_CASE("LaserModel: noiseless scan equals ray casts from the laser pose", "[sim][laser]") {
   const World box = World::box(10.0, 8.0, 0.1);
-  LaserConfig cfg = LaserConfig::fromFieldOfView(180, 181);
+  LaserConfig cfg;
   cfg.range_noise = 0;
   cfg.mount = {0.3, -0.1, 0.2};
   const LaserModel laser(box, cfg);
@@ -160,7 +167,7 @@ TEST_CASE("LaserModel: range noise, range limits and dropouts", "[sim][laser]") 
       const auto r = laser.scan(centre, rng);
       for (int i = 0; i < cfg.beams; ++i) {
         const double e =
-            r[i] - rc.cast(centre.translation(), cfg.angle_min + i * cfg.angle_increment, 30);
+            r[i] - rc.cast(centre.translation(), cfg.angleMin() + i * cfg.angleIncrement(), 30);
         sum += e;
         sum2 += e * e;
         ++n;

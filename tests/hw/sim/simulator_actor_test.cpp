@@ -116,8 +116,8 @@ TEST_CASE("SimulatorActor: publishes scans at 10 Hz, odometry at 50 Hz, ground t
 
 TEST_CASE("SimulatorActor: noiseless scans are ray casts from the true pose", "[sim][actor]") {
   SimulatorOptions o = shortRun();
-  o.laser_range_noise = 0;
-  o.laser_mount = {0.2, 0.0, 0.0};
+  o.laser.range_noise = 0;
+  o.laser.mount = {0.2, 0.0, 0.0};
   ActorHarness h(make(o));
   h.advance(secondsToNanos(3.0));
   const auto scans = h.published<msg::LaserScan>("scan");
@@ -151,7 +151,7 @@ TEST_CASE("SimulatorActor: odometry equals ground truth without noise and drifts
   o.route = {{7.5, 7.5}, {21.0, 7.5}, {21.0, 4.0}, {24.0, 2.5}};
 
   auto drive = [&](double sigma) {
-    o.sigma_d = o.sigma_theta = sigma;
+    o.odometry.sigma_d = o.odometry.sigma_theta = sigma;
     auto h = std::make_unique<ActorHarness>(make(o));
     runToEnd(*h, 200);
     return h;
@@ -286,10 +286,10 @@ TEST_CASE("SimulatorActor: the same seed gives the same run", "[sim][actor]") {
 
 TEST_CASE("SimulatorActor: laser options", "[sim][actor]") {
   SimulatorOptions o = shortRun();
-  o.laser_fov_deg = 360;
-  o.laser_beams = 720;
-  o.laser_max_range = 4.0;
-  o.laser_dropout = 1.0;
+  o.laser.fov = 2 * std::numbers::pi;
+  o.laser.beams = 720;
+  o.laser.range_max = 4.0;
+  o.laser.dropout = 1.0;
   o.scan_hz = 20;
   ActorHarness h(make(o));
   h.advance(secondsToNanos(0.5));
@@ -304,22 +304,31 @@ TEST_CASE("SimulatorActor: laser options", "[sim][actor]") {
 }
 
 TEST_CASE("SimulatorActor: options from YAML and the registry", "[sim][actor][options]") {
-  const SimulatorOptions o =
-      optionsFromYaml("{route: [[7.5, 7.5], [12, 7.5]], laps: 2, sigma_d: 0.1, seed: 9}");
+  const SimulatorOptions o = optionsFromYaml(
+      "{route: [[7.5, 7.5], [12, 7.5]], laps: 2, odometry: {sigma_d: 0.1}, seed: 9,"
+      " laser: {beams: 361, mount: {x: 0.2}}, follower: {v_max: 0.3}}");
   REQUIRE(o.route.size() == 2);
   CHECK(o.route[1][0] == 12.0);
   CHECK(o.laps == 2);
-  CHECK(o.sigma_d == 0.1);
+  CHECK(o.odometry.sigma_d == 0.1);
+  CHECK(o.odometry.sigma_theta == 0.05);  // default kept inside the group
+  CHECK(o.laser.beams == 361);
+  CHECK(o.laser.mount.x == 0.2);
+  CHECK(o.laser.mount.theta == 0);
+  CHECK(o.follower.v_max == 0.3);
   CHECK(o.seed == 9u);
   CHECK(o.scan_hz == 10);  // default kept
 
   CHECK_THROWS_AS(optionsFromYaml("{bogus: 1}"), ConfigError);
   CHECK_THROWS_AS(optionsFromYaml("{laps: many}"), ConfigError);
+  // A flat key of earlier versions names its new place.
+  CHECK_THROWS_WITH(optionsFromYaml("{laser_max_range: 4}"), Catch::Contains("laser.range_max"));
+  CHECK_THROWS_WITH(optionsFromYaml("{odom_bias_d: 0.1}"), Catch::Contains("odometry.bias_d"));
 
   const auto* entry = ActorRegistry::instance().find("simulator");
   REQUIRE(entry != nullptr);
   const auto rows = entry->options();
-  CHECK(rows.size() == 22);
+  CHECK(rows.size() == 32);
   for (const auto& row : rows) CHECK_FALSE(row[2].empty());  // every key documented
   auto actor = ActorRegistry::instance().create(
       "simulator", Params(YAML::Load("{route: [[7.5, 7.5], [12, 7.5]]}"), "test"));
@@ -388,19 +397,20 @@ TEST_CASE("SimulatorActor: bad options are ConfigErrors that say what is wrong",
   }
 
   SECTION("robot and laser") {
-    contains(with([](auto& o) { o.v_max = 0; }), "v_max");
-    contains(with([](auto& o) { o.w_max = -1; }), "w_max");
-    contains(with([](auto& o) { o.sigma_d = -0.1; }), "sigma_d");
-    contains(with([](auto& o) { o.laser_beams = 0; }), "laser_beams");
-    contains(with([](auto& o) { o.laser_fov_deg = 0; }), "laser_fov_deg");
-    contains(with([](auto& o) { o.laser_dropout = 2; }), "laser_dropout");
-    contains(with([](auto& o) { o.laser_max_range = 0.01; }), "laser_max_range");
-    contains(with([](auto& o) { o.laser_min_range = -1; }), "laser_min_range");
-    contains(with([](auto& o) { o.laser_range_noise = -0.01; }), "laser_range_noise");
+    // Errors name the full dotted key.
+    contains(with([](auto& o) { o.follower.v_max = 0; }), "option 'follower.v_max'");
+    contains(with([](auto& o) { o.follower.w_max = -1; }), "option 'follower.w_max'");
+    contains(with([](auto& o) { o.odometry.sigma_d = -0.1; }), "option 'odometry.sigma_d'");
+    contains(with([](auto& o) { o.odometry.bias_theta = 0.7; }), "option 'odometry.bias_theta'");
+    contains(with([](auto& o) { o.laser.beams = 0; }), "option 'laser.beams'");
+    contains(with([](auto& o) { o.laser.fov = 0; }), "option 'laser.fov'");
+    contains(with([](auto& o) { o.laser.dropout = 2; }), "option 'laser.dropout'");
+    contains(with([](auto& o) { o.laser.range_max = 0.01; }), "option 'laser.range_max'");
+    contains(with([](auto& o) { o.laser.range_min = -1; }), "option 'laser.range_min'");
+    contains(with([](auto& o) { o.laser.range_noise = -0.01; }), "option 'laser.range_noise'");
     contains(with([](auto& o) {
-               o.laser_mount = {0, 0, std::numeric_limits<double>::quiet_NaN()};
+               o.laser.mount = {0, 0, std::numeric_limits<double>::quiet_NaN()};
              }),
-             "laser_mount");
-    contains(with([](auto& o) { o.laser_mount = {1.0}; }), "laser_mount");
+             "option 'laser.mount'");
   }
 }

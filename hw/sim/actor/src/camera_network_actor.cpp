@@ -4,100 +4,58 @@
 #include <tessera/sim/robot.hpp>
 #include <tessera/sim/world.hpp>
 
+#include "option_checks.hpp"
+
 #include <cmath>
 #include <filesystem>
 #include <fstream>
 #include <iomanip>
-#include <sstream>
 #include <stdexcept>
 
 namespace tessera::sim {
 
 namespace {
 
-[[noreturn]] void fail(const std::string& key, const std::string& what) {
-  throw ConfigError("camera_network: option '" + key + "': " + what);
-}
+using detail::str;
 
-template <typename T>
-std::string str(const T& v) {
-  std::ostringstream s;
-  s << v;
-  return s.str();
-}
+constexpr detail::OptionErrors kErrors("camera_network");
 
-std::vector<CameraSite> worldSites(const CameraNetworkOptions& o) {
-  try {
-    const World w = World::fromSpec(o.world, o.world_resolution);
+std::vector<CameraSite> sitesOf(const CameraNetworkOptions& o) {
+  if (o.camera_sites.empty()) {
+    const World w = kErrors.loadWorld(o.world, o.world_resolution);
     if (w.cameraSites().empty())
-      fail("camera_sites", "world '" + w.name() + "' has no cameras; give camera_sites");
+      kErrors.fail("camera_sites", "world '" + w.name() + "' has no cameras; give camera_sites");
     return w.cameraSites();
-  } catch (const ConfigError&) {
-    throw;
-  } catch (const std::invalid_argument& e) {
-    fail("world_resolution", e.what());
-  } catch (const std::exception& e) {
-    fail("world", e.what());
   }
-}
-
-std::mt19937_64 cameraRng(std::uint64_t seed) {
-  std::seed_seq seq{static_cast<std::uint32_t>(seed), static_cast<std::uint32_t>(seed >> 32),
-                    0x63616d73u};  // "cams"
-  return std::mt19937_64(seq);
+  std::vector<CameraSite> sites;
+  for (std::size_t i = 0; i < o.camera_sites.size(); ++i) {
+    CameraSite site;
+    site.id = static_cast<int>(i);
+    site.position = {o.camera_sites[i][0], o.camera_sites[i][1]};
+    if (!site.position.allFinite())
+      kErrors.fail("camera_sites", "site " + str(i) + " is not finite");
+    sites.push_back(site);
+  }
+  return sites;
 }
 
 }  // namespace
 
 CameraNetworkActor::CameraNetworkActor(CameraNetworkOptions options)
-    : options_(std::move(options)), rng_(cameraRng(options_.seed)) {
+    : options_(std::move(options)),
+      rng_(detail::seededStream(options_.seed, detail::NoiseStream::kCameras)) {
   const auto& o = options_;
-  if (o.camera_hz <= 0) fail("camera_hz", "must be positive, got " + str(o.camera_hz));
+  if (o.camera_hz <= 0) kErrors.fail("camera_hz", "must be positive, got " + str(o.camera_hz));
   period_ = kNanosPerSecond / o.camera_hz;
-  if (o.marker.size() != 2) fail("marker", "needs 2 values [x, y], got " + str(o.marker.size()));
-  if (!std::isfinite(o.marker[0]) || !std::isfinite(o.marker[1])) fail("marker", "not finite");
-  CameraIntrinsics in;
-  in.ceiling_height = o.ceiling_height;
-  in.focal_px = o.focal_px;
-  in.width_px = o.image_width;
-  in.height_px = o.image_height;
-  in.pixel_noise = o.pixel_noise;
-  in.miss_probability = o.miss_prob;
-  struct Check {
-    const char* key;
-    bool ok;
-    double value;
-    const char* rule;
-  };
-  const Check checks[] = {
-      {"ceiling_height", in.ceiling_height > 0 && std::isfinite(in.ceiling_height),
-       in.ceiling_height, "must be positive"},
-      {"focal_px", in.focal_px > 0 && std::isfinite(in.focal_px), in.focal_px, "must be positive"},
-      {"image_width", in.width_px > 0, static_cast<double>(in.width_px), "must be positive"},
-      {"image_height", in.height_px > 0, static_cast<double>(in.height_px), "must be positive"},
-      {"pixel_noise", in.pixel_noise >= 0 && std::isfinite(in.pixel_noise), in.pixel_noise,
-       "must be >= 0"},
-      {"miss_prob", in.miss_probability >= 0 && in.miss_probability <= 1, in.miss_probability,
-       "is a probability in [0, 1]"}};
-  for (const Check& c : checks)
-    if (!c.ok) fail(c.key, std::string(c.rule) + ", got " + str(c.value));
-
-  std::vector<CameraSite> sites;
-  if (o.camera_sites.empty()) {
-    sites = worldSites(o);
-  } else {
-    for (std::size_t i = 0; i < o.camera_sites.size(); ++i) {
-      CameraSite site;
-      site.id = static_cast<int>(i);
-      site.position = {o.camera_sites[i][0], o.camera_sites[i][1]};
-      if (!site.position.allFinite()) fail("camera_sites", "site " + str(i) + " is not finite");
-      sites.push_back(site);
-    }
-  }
+  if (o.marker.size() != 2)
+    kErrors.fail("marker", "needs 2 values [x, y], got " + str(o.marker.size()));
+  if (!std::isfinite(o.marker[0]) || !std::isfinite(o.marker[1]))
+    kErrors.fail("marker", "not finite");
+  kErrors.check(o.camera.check(), "camera");
   try {
-    network_.emplace(sites, in);
+    network_.emplace(sitesOf(o), o.camera);
   } catch (const std::invalid_argument& e) {
-    fail("camera_sites", e.what());
+    kErrors.fail("camera_sites", e.what());
   }
 }
 
@@ -164,7 +122,7 @@ void CameraNetworkActor::onPose(Nanos stamp, double x, double y, double theta) {
     } else {
       ++misses_;
     }
-    b.setPixelStd(options_.pixel_noise);
+    b.setPixelStd(options_.camera.pixel_noise);
     detection_pub_.publish(std::move(loan));
   }
 }

@@ -2,129 +2,62 @@
 
 #include <tessera/runtime/registry.hpp>
 
+#include "option_checks.hpp"
+
 #include <cmath>
-#include <numbers>
-#include <sstream>
 #include <stdexcept>
 
 namespace tessera::sim {
 
 namespace {
 
-constexpr double kDeg = std::numbers::pi / 180;
-
-[[noreturn]] void fail(const std::string& key, const std::string& what) {
-  throw ConfigError("landmark_simulator: option '" + key + "': " + what);
-}
-
-template <typename T>
-std::string str(const T& v) {
-  std::ostringstream s;
-  s << v;
-  return s.str();
-}
-
-World loadWorld(const LandmarkSimulatorOptions& o) {
-  try {
-    return World::fromSpec(o.world, o.world_resolution);
-  } catch (const std::invalid_argument& e) {
-    fail("world_resolution", e.what());
-  } catch (const std::exception& e) {
-    fail("world", e.what());
-  }
-}
-
-std::mt19937_64 sensorRng(std::uint64_t seed) {
-  std::seed_seq seq{static_cast<std::uint32_t>(seed), static_cast<std::uint32_t>(seed >> 32),
-                    0x6c6d6b73u};  // "lmks"
-  return std::mt19937_64(seq);
-}
+constexpr detail::OptionErrors kErrors("landmark_simulator");
 
 }  // namespace
 
 LandmarkSimulatorActor::LandmarkSimulatorActor(LandmarkSimulatorOptions options)
     : options_(std::move(options)),
-      world_(loadWorld(options_)),
-      sensor_rng_(sensorRng(options_.seed)) {
+      world_(kErrors.loadWorld(options_.world, options_.world_resolution)),
+      sensor_rng_(detail::seededStream(options_.seed, detail::NoiseStream::kLandmarkSensor)) {
   const auto& o = options_;
-  auto positive = [](const char* key, double v) {
-    if (!(v > 0) || !std::isfinite(v)) fail(key, "must be positive, got " + str(v));
-  };
-  auto nonNegative = [](const char* key, double v) {
-    if (!(v >= 0) || !std::isfinite(v)) fail(key, "must be >= 0, got " + str(v));
-  };
-  positive("step_s", o.step_s);
+  kErrors.check(ConfigCheck().positive("step_s", o.step_s));
   period_ = static_cast<Nanos>(std::llround(o.step_s * 1e9));
   if (period_ < 1 || std::abs(static_cast<double>(period_) * 1e-9 - o.step_s) > 1e-12)
-    fail("step_s", str(o.step_s) + " s is not a whole number of nanoseconds");
+    kErrors.fail("step_s", detail::str(o.step_s) + " s is not a whole number of nanoseconds");
   dt_ = nanosToSeconds(period_);
-  positive("speed", o.speed);
-  positive("wheelbase", o.wheelbase);
-  if (!(o.max_steer_deg > 0 && o.max_steer_deg < 90))
-    fail("max_steer_deg", "must be in (0, 90), got " + str(o.max_steer_deg));
-  positive("steer_rate_deg", o.steer_rate_deg);
-  nonNegative("sigma_speed", o.sigma_speed);
-  nonNegative("sigma_steer_deg", o.sigma_steer_deg);
-  positive("waypoint_tolerance", o.waypoint_tolerance);
-  if (o.observe_every < 1) fail("observe_every", "must be at least 1, got " + str(o.observe_every));
-  if (!(o.landmark_fov_deg > 0 && o.landmark_fov_deg <= 360))
-    fail("landmark_fov_deg", "must be in (0, 360], got " + str(o.landmark_fov_deg));
-  nonNegative("landmark_min_range", o.landmark_min_range);
-  if (!(o.landmark_max_range > o.landmark_min_range) || !std::isfinite(o.landmark_max_range))
-    fail("landmark_max_range",
-         "must be finite and above landmark_min_range, got " + str(o.landmark_max_range));
-  nonNegative("landmark_range_noise", o.landmark_range_noise);
-  nonNegative("landmark_bearing_noise_deg", o.landmark_bearing_noise_deg);
-  if (o.landmark_mount.size() != 3)
-    fail("landmark_mount", "needs 3 values [x, y, theta], got " + str(o.landmark_mount.size()));
-  nonNegative("max_sim_time_s", o.max_sim_time_s);
+  kErrors.check(
+      ConfigCheck()
+          .positive("speed", o.speed)
+          .positive("waypoint_tolerance", o.waypoint_tolerance)
+          .require(o.observe_every >= 1, "observe_every", "must be at least 1", o.observe_every)
+          .nonNegative("max_sim_time_s", o.max_sim_time_s));
+  kErrors.check(o.car.check(), "car");
+  kErrors.check(o.sensor.check(), "sensor");
 
   // Route and landmarks: given, or the world's.
-  if (o.route.empty()) {
-    route_ = world_.defaultRoute();
-    if (route_.empty())
-      fail("route", "world '" + world_.name() + "' has no default route; give waypoints");
-  } else {
-    for (const auto& p : o.route) route_.emplace_back(p[0], p[1]);
-  }
+  route_ = kErrors.routeOrDefault(world_, o.route);
   try {
     checkRoute(world_, route_);
     steering_.emplace(route_, o.waypoint_tolerance);
   } catch (const std::invalid_argument& e) {
-    fail("route", e.what());
+    kErrors.fail("route", e.what());
   }
   std::vector<PointLandmark> landmarks;
   if (o.landmarks.empty()) {
     landmarks = world_.landmarks();
     if (landmarks.empty())
-      fail("landmarks", "world '" + world_.name() + "' has no landmarks; give landmarks");
+      kErrors.fail("landmarks", "world '" + world_.name() + "' has no landmarks; give landmarks");
   } else {
     for (std::size_t i = 0; i < o.landmarks.size(); ++i)
       landmarks.push_back({static_cast<int>(i), {o.landmarks[i][0], o.landmarks[i][1]}});
   }
-
-  LandmarkSensorConfig sc;
-  sc.fov = o.landmark_fov_deg * kDeg;
-  sc.max_range = o.landmark_max_range;
-  sc.min_range = o.landmark_min_range;
-  sc.range_noise = o.landmark_range_noise;
-  sc.bearing_noise = o.landmark_bearing_noise_deg * kDeg;
-  sc.with_ids = o.landmark_ids;
-  sc.occlusion = o.landmark_occlusion;
-  sc.mount = {o.landmark_mount[0], o.landmark_mount[1], o.landmark_mount[2]};
   try {
-    sensor_.emplace(std::move(landmarks), sc, &world_);
+    sensor_.emplace(std::move(landmarks), o.sensor, &world_);
   } catch (const std::invalid_argument& e) {
-    fail(o.landmarks.empty() ? "world" : "landmarks", e.what());  // the numbers were checked
+    // The sensor's numbers were checked above: the landmarks themselves are wrong.
+    kErrors.fail(o.landmarks.empty() ? "world" : "landmarks", e.what());
   }
-
-  CarLikeConfig car;
-  car.wheelbase = o.wheelbase;
-  car.max_steer = o.max_steer_deg * kDeg;
-  car.steer_rate = o.steer_rate_deg * kDeg;
-  car.sigma_speed = o.sigma_speed;
-  car.sigma_steer = o.sigma_steer_deg * kDeg;
-  robot_.emplace(steering_->startPose(), car, o.seed);
+  robot_.emplace(steering_->startPose(), o.car, o.seed);
 
   const double limit_s =
       o.max_sim_time_s > 0 ? o.max_sim_time_s : 3 * steering_->totalLength() / o.speed + 60;
@@ -183,7 +116,7 @@ void LandmarkSimulatorActor::tick() {
       const DriveCommand& u = robot_->lastReportedControl();
       b.initTwist().setVx(u.speed * std::cos(u.steer));
       b.getTwist().setVy(u.speed * std::sin(u.steer));
-      b.getTwist().setOmega(u.speed * std::sin(u.steer) / options_.wheelbase);
+      b.getTwist().setOmega(u.speed * std::sin(u.steer) / options_.car.wheelbase);
     }
     odom_pub_.publish(std::move(loan));
   }
@@ -226,7 +159,7 @@ void LandmarkSimulatorActor::tick() {
     setHeader(b.initHeader(), stamp, "base_link", control_pub_.nextSeq());
     b.setSpeed(u.speed);
     b.setSteering(u.steer);
-    b.setWheelbase(options_.wheelbase);
+    b.setWheelbase(options_.car.wheelbase);
     b.setTurnRate(0);
     b.setDtS(dt_);
     control_pub_.publish(std::move(loan));

@@ -3,61 +3,36 @@
 #include <tessera/messages/views.hpp>
 #include <tessera/runtime/registry.hpp>
 
+#include "option_checks.hpp"
+
 #include <cmath>
-#include <sstream>
 #include <stdexcept>
 
 namespace tessera::sim {
 
 namespace {
 
-[[noreturn]] void fail(const std::string& key, const std::string& what) {
-  throw ConfigError("simulator: option '" + key + "': " + what);
-}
+using detail::str;
 
-template <typename T>
-std::string str(const T& v) {
-  std::ostringstream s;
-  s << v;
-  return s.str();
-}
-
-World loadWorld(const SimulatorOptions& o) {
-  try {
-    return World::fromSpec(o.world, o.world_resolution);
-  } catch (const std::invalid_argument& e) {
-    fail("world_resolution", e.what());
-  } catch (const std::exception& e) {
-    fail("world", e.what());
-  }
-}
-
-// Noise draws for the laser come from their own stream, so changing the laser (beam count,
-// dropout) does not change the odometry noise of a run with the same seed.
-std::mt19937_64 laserRng(std::uint64_t seed) {
-  std::seed_seq seq{static_cast<std::uint32_t>(seed), static_cast<std::uint32_t>(seed >> 32),
-                    0x6c617372u};  // "lasr"
-  return std::mt19937_64(seq);
-}
+constexpr detail::OptionErrors kErrors("simulator");
 
 }  // namespace
 
 SimulatorActor::SimulatorActor(SimulatorOptions options)
     : options_(std::move(options)),
-      world_(loadWorld(options_)),
-      laser_rng_(laserRng(options_.seed)) {
+      world_(kErrors.loadWorld(options_.world, options_.world_resolution)) {
   const auto& o = options_;
 
   // Rates: exact integer periods, so every stamp is a whole number of steps.
-  if (o.step_hz <= 0) fail("step_hz", "must be positive, got " + str(o.step_hz));
+  if (o.step_hz <= 0) kErrors.fail("step_hz", "must be positive, got " + str(o.step_hz));
   if (kNanosPerSecond % o.step_hz != 0)
-    fail("step_hz", str(o.step_hz) +
-                        " Hz has no whole-nanosecond period; use a divisor of 1e9 such as 50, "
-                        "100, 200, 250, 500 or 1000");
+    kErrors.fail("step_hz", str(o.step_hz) +
+                                " Hz has no whole-nanosecond period; use a divisor of 1e9 such "
+                                "as 50, 100, 200, 250, 500 or 1000");
   auto divisor = [&](const char* key, int hz) -> std::uint64_t {
-    if (hz <= 0) fail(key, "must be positive, got " + str(hz));
+    if (hz <= 0) kErrors.fail(key, "must be positive, got " + str(hz));
     if (hz > o.step_hz || o.step_hz % hz != 0)
-      fail(key, str(hz) + " Hz must divide step_hz (" + str(o.step_hz) + " Hz)");
+      kErrors.fail(key, str(hz) + " Hz must divide step_hz (" + str(o.step_hz) + " Hz)");
     return static_cast<std::uint64_t>(o.step_hz / hz);
   };
   odom_every_ = divisor("odom_hz", o.odom_hz);
@@ -65,85 +40,31 @@ SimulatorActor::SimulatorActor(SimulatorOptions options)
   period_ = kNanosPerSecond / o.step_hz;
   dt_ = nanosToSeconds(period_);
 
-  if (o.laps < 1) fail("laps", "must be at least 1, got " + str(o.laps));
-  if (!(o.sigma_d >= 0) || !std::isfinite(o.sigma_d))
-    fail("sigma_d", "must be >= 0, got " + str(o.sigma_d));
-  if (!(o.sigma_theta >= 0) || !std::isfinite(o.sigma_theta))
-    fail("sigma_theta", "must be >= 0, got " + str(o.sigma_theta));
-  for (const auto& [key, value] : {std::pair<const char*, double>{"odom_bias_d", o.odom_bias_d},
-                                   {"odom_bias_theta", o.odom_bias_theta},
-                                   {"odom_drift_theta", o.odom_drift_theta}})
-    if (!std::isfinite(value) || std::abs(value) >= 0.5)
-      fail(key, "must be finite and within (-0.5, 0.5), got " + str(value));
-  if (!(o.v_max > 0) || !std::isfinite(o.v_max))
-    fail("v_max", "must be positive, got " + str(o.v_max));
-  if (!(o.w_max > 0) || !std::isfinite(o.w_max))
-    fail("w_max", "must be positive, got " + str(o.w_max));
-  if (!(o.laser_min_range >= 0) || !std::isfinite(o.laser_min_range))
-    fail("laser_min_range", "must be >= 0, got " + str(o.laser_min_range));
-  if (!(o.laser_max_range > o.laser_min_range) || !std::isfinite(o.laser_max_range))
-    fail("laser_max_range", "must be finite and above laser_min_range (" + str(o.laser_min_range) +
-                                "), got " + str(o.laser_max_range));
-  if (!(o.laser_range_noise >= 0) || !std::isfinite(o.laser_range_noise))
-    fail("laser_range_noise", "must be >= 0, got " + str(o.laser_range_noise));
-  if (!(o.laser_dropout >= 0 && o.laser_dropout <= 1))
-    fail("laser_dropout", "is a probability in [0, 1], got " + str(o.laser_dropout));
-  if (o.laser_mount.size() != 3)
-    fail("laser_mount", "needs 3 values [x, y, theta], got " + str(o.laser_mount.size()));
-
-  // Laser.
-  LaserConfig laser;
-  try {
-    laser = LaserConfig::fromFieldOfView(o.laser_fov_deg, o.laser_beams);
-  } catch (const std::invalid_argument& e) {
-    fail(o.laser_beams < 1 ? "laser_beams" : "laser_fov_deg", e.what());
-  }
-  laser.range_min = o.laser_min_range;
-  laser.range_max = o.laser_max_range;
-  laser.range_noise = o.laser_range_noise;
-  laser.dropout = o.laser_dropout;
-  laser.mount = {o.laser_mount[0], o.laser_mount[1], o.laser_mount[2]};
-  try {
-    laser_.emplace(world_, laser);
-  } catch (const std::invalid_argument& e) {
-    fail("laser_mount", e.what());  // every other laser field was checked above
-  }
+  if (o.laps < 1) kErrors.fail("laps", "must be at least 1, got " + str(o.laps));
+  kErrors.check(o.follower.check(), "follower");
+  kErrors.check(o.odometry.check(), "odometry");
+  kErrors.check(o.laser.check(), "laser");
+  laser_.emplace(world_, o.laser);
+  laser_rng_ = detail::seededStream(o.seed, detail::NoiseStream::kLaser);
 
   // Route: given, or the world's own.
-  if (o.route.empty()) {
-    route_ = world_.defaultRoute();
-    if (route_.empty())
-      fail("route", "world '" + world_.name() + "' has no default route; give waypoints");
-  } else {
-    for (const auto& p : o.route) route_.emplace_back(p[0], p[1]);
-  }
+  route_ = kErrors.routeOrDefault(world_, o.route);
   const bool open = (route_.back() - route_.front()).norm() > 1e-6;
   try {
     checkRoute(world_, route_, /*closed=*/o.laps > 1 && open);
+    follower_.emplace(route_, o.follower, o.laps);
   } catch (const std::invalid_argument& e) {
-    fail("route", e.what());
+    kErrors.fail("route", e.what());  // the follower's speeds and the laps were checked above
   }
-
-  FollowerConfig follow;
-  follow.v_max = o.v_max;
-  follow.w_max = o.w_max;
-  try {
-    follower_.emplace(route_, follow, o.laps);
-  } catch (const std::invalid_argument& e) {
-    fail("route", e.what());  // speeds and laps were checked above
-  }
-  robot_.emplace(follower_->startPose(),
-                 OdometryNoise{o.sigma_d, o.sigma_theta, 1e-5, 1e-5, o.odom_bias_d,
-                               o.odom_bias_theta, o.odom_drift_theta},
-                 o.seed);
+  robot_.emplace(follower_->startPose(), o.odometry, o.seed);
 }
 
 void SimulatorActor::configure(ActorContext& ctx) {
   ctx_ = &ctx;
-  ctx.declareFiniteSource();
   scan_pub_ = ctx.advertise<msg::LaserScan>("scan");
   odom_pub_ = ctx.advertise<msg::Odometry>("odom");
   gt_pub_ = ctx.advertise<msg::GroundTruthPose>("ground_truth");
+  ctx.declareFiniteSource();  // ends once every lap is driven
   ctx.addTimer(
       period_, [this] { tick(); }, 0);
 }
@@ -223,8 +144,8 @@ void SimulatorActor::publishScan(Nanos stamp) {
   auto loan = scan_pub_.loan(static_cast<std::size_t>(c.beams) * sizeof(float) + 256);
   auto b = loan.builder();
   setHeader(b.initHeader(), stamp, "laser", scan_pub_.nextSeq());
-  b.setAngleMin(static_cast<float>(c.angle_min));
-  b.setAngleIncrement(static_cast<float>(c.angle_increment));
+  b.setAngleMin(static_cast<float>(c.angleMin()));
+  b.setAngleIncrement(static_cast<float>(c.angleIncrement()));
   b.setRangeMin(static_cast<float>(c.range_min));
   b.setRangeMax(static_cast<float>(c.range_max));
   b.setScanTimeS(0.0f);  // the simulated sweep is instantaneous

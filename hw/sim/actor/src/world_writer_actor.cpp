@@ -2,6 +2,8 @@
 
 #include <tessera/runtime/registry.hpp>
 
+#include "option_checks.hpp"
+
 #include <cmath>
 #include <filesystem>
 #include <fstream>
@@ -12,17 +14,7 @@ namespace tessera::sim {
 
 namespace {
 
-World load(const WorldWriterOptions& o) {
-  constexpr std::string_view kBuiltin = "builtin:";
-  try {
-    if (o.world.starts_with(kBuiltin)) return World::builtin(o.world.substr(kBuiltin.size()));
-    return World::fromImage(o.world, o.world_resolution);
-  } catch (const std::invalid_argument& e) {
-    throw ConfigError(std::string("world_writer: option 'world_resolution': ") + e.what());
-  } catch (const std::exception& e) {
-    throw ConfigError(std::string("world_writer: option 'world': ") + e.what());
-  }
-}
+constexpr detail::OptionErrors kErrors("world_writer");
 
 std::ofstream openOut(const std::filesystem::path& path) {
   std::ofstream out(path);
@@ -39,9 +31,9 @@ void closeOut(std::ofstream& out, const std::filesystem::path& path) {
 }  // namespace
 
 WorldWriterActor::WorldWriterActor(WorldWriterOptions options)
-    : options_(std::move(options)), world_(load(options_)) {
-  if (!(options_.walls_min_length >= 0) || !std::isfinite(options_.walls_min_length))
-    throw ConfigError("world_writer: option 'walls_min_length': must be >= 0");
+    : options_(std::move(options)),
+      world_(kErrors.loadWorld(options_.world, options_.world_resolution)) {
+  kErrors.check(ConfigCheck().nonNegative("walls_min_length", options_.walls_min_length));
 }
 
 void WorldWriterActor::start() {

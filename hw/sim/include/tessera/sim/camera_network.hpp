@@ -28,6 +28,7 @@
 // camera in view is fixed (one uniform, two normals), so outcomes do not shift the stream.
 #pragma once
 
+#include <tessera/sim/config_check.hpp>
 #include <tessera/sim/world.hpp>
 
 #include <Eigen/Core>
@@ -47,8 +48,21 @@ struct CameraIntrinsics {
   int height_px = 480;
   double pixel_noise = 1.0;        ///< std of the reported pixel, per axis [px]
   double miss_probability = 0.05;  ///< chance a marker in view is not detected in a frame
+
+  template <class V>
+  void visit(V& v) {
+    v("ceiling_height", ceiling_height, "camera centre above the marker plane [m]");
+    v("focal_px", focal_px, "focal length [px]");
+    v("width_px", width_px, "image width [px]");
+    v("height_px", height_px, "image height [px]");
+    v("pixel_noise", pixel_noise, "std of the reported marker pixel per axis [px]");
+    v("miss_probability", miss_probability,
+      "probability that a marker in view is not detected in a frame");
+  }
+  /// Finds the first bad field (keys as in visit()).
+  ConfigCheck check() const;
   /// Throws std::invalid_argument naming the first bad field.
-  void validate() const;
+  void validate() const { check().throwIfBad("camera"); }
 };
 
 /// One ceiling camera: its floor -> pixel homography and footprint.

@@ -16,6 +16,7 @@
 // Everything is deterministic given the seed.
 #pragma once
 
+#include <tessera/sim/config_check.hpp>
 #include <tessera/sim/robot.hpp>
 #include <tessera/sim/world.hpp>
 
@@ -25,13 +26,26 @@
 namespace tessera::sim {
 
 struct CarLikeConfig {
-  double wheelbase = 1.0;                    ///< L [m]
-  double max_steer = 0.5235987755982988;     ///< |gamma| limit [rad] (30 deg)
-  double steer_rate = 0.6283185307179586;    ///< |d gamma / dt| limit [rad/s] (0.2 pi)
-  double sigma_speed = 0.3;                  ///< reported speed noise std [m/s]
-  double sigma_steer = 0.05235987755982988;  ///< reported steering noise std [rad] (3 deg)
+  double wheelbase = 1.0;                  ///< L [m]
+  double max_steer = 0.5235987755982988;   ///< |gamma| limit [rad] (30 deg)
+  double steer_rate = 0.6283185307179586;  ///< |d gamma / dt| limit [rad/s] (0.2 pi)
+  double sigma_speed = 0.3;                ///< reported speed noise std [m/s]
+  /// Reported steering noise std [rad]: 3 deg, as 3 * (pi / 180) rounds (one ulp above 3 pi /
+  /// 180), the value the landmark simulator has always used.
+  double sigma_steer = 0.05235987755982989;
+
+  template <class V>
+  void visit(V& v) {
+    v("wheelbase", wheelbase, "wheelbase L [m]");
+    v("max_steer", max_steer, "steering angle limit [rad] (0.5236 = 30 deg), in (0, pi/2)");
+    v("steer_rate", steer_rate, "steering rate limit [rad/s] (0.6283 = 0.2 pi)");
+    v("sigma_speed", sigma_speed, "std of the speed reported in control/odometry [m/s]");
+    v("sigma_steer", sigma_steer, "std of the steering angle reported [rad] (0.05236 = 3 deg)");
+  }
+  /// Finds the first bad field (keys as in visit()).
+  ConfigCheck check() const;
   /// Throws std::invalid_argument naming the first bad field.
-  void validate() const;
+  void validate() const { check().throwIfBad("car-like robot"); }
 };
 
 /// One explicit Euler step of the the model of docs/algorithms.md#simulated-motion-and-sensors.

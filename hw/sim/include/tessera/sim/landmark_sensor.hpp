@@ -13,6 +13,7 @@
 // outlive it.
 #pragma once
 
+#include <tessera/sim/config_check.hpp>
 #include <tessera/sim/robot.hpp>
 #include <tessera/sim/world.hpp>
 
@@ -30,8 +31,23 @@ struct LandmarkSensorConfig {
   bool with_ids = true;                         ///< report landmark ids (known data association)
   bool occlusion = false;                       ///< walls of the World hide landmarks
   Pose2 mount;                                  ///< sensor pose in base_link
+
+  template <class V>
+  void visit(V& v) {
+    v("fov", fov, "field of view [rad], centred ahead, in (0, 2 pi]");
+    v("max_range", max_range, "[m] farther landmarks are not seen");
+    v("min_range", min_range, "[m] closer landmarks are not seen");
+    v("range_noise", range_noise, "range noise std [m]");
+    v("bearing_noise", bearing_noise, "bearing noise std [rad] (0.01745 = 1 deg)");
+    v("with_ids", with_ids, "report landmark ids (false: id -1, unknown association)");
+    v("occlusion", occlusion, "walls of the world hide landmarks");
+    PoseFields mount_fields{mount};
+    v("mount", mount_fields, "sensor pose in base_link");
+  }
+  /// Finds the first bad field (keys as in visit()).
+  ConfigCheck check() const;
   /// Throws std::invalid_argument naming the first bad field.
-  void validate() const;
+  void validate() const { check().throwIfBad("landmark sensor"); }
 };
 
 struct RangeBearing {

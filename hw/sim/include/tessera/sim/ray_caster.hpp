@@ -7,12 +7,14 @@
 //
 // LaserModel turns a base_link pose into one sweep of ranges, following the LaserScan
 // conventions of sensor.capnp: beam i points at angle_min + i * angle_increment in the laser
-// frame, +inf means no return (nothing within range_max, or a dropout), NaN an invalid reading
-// (closer than range_min).
+// frame (LaserConfig::angleMin() and angleIncrement(), from its field of view and beam count),
+// +inf means no return (nothing within range_max, or a dropout), NaN an invalid reading (closer
+// than range_min).
 //
 // Ownership: both hold a pointer to the World, which must outlive them.
 #pragma once
 
+#include <tessera/sim/config_check.hpp>
 #include <tessera/sim/robot.hpp>
 #include <tessera/sim/world.hpp>
 
@@ -40,8 +42,10 @@ class RayCaster {
 };
 
 struct LaserConfig {
-  double angle_min = -1.5707963267948966;         ///< first beam [rad], laser frame
-  double angle_increment = 0.017453292519943295;  ///< between beams [rad] (1 deg)
+  /// Field of view [rad], centred on the laser's x axis, in (0, 2 pi]. The beams are evenly
+  /// spaced with the first and last on its edges; a full circle starts at -pi and spreads them
+  /// so that the last does not repeat the first.
+  double fov = 3.141592653589793;
   int beams = 181;
   double range_min = 0.05;    ///< [m] closer returns are invalid (NaN)
   double range_max = 30.0;    ///< [m] nothing at or beyond is seen (+inf)
@@ -49,11 +53,26 @@ struct LaserConfig {
   double dropout = 0.0;       ///< probability that a beam returns nothing (+inf)
   Pose2 mount;                ///< laser pose in base_link
 
-  /// A sweep of `fov_deg` degrees centred on the laser's x axis with `beams` evenly spaced
-  /// beams, first and last on the edges of the field of view.
-  static LaserConfig fromFieldOfView(double fov_deg, int beams);
+  template <class V>
+  void visit(V& v) {
+    v("fov", fov, "field of view [rad], centred ahead, in (0, 2 pi]");
+    v("beams", beams, "beams per scan, first and last on the edges of the view");
+    v("range_min", range_min, "[m] closer readings are invalid (NaN)");
+    v("range_max", range_max, "[m] nothing farther is seen (+inf)");
+    v("range_noise", range_noise, "std of Gaussian range noise [m]");
+    v("dropout", dropout, "probability a beam returns nothing (+inf)");
+    PoseFields mount_fields{mount};
+    v("mount", mount_fields, "laser pose in base_link");
+  }
+
+  /// Angle of the first beam [rad] in the laser frame.
+  double angleMin() const;
+  /// Angle between beams [rad].
+  double angleIncrement() const;
+  /// Finds the first bad field (keys as in visit()).
+  ConfigCheck check() const;
   /// Throws std::invalid_argument naming the first bad field.
-  void validate() const;
+  void validate() const { check().throwIfBad("laser"); }
 };
 
 class LaserModel {

@@ -18,6 +18,7 @@
 #pragma once
 
 #include <tessera/geometry/pose2.hpp>
+#include <tessera/sim/config_check.hpp>
 
 #include <Eigen/Core>
 
@@ -44,6 +45,20 @@ struct OdometryNoise {
   double bias_d = 0.0;       ///< relative distance error: integrated distance × (1 + bias_d)
   double bias_theta = 0.0;   ///< relative rotation error: integrated rotation × (1 + bias_theta)
   double drift_theta = 0.0;  ///< [rad/m] heading drift per metre travelled
+
+  template <class V>
+  void visit(V& v) {
+    v("sigma_d", sigma_d, "distance noise: std per step = sigma_d * |step distance|");
+    v("sigma_theta", sigma_theta, "rotation noise: std per step = sigma_theta * |step rotation|");
+    v("floor_d", floor_d, "[m] std added per moving step while sigma_d > 0");
+    v("floor_theta", floor_theta, "[rad] std added per moving step while sigma_theta > 0");
+    v("bias_d", bias_d, "systematic distance error: reported distance = true * (1 + bias_d)");
+    v("bias_theta", bias_theta,
+      "systematic rotation error: reported rotation = true * (1 + bias_theta)");
+    v("drift_theta", drift_theta, "systematic heading drift per metre travelled [rad/m]");
+  }
+  /// Sigmas and floors >= 0; biases and drift finite and within (-0.5, 0.5).
+  ConfigCheck check() const;
 };
 
 /// Dead reckoning from noisy wheel increments, with its growing covariance.
@@ -78,8 +93,23 @@ struct FollowerConfig {
   double heading_gain = 2.0;        ///< omega = gain * heading error, before limits [1/s]
   /// Above this heading error [rad] the robot turns in place instead of driving on.
   double turn_in_place = 0.6;
+
+  template <class V>
+  void visit(V& v) {
+    v("v_max", v_max, "top forward speed [m/s]");
+    v("w_max", w_max, "top turn rate [rad/s]");
+    v("a_max", a_max, "linear acceleration and braking limit [m/s^2]");
+    v("alpha_max", alpha_max, "angular acceleration limit [rad/s^2]");
+    v("lookahead", lookahead, "carrot distance along the current segment [m]");
+    v("waypoint_tolerance", waypoint_tolerance, "a waypoint counts as reached this close [m]");
+    v("heading_gain", heading_gain, "turn rate per radian of heading error, before limits [1/s]");
+    v("turn_in_place", turn_in_place,
+      "above this heading error [rad] the robot turns in place instead of driving on");
+  }
+  /// Every field finite and positive.
+  ConfigCheck check() const;
   /// Throws std::invalid_argument naming the first bad field.
-  void validate() const;
+  void validate() const { check().throwIfBad("route follower"); }
 };
 
 struct Twist {

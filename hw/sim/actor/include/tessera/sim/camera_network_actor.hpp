@@ -40,12 +40,7 @@ struct CameraNetworkOptions {
   double world_resolution = 0.05;
   std::vector<std::array<double, 2>> camera_sites;
   int camera_hz = 10;
-  double ceiling_height = 3.0;
-  double focal_px = 320;
-  int image_width = 640;
-  int image_height = 480;
-  double pixel_noise = 1.0;
-  double miss_prob = 0.05;
+  CameraIntrinsics camera;
   std::vector<double> marker = {0, 0};
   std::string cameras_file;
   std::uint64_t seed = 1;
@@ -58,17 +53,19 @@ struct CameraNetworkOptions {
       "camera floor points [[x, y], ...] [m] (untilted, image u along +x, ids 0, 1, ...); "
       "empty = the world's sites");
     v("camera_hz", camera_hz, "camera frame rate [Hz]");
-    v("ceiling_height", ceiling_height, "camera centre above the marker plane [m]");
-    v("focal_px", focal_px, "focal length [px]");
-    v("image_width", image_width, "image width [px]");
-    v("image_height", image_height, "image height [px]");
-    v("pixel_noise", pixel_noise, "std of the reported marker pixel per axis [px]");
-    v("miss_prob", miss_prob, "probability that a marker in view is not detected in a frame");
+    v("camera", camera, "what every camera shares: mounting height, optics and noise");
     v("marker", marker, "marker position in base_link [x m, y m]");
     v("cameras_file", cameras_file,
       "write the true cameras to this file in the output folder; empty = none");
     v("seed", seed, "random seed for noise and misses");
   }
+
+  /// The flat keys of earlier versions, now inside the camera group.
+  static constexpr RenamedKey kRenamedKeys[] = {
+      {"ceiling_height", "camera.ceiling_height"}, {"focal_px", "camera.focal_px"},
+      {"image_width", "camera.width_px"},          {"image_height", "camera.height_px"},
+      {"pixel_noise", "camera.pixel_noise"},       {"miss_prob", "camera.miss_probability"},
+  };
 };
 
 class CameraNetworkActor final : public Actor {

@@ -45,21 +45,10 @@ struct LandmarkSimulatorOptions {
   std::vector<std::array<double, 2>> landmarks;
   double step_s = 0.03;
   double speed = 3.0;
-  double wheelbase = 1.0;
-  double max_steer_deg = 30;
-  double steer_rate_deg = 36;
-  double sigma_speed = 0.3;
-  double sigma_steer_deg = 3;
+  CarLikeConfig car;
   double waypoint_tolerance = 1.0;
   int observe_every = 8;
-  double landmark_fov_deg = 180;
-  double landmark_max_range = 30;
-  double landmark_min_range = 0;
-  double landmark_range_noise = 0.1;
-  double landmark_bearing_noise_deg = 1;
-  bool landmark_ids = true;
-  bool landmark_occlusion = false;
-  std::vector<double> landmark_mount = {0, 0, 0};
+  LandmarkSensorConfig sensor;
   double max_sim_time_s = 0;
   std::uint64_t seed = 1;
 
@@ -67,31 +56,38 @@ struct LandmarkSimulatorOptions {
   void visit(V& v) {
     v("world", world,
       "'builtin:landmarks' (seed 004) or another built-in / PGM/PNG world (walls only matter "
-      "with landmark_occlusion)");
+      "with sensor.occlusion)");
     v("world_resolution", world_resolution, "metres per pixel of an image world");
     v("route", route, "waypoints [[x, y], ...] [m]; empty = the world's default route");
     v("landmarks", landmarks, "landmarks [[x, y], ...] [m], ids 0, 1, ...; empty = the world's");
     v("step_s", step_s, "control and integration step dT [s]; a whole number of nanoseconds");
     v("speed", speed, "constant speed V [m/s]");
-    v("wheelbase", wheelbase, "wheelbase L [m]");
-    v("max_steer_deg", max_steer_deg, "steering angle limit [deg]");
-    v("steer_rate_deg", steer_rate_deg, "steering rate limit [deg/s] (36 = 0.2 pi rad/s)");
-    v("sigma_speed", sigma_speed, "std of the speed reported in control/odometry [m/s]");
-    v("sigma_steer_deg", sigma_steer_deg, "std of the steering reported [deg]");
+    v("car", car, "the car-like robot: geometry, steering limits, control noise");
     v("waypoint_tolerance", waypoint_tolerance, "a waypoint counts as reached this close [m]");
     v("observe_every", observe_every, "publish a landmark scan every this many steps");
-    v("landmark_fov_deg", landmark_fov_deg, "sensor field of view [deg], centred ahead");
-    v("landmark_max_range", landmark_max_range, "[m] farther landmarks are not seen");
-    v("landmark_min_range", landmark_min_range, "[m] closer landmarks are not seen");
-    v("landmark_range_noise", landmark_range_noise, "range noise std [m]");
-    v("landmark_bearing_noise_deg", landmark_bearing_noise_deg, "bearing noise std [deg]");
-    v("landmark_ids", landmark_ids, "report landmark ids (false: id -1, unknown association)");
-    v("landmark_occlusion", landmark_occlusion, "walls of the world hide landmarks");
-    v("landmark_mount", landmark_mount, "sensor pose in base_link [x m, y m, theta rad]");
+    v("sensor", sensor, "the range-bearing landmark sensor");
     v("max_sim_time_s", max_sim_time_s,
       "give up after this much simulated time [s]; 0 = 3 x route length / speed + 60 s");
     v("seed", seed, "random seed; equal seeds give identical runs");
   }
+
+  /// The flat keys of earlier versions, now inside the car and sensor groups (angles in
+  /// radians there).
+  static constexpr RenamedKey kRenamedKeys[] = {
+      {"wheelbase", "car.wheelbase"},
+      {"max_steer_deg", "car.max_steer"},
+      {"steer_rate_deg", "car.steer_rate"},
+      {"sigma_speed", "car.sigma_speed"},
+      {"sigma_steer_deg", "car.sigma_steer"},
+      {"landmark_fov_deg", "sensor.fov"},
+      {"landmark_max_range", "sensor.max_range"},
+      {"landmark_min_range", "sensor.min_range"},
+      {"landmark_range_noise", "sensor.range_noise"},
+      {"landmark_bearing_noise_deg", "sensor.bearing_noise"},
+      {"landmark_ids", "sensor.with_ids"},
+      {"landmark_occlusion", "sensor.occlusion"},
+      {"landmark_mount", "sensor.mount.x and sensor.mount.y and sensor.mount.theta"},
+  };
 };
 
 class LandmarkSimulatorActor final : public Actor {

@@ -41,20 +41,9 @@ struct SimulatorOptions {
   int step_hz = 100;
   int odom_hz = 50;
   int scan_hz = 10;
-  double v_max = 0.5;
-  double w_max = 1.0;
-  double sigma_d = 0.05;
-  double sigma_theta = 0.05;
-  double odom_bias_d = 0.0;
-  double odom_bias_theta = 0.0;
-  double odom_drift_theta = 0.0;
-  double laser_fov_deg = 180;
-  int laser_beams = 181;
-  double laser_max_range = 30;
-  double laser_min_range = 0.05;
-  double laser_range_noise = 0.01;
-  double laser_dropout = 0;
-  std::vector<double> laser_mount = {0, 0, 0};
+  FollowerConfig follower;
+  OdometryNoise odometry;
+  LaserConfig laser;
   std::uint64_t seed = 1;
 
   template <class V>
@@ -71,26 +60,30 @@ struct SimulatorOptions {
       "drift for given sigmas depends on it");
     v("odom_hz", odom_hz, "odometry rate [Hz]; must divide step_hz");
     v("scan_hz", scan_hz, "laser rate [Hz]; must divide step_hz");
-    v("v_max", v_max, "top forward speed of the route follower [m/s]");
-    v("w_max", w_max, "top turn rate of the route follower [rad/s]");
-    v("sigma_d", sigma_d, "odometry distance noise: std per step = sigma_d * |step distance|");
-    v("sigma_theta", sigma_theta,
-      "odometry rotation noise: std per step = sigma_theta * |step rotation|");
-    v("odom_bias_d", odom_bias_d,
-      "systematic odometry distance error: reported distance = true * (1 + odom_bias_d)");
-    v("odom_bias_theta", odom_bias_theta,
-      "systematic odometry rotation error: reported rotation = true * (1 + odom_bias_theta)");
-    v("odom_drift_theta", odom_drift_theta,
-      "systematic odometry heading drift per metre travelled [rad/m]");
-    v("laser_fov_deg", laser_fov_deg, "laser field of view [deg], centred ahead, in (0, 360]");
-    v("laser_beams", laser_beams, "beams per scan, first and last on the edges of the view");
-    v("laser_max_range", laser_max_range, "[m] nothing farther is seen (+inf)");
-    v("laser_min_range", laser_min_range, "[m] closer readings are invalid (NaN)");
-    v("laser_range_noise", laser_range_noise, "std of Gaussian range noise [m]");
-    v("laser_dropout", laser_dropout, "probability a beam returns nothing (+inf)");
-    v("laser_mount", laser_mount, "laser pose in base_link [x m, y m, theta rad]");
+    v("follower", follower, "the route follower (pure pursuit) that drives the robot");
+    v("odometry", odometry, "wheel odometry noise, drawn once per step");
+    v("laser", laser, "the simulated planar laser");
     v("seed", seed, "random seed; equal seeds give identical runs");
   }
+
+  /// The flat keys of earlier versions, now inside the follower, odometry and laser groups
+  /// (laser.fov in radians where laser_fov_deg was in degrees).
+  static constexpr RenamedKey kRenamedKeys[] = {
+      {"v_max", "follower.v_max"},
+      {"w_max", "follower.w_max"},
+      {"sigma_d", "odometry.sigma_d"},
+      {"sigma_theta", "odometry.sigma_theta"},
+      {"odom_bias_d", "odometry.bias_d"},
+      {"odom_bias_theta", "odometry.bias_theta"},
+      {"odom_drift_theta", "odometry.drift_theta"},
+      {"laser_fov_deg", "laser.fov"},
+      {"laser_beams", "laser.beams"},
+      {"laser_max_range", "laser.range_max"},
+      {"laser_min_range", "laser.range_min"},
+      {"laser_range_noise", "laser.range_noise"},
+      {"laser_dropout", "laser.dropout"},
+      {"laser_mount", "laser.mount.x and laser.mount.y and laser.mount.theta"},
+  };
 };
 
 class SimulatorActor final : public Actor {
