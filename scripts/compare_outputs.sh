@@ -22,6 +22,7 @@ runs=(
   "sim_landmarks_ekf|run sim_landmarks --set filter=ekf"
   "urg_rbpf|run urg_rbpf --set player.path=$data/mines-paristech-urg04lx-odometry/exp2.dat.gz"
   "graph_m3500|graph optimize $data/posegraphs/M3500.g2o --json"
+  "sim_slam_global|run sim_slam_global"
 )
 # summary.json figures that measure the machine, not the algorithm: times, memory, queue depths,
 # and what keep-latest mailboxes dropped (intermediate optimised poses, say), which depends on
