@@ -21,7 +21,7 @@ void addGraphCommand(CLI::App& app, int& result) {
                                     "optimise a pose graph (SE(2) or SE(3)) and print what it did");
   auto o = std::make_shared<OptimizeOptions>();
   cmd->add_option("input", o->input, "g2o or TORO file")->required();
-  cmd->add_option("--solver", o->solver, "sgd | ceres | sgd+ceres")->capture_default_str();
+  cmd->add_option("--solver", o->solver, detail::enumChoices(pg::Solver{}))->capture_default_str();
   cmd->add_option("--init", o->init,
                   "file: start from the file's poses; odometry: chain the odometry edges")
       ->capture_default_str();

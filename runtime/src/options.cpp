@@ -5,6 +5,7 @@
 #include <cmath>
 #include <limits>
 #include <sstream>
+#include <string_view>
 
 namespace tessera {
 
@@ -148,8 +149,13 @@ void Params::rejectUnknown(const std::vector<std::string>& known,
   }
 }
 
-Params Params::child(const char* key) const {
+Params Params::child(const char* key, std::span<const RenamedKey> renamed) const {
   const YAML::Node v = (*node_)[key];
+  if (v && !v.IsMap() && !v.IsNull()) {
+    for (const auto& r : renamed)
+      if (std::string_view(key) == r.old_key)
+        throw ConfigError(locate(key) + ": moved to " + r.new_key);
+  }
   return Params(v ? v : YAML::Node(YAML::NodeType::Map), where_ + "." + key);
 }
 

@@ -28,14 +28,18 @@ Eigen::Matrix3d diagonalInformation(double sigma_linear, double sigma_angular) {
 ScanGraph::ScanGraph(ScanGraphOptions options) : options_(std::move(options)) {
   auto positive = [](double v) { return std::isfinite(v) && v > 0; };
   if (options_.node_every < 1) throw std::invalid_argument("node_every must be >= 1");
-  if (!positive(options_.intra_sigma_linear) || !positive(options_.intra_sigma_angular))
-    throw std::invalid_argument("intra-submap sigmas must be > 0");
+  if (!positive(options_.intra_sigma_linear))
+    throw std::invalid_argument("intra_sigma_linear must be > 0");
+  if (!positive(options_.intra_sigma_angular))
+    throw std::invalid_argument("intra_sigma_angular must be > 0");
   if (!(std::isfinite(options_.chain_sigma_linear) && options_.chain_sigma_linear >= 0))
     throw std::invalid_argument("chain_sigma_linear must be >= 0 (0 = no chain edges)");
   if (options_.chain_sigma_linear > 0 && !positive(options_.chain_sigma_angular))
     throw std::invalid_argument("chain_sigma_angular must be > 0 with chain edges");
   if (options_.stamp_tolerance_ns < 0)
     throw std::invalid_argument("stamp_tolerance_ns must be >= 0");
+  if (const std::string e = pose_graph::optionsError(options_.optimizer); !e.empty())
+    throw std::invalid_argument("optimizer." + e);
 }
 
 bool ScanGraph::checkCovariance(const Eigen::Matrix3d& cov, const std::string& what) {

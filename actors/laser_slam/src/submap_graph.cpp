@@ -19,7 +19,10 @@ std::string describe(const SubmapConstraintInput& c) {
 
 }  // namespace
 
-SubmapGraph::SubmapGraph(SubmapGraphOptions options) : options_(std::move(options)) {}
+SubmapGraph::SubmapGraph(SubmapGraphOptions options) : options_(std::move(options)) {
+  if (const std::string e = pose_graph::optionsError(options_.optimizer); !e.empty())
+    throw std::invalid_argument("optimizer." + e);
+}
 
 void SubmapGraph::addSubmap(int id, const tessera::Pose2& guess) {
   if (graph_.contains(id)) return;

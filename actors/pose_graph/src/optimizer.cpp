@@ -3,36 +3,57 @@
 #include "solvers.hpp"
 
 #include <chrono>
+#include <cmath>
 #include <stdexcept>
 
 namespace tessera::pose_graph {
 
+namespace {
+
+/// The value `name` names in E's optionNames table; throws std::invalid_argument listing them.
+template <class E>
+E parseName(std::string_view name, const char* what) {
+  std::string choices;
+  for (const auto& [n, v] : optionNames(E{})) {
+    if (name == n) return v;
+    choices += (choices.empty() ? "" : " | ") + std::string(n);
+  }
+  throw std::invalid_argument("unknown " + std::string(what) + " '" + std::string(name) +
+                              "' (expected " + choices + ")");
+}
+
+}  // namespace
+
 Solver parseSolver(std::string_view name) {
-  if (name == "sgd") return Solver::kSgd;
-  if (name == "ceres") return Solver::kCeres;
-  if (name == "sgd+ceres") return Solver::kSgdCeres;
-  throw std::invalid_argument("unknown solver '" + std::string(name) +
-                              "' (expected sgd, ceres or sgd+ceres)");
+  return parseName<Solver>(name, "solver");
 }
 
 std::string solverName(Solver solver) {
-  switch (solver) {
-    case Solver::kSgd:
-      return "sgd";
-    case Solver::kCeres:
-      return "ceres";
-    case Solver::kSgdCeres:
-      return "sgd+ceres";
-  }
+  for (const auto& [n, v] : optionNames(solver))
+    if (v == solver) return n;
   return "?";
 }
 
 CeresOptions::Method parseMethod(std::string_view name) {
-  if (name == "lm") return CeresOptions::Method::kLevenbergMarquardt;
-  if (name == "dogleg") return CeresOptions::Method::kDogleg;
-  if (name == "gn") return CeresOptions::Method::kGaussNewton;
-  throw std::invalid_argument("unknown method '" + std::string(name) +
-                              "' (expected lm, dogleg or gn)");
+  return parseName<CeresOptions::Method>(name, "method");
+}
+
+std::string optionsError(const OptimizerOptions& o) {
+  const auto nonNegative = [](double v) { return std::isfinite(v) && v >= 0; };
+  if (o.sgd.iterations < 0) return "sgd.iterations must be >= 0";
+  if (!nonNegative(o.sgd.relative_decrease)) return "sgd.relative_decrease must be >= 0";
+  if (o.ceres.max_iterations < 1) return "ceres.max_iterations must be >= 1";
+  if (!(std::isfinite(o.ceres.initial_trust_region) && o.ceres.initial_trust_region > 0))
+    return "ceres.initial_trust_region must be > 0";
+  if (!nonNegative(o.ceres.huber_delta)) return "ceres.huber_delta must be >= 0";
+  const std::pair<const char*, double> tolerances[] = {
+      {"function_tolerance", o.ceres.function_tolerance},
+      {"gradient_tolerance", o.ceres.gradient_tolerance},
+      {"parameter_tolerance", o.ceres.parameter_tolerance}};
+  for (const auto& [key, value] : tolerances)
+    if (!nonNegative(value)) return "ceres." + std::string(key) + " must be >= 0";
+  if (o.ceres.threads < 1) return "ceres.threads must be >= 1";
+  return "";
 }
 
 namespace {

@@ -6,6 +6,7 @@
 #include <tessera/messages/views.hpp>
 #include <tessera/runtime/harness.hpp>
 #include <tessera/runtime/options.hpp>
+#include <tessera/runtime/profile.hpp>
 
 #include "../../shared_data.hpp"
 #include "submap_messages.hpp"
@@ -266,14 +267,68 @@ TEST_CASE("graph_optimizer reports an unwritable graph file in its summary witho
 
 TEST_CASE("graph_optimizer refuses bad options", "[graph_optimizer]") {
   GraphOptimizerActorOptions o;
-  o.solver = "newton";
+  o.graph.optimizer.sgd.iterations = -1;
+  CHECK_THROWS_WITH(GraphOptimizerActor(o),
+                    Catch::Contains("graph.optimizer.sgd.iterations must be >= 0"));
+  o = {};
+  o.graph.optimizer.ceres.max_iterations = 0;
+  CHECK_THROWS_WITH(GraphOptimizerActor(o),
+                    Catch::Contains("graph.optimizer.ceres.max_iterations must be >= 1"));
+  o = {};
+  o.graph.optimizer.ceres.huber_delta = -1;
   CHECK_THROWS_AS(GraphOptimizerActor(o), ConfigError);
   o = {};
-  o.ceres_iterations = 0;
+  o.frame_id = "";
   CHECK_THROWS_AS(GraphOptimizerActor(o), ConfigError);
-  o = {};
-  o.huber_delta = -1;
-  CHECK_THROWS_AS(GraphOptimizerActor(o), ConfigError);
+}
+
+namespace {
+GraphOptimizerActorOptions loadGraphOptimizer(const std::string& params,
+                                              const std::vector<std::string>& sets = {}) {
+  const Profile p = parseProfile(
+      "actors:\n  optimizer:\n    type: graph_optimizer\n    params:\n" + params, "p.yaml", sets);
+  return loadOptions<GraphOptimizerActorOptions>(p.actors.at(0).params);
+}
+}  // namespace
+
+TEST_CASE("graph_optimizer reads its nested graph and scan_graph groups", "[graph_optimizer]") {
+  // Defaults: what the shipped profiles got before the groups (100 warm-started iterations).
+  const auto d = loadGraphOptimizer("      {}\n");
+  CHECK(d.graph.optimizer.solver == pose_graph::Solver::kSgdCeres);
+  CHECK(d.graph.optimizer.ceres.max_iterations == 100);
+  CHECK(d.graph.optimizer.ceres.huber_delta == 1.0);
+  CHECK_FALSE(d.scan_graph.enabled);
+  CHECK(d.scan_graph.options.optimizer.solver == pose_graph::Solver::kCeres);
+  CHECK(d.scan_graph.options.optimizer.ceres.max_iterations == 50);
+
+  const auto o = loadGraphOptimizer(
+      "      graph:\n        optimizer: {solver: ceres, ceres: {max_iterations: 30, method: gn}}\n"
+      "      scan_graph: {enabled: true, node_every: 3}\n",
+      {"optimizer.scan_graph.optimizer.ceres.huber_delta=0.5"});
+  CHECK(o.graph.optimizer.solver == pose_graph::Solver::kCeres);
+  CHECK(o.graph.optimizer.ceres.max_iterations == 30);
+  CHECK(o.graph.optimizer.ceres.method == pose_graph::CeresOptions::Method::kGaussNewton);
+  CHECK(o.scan_graph.enabled);
+  CHECK(o.scan_graph.options.node_every == 3);
+  CHECK(o.scan_graph.options.optimizer.ceres.huber_delta == 0.5);
+  CHECK_THROWS_WITH(loadGraphOptimizer("      graph: {optimizer: {solver: newton}}\n"),
+                    Catch::Contains("expected one of sgd | ceres | sgd+ceres, got 'newton'"));
+}
+
+TEST_CASE("graph_optimizer's old flat keys fail naming the new ones", "[graph_optimizer]") {
+  CHECK_THROWS_WITH(loadGraphOptimizer("      ceres_iterations: 100\n"),
+                    Catch::Contains("actors.optimizer.params.ceres_iterations, line 5: moved to "
+                                    "graph.optimizer.ceres.max_iterations"));
+  CHECK_THROWS_WITH(loadGraphOptimizer("      scan_sigma_linear: 0.5\n"),
+                    Catch::Contains("moved to scan_graph.intra_sigma_linear"));
+  // The old bool, now the name of a group.
+  CHECK_THROWS_WITH(loadGraphOptimizer("      scan_graph: true\n"),
+                    Catch::Contains("actors.optimizer.params.scan_graph, line 5: moved to "
+                                    "scan_graph.enabled"));
+  CHECK_THROWS_WITH(loadGraphOptimizer("      {}\n", {"optimizer.scan_graph=true"}),
+                    Catch::Contains("moved to optimizer.scan_graph.enabled"));
+  CHECK_THROWS_WITH(loadGraphOptimizer("      {}\n", {"optimizer.solver=ceres"}),
+                    Catch::Contains("moved to optimizer.graph.optimizer.solver"));
 }
 
 TEST_CASE("map_assembler draws submaps at the optimised poses when asked to", "[graph_optimizer]") {

@@ -341,11 +341,8 @@ TEST_CASE("graph_optimizer with scan_graph takes the final trajectory from the s
           "[scan_graph][graph_optimizer]") {
   laser_slam::GraphOptimizerActorOptions o;
   o.compose_trajectory = true;
-  o.scan_graph = true;
-  o.scan_huber_delta = 0;  // as plain(): the submaps carry their scans
-  o.scan_sigma_linear = 0.05;
-  o.scan_sigma_angular = 0.01;
-  o.scan_shared_handovers = true;
+  o.scan_graph.enabled = true;
+  o.scan_graph.options = plain();  // the submaps carry their scans
   ActorHarness h(std::make_unique<laser_slam::GraphOptimizerActor>(o));
   pushSubmap(h, 0, Pose2(), straight(0));
   pushConstraint(h, 4 * kSecond, handOver());
@@ -388,15 +385,18 @@ TEST_CASE("graph_optimizer with scan_graph takes the final trajectory from the s
 
 TEST_CASE("graph_optimizer refuses bad scan graph options", "[scan_graph][graph_optimizer]") {
   laser_slam::GraphOptimizerActorOptions o;
-  o.scan_node_every = 0;
-  CHECK_THROWS_AS(laser_slam::GraphOptimizerActor(o), ConfigError);
+  o.scan_graph.options.node_every = 0;
+  CHECK_THROWS_WITH(laser_slam::GraphOptimizerActor(o),
+                    Catch::Contains("scan_graph.node_every must be >= 1"));
   o = {};
-  o.scan_sigma_angular = -0.1;
-  CHECK_THROWS_AS(laser_slam::GraphOptimizerActor(o), ConfigError);
+  o.scan_graph.options.intra_sigma_angular = -0.1;
+  CHECK_THROWS_WITH(laser_slam::GraphOptimizerActor(o),
+                    Catch::Contains("scan_graph.intra_sigma_angular must be > 0"));
   o = {};
-  o.scan_ceres_iterations = 0;
-  CHECK_THROWS_AS(laser_slam::GraphOptimizerActor(o), ConfigError);
+  o.scan_graph.options.optimizer.ceres.max_iterations = 0;
+  CHECK_THROWS_WITH(laser_slam::GraphOptimizerActor(o),
+                    Catch::Contains("scan_graph.optimizer.ceres.max_iterations must be >= 1"));
   o = {};
-  o.scan_huber_delta = -1;
+  o.scan_graph.options.optimizer.ceres.huber_delta = -1;
   CHECK_THROWS_AS(laser_slam::GraphOptimizerActor(o), ConfigError);
 }

@@ -158,7 +158,24 @@ TEST_CASE("bad graphs are refused with the edge or node named", "[pose_graph]") 
   g.edges[0] = {0, 1, {1, 0, 0}, Eigen::Matrix3d::Identity()};
   g.poses[1].x() = INFINITY;
   CHECK_THROWS_WITH(pg::optimize(g), Catch::Contains("node 4 has a non-finite pose"));
-  CHECK_THROWS_AS(pg::parseSolver("gauss"), std::invalid_argument);
+  CHECK_THROWS_WITH(pg::parseSolver("gauss"),
+                    Catch::Contains("unknown solver 'gauss' (expected sgd | ceres | sgd+ceres)"));
+}
+
+TEST_CASE("solver names: the CLI parses and prints the option files' table", "[pose_graph]") {
+  for (const auto& [name, solver] : optionNames(pg::Solver{})) {
+    CHECK(pg::parseSolver(name) == solver);
+    CHECK(pg::solverName(solver) == name);
+  }
+  for (const auto& [name, method] : optionNames(pg::CeresOptions::Method{}))
+    CHECK(pg::parseMethod(name) == method);
+  pg::OptimizerOptions o;
+  CHECK(pg::optionsError(o).empty());
+  o.ceres.threads = 0;
+  CHECK(pg::optionsError(o) == "ceres.threads must be >= 1");
+  o = {};
+  o.ceres.gradient_tolerance = -1;
+  CHECK(pg::optionsError(o) == "ceres.gradient_tolerance must be >= 0");
 }
 
 TEST_CASE("odometry initialisation chains edges and refuses a disconnected node", "[pose_graph]") {

@@ -14,52 +14,25 @@
 namespace tessera::laser_slam {
 namespace {
 
-SubmapGraphOptions graphOptions(const GraphOptimizerActorOptions& o) {
-  SubmapGraphOptions g;
+/// A core graph built from its options group; the core's complaint names the key inside the
+/// group, the error the full key.
+template <class Graph, class Options>
+Graph checkedGraph(const char* group, const Options& options) {
   try {
-    g.optimizer.solver = pose_graph::parseSolver(o.solver);
+    return Graph(options);
   } catch (const std::invalid_argument& e) {
-    throw ConfigError(std::string("graph_optimizer: solver: ") + e.what());
+    throw ConfigError(std::string("graph_optimizer: ") + group + "." + e.what());
   }
-  if (o.sgd_iterations < 0) throw ConfigError("graph_optimizer: sgd_iterations must be >= 0");
-  if (o.ceres_iterations < 1) throw ConfigError("graph_optimizer: ceres_iterations must be >= 1");
-  if (!(std::isfinite(o.huber_delta) && o.huber_delta >= 0))
-    throw ConfigError("graph_optimizer: huber_delta must be >= 0");
-  if (o.frame_id.empty()) throw ConfigError("graph_optimizer: frame_id must not be empty");
-  g.optimizer.sgd.iterations = o.sgd_iterations;
-  g.optimizer.ceres.max_iterations = o.ceres_iterations;
-  g.optimizer.ceres.huber_delta = o.huber_delta;
-  return g;
-}
-
-ScanGraphOptions scanGraphOptions(const GraphOptimizerActorOptions& o) {
-  ScanGraphOptions g;
-  g.node_every = o.scan_node_every;
-  g.intra_sigma_linear = o.scan_sigma_linear;
-  g.intra_sigma_angular = o.scan_sigma_angular;
-  g.chain_sigma_linear = o.chain_sigma_linear;
-  g.chain_sigma_angular = o.chain_sigma_angular;
-  g.shared_handovers = o.scan_shared_handovers;
-  if (o.scan_ceres_iterations < 1)
-    throw ConfigError("graph_optimizer: scan_ceres_iterations must be >= 1");
-  g.optimizer.ceres.max_iterations = o.scan_ceres_iterations;
-  if (!(std::isfinite(o.scan_huber_delta) && o.scan_huber_delta >= 0))
-    throw ConfigError("graph_optimizer: scan_huber_delta must be >= 0");
-  g.optimizer.ceres.huber_delta = o.scan_huber_delta;
-  try {
-    ScanGraph check(g);
-  } catch (const std::invalid_argument& e) {
-    throw ConfigError(std::string("graph_optimizer: scan graph: ") + e.what());
-  }
-  return g;
 }
 
 }  // namespace
 
 GraphOptimizerActor::GraphOptimizerActor(GraphOptimizerActorOptions options)
     : options_(std::move(options)),
-      graph_(graphOptions(options_)),
-      scan_graph_(scanGraphOptions(options_)) {}
+      graph_(checkedGraph<SubmapGraph>("graph", options_.graph)),
+      scan_graph_(checkedGraph<ScanGraph>("scan_graph", options_.scan_graph.options)) {
+  if (options_.frame_id.empty()) throw ConfigError("graph_optimizer: frame_id must not be empty");
+}
 
 void GraphOptimizerActor::configure(ActorContext& ctx) {
   output_dir_ = ctx.outputDir();
@@ -88,7 +61,7 @@ void GraphOptimizerActor::onSubmap(const Message<msg::Submap>& m) {
   // A non-finite guess is harmless only if a constraint places the submap: start it at the
   // origin and let the constraints move it.
   graph_.addSubmap(static_cast<int>(m->getId()), guess.isFinite() ? guess : tessera::Pose2{});
-  if (options_.scan_graph && m->getFinished() && m->getTrajectory().size() > 0) {
+  if (options_.scan_graph.enabled && m->getFinished() && m->getTrajectory().size() > 0) {
     std::vector<StampedPose2> trajectory;
     trajectory.reserve(m->getTrajectory().size());
     for (const auto p : m->getTrajectory())
@@ -135,7 +108,8 @@ void GraphOptimizerActor::onConstraint(const Message<msg::SubmapConstraint>& m) 
       return;
   }
   if (!graph_.lastError().empty()) std::cerr << "[graph_optimizer] " << graph_.lastError() << "\n";
-  if (options_.scan_graph && outcome != SubmapGraph::Outcome::kDuplicate) addToScanGraph(m, c);
+  if (options_.scan_graph.enabled && outcome != SubmapGraph::Outcome::kDuplicate)
+    addToScanGraph(m, c);
   if (graph_.needsOptimization()) optimizeAndPublish();
 }
 
@@ -201,7 +175,7 @@ void GraphOptimizerActor::stop() {
     std::cerr << "[graph_optimizer] constraint " << d
               << " names a submap that never arrived; left out of the graph\n";
   if (graph_.needsOptimization()) optimizeAndPublish();
-  if (options_.scan_graph && graph_.nodes() > 0 && optimizeScanGraph())
+  if (options_.scan_graph.enabled && graph_.nodes() > 0 && optimizeScanGraph())
     publishPoses(scan_graph_.submapPoses(), scan_chi2_, 0);
   else if (graph_.nodes() > 0)
     publishPoses(graph_.poses(), graph_.chi2(), 0);
@@ -281,7 +255,7 @@ void GraphOptimizerActor::summarize(Summary& out) const {
   out["optimize_s"] = optimize_seconds_;
   out["final_chi2"] = last_chi2_;
   if (solver_failures_ > 0) out["solver_failures"] = i64(solver_failures_);
-  if (options_.scan_graph) {
+  if (options_.scan_graph.enabled) {
     out["scan_graph_optimized"] = std::int64_t{scan_optimized_ ? 1 : 0};
     out["scan_graph_nodes"] = i64(scan_graph_.nodes());
     out["scan_graph_scan_nodes"] = i64(scan_graph_.scanNodes());

@@ -30,7 +30,9 @@
 //
 // An options struct whose keys moved (e.g. into a group) lists them in
 //   static constexpr RenamedKey kRenamedKeys[] = {{"particles", "rbpf.particles"}, ...};
-// so a profile still using an old key fails with an error naming the new one.
+// so a profile still using an old key fails with an error naming the new one. A key may name a
+// group now and a value before (`scan_graph: true` -> `scan_graph: {enabled: true}`): listed too,
+// a value under it is refused naming the new key.
 #pragma once
 
 #include <array>
@@ -91,8 +93,9 @@ class Params {
   /// Error text prefix for a key: "file:line: actors.x.params.key".
   std::string locate(const char* key) const;
 
-  /// A sub-mapping as Params (for nested option groups).
-  Params child(const char* key) const;
+  /// A sub-mapping as Params (for nested option groups). A value there instead, under a key in
+  /// `renamed` (a flat key that became a group's name), is rejected with its new name.
+  Params child(const char* key, std::span<const RenamedKey> renamed = {}) const;
 
  private:
   std::unique_ptr<YAML::Node> node_;
@@ -145,12 +148,13 @@ namespace detail {
 struct OptionReader {
   const Params& params;
   std::vector<std::string> known;
+  std::span<const RenamedKey> renamed = {};  // the struct's moved keys (top level only)
   template <typename T>
   void operator()(const char* key, T& value, const char* /*doc*/) {
     known.emplace_back(key);
     if constexpr (OptionGroup<T>) {
-      const Params group = params.child(key);
-      OptionReader reader{group, {}};
+      const Params group = params.child(key, renamed);
+      OptionReader reader{group, {}, {}};
       value.visit(reader);
       group.rejectUnknown(reader.known);
     } else if constexpr (NamedEnum<T>) {
@@ -204,9 +208,9 @@ void OptionDescriber::operator()(const char* key, T& value, const char* doc) {
 template <typename Options>
 Options loadOptions(const Params& params) {
   Options options;
-  detail::OptionReader reader{params, {}};
+  detail::OptionReader reader{params, {}, renamedKeys<Options>()};
   options.visit(reader);
-  params.rejectUnknown(reader.known, renamedKeys<Options>());
+  params.rejectUnknown(reader.known, reader.renamed);
   return options;
 }
 

@@ -67,6 +67,25 @@ struct ScanGraphOptions {
     o.ceres.huber_delta = 1.0;
     return o;
   }();
+
+  template <class V>
+  void visit(V& v) {
+    v("node_every", node_every,
+      "every n-th scan of a submap is a node (its first and last, and closed scans, always); "
+      "the others are interpolated");
+    v("intra_sigma_linear", intra_sigma_linear, "[m] std of a scan's pose in its submap");
+    v("intra_sigma_angular", intra_sigma_angular, "[rad] the same for heading");
+    v("chain_sigma_linear", chain_sigma_linear,
+      "[m] std of the motion between consecutive scan nodes; 0 = no such edges");
+    v("chain_sigma_angular", chain_sigma_angular, "[rad] the same for heading");
+    v("shared_handovers", shared_handovers,
+      "keep the hand-over between two submaps that share a scan node (false: they are joined "
+      "through their scans only)");
+    v("stamp_tolerance_ns", stamp_tolerance_ns, "[ns] stamps closer than this name the same scan");
+    v("optimizer", optimizer,
+      "solver of the scan-level optimisation (Huber on loop edges); ceres: SGD wants nodes in "
+      "trajectory order, which submap and scan nodes are not");
+  }
 };
 
 /// A scan's pose with its stamp [ns].
@@ -86,7 +105,7 @@ struct ScanLoopInput {
 
 class ScanGraph {
  public:
-  /// Throws std::invalid_argument on invalid options.
+  /// Throws std::invalid_argument on invalid options, naming the key inside ScanGraphOptions.
   explicit ScanGraph(ScanGraphOptions options = {});
 
   /// A finished submap's smoothed trajectory (its own frame, increasing stamps). Returns false

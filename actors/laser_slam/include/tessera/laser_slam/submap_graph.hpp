@@ -34,12 +34,23 @@ struct SubmapGraphOptions {
   pose_graph::OptimizerOptions optimizer = [] {
     pose_graph::OptimizerOptions o;
     o.solver = pose_graph::Solver::kSgdCeres;
+    // Each re-optimisation is warm-started from the previous optimum: 100 Ceres iterations
+    // (not the 500 a cold start may need) bound the time one late closure can take.
+    o.ceres.max_iterations = 100;
     o.ceres.huber_delta = 1.0;  // revisits are loop closures: robust
     return o;
   }();
   /// Constraints waiting for an unknown submap beyond this many are rejected (oldest first), so
   /// a stream naming submaps that never come cannot grow memory without bound.
   std::size_t max_pending = 1000;
+
+  template <class V>
+  void visit(V& v) {
+    v("optimizer", optimizer,
+      "solver of each re-optimisation (Huber on revisit edges, i.e. loop closures)");
+    v("max_pending", max_pending,
+      "constraints kept waiting for a submap not seen yet; beyond, the oldest are rejected");
+  }
 };
 
 struct SubmapConstraintInput {
@@ -60,6 +71,7 @@ class SubmapGraph {
     kRejected,   ///< invalid (see lastError())
   };
 
+  /// Throws std::invalid_argument on invalid options, naming the key inside SubmapGraphOptions.
   explicit SubmapGraph(SubmapGraphOptions options = {});
 
   /// A submap exists, with its origin guessed at `guess` in the map frame (used only when no

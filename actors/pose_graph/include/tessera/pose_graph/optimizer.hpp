@@ -19,14 +19,20 @@
 
 #include <tessera/pose_graph/pose_graph.hpp>
 
+#include <array>
 #include <cstdint>
 #include <string>
 #include <string_view>
+#include <utility>
 
 namespace tessera::pose_graph {
 
 enum class Solver { kSgd, kCeres, kSgdCeres };
-/// "sgd", "ceres", "sgd+ceres"; throws std::invalid_argument naming the accepted values.
+/// The solvers' names, for option files (found by argument-dependent lookup) and the CLI.
+constexpr std::array<std::pair<const char*, Solver>, 3> optionNames(Solver) {
+  return {{{"sgd", Solver::kSgd}, {"ceres", Solver::kCeres}, {"sgd+ceres", Solver::kSgdCeres}}};
+}
+/// A name of optionNames(Solver); throws std::invalid_argument naming the accepted values.
 Solver parseSolver(std::string_view name);
 std::string solverName(Solver solver);
 
@@ -40,6 +46,14 @@ struct SgdOptions {
   double relative_decrease = 0.0;
   /// Seeds the constraint order, shuffled every pass as the paper does; runs are reproducible.
   std::uint64_t seed = 1;
+
+  template <class V>
+  void visit(V& v) {
+    v("iterations", iterations, "passes over all constraints");
+    v("relative_decrease", relative_decrease,
+      "stop early when a pass lowers chi2 by less than this fraction; 0 = run every pass");
+    v("seed", seed, "seeds the constraint order shuffled every pass (runs are reproducible)");
+  }
 };
 
 struct CeresOptions {
@@ -62,16 +76,51 @@ struct CeresOptions {
   double gradient_tolerance = 1e-12;
   double parameter_tolerance = 1e-12;
   int threads = 1;
+
+  template <class V>
+  void visit(V& v) {
+    v("max_iterations", max_iterations, "iterations (at most)");
+    v("method", method,
+      "lm (Levenberg-Marquardt), dogleg: trust region; gn: undamped Gauss-Newton, faster from a "
+      "poor start but it can diverge");
+    v("initial_trust_region", initial_trust_region, "first trust-region radius (lm, dogleg)");
+    v("huber_delta", huber_delta,
+      "Huber scale on robust (loop-closure) edges, whitened units; 0 = plain least squares");
+    v("function_tolerance", function_tolerance, "converged: relative cost change below this");
+    v("gradient_tolerance", gradient_tolerance, "converged: gradient max-norm below this");
+    v("parameter_tolerance", parameter_tolerance, "converged: relative step size below this");
+    v("threads", threads, "Ceres threads");
+  }
 };
 
-/// "lm", "dogleg", "gn"; throws std::invalid_argument naming the accepted values.
+/// The methods' names, for option files (found by argument-dependent lookup) and the CLI.
+constexpr std::array<std::pair<const char*, CeresOptions::Method>, 3> optionNames(
+    CeresOptions::Method) {
+  return {{{"lm", CeresOptions::Method::kLevenbergMarquardt},
+           {"dogleg", CeresOptions::Method::kDogleg},
+           {"gn", CeresOptions::Method::kGaussNewton}}};
+}
+/// A name of optionNames(CeresOptions::Method); throws std::invalid_argument naming the accepted
+/// values.
 CeresOptions::Method parseMethod(std::string_view name);
 
 struct OptimizerOptions {
   Solver solver = Solver::kSgdCeres;
   SgdOptions sgd;
   CeresOptions ceres;
+
+  template <class V>
+  void visit(V& v) {
+    v("solver", solver,
+      "sgd: SGD alone; ceres: Ceres alone; sgd+ceres: SGD to get into the basin, Ceres to finish");
+    v("sgd", sgd, "the SGD stage");
+    v("ceres", ceres, "the Ceres stage");
+  }
 };
+
+/// "" when `options` can be used, else what is wrong, naming the key inside OptimizerOptions
+/// (e.g. "ceres.max_iterations must be >= 1").
+std::string optionsError(const OptimizerOptions& options);
 
 struct OptimizerSummary {
   Solver solver = Solver::kSgdCeres;

@@ -26,20 +26,22 @@
 // A constraint naming an unknown submap waits for it; at stop, any still waiting are reported
 // by id in the log and counted (`constraints_unresolved`), never a crash.
 //
-// With scan_graph, stop() also builds the scan-level graph (ScanGraph, scan_graph.hpp): every
-// scan of the finished submaps' trajectories (or every scan_node_every-th) becomes a node tied
-// to its submap and to the previous scan node, and each scan-matched closure (scanInTo) ties its
-// scan to the submap it matched instead of joining the two submaps rigidly. It starts from the
-// submap-level optimum and is optimised once; the final submap_poses and trajectory_final come
-// from it (a trajectory pose whose scan is in no submap's trajectory is moved with its submap as
-// without it). The online optimisations, and so the loop detector's search centres, are the
-// submap-level ones either way, and graph.g2o holds the submap-level graph.
+// With scan_graph.enabled, stop() also builds the scan-level graph (ScanGraph, scan_graph.hpp):
+// every scan of the finished submaps' trajectories (or every scan_graph.node_every-th) becomes a
+// node tied to its submap and to the previous scan node, and each scan-matched closure (scanInTo)
+// ties its scan to the submap it matched instead of joining the two submaps rigidly. It starts
+// from the submap-level optimum and is optimised once; the final submap_poses and
+// trajectory_final come from it (a trajectory pose whose scan is in no submap's trajectory is
+// moved with its submap as without it). The online optimisations, and so the loop detector's
+// search centres, are the submap-level ones either way, and graph.g2o holds the submap-level
+// graph.
 #pragma once
 
 #include <tessera/msg/submap.capnp.h>
 #include <tessera/laser_slam/scan_graph.hpp>
 #include <tessera/laser_slam/submap_graph.hpp>
 #include <tessera/runtime/actor.hpp>
+#include <tessera/runtime/options.hpp>
 
 #include <cstdint>
 #include <map>
@@ -49,55 +51,55 @@
 
 namespace tessera::laser_slam {
 
-struct GraphOptimizerActorOptions {
-  std::string solver = "sgd+ceres";
-  int sgd_iterations = 10;
-  int ceres_iterations = 100;
-  double huber_delta = 1.0;
-  std::string frame_id = "map";
-  bool compose_trajectory = false;
-  std::string g2o_file = "graph.g2o";
-  bool scan_graph = false;
-  int scan_node_every = 1;
-  double scan_sigma_linear = 0.5;
-  double scan_sigma_angular = 0.1;
-  double chain_sigma_linear = 0.02;
-  double chain_sigma_angular = 0.005;
-  int scan_ceres_iterations = 50;
-  double scan_huber_delta = 1.0;
-  bool scan_shared_handovers = false;
+/// The scan-level graph of stop(): off unless `enabled`; its other keys are ScanGraph's own.
+struct ScanGraphStage {
+  bool enabled = false;
+  ScanGraphOptions options;
 
   template <class V>
   void visit(V& v) {
+    v("enabled", enabled,
+      "at stop, optimise a scan-level graph (scans as nodes, closures on their scans) and take "
+      "the final submap poses and trajectory from it");
+    options.visit(v);  // ScanGraph's keys sit beside `enabled`, in the same group
+  }
+};
+
+struct GraphOptimizerActorOptions {
+  SubmapGraphOptions graph;
+  ScanGraphStage scan_graph;
+  std::string frame_id = "map";
+  bool compose_trajectory = false;
+  std::string g2o_file = "graph.g2o";
+
+  template <class V>
+  void visit(V& v) {
+    v("graph", graph, "the submap-level graph, re-optimised online");
+    v("scan_graph", scan_graph, "the scan-level graph, optimised once at stop");
     v("compose_trajectory", compose_trajectory,
       "subscribe to trajectory and publish it re-expressed in the optimised submaps at stop");
-    v("solver", solver, "sgd | ceres | sgd+ceres: solver of each re-optimisation");
-    v("sgd_iterations", sgd_iterations, "SGD passes before Ceres (sgd, sgd+ceres)");
-    v("ceres_iterations", ceres_iterations, "Ceres iterations (max) per re-optimisation");
-    v("huber_delta", huber_delta,
-      "Huber scale on revisit (loop-closure) edges, whitened units; 0 = plain least squares");
     v("frame_id", frame_id, "frame of the published poses");
     v("g2o_file", g2o_file,
       "final pose graph written here, in the output directory, at stop (g2o); empty: none");
-    v("scan_graph", scan_graph,
-      "at stop, optimise a scan-level graph (scans as nodes, closures on their scans) and take "
-      "the final submap poses and trajectory from it");
-    v("scan_node_every", scan_node_every,
-      "scan_graph: every n-th scan of a submap is a node (closed scans always); the others are "
-      "interpolated");
-    v("scan_sigma_linear", scan_sigma_linear, "scan_graph: [m] std of a scan's pose in its submap");
-    v("scan_sigma_angular", scan_sigma_angular, "scan_graph: [rad] the same for heading");
-    v("chain_sigma_linear", chain_sigma_linear,
-      "scan_graph: [m] std of the motion between consecutive scan nodes; 0 = no such edges");
-    v("chain_sigma_angular", chain_sigma_angular, "scan_graph: [rad] the same for heading");
-    v("scan_ceres_iterations", scan_ceres_iterations,
-      "scan_graph: Ceres iterations (max) of the scan-level optimisation");
-    v("scan_huber_delta", scan_huber_delta,
-      "scan_graph: Huber scale on scan closure edges, whitened units; 0 = plain least squares");
-    v("scan_shared_handovers", scan_shared_handovers,
-      "scan_graph: keep the hand-over between two submaps that share a scan node (false: they "
-      "are joined through their scans only)");
   }
+
+  /// The flat keys of earlier versions, now inside the graph and scan_graph groups.
+  static constexpr RenamedKey kRenamedKeys[] = {
+      {"solver", "graph.optimizer.solver"},
+      {"sgd_iterations", "graph.optimizer.sgd.iterations"},
+      {"ceres_iterations", "graph.optimizer.ceres.max_iterations"},
+      {"huber_delta", "graph.optimizer.ceres.huber_delta"},
+      // Was a bool: the YAML `scan_graph: true` (a value where the group is) names this too.
+      {"scan_graph", "scan_graph.enabled"},
+      {"scan_node_every", "scan_graph.node_every"},
+      {"scan_sigma_linear", "scan_graph.intra_sigma_linear"},
+      {"scan_sigma_angular", "scan_graph.intra_sigma_angular"},
+      {"chain_sigma_linear", "scan_graph.chain_sigma_linear"},
+      {"chain_sigma_angular", "scan_graph.chain_sigma_angular"},
+      {"scan_ceres_iterations", "scan_graph.optimizer.ceres.max_iterations"},
+      {"scan_huber_delta", "scan_graph.optimizer.ceres.huber_delta"},
+      {"scan_shared_handovers", "scan_graph.shared_handovers"},
+  };
 };
 
 class GraphOptimizerActor final : public Actor {
