@@ -34,8 +34,8 @@ cv::Mat registerDepth(const cv::Mat& depth, const PinholeCamera& depth_camera,
   if (depth.type() != CV_16UC1) throw std::invalid_argument("registerDepth: depth is not CV_16UC1");
   if (depth.cols != depth_camera.width || depth.rows != depth_camera.height)
     throw std::invalid_argument("registerDepth: depth size differs from the depth camera's");
-  const cv::Matx33d kd(depth_camera.fx, 0, depth_camera.cx, 0, depth_camera.fy, depth_camera.cy,
-                       0, 0, 1);
+  const cv::Matx33d kd(depth_camera.fx, 0, depth_camera.cx, 0, depth_camera.fy, depth_camera.cy, 0,
+                       0, 1);
   const auto& c = calib.color;
   const cv::Matx33d kc(c.fx, 0, c.cx, 0, c.fy, c.cy, 0, 0, 1);
   cv::Matx44d rt;

@@ -12,7 +12,8 @@
 namespace tessera::visual_slam {
 
 void FeatureMatcherOptions::validate() const {
-  if (!(ratio > 0 && ratio <= 1)) throw std::invalid_argument("matcher: match_ratio must be in (0, 1]");
+  if (!(ratio > 0 && ratio <= 1))
+    throw std::invalid_argument("matcher: match_ratio must be in (0, 1]");
   if (!(min_distance_factor >= 0) || !std::isfinite(min_distance_factor))
     throw std::invalid_argument("matcher: min_distance_factor must be >= 0");
   if (!(min_distance_floor >= 0) || !std::isfinite(min_distance_floor))
@@ -57,8 +58,7 @@ std::vector<cv::DMatch> FeatureMatcher::match(const cv::Mat& query, const cv::Ma
   for (const auto& m : out) best = std::min(best, m.distance);
   s.best_distance = best;
   if (options_.min_distance_factor > 0) {
-    const double limit =
-        std::max(options_.min_distance_factor * best, options_.min_distance_floor);
+    const double limit = std::max(options_.min_distance_factor * best, options_.min_distance_floor);
     out.erase(std::remove_if(out.begin(), out.end(),
                              [&](const cv::DMatch& m) { return m.distance > limit; }),
               out.end());

@@ -39,6 +39,26 @@ struct ReprojectionCost {
   }
 };
 
+// The same with the measured depth as a third residual, in pixels of disparity as a stereo
+// camera of baseline b would see it (ORB-SLAM2's RGB-D residual): fx b / z_predicted - fx b / z
+// measured, so a depth counts less the farther it is, as its noise grows.
+struct ReprojectionDepthCost {
+  ReprojectionCost reprojection;
+  double disparity;  // fx b / z measured [px]
+  double fxb;        // fx b [px m]
+
+  template <typename T>
+  bool operator()(const T* pose, T* residual) const {
+    reprojection(pose, residual);
+    const T p[3] = {T(reprojection.point.x()), T(reprojection.point.y()),
+                    T(reprojection.point.z())};
+    T c[3];
+    ceres::AngleAxisRotatePoint(pose, p, c);
+    residual[2] = T(fxb) / (c[2] + pose[5]) - T(disparity);
+    return true;
+  }
+};
+
 Eigen::Isometry3d fromRvecTvec(const double* p) {
   const Eigen::Vector3d r(p[0], p[1], p[2]);
   const double angle = r.norm();
@@ -76,12 +96,14 @@ void PoseEstimatorOptions::validate() const {
     throw std::invalid_argument("pose estimator: " + what);
   };
   if (!(confidence > 0 && confidence < 1)) bad("ransac_confidence must be in (0, 1)");
-  if (!(min_inlier_ratio > 0 && min_inlier_ratio <= 1)) bad("ransac_min_inlier_ratio must be in (0, 1]");
+  if (!(min_inlier_ratio > 0 && min_inlier_ratio <= 1))
+    bad("ransac_min_inlier_ratio must be in (0, 1]");
   if (max_iterations < 1) bad("ransac_max_iterations must be >= 1");
   if (!(reprojection_error > 0) || !std::isfinite(reprojection_error))
     bad("reprojection_error must be > 0");
   if (min_inliers < 4) bad("pnp_min_inliers must be >= 4");
   if (!(huber_delta > 0) || !std::isfinite(huber_delta)) bad("huber_delta must be > 0");
+  if (!(depth_baseline >= 0) || !std::isfinite(depth_baseline)) bad("depth_baseline must be >= 0");
   if (refine_iterations < 1) bad("refine_iterations must be >= 1");
 }
 
@@ -104,7 +126,8 @@ PoseEstimator::PoseEstimator(const PoseEstimatorOptions& options, const PinholeC
 
 PoseEstimate PoseEstimator::estimate(const std::vector<Eigen::Vector3d>& points,
                                      const std::vector<Eigen::Vector2d>& pixels,
-                                     const std::optional<Eigen::Isometry3d>& guess) const {
+                                     const std::optional<Eigen::Isometry3d>& guess,
+                                     const std::vector<double>* depths) const {
   const auto& o = options_;
   PoseEstimate out;
   if (points.size() != pixels.size()) {
@@ -115,11 +138,17 @@ PoseEstimate PoseEstimator::estimate(const std::vector<Eigen::Vector3d>& points,
   std::vector<cv::Point3d> obj;
   std::vector<cv::Point2d> img;
   std::vector<int> index;
+  std::vector<double> depth;  // measured z of each kept correspondence, NaN when none
+  if (depths != nullptr && depths->size() != points.size()) {
+    out.failure = "depths and points differ in count";
+    return out;
+  }
   for (std::size_t i = 0; i < points.size(); ++i) {
     if (!points[i].allFinite() || !pixels[i].allFinite()) continue;
     obj.emplace_back(points[i].x(), points[i].y(), points[i].z());
     img.emplace_back(pixels[i].x(), pixels[i].y());
     index.push_back(static_cast<int>(i));
+    depth.push_back(depths != nullptr ? (*depths)[i] : std::nan(""));
   }
   const int m = minimalSample(o.method);
   if (static_cast<int>(obj.size()) < std::max(o.min_inliers, m)) {
@@ -183,14 +212,25 @@ PoseEstimate PoseEstimator::estimate(const std::vector<Eigen::Vector3d>& points,
     popts.loss_function_ownership = ceres::TAKE_OWNERSHIP;
     ceres::Problem problem(popts);
     auto* loss = new ceres::HuberLoss(o.huber_delta);
+    const double fxb = camera_.fx * o.depth_baseline;
     for (int i : ransac_inliers) {
-      const auto& p = obj[static_cast<std::size_t>(i)];
-      const auto& q = img[static_cast<std::size_t>(i)];
-      problem.AddResidualBlock(
-          new ceres::AutoDiffCostFunction<ReprojectionCost, 2, 6>(new ReprojectionCost{
-              Eigen::Vector3d(p.x, p.y, p.z), Eigen::Vector2d(q.x, q.y), camera_.fx, camera_.fy,
-              camera_.cx, camera_.cy}),
-          loss, refined);
+      const auto u = static_cast<std::size_t>(i);
+      const auto& p = obj[u];
+      const auto& q = img[u];
+      const ReprojectionCost cost{Eigen::Vector3d(p.x, p.y, p.z),
+                                  Eigen::Vector2d(q.x, q.y),
+                                  camera_.fx,
+                                  camera_.fy,
+                                  camera_.cx,
+                                  camera_.cy};
+      if (fxb > 0 && std::isfinite(depth[u]) && depth[u] > 0)
+        problem.AddResidualBlock(new ceres::AutoDiffCostFunction<ReprojectionDepthCost, 3, 6>(
+                                     new ReprojectionDepthCost{cost, fxb / depth[u], fxb}),
+                                 loss, refined);
+      else
+        problem.AddResidualBlock(
+            new ceres::AutoDiffCostFunction<ReprojectionCost, 2, 6>(new ReprojectionCost(cost)),
+            loss, refined);
     }
     ceres::Solver::Options sopts;
     sopts.linear_solver_type = ceres::DENSE_QR;
@@ -201,7 +241,8 @@ PoseEstimate PoseEstimator::estimate(const std::vector<Eigen::Vector3d>& points,
     ceres::Solve(sopts, &problem, &summary);
     std::vector<int> refined_inliers;
     double refined_sq = 0;
-    const bool finite = std::all_of(refined, refined + 6, [](double x) { return std::isfinite(x); });
+    const bool finite =
+        std::all_of(refined, refined + 6, [](double x) { return std::isfinite(x); });
     if (finite) count(refined, refined_inliers, refined_sq);
     // Keep the refinement unless it lost support (a degenerate inlier set can pull it away).
     if (finite && refined_inliers.size() >= inliers.size()) {

@@ -11,6 +11,7 @@
 #include <cmath>
 #include <limits>
 #include <stdexcept>
+#include <utility>
 
 namespace tessera::visual_slam {
 
@@ -22,6 +23,17 @@ double msSince(Clock::time_point t0) {
   return std::chrono::duration<double, std::milli>(Clock::now() - t0).count();
 }
 
+// The depth the frame measured at each of `keypoints` [m], NaN where it has none.
+std::vector<double> measuredDepths(const Features& f, const std::vector<int>& keypoints) {
+  std::vector<double> z;
+  z.reserve(keypoints.size());
+  for (int k : keypoints) {
+    const auto i = static_cast<std::size_t>(k);
+    z.push_back(f.has_depth[i] ? f.points[i].z() : std::nan(""));
+  }
+  return z;
+}
+
 std::string sizeText(int w, int h) {
   return std::to_string(w) + "x" + std::to_string(h);
 }
@@ -31,6 +43,9 @@ std::string sizeText(int w, int h) {
 struct Tracker::Attempt {
   PoseEstimate estimate;
   std::size_t matches = 0;
+  // The correspondences given to PnP: current keypoint and the map's world point.
+  std::vector<int> keypoints;
+  std::vector<Eigen::Vector3d> points;
   bool ok(int min_inliers) const {
     return estimate.ok && static_cast<int>(estimate.inliers.size()) >= min_inliers;
   }
@@ -43,6 +58,9 @@ void TrackerOptions::validate() const {
   keyframes.validate();
   const auto bad = [](const std::string& what) { throw std::invalid_argument("tracker: " + what); };
   if (local_map_keyframes < 1) bad("local_map_keyframes must be >= 1");
+  if (local_map_nearby < 0) bad("local_map_nearby must be >= 0");
+  if (!(local_map_nearby_motion >= 0) || !std::isfinite(local_map_nearby_motion))
+    bad("local_map_nearby_motion must be >= 0");
   if (!(search_radius > 0) || !std::isfinite(search_radius)) bad("search_radius must be > 0");
   if (!(local_map_max_distance >= 0) || !std::isfinite(local_map_max_distance))
     bad("local_map_max_distance must be >= 0");
@@ -103,7 +121,16 @@ std::string Tracker::checkFrame(const RgbdFrame& frame) const {
 }
 
 Keyframe Tracker::makeKeyframe(const Features& f, const Eigen::Isometry3d& camera_to_world,
-                               std::size_t frame, double timestamp) const {
+                               std::size_t frame, double timestamp, const Attempt* tracked) const {
+  // A feature that was a PnP inlier keeps the map point it matched, where its own depth agrees
+  // with it: the map then stays anchored where the point was first seen instead of being
+  // re-measured (and re-drifted) by every keyframe.
+  std::vector<const Eigen::Vector3d*> reuse(f.size(), nullptr);
+  if (tracked != nullptr && tracked->estimate.ok)
+    for (int c : tracked->estimate.inliers)
+      reuse[static_cast<std::size_t>(tracked->keypoints[static_cast<std::size_t>(c)])] =
+          &tracked->points[static_cast<std::size_t>(c)];
+  const auto& eo = options_.extractor;
   Keyframe k;
   k.frame = frame;
   k.timestamp = timestamp;
@@ -118,9 +145,14 @@ Keyframe Tracker::makeKeyframe(const Features& f, const Eigen::Isometry3d& camer
   k.descriptors.create(static_cast<int>(rows.size()), f.descriptors.cols, f.descriptors.type());
   for (std::size_t r = 0; r < rows.size(); ++r) {
     const auto i = static_cast<std::size_t>(rows[r]);
+    Eigen::Vector3d world = camera_to_world * f.points[i];
+    if (reuse[i] != nullptr && options_.reuse_map_points) {
+      const double tolerance = eo.depth_edge_abs + eo.depth_edge_rel * f.points[i].z();
+      if ((*reuse[i] - world).norm() < tolerance) world = *reuse[i];
+    }
     k.keypoints.push_back(f.keypoints[i]);
     k.points_camera.push_back(f.points[i]);
-    k.points_world.push_back(camera_to_world * f.points[i]);
+    k.points_world.push_back(world);
     f.descriptors.row(rows[r]).copyTo(k.descriptors.row(static_cast<int>(r)));
   }
   return k;
@@ -130,17 +162,28 @@ Tracker::Attempt Tracker::trackLocalMap(const Features& f, const Eigen::Isometry
                                         FrameTiming& timing) const {
   const auto t0 = Clock::now();
   Attempt a;
-  // The local map: every point of the last local_map_keyframes keyframes.
+  // The local map: every point of the last local_map_keyframes keyframes and of the older
+  // keyframes nearest the prediction.
   struct MapRef {
     const Keyframe* kf;
     int index;
   };
+  const std::size_t recent = static_cast<std::size_t>(options_.local_map_keyframes);
+  const std::size_t first = keyframes_.size() > recent ? keyframes_.size() - recent : 0;
+  std::vector<std::size_t> chosen;
+  for (std::size_t k = first; k < keyframes_.size(); ++k) chosen.push_back(k);
+  std::vector<std::pair<double, std::size_t>> nearby;
+  for (std::size_t k = 0; k < first; ++k) {
+    const double e = motionSize(keyframes_[k].camera_to_world.inverse() * predicted);
+    if (e < options_.local_map_nearby_motion) nearby.emplace_back(e, k);
+  }
+  const std::size_t extra =
+      std::min(nearby.size(), static_cast<std::size_t>(options_.local_map_nearby));
+  std::partial_sort(nearby.begin(), nearby.begin() + static_cast<std::ptrdiff_t>(extra),
+                    nearby.end());
+  for (std::size_t i = 0; i < extra; ++i) chosen.push_back(nearby[i].second);
   std::vector<MapRef> map;
-  const std::size_t first =
-      keyframes_.size() > static_cast<std::size_t>(options_.local_map_keyframes)
-          ? keyframes_.size() - static_cast<std::size_t>(options_.local_map_keyframes)
-          : 0;
-  for (std::size_t k = first; k < keyframes_.size(); ++k)
+  for (std::size_t k : chosen)
     for (std::size_t j = 0; j < keyframes_[k].points_world.size(); ++j)
       map.push_back({&keyframes_[k], static_cast<int>(j)});
   if (map.empty() || f.size() == 0) {
@@ -159,10 +202,9 @@ Tracker::Attempt Tracker::trackLocalMap(const Features& f, const Eigen::Isometry
     const int gy = std::clamp(static_cast<int>(pt.y / radius), 0, gh - 1);
     grid[static_cast<std::size_t>(gy * gw + gx)].push_back(static_cast<int>(i));
   }
-  const double max_distance =
-      options_.local_map_max_distance > 0
-          ? options_.local_map_max_distance
-          : (options_.extractor.type == FeatureType::kSift ? 250.0 : 64.0);
+  const double max_distance = options_.local_map_max_distance > 0
+                                  ? options_.local_map_max_distance
+                                  : (options_.extractor.type == FeatureType::kSift ? 250.0 : 64.0);
   const Eigen::Isometry3d camera_from_world = predicted.inverse();
 
   // Per map point: its best keypoint (or -1) and the distance.
@@ -215,13 +257,16 @@ Tracker::Attempt Tracker::trackLocalMap(const Features& f, const Eigen::Isometry
     const auto& ref = map[static_cast<std::size_t>(m)];
     points.push_back(ref.kf->points_world[static_cast<std::size_t>(ref.index)]);
     pixels.emplace_back(f.keypoints[k].pt.x, f.keypoints[k].pt.y);
+    a.keypoints.push_back(static_cast<int>(k));
   }
   timing.local_map_ms += msSince(t0);
   a.matches = points.size();
   if (static_cast<int>(points.size()) < options_.min_tracking_inliers) return a;
   const auto t1 = Clock::now();
-  a.estimate = estimator_.estimate(points, pixels, camera_from_world);
+  const std::vector<double> depths = measuredDepths(f, a.keypoints);
+  a.estimate = estimator_.estimate(points, pixels, camera_from_world, &depths);
   timing.pnp_ms += msSince(t1);
+  a.points = std::move(points);
   return a;
 }
 
@@ -242,12 +287,15 @@ Tracker::Attempt Tracker::trackFrame(const Features& f, const Keyframe& referenc
     points.push_back(reference.points_world[static_cast<std::size_t>(m.trainIdx)]);
     const auto& pt = f.keypoints[static_cast<std::size_t>(m.queryIdx)].pt;
     pixels.emplace_back(pt.x, pt.y);
+    a.keypoints.push_back(m.queryIdx);
   }
   const auto t1 = Clock::now();
   std::optional<Eigen::Isometry3d> camera_from_world;
   if (guess) camera_from_world = guess->inverse();
-  a.estimate = estimator_.estimate(points, pixels, camera_from_world);
+  const std::vector<double> depths = measuredDepths(f, a.keypoints);
+  a.estimate = estimator_.estimate(points, pixels, camera_from_world, &depths);
   timing.pnp_ms += msSince(t1);
+  a.points = std::move(points);
   return a;
 }
 
@@ -277,12 +325,11 @@ TrackResult Tracker::track(const RgbdFrame& frame) {
 
   if (!initialised_) {
     if (static_cast<int>(f.with_depth) < options_.min_init_features)
-      return skip("too few features with depth to start the map (" +
-                  std::to_string(f.with_depth) + " < " +
-                  std::to_string(options_.min_init_features) + ")");
+      return skip("too few features with depth to start the map (" + std::to_string(f.with_depth) +
+                  " < " + std::to_string(options_.min_init_features) + ")");
     initialised_ = true;
     pose_ = initial_pose_;
-    keyframes_.push_back(makeKeyframe(f, pose_, r.frame, frame.timestamp));
+    keyframes_.push_back(makeKeyframe(f, pose_, r.frame, frame.timestamp, nullptr));
     keyframes_.back().id = 0;
     reference_keyframe_ = 0;
     previous_ = keyframes_.back();
@@ -364,9 +411,9 @@ TrackResult Tracker::track(const RgbdFrame& frame) {
   const KeyframeDecision decision = selector_.decide(r.inliers, delta);
   r.decision = decision;
   large_drops_ = decision == KeyframeDecision::kDropTooLarge ? large_drops_ + 1 : 0;
-  const bool forced = options_.insert_after_large_drops > 0 &&
-                      large_drops_ >= options_.insert_after_large_drops;
-  Keyframe current = makeKeyframe(f, pose_, r.frame, frame.timestamp);
+  const bool forced =
+      options_.insert_after_large_drops > 0 && large_drops_ >= options_.insert_after_large_drops;
+  Keyframe current = makeKeyframe(f, pose_, r.frame, frame.timestamp, &a);
   if ((decision == KeyframeDecision::kKeyframe || forced) &&
       static_cast<int>(current.points_world.size()) >= options_.min_init_features) {
     current.id = keyframes_.size();

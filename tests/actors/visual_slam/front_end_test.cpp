@@ -45,8 +45,7 @@ cv::Mat constantDepth(std::uint16_t value) {
 
 }  // namespace
 
-TEST_CASE("extractor spreads ORB features over the grid and back-projects them",
-          "[visual_slam]") {
+TEST_CASE("extractor spreads ORB features over the grid and back-projects them", "[visual_slam]") {
   vs::FeatureExtractorOptions o;
   const vs::FeatureExtractor ex(o, kinect());
   const auto f = ex.extract(texturedImage(1), constantDepth(2000), 1000.0);
@@ -85,8 +84,7 @@ TEST_CASE("extractor with SIFT gives float descriptors within the budget", "[vis
   CHECK(f.rejects.missing == f.size());
 }
 
-TEST_CASE("extractor rejects depth that is missing, out of range or on an edge",
-          "[visual_slam]") {
+TEST_CASE("extractor rejects depth that is missing, out of range or on an edge", "[visual_slam]") {
   const vs::FeatureExtractor ex({}, kinect());
   const cv::Mat img = texturedImage(3);
   // Left half 1 m, right half 3 m: keypoints within the window of column 320 straddle the edge.

@@ -85,8 +85,8 @@ void report(const char* name, const RunFigures& f) {
       "(extraction %.1f, local map %.1f, matching %.1f, pnp %.1f)\n",
       name, ms.size(), f.ate.translation.rmse, f.ate.translation.max, f.stats.keyframes,
       f.stats.tracked_local_map, f.stats.tracked_previous, f.stats.relocalised, f.stats.lost,
-      f.stats.skipped, mean, pct(0.5), pct(0.95), f.sum.extraction_ms / n,
-      f.sum.local_map_ms / n, f.sum.matching_ms / n, f.sum.pnp_ms / n);
+      f.stats.skipped, mean, pct(0.5), pct(0.95), f.sum.extraction_ms / n, f.sum.local_map_ms / n,
+      f.sum.matching_ms / n, f.sum.pnp_ms / n);
 }
 
 }  // namespace

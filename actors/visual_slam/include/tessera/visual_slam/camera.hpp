@@ -3,7 +3,8 @@
 // Frames: the camera is in the optical convention (x right, y down, z forward); a pixel (u, v)
 // with depth z back-projects to x = (u - cx) z / fx, y = (v - cy) z / fy. Units: pixels, metres.
 // The intrinsics are those of the image the depth is given in; the colour image is assumed to be
-// registered to it (for 7-Scenes, whose colour is not, see docs/algorithms.md#rgb-d-visual-odometry).
+// registered to it (for 7-Scenes, whose colour is not, see
+// docs/algorithms.md#rgb-d-visual-odometry).
 #pragma once
 
 #include <opencv2/core.hpp>

@@ -1,4 +1,5 @@
-// Depth registered to a colour camera that is not the depth camera (docs/algorithms.md#rgb-d-visual-odometry).
+// Depth registered to a colour camera that is not the depth camera
+// (docs/algorithms.md#rgb-d-visual-odometry).
 //
 // Features come from the colour image, their 3D points from the depth image, so both must see
 // the same pixel. TUM's Kinect driver registered them; 7-Scenes did not: its depth is in the
@@ -22,8 +23,8 @@
 namespace tessera::visual_slam {
 
 struct ColorCalibration {
-  PinholeCamera color;                  ///< the colour camera's intrinsics
-  Eigen::Isometry3d color_from_depth;   ///< maps depth-camera points into the colour camera
+  PinholeCamera color;                 ///< the colour camera's intrinsics
+  Eigen::Isometry3d color_from_depth;  ///< maps depth-camera points into the colour camera
   std::string source;
 };
 

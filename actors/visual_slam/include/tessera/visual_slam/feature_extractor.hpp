@@ -3,10 +3,11 @@
 //
 // The image is split into grid_cols x grid_rows cells. Each cell runs its own detector (ORB or
 // SIFT from OpenCV) on the cell plus a margin, in parallel over cells (TBB), and keeps its
-// strongest keypoints up to an even share of max_features; an ORB cell that finds fewer than
-// half its share retries with min_fast_threshold, so weakly textured cells still contribute.
-// Descriptors are then computed once on the whole image (one pyramid), which may drop a few
-// keypoints at the image border.
+// strongest keypoints up to an even share of max_features. ORB detects level by level on one
+// shared image pyramid (the cell's share split over the levels by their area, as ORB splits its
+// own budget), and a level of a cell short of half its quota retries with min_fast_threshold, so
+// weakly textured cells still contribute. Descriptors are then computed once on the whole image,
+// which may drop a few keypoints at the image border.
 //
 // Depth: the reading under each keypoint (rounded pixel) gives z = d / depth_scale and the point
 // x = (u - cx) z / fx, y = (v - cy) z / fy, z in the camera's optical frame [m]. A keypoint has no
@@ -46,9 +47,9 @@ struct FeatureExtractorOptions {
   int fast_threshold = 20;        ///< ORB's FAST threshold [grey levels]
   int min_fast_threshold = 7;     ///< retry threshold for a cell short of keypoints
   double sift_contrast_threshold = 0.04;
-  double min_depth = 0.3;       ///< [m] nearer readings are invalid (Kinect minimum range)
-  double max_depth = 6.0;       ///< [m] farther readings are invalid (noise grows with z²)
-  int depth_window = 2;         ///< [px] half-size of the neighbourhood checked for depth edges
+  double min_depth = 0.3;        ///< [m] nearer readings are invalid (Kinect minimum range)
+  double max_depth = 6.0;        ///< [m] farther readings are invalid (noise grows with z²)
+  int depth_window = 2;          ///< [px] half-size of the neighbourhood checked for depth edges
   double depth_edge_abs = 0.03;  ///< [m] largest depth spread in the neighbourhood ...
   double depth_edge_rel = 0.03;  ///< ... plus this fraction of z
 

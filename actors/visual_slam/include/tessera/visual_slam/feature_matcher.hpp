@@ -1,4 +1,5 @@
-// FeatureMatcher: descriptor matching between two frames (docs/algorithms.md#rgb-d-visual-odometry).
+// FeatureMatcher: descriptor matching between two frames
+// (docs/algorithms.md#rgb-d-visual-odometry).
 //
 // Brute force (OpenCV's BFMatcher: Hamming for binary ORB descriptors, L2 for SIFT's float
 // ones), two nearest neighbours per query descriptor, then
@@ -34,8 +35,8 @@ struct FeatureMatcherOptions {
 };
 
 struct MatchStats {
-  std::size_t queries = 0;        ///< query descriptors
-  std::size_t after_ratio = 0;    ///< matches that passed the ratio test
+  std::size_t queries = 0;      ///< query descriptors
+  std::size_t after_ratio = 0;  ///< matches that passed the ratio test
   std::size_t after_min_distance = 0;
   double best_distance = 0;
 };

@@ -7,7 +7,8 @@
 //      fourth point picks among the solutions; 5 for OpenCV's EPnP kernel). OpenCV lowers the
 //      count by the same formula as better hypotheses raise w.
 //   2. Motion-only refinement (Ceres, Levenberg-Marquardt) of the pose over the RANSAC inliers,
-//      minimising reprojection errors under a Huber loss of width huber_delta pixels.
+//      minimising reprojection errors (plus, where the current frame measured a depth, a
+//      disparity residual; depth_baseline) under a Huber loss of width huber_delta pixels.
 //   3. Inliers re-counted over all correspondences at the refined pose; their RMS reprojection
 //      error, and the pose covariance (J^T J)^-1 s^2 of the refinement (s^2: residual variance).
 //
@@ -31,20 +32,25 @@ namespace tessera::visual_slam {
 
 enum class PnpMethod { kAp3p, kEpnp, kIterative };
 constexpr std::array<std::pair<const char*, PnpMethod>, 3> optionNames(PnpMethod) {
-  return {{{"ap3p", PnpMethod::kAp3p}, {"epnp", PnpMethod::kEpnp},
+  return {{{"ap3p", PnpMethod::kAp3p},
+           {"epnp", PnpMethod::kEpnp},
            {"iterative", PnpMethod::kIterative}}};
 }
 
 struct PoseEstimatorOptions {
   PnpMethod method = PnpMethod::kAp3p;
-  double confidence = 0.995;      ///< p of the iteration formula (the thesis's value)
-  double min_inlier_ratio = 0.3;  ///< w of the iteration formula: the cap covers this ratio
-  int max_iterations = 2000;      ///< hard cap on top of the formula
+  double confidence = 0.995;        ///< p of the iteration formula (the thesis's value)
+  double min_inlier_ratio = 0.3;    ///< w of the iteration formula: the cap covers this ratio
+  int max_iterations = 2000;        ///< hard cap on top of the formula
   double reprojection_error = 3.0;  ///< [px] inlier threshold
   int min_inliers = 6;              ///< fewer RANSAC inliers: no pose
   bool refine = true;               ///< the Ceres refinement
   double huber_delta = 1.5;         ///< [px] Huber loss width of the refinement
   int refine_iterations = 10;
+  /// [m] With measured depths, the refinement adds a disparity residual fx b / z (b this
+  /// baseline; ORB-SLAM2's RGB-D residual, 0.08 m as a Kinect's projector-camera distance):
+  /// depth then constrains the pose along the optical axis, less the farther it is. 0 = off.
+  double depth_baseline = 0.08;
 
   template <class V>
   void visit(V& v) {
@@ -57,6 +63,8 @@ struct PoseEstimatorOptions {
     v("refine", refine, "refine the pose over the inliers (Ceres, Huber loss)");
     v("huber_delta", huber_delta, "Huber loss width of the refinement [px]");
     v("refine_iterations", refine_iterations, "iterations of the refinement");
+    v("depth_baseline", depth_baseline,
+      "virtual stereo baseline of the depth residual in the refinement [m] (0 = off)");
   }
   /// Throws std::invalid_argument naming the first bad option.
   void validate() const;
@@ -86,10 +94,13 @@ class PoseEstimator {
   PoseEstimator(const PoseEstimatorOptions& options, const PinholeCamera& camera);
 
   /// `points[i]` (world) seen at `pixels[i]`. `guess`, when given, starts the EPnP/iterative
-  /// refit and the refinement near it. Never throws for bad geometry: !ok with a reason.
+  /// refit and the refinement near it. `depths`, when given, holds the measured depth z [m] at
+  /// each pixel (NaN: none) for the refinement's depth residual. Never throws for bad
+  /// geometry: !ok with a reason.
   PoseEstimate estimate(const std::vector<Eigen::Vector3d>& points,
                         const std::vector<Eigen::Vector2d>& pixels,
-                        const std::optional<Eigen::Isometry3d>& guess = std::nullopt) const;
+                        const std::optional<Eigen::Isometry3d>& guess = std::nullopt,
+                        const std::vector<double>* depths = nullptr) const;
 
   const PoseEstimatorOptions& options() const { return options_; }
 

@@ -4,8 +4,11 @@
 // Per frame:
 //   1. features (FeatureExtractor) with 3D points where the depth is good;
 //   2. a constant-velocity prediction of the pose (the last inter-frame motion applied again);
-//   3. tracking against the local map: the 3D points of the last local_map_keyframes keyframes
-//      are projected into the predicted view, and each is matched, by descriptor, to the
+//   3. tracking against the local map: the 3D points of the last local_map_keyframes keyframes,
+//      and of up to local_map_nearby older keyframes whose pose is near the predicted one (the
+//      keyframe rule's motion size e below local_map_nearby_motion, nearest first; so a view
+//      seen before is tracked against the map made then, not only against recent drift), are
+//      projected into the predicted view, and each is matched, by descriptor, to the
 //      current keypoints within search_radius pixels (best below the distance limit and clearly
 //      better than the second best, then one map point per keypoint); RANSAC PnP + refinement
 //      (PoseEstimator) gives the pose;
@@ -16,7 +19,8 @@
 //      matching + PnP, up to relocalisation_candidates keyframes per frame, newest first) until
 //      one gives relocalisation_min_inliers;
 //   6. the keyframe rule (KeyframeSelector) on the motion since the last keyframe; a keyframe
-//      stores the frame's features with their 3D points in the world.
+//      stores the frame's features with their 3D points in the world (a feature that matched
+//      a map point and agrees with it keeps that point's position: reuse_map_points).
 // The first frame with at least min_init_features 3D points starts the map at the identity pose
 // (or at set_initial_pose); frames before it are skipped. A frame that cannot be used (empty
 // image, wrong size or type, no depth before initialisation) is skipped and counted, never an
@@ -50,13 +54,16 @@ struct TrackerOptions {
   FeatureMatcherOptions matcher;
   PoseEstimatorOptions pnp;
   KeyframeOptions keyframes;
-  int local_map_keyframes = 5;  ///< keyframes whose points form the local map
-  double search_radius = 15;    ///< [px] around a projected map point
-  /// Largest descriptor distance of a local-map match; 0 = by descriptor: 64 bits (ORB), 250 (SIFT).
+  int local_map_keyframes = 5;  ///< recent keyframes whose points form the local map
+  int local_map_nearby = 10;    ///< plus at most this many older keyframes near the prediction
+  double local_map_nearby_motion = 0.5;  ///< "near": motion size e below this [rad + m]
+  double search_radius = 15;             ///< [px] around a projected map point
+  /// Largest descriptor distance of a local-map match; 0 = by descriptor: 64 bits (ORB), 250
+  /// (SIFT).
   double local_map_max_distance = 0;
-  double local_map_ratio = 0.9;     ///< best < ratio x second best among nearby keypoints
-  int min_tracking_inliers = 20;    ///< fewer: try the next fallback / lost
-  int min_init_features = 50;       ///< 3D points needed to start the map
+  double local_map_ratio = 0.9;   ///< best < ratio x second best among nearby keypoints
+  int min_tracking_inliers = 20;  ///< fewer: try the next fallback / lost
+  int min_init_features = 50;     ///< 3D points needed to start the map
   int relocalisation_min_inliers = 30;
   int relocalisation_candidates = 20;  ///< keyframes tried per lost frame
   /// After this many consecutive well-tracked frames that the rule drops as "too large" (which
@@ -64,6 +71,10 @@ struct TrackerOptions {
   /// keyframe anyway so the local map follows the camera. 0 = never.
   int insert_after_large_drops = 5;
   bool constant_velocity = true;
+  /// A new keyframe's feature that matched a map point (a PnP inlier whose own depth agrees
+  /// within the depth-edge tolerance) keeps that point's position instead of its own
+  /// measurement, so the map is not re-anchored to the drifting pose at every keyframe.
+  bool reuse_map_points = true;
 
   template <class V>
   void visit(V& v) {
@@ -72,6 +83,10 @@ struct TrackerOptions {
     pnp.visit(v);
     keyframes.visit(v);
     v("local_map_keyframes", local_map_keyframes, "recent keyframes forming the local map");
+    v("local_map_nearby", local_map_nearby,
+      "older keyframes near the predicted pose added to the local map");
+    v("local_map_nearby_motion", local_map_nearby_motion,
+      "an older keyframe is near when the motion size to it is below this [rad + m]");
     v("search_radius", search_radius, "search radius around a projected map point [px]");
     v("local_map_max_distance", local_map_max_distance,
       "largest descriptor distance of a local-map match (0 = 64 for ORB, 250 for SIFT)");
@@ -80,11 +95,12 @@ struct TrackerOptions {
     v("min_init_features", min_init_features, "3D points needed to start the map");
     v("relocalisation_min_inliers", relocalisation_min_inliers,
       "fewest PnP inliers to accept a relocalisation");
-    v("relocalisation_candidates", relocalisation_candidates,
-      "keyframes tried per lost frame");
+    v("relocalisation_candidates", relocalisation_candidates, "keyframes tried per lost frame");
     v("insert_after_large_drops", insert_after_large_drops,
       "consecutive too-large drops after which a tracked frame becomes a keyframe (0 = never)");
     v("constant_velocity", constant_velocity, "predict with the last inter-frame motion");
+    v("reuse_map_points", reuse_map_points,
+      "a keyframe keeps the positions of the map points its features matched");
   }
   /// Throws std::invalid_argument naming the first bad option (also of the nested groups).
   void validate() const;
@@ -137,8 +153,8 @@ struct TrackResult {
 };
 
 struct TrackerStats {
-  std::size_t frames = 0, skipped = 0, tracked_local_map = 0, tracked_previous = 0,
-              relocalised = 0, lost = 0, keyframes = 0, forced_keyframes = 0;
+  std::size_t frames = 0, skipped = 0, tracked_local_map = 0, tracked_previous = 0, relocalised = 0,
+              lost = 0, keyframes = 0, forced_keyframes = 0;
 };
 
 class Tracker {
@@ -162,8 +178,9 @@ class Tracker {
                         FrameTiming& timing) const;
   Attempt trackFrame(const Features& f, const Keyframe& reference,
                      const std::optional<Eigen::Isometry3d>& guess, FrameTiming& timing) const;
+  /// `tracked`: the attempt that gave the pose; its inliers keep their map points.
   Keyframe makeKeyframe(const Features& f, const Eigen::Isometry3d& camera_to_world,
-                        std::size_t frame, double timestamp) const;
+                        std::size_t frame, double timestamp, const Attempt* tracked) const;
   std::string checkFrame(const RgbdFrame& frame) const;
 
   TrackerOptions options_;
@@ -179,7 +196,7 @@ class Tracker {
   Eigen::Isometry3d velocity_ = Eigen::Isometry3d::Identity();  ///< last inter-frame motion
   std::size_t reference_keyframe_ = 0;  ///< the rule measures motion from this keyframe
   int large_drops_ = 0;
-  std::optional<Keyframe> previous_;    ///< the last tracked frame
+  std::optional<Keyframe> previous_;  ///< the last tracked frame
   std::vector<Keyframe> keyframes_;
   std::size_t frame_counter_ = 0;
   TrackerStats stats_;
