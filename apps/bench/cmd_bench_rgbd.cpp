@@ -1,7 +1,8 @@
 // `tessera bench rgbd`: RGB-D visual odometry on a 7-Scenes or TUM folder. Runs our Tracker and
 // OpenCV contrib's rgbd odometries (RgbdOdometry, RgbdICPOdometry, ICPOdometry, FastICPOdometry,
 // frame to frame, chained) on the same frames in one run, and reports ATE RMSE after rigid
-// alignment (evaluation core), ms per frame (mean, p95), keyframes and lost frames. Image
+// alignment (evaluation core), ms per frame (mean, p95), keyframes and lost frames (ours: lost
+// or skipped; OpenCV: frames whose compute() failed, the pose then held). Image
 // decoding and 7-Scenes' depth registration are outside the timed part.
 #include "bench_commands.hpp"
 #include "bench_util.hpp"
@@ -16,8 +17,8 @@
 #include <opencv2/imgproc.hpp>
 #include <opencv2/rgbd/depth.hpp>
 
-#include <nlohmann/json.hpp>
 #include <yaml-cpp/yaml.h>
+#include <nlohmann/json.hpp>
 
 #include <chrono>
 #include <cmath>
@@ -208,15 +209,22 @@ void addBenchRgbdCommand(CLI::App& bench, int& result) {
       ->capture_default_str();
   cmd->add_option("--frames", o->frames, "frames from the start")->capture_default_str();
   cmd->add_option("--methods", o->methods,
-                  "tessera, opencv_rgbd, opencv_rgbd_icp, opencv_icp, opencv_fast_icp")
+                  "comma-separated: tessera, opencv_rgbd, opencv_rgbd_icp, opencv_icp, "
+                  "opencv_fast_icp")
+      ->delimiter(',')
       ->capture_default_str();
-  cmd->add_option("--param", o->params, "tracker option key=value (repeatable; see the tracker's "
+  cmd->add_option("--param", o->params,
+                  "tracker option key=value (repeatable; see the tracker's "
                   "options in docs/algorithms.md)");
   cmd->add_flag("--no-registration", o->no_registration,
                 "7-Scenes: use colour as if registered to depth");
   cmd->add_flag("--json", o->json, "print exactly one JSON object on stdout");
   cmd->callback([o, &result] {
     if (o->frames < 2) throw ConfigError("--frames must be >= 2");
+    for (const auto& m : o->methods)
+      if (m != "tessera" && m != "opencv_rgbd" && m != "opencv_rgbd_icp" && m != "opencv_icp" &&
+          m != "opencv_fast_icp")
+        throw ConfigError("bench rgbd: unknown method '" + m + "'");
     const vs::TrackerOptions tracker_options = trackerOptions(o->params);
     const Sequence s(o->path, o->frames, !o->no_registration);
     nlohmann::json results = nlohmann::json::array();
@@ -262,10 +270,10 @@ void addBenchRgbdCommand(CLI::App& bench, int& result) {
                 << r["lost_frames"].get<std::size_t>() << "\n";
     for (const auto& r : runs)
       if (r.method == "tessera")
-        std::cout << "\ntessera per frame: extraction " << r.split.extraction_ms << " ms, local map "
-                  << r.split.local_map_ms << " ms, matching " << r.split.matching_ms
-                  << " ms, PnP " << r.split.pnp_ms << " ms; p50 " << percentile(r.ms, 0.5)
-                  << " ms\n";
+        std::cout << "\ntessera per frame: extraction " << r.split.extraction_ms
+                  << " ms, local map " << r.split.local_map_ms << " ms, matching "
+                  << r.split.matching_ms << " ms, PnP " << r.split.pnp_ms << " ms; p50 "
+                  << percentile(r.ms, 0.5) << " ms\n";
     result = 0;
   });
 }
