@@ -8,6 +8,7 @@ PACKAGES=(
   build-essential cmake ninja-build ccache pkg-config git clang-format
   # design-card libraries
   libeigen3-dev libopencv-dev libpcl-dev liboctomap-dev libceres-dev libtbb-dev
+  libopencv-contrib-dev  # rgbd::registerDepth (7-Scenes) and the odometries `bench rgbd` compares
   iceoryx libiceoryx-posh-dev libiceoryx-hoofs-dev libacl1-dev
   capnproto libcapnp-dev catch2
   # support libraries

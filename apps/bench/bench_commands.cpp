@@ -14,6 +14,7 @@ void addBenchCommands(CLI::App& app, int& result) {
   addBenchGraphCommand(*bench, result);
   addBenchLandmarksCommand(*bench, result);
   addBenchMatcherCommand(*bench, result);
+  addBenchRgbdCommand(*bench, result);
 }
 
 }  // namespace tessera::app

@@ -18,5 +18,7 @@ void addBenchGraphCommand(CLI::App& bench, int& result);
 void addBenchLandmarksCommand(CLI::App& bench, int& result);
 /// Adds `tessera bench matcher` (correlative matcher: branch and bound vs exhaustive search).
 void addBenchMatcherCommand(CLI::App& bench, int& result);
+/// Adds `tessera bench rgbd` (RGB-D visual odometry: our tracker beside OpenCV contrib's).
+void addBenchRgbdCommand(CLI::App& bench, int& result);
 
 }  // namespace tessera::app

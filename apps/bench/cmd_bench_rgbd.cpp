@@ -1,0 +1,281 @@
+// `tessera bench rgbd`: RGB-D visual odometry on a 7-Scenes or TUM folder. Runs our Tracker and
+// OpenCV contrib's rgbd odometries (RgbdOdometry, RgbdICPOdometry, ICPOdometry, FastICPOdometry,
+// frame to frame, chained) on the same frames in one run, and reports ATE RMSE after rigid
+// alignment (evaluation core), ms per frame (mean, p95), keyframes and lost frames (ours: lost
+// or skipped; OpenCV: frames whose compute() failed, the pose then held). Image
+// decoding and 7-Scenes' depth registration are outside the timed part.
+#include "bench_commands.hpp"
+#include "bench_util.hpp"
+
+#include <tessera/datasets/rgbd_sequence.hpp>
+#include <tessera/evaluation/trajectory_metrics.hpp>
+#include <tessera/runtime/options.hpp>
+#include <tessera/runtime/process_stats.hpp>
+#include <tessera/visual_slam/depth_registration.hpp>
+#include <tessera/visual_slam/tracker.hpp>
+
+#include <opencv2/imgproc.hpp>
+#include <opencv2/rgbd/depth.hpp>
+
+#include <yaml-cpp/yaml.h>
+#include <nlohmann/json.hpp>
+
+#include <chrono>
+#include <cmath>
+#include <iomanip>
+#include <iostream>
+#include <limits>
+#include <memory>
+#include <string>
+#include <vector>
+
+namespace tessera::app {
+namespace {
+
+namespace vs = tessera::visual_slam;
+
+struct Options {
+  std::string path = "../shared/data/7scenes-redkitchen-rgbd";
+  int frames = 450;
+  std::vector<std::string> methods{"tessera", "opencv_rgbd", "opencv_rgbd_icp", "opencv_icp",
+                                   "opencv_fast_icp"};
+  std::vector<std::string> params;  // tracker options, key=value
+  bool no_registration = false;
+  bool json = false;
+};
+
+struct MethodResult {
+  std::string method;
+  std::size_t frames = 0, keyframes = 0, lost = 0;
+  std::vector<double> ms;
+  double ate_rmse = 0;
+  vs::FrameTiming split;  // tessera: mean per frame of each stage [ms]
+};
+
+// One frame as every method reads it: grey colour, depth in the camera the method tracks.
+struct Inputs {
+  cv::Mat rgb, gray, depth16, depth_m;  // depth_m: CV_32F metres, 0 -> NaN (OpenCV's odometry)
+  double depth_scale = 1000, timestamp = 0;
+};
+
+class Sequence {
+ public:
+  Sequence(const std::string& path, int frames, bool allow_registration)
+      : seq_(datasets::readRgbdSequence(path)) {
+    const auto& k = seq_.intrinsics;
+    depth_cam_ = {k.fx, k.fy, k.cx, k.cy, k.width, k.height};
+    calib_ = vs::sevenScenesColorCalibration();
+    registered_ = allow_registration && !seq_.color_registered;
+    if (!registered_) calib_ = {depth_cam_, Eigen::Isometry3d::Identity(), "none"};
+    count_ = std::min<std::size_t>(static_cast<std::size_t>(frames), seq_.frames.size());
+  }
+  std::size_t size() const { return count_; }
+  const vs::PinholeCamera& depthCamera() const { return depth_cam_; }
+  const vs::ColorCalibration& calibration() const { return calib_; }
+  bool registered() const { return registered_; }
+  std::string name() const { return seq_.folder.filename().string(); }
+
+  /// Frame i; `in_color`: depth registered to the colour camera (when registration applies).
+  Inputs load(std::size_t i, bool in_color) const {
+    auto images = datasets::loadRgbdImages(seq_, i);
+    Inputs in;
+    in.rgb = cv::Mat(images.height, images.width, CV_8UC3, images.color.data()).clone();
+    cv::cvtColor(in.rgb, in.gray, cv::COLOR_RGB2GRAY);
+    in.depth16 = cv::Mat(images.height, images.width, CV_16UC1, images.depth.data()).clone();
+    if (in_color && registered_) in.depth16 = vs::registerDepth(in.depth16, depth_cam_, calib_);
+    in.depth16.convertTo(in.depth_m, CV_32F, 1.0 / images.depth_scale);
+    in.depth_m.setTo(std::numeric_limits<float>::quiet_NaN(), in.depth16 == 0);
+    in.depth_scale = images.depth_scale;
+    in.timestamp = seq_.frames[i].timestamp;
+    return in;
+  }
+
+  /// ATE RMSE of depth-camera poses (one per frame, in frame order) against the dataset's.
+  double ate(const std::vector<Eigen::Isometry3d>& depth_to_world) const {
+    std::vector<mapping::TumPose> est, ref;
+    for (std::size_t i = 0; i < depth_to_world.size(); ++i) {
+      const auto stamp = static_cast<std::int64_t>(std::llround(seq_.frames[i].timestamp * 1e9));
+      est.push_back({stamp, depth_to_world[i].translation(),
+                     Eigen::Quaterniond(depth_to_world[i].rotation())});
+      if (const auto& p = seq_.frames[i].pose)
+        ref.push_back({stamp, p->translation(), Eigen::Quaterniond(p->rotation())});
+    }
+    return evaluation::computeAte(est, ref).translation.rmse;
+  }
+
+ private:
+  datasets::RgbdSequence seq_;
+  vs::PinholeCamera depth_cam_;
+  vs::ColorCalibration calib_;
+  bool registered_ = false;
+  std::size_t count_ = 0;
+};
+
+double msSince(std::chrono::steady_clock::time_point t0) {
+  return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+}
+
+// Tracker options from `--param key=value` pairs, read as a profile's params block would be.
+vs::TrackerOptions trackerOptions(const std::vector<std::string>& pairs) {
+  YAML::Node node(YAML::NodeType::Map);
+  for (const auto& p : pairs) {
+    const auto eq = p.find('=');
+    if (eq == std::string::npos || eq == 0)
+      throw ConfigError("bench rgbd: --param expects key=value, got '" + p + "'");
+    node[p.substr(0, eq)] = YAML::Load(p.substr(eq + 1));
+  }
+  return loadOptions<vs::TrackerOptions>(Params(node, "--param"));
+}
+
+MethodResult runTessera(const Sequence& s, const vs::TrackerOptions& options) {
+  MethodResult r;
+  r.method = "tessera";
+  vs::Tracker tracker(options, s.calibration().color);
+  std::vector<Eigen::Isometry3d> poses;
+  for (std::size_t i = 0; i < s.size(); ++i) {
+    const Inputs in = s.load(i, true);
+    const auto t0 = std::chrono::steady_clock::now();
+    const auto res = tracker.track({in.rgb, in.depth16, in.depth_scale, in.timestamp});
+    r.ms.push_back(msSince(t0));
+    const double n = static_cast<double>(s.size());
+    r.split.extraction_ms += res.timing.extraction_ms / n;
+    r.split.local_map_ms += res.timing.local_map_ms / n;
+    r.split.matching_ms += res.timing.matching_ms / n;
+    r.split.pnp_ms += res.timing.pnp_ms / n;
+    poses.push_back(res.camera_to_world * s.calibration().color_from_depth);
+  }
+  r.frames = s.size();
+  r.keyframes = tracker.stats().keyframes;
+  r.lost = tracker.stats().lost + tracker.stats().skipped;
+  r.ate_rmse = s.ate(poses);
+  return r;
+}
+
+// OpenCV's odometry, frame to frame: Rt maps points of the previous frame into the current one.
+// The colour-using ones track the colour camera (registered depth), the ICP ones the depth camera.
+MethodResult runOpenCv(const Sequence& s, const std::string& method) {
+  MethodResult r;
+  r.method = method;
+  const bool uses_color = method == "opencv_rgbd" || method == "opencv_rgbd_icp";
+  const vs::PinholeCamera& cam = uses_color ? s.calibration().color : s.depthCamera();
+  const Eigen::Isometry3d cam_from_depth =
+      uses_color ? s.calibration().color_from_depth : Eigen::Isometry3d::Identity();
+  const cv::Mat k = (cv::Mat_<float>(3, 3) << cam.fx, 0, cam.cx, 0, cam.fy, cam.cy, 0, 0, 1);
+  cv::Ptr<cv::rgbd::Odometry> odo;
+  if (method == "opencv_rgbd") odo = cv::rgbd::RgbdOdometry::create(k);
+  if (method == "opencv_rgbd_icp") odo = cv::rgbd::RgbdICPOdometry::create(k);
+  if (method == "opencv_icp") odo = cv::rgbd::ICPOdometry::create(k);
+  if (method == "opencv_fast_icp") odo = cv::rgbd::FastICPOdometry::create(k);
+  if (!odo) throw ConfigError("bench rgbd: unknown method '" + method + "'");
+  Eigen::Isometry3d pose = Eigen::Isometry3d::Identity();
+  std::vector<Eigen::Isometry3d> poses;
+  cv::Ptr<cv::rgbd::OdometryFrame> prev;
+  for (std::size_t i = 0; i < s.size(); ++i) {
+    const Inputs in = s.load(i, uses_color);
+    const auto t0 = std::chrono::steady_clock::now();
+    cv::Ptr<cv::rgbd::OdometryFrame> cur =
+        cv::rgbd::OdometryFrame::create(uses_color ? in.gray : cv::Mat(), in.depth_m);
+    odo->prepareFrameCache(cur, cv::rgbd::OdometryFrame::CACHE_ALL);
+    if (prev) {
+      cv::Mat rt;
+      if (odo->compute(prev, cur, rt)) {
+        Eigen::Matrix4d m;
+        for (int a = 0; a < 4; ++a)
+          for (int b = 0; b < 4; ++b) m(a, b) = rt.at<double>(a, b);
+        Eigen::Isometry3d cur_from_prev(m);
+        pose = pose * cur_from_prev.inverse();
+      } else {
+        ++r.lost;  // no motion estimate: the pose is held
+      }
+    }
+    r.ms.push_back(msSince(t0));
+    prev = cur;
+    poses.push_back(pose * cam_from_depth);
+  }
+  r.frames = s.size();
+  r.ate_rmse = s.ate(poses);
+  return r;
+}
+
+}  // namespace
+
+void addBenchRgbdCommand(CLI::App& bench, int& result) {
+  auto* cmd = bench.add_subcommand(
+      "rgbd",
+      "RGB-D visual odometry on a 7-Scenes or TUM folder: our tracker beside OpenCV contrib's "
+      "rgbd odometries (ATE RMSE, ms per frame, keyframes, lost frames)");
+  auto o = std::make_shared<Options>();
+  cmd->add_option("--path", o->path, "dataset folder (7-Scenes or TUM layout)")
+      ->capture_default_str();
+  cmd->add_option("--frames", o->frames, "frames from the start")->capture_default_str();
+  cmd->add_option("--methods", o->methods,
+                  "comma-separated: tessera, opencv_rgbd, opencv_rgbd_icp, opencv_icp, "
+                  "opencv_fast_icp")
+      ->delimiter(',')
+      ->capture_default_str();
+  cmd->add_option("--param", o->params,
+                  "tracker option key=value (repeatable; see the tracker's "
+                  "options in docs/algorithms.md)");
+  cmd->add_flag("--no-registration", o->no_registration,
+                "7-Scenes: use colour as if registered to depth");
+  cmd->add_flag("--json", o->json, "print exactly one JSON object on stdout");
+  cmd->callback([o, &result] {
+    if (o->frames < 2) throw ConfigError("--frames must be >= 2");
+    for (const auto& m : o->methods)
+      if (m != "tessera" && m != "opencv_rgbd" && m != "opencv_rgbd_icp" && m != "opencv_icp" &&
+          m != "opencv_fast_icp")
+        throw ConfigError("bench rgbd: unknown method '" + m + "'");
+    const vs::TrackerOptions tracker_options = trackerOptions(o->params);
+    const Sequence s(o->path, o->frames, !o->no_registration);
+    nlohmann::json results = nlohmann::json::array();
+    std::vector<MethodResult> runs;
+    for (const auto& m : o->methods) {
+      if (!o->json) std::cerr << "[bench rgbd] " << m << " ...\n";
+      runs.push_back(m == "tessera" ? runTessera(s, tracker_options) : runOpenCv(s, m));
+      const auto& r = runs.back();
+      double mean = 0;
+      for (double x : r.ms) mean += x / static_cast<double>(r.ms.size());
+      results.push_back({{"method", r.method},
+                         {"sequence", s.name()},
+                         {"frames", r.frames},
+                         {"ate_rmse_m", r.ate_rmse},
+                         {"ms_per_frame_mean", mean},
+                         {"ms_per_frame_p95", percentile(r.ms, 0.95)},
+                         {"keyframes", r.keyframes},
+                         {"loops_accepted", 0},
+                         {"loops_false", 0},
+                         {"lost_frames", r.lost}});
+    }
+    if (o->json) {
+      std::cout << nlohmann::json{{"machine", machineDescription()}, {"results", results}}.dump(2)
+                << "\n";
+      result = 0;
+      return;
+    }
+    std::cout << "machine: " << machineDescription() << "\n"
+              << "sequence: " << s.name() << ", " << s.size() << " frames; depth "
+              << (s.registered() ? "registered to colour (" + s.calibration().source + ")"
+                                 : std::string("as given"))
+              << "\n\n"
+              << std::left << std::setw(18) << "method" << std::right << std::setw(10) << "ATE m"
+              << std::setw(10) << "ms mean" << std::setw(10) << "ms p95" << std::setw(11)
+              << "keyframes" << std::setw(7) << "lost\n";
+    for (const auto& r : results)
+      std::cout << std::left << std::setw(18) << r["method"].get<std::string>() << std::right
+                << std::fixed << std::setprecision(4) << std::setw(10)
+                << r["ate_rmse_m"].get<double>() << std::setprecision(1) << std::setw(10)
+                << r["ms_per_frame_mean"].get<double>() << std::setw(10)
+                << r["ms_per_frame_p95"].get<double>() << std::setw(11)
+                << r["keyframes"].get<std::size_t>() << std::setw(6)
+                << r["lost_frames"].get<std::size_t>() << "\n";
+    for (const auto& r : runs)
+      if (r.method == "tessera")
+        std::cout << "\ntessera per frame: extraction " << r.split.extraction_ms
+                  << " ms, local map " << r.split.local_map_ms << " ms, matching "
+                  << r.split.matching_ms << " ms, PnP " << r.split.pnp_ms << " ms; p50 "
+                  << percentile(r.ms, 0.5) << " ms\n";
+    result = 0;
+  });
+}
+
+}  // namespace tessera::app
