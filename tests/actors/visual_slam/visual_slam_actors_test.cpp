@@ -13,6 +13,7 @@
 #include <catch2/catch.hpp>
 
 #include <cmath>
+#include <cstring>
 #include <functional>
 #include <limits>
 #include <numbers>
@@ -268,4 +269,35 @@ TEST_CASE("keyframe_graph counts and skips bad keyframe and constraint messages"
   const auto poses = h.published<msg::KeyframePoses>("keyframe_poses");
   REQUIRE(poses.size() == 1);  // at stop
   for (const auto p : poses.back()->getPoses()) CHECK(std::isfinite(p.getPose().getZ()));
+}
+
+TEST_CASE("keyframe messages carry SIFT (float) descriptors and depth samples intact",
+          "[visual_slam][actors]") {
+  Keyframe k = syntheticKeyframe(3, 1.0, 5);
+  k.descriptors = cv::Mat(5, 128, CV_32F);
+  for (int i = 0; i < 5; ++i)
+    for (int b = 0; b < 128; ++b) k.descriptors.at<float>(i, b) = 0.5f * static_cast<float>(i * b);
+  cv::Mat depth(480, 640, CV_16UC1, cv::Scalar(0));
+  depth.at<std::uint16_t>(8, 16) = 1234;  // sample (2, 1) at step 8
+  Loan<msg::Keyframe> loan;
+  KeyframeContent c;
+  c.keyframe = &k;
+  c.camera = {525, 525, 319.5, 239.5, 640, 480};
+  c.depth = depth;
+  c.depth_step = 8;
+  writeKeyframe(*loan, c);
+  const Message<msg::Keyframe> m(std::move(loan).seal());
+  CHECK(keyframeMessageError(*m) == "");
+  CHECK(std::string(m->getDescriptorType().cStr()) == "f32");
+  CHECK(m->getDescriptorBytes() == 512);
+  float value = 0;
+  std::memcpy(&value, m->getDescriptors().begin() + 4 * 512 + 4 * 100, 4);
+  CHECK(value == 200.0f);
+  REQUIRE(m->getDepthWidth() == 80);
+  REQUIRE(m->getDepthHeight() == 60);
+  const auto d = m->getDepth();
+  const std::size_t at = 2 * (1 * 80 + 2);
+  CHECK((d[at] | (d[at + 1] << 8)) == 1234);
+  CHECK(m->getPoints()[4].getValid());
+  CHECK(std::abs(m->getPoints()[4].getZ() - 1.04f) < 1e-6);
 }
