@@ -12,6 +12,7 @@
 #include <opencv2/imgproc.hpp>
 
 #include <algorithm>
+#include <cctype>
 #include <chrono>
 #include <cmath>
 #include <filesystem>
@@ -65,7 +66,8 @@ std::vector<fs::path> imageFiles(const TrainSettings& s) {
   std::vector<fs::path> all;
   for (const auto& e : fs::directory_iterator(s.images)) {
     auto ext = e.path().extension().string();
-    std::transform(ext.begin(), ext.end(), ext.begin(), [](unsigned char c) { return std::tolower(c); });
+    std::transform(ext.begin(), ext.end(), ext.begin(),
+                   [](unsigned char c) { return std::tolower(c); });
     // 7-Scenes folders hold depth PNGs beside the colour images: skip them.
     if (e.path().filename().string().find(".depth.") != std::string::npos) continue;
     if (e.is_regular_file() && (ext == ".png" || ext == ".pgm" || ext == ".jpg" || ext == ".jpeg"))
@@ -132,7 +134,8 @@ void printInfo(const vs::Vocabulary& voc, const std::string& path) {
   }
   std::cout << path << ": k " << voc.branching() << ", L " << voc.levels() << ", "
             << voc.nodeCount() << " nodes (" << inner << " inner), " << voc.wordCount()
-            << " words (" << std::setprecision(3) << 100.0 * static_cast<double>(voc.wordCount()) /
+            << " words (" << std::setprecision(3)
+            << 100.0 * static_cast<double>(voc.wordCount()) /
                    std::pow(voc.branching(), voc.levels())
             << " % of k^L)\n"
             << "nodes per depth:";
@@ -185,8 +188,8 @@ void addVocabCommand(CLI::App& app, int& result) {
     std::size_t total = 0;
     for (const auto& d : descriptors) total += static_cast<std::size_t>(d.rows);
     const auto t1 = std::chrono::steady_clock::now();
-    std::cerr << "training k " << o.k << ", L " << o.levels << " on " << total
-              << " descriptors of " << descriptors.size() << " images\n";
+    std::cerr << "training k " << o.k << ", L " << o.levels << " on " << total << " descriptors of "
+              << descriptors.size() << " images\n";
     o.progress = [total](std::size_t nodes, std::size_t clustered) {
       std::cerr << "training: " << nodes << " inner nodes, " << clustered
                 << " descriptor assignments (" << total << " per level)\n";
@@ -201,7 +204,8 @@ void addVocabCommand(CLI::App& app, int& result) {
     result = 0;
   });
 
-  auto* info = vocab->add_subcommand("info", "describe a vocabulary file (ours or DBoW2/DBoW3 YAML)");
+  auto* info =
+      vocab->add_subcommand("info", "describe a vocabulary file (ours or DBoW2/DBoW3 YAML)");
   auto file = std::make_shared<std::string>();
   info->add_option("file", *file, "vocabulary file")->required();
   info->callback([file, &result] {

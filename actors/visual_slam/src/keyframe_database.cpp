@@ -24,12 +24,18 @@ void KeyframeDatabaseOptions::validate() const {
 
 std::string_view statusName(QueryStatus status) {
   switch (status) {
-    case QueryStatus::kTooFewEntries: return "too_few_entries";
-    case QueryStatus::kLowNormaliser: return "low_normaliser";
-    case QueryStatus::kNoCandidates: return "no_candidates";
-    case QueryStatus::kNotConsistent: return "not_consistent";
-    case QueryStatus::kAccepted: return "accepted";
-    case QueryStatus::kCandidates: return "candidates";
+    case QueryStatus::kTooFewEntries:
+      return "too_few_entries";
+    case QueryStatus::kLowNormaliser:
+      return "low_normaliser";
+    case QueryStatus::kNoCandidates:
+      return "no_candidates";
+    case QueryStatus::kNotConsistent:
+      return "not_consistent";
+    case QueryStatus::kAccepted:
+      return "accepted";
+    case QueryStatus::kCandidates:
+      return "candidates";
   }
   return "?";
 }

@@ -90,7 +90,8 @@ BinaryDescriptor majority(const std::vector<BinaryDescriptor>& all,
   for (auto m : members) {
     const auto& d = all[m];
     for (int bit = 0; bit < 256; ++bit)
-      ones[static_cast<std::size_t>(bit)] += (d[static_cast<std::size_t>(bit / 64)] >> (bit % 64)) & 1U;
+      ones[static_cast<std::size_t>(bit)] +=
+          (d[static_cast<std::size_t>(bit / 64)] >> (bit % 64)) & 1U;
   }
   BinaryDescriptor c{};
   for (int bit = 0; bit < 256; ++bit)

@@ -48,8 +48,8 @@ Vocabulary Vocabulary::fromNodes(int k, int levels, const std::vector<NodeRecord
     if (r.id < 1 || r.id > n)
       fail(source, nodeField(i, "nodeId") + " = " + std::to_string(r.id) + ": out of range 1.." +
                        std::to_string(n));
-    if (listed[r.id]) fail(source, nodeField(i, "nodeId") + " = " + std::to_string(r.id) +
-                                       ": listed twice");
+    if (listed[r.id])
+      fail(source, nodeField(i, "nodeId") + " = " + std::to_string(r.id) + ": listed twice");
     listed[r.id] = 1;
     if (r.parent > n || r.parent == r.id)
       fail(source, nodeField(i, "parentId") + " = " + std::to_string(r.parent) +
@@ -70,14 +70,14 @@ Vocabulary Vocabulary::fromNodes(int k, int levels, const std::vector<NodeRecord
     queue.pop_front();
     if (v.nodes_[id].children.size() > static_cast<std::size_t>(k))
       fail(source, "vocabulary.nodes: node " + std::to_string(id) + " has " +
-                       std::to_string(v.nodes_[id].children.size()) + " children, more than k = " +
-                       std::to_string(k));
+                       std::to_string(v.nodes_[id].children.size()) +
+                       " children, more than k = " + std::to_string(k));
     for (NodeId c : v.nodes_[id].children) {
       v.nodes_[c].depth = v.nodes_[id].depth + 1;
       if (v.nodes_[c].depth > levels)
         fail(source, "vocabulary.nodes: node " + std::to_string(c) + " at depth " +
-                         std::to_string(v.nodes_[c].depth) + ", deeper than L = " +
-                         std::to_string(levels));
+                         std::to_string(v.nodes_[c].depth) +
+                         ", deeper than L = " + std::to_string(levels));
       ++reached;
       queue.push_back(c);
     }
@@ -93,8 +93,8 @@ Vocabulary Vocabulary::fromNodes(int k, int levels, const std::vector<NodeRecord
       fail(source, field + ".wordId = " + std::to_string(word) + ": out of range 0.." +
                        std::to_string(words.size() - 1));
     if (id < 1 || id > n)
-      fail(source, field + ".nodeId = " + std::to_string(id) + ": out of range 1.." +
-                       std::to_string(n));
+      fail(source,
+           field + ".nodeId = " + std::to_string(id) + ": out of range 1.." + std::to_string(n));
     if (!v.nodes_[id].children.empty())
       fail(source, field + ".nodeId = " + std::to_string(id) + ": not a leaf");
     if (v.nodes_[id].word >= 0 || v.words_[word] != 0)
@@ -119,7 +119,8 @@ BinaryDescriptor parseDescriptor(const std::string& text, const std::string& sou
   while (in >> token) {
     char* end = nullptr;
     const long x = std::strtol(token.c_str(), &end, 10);
-    if (end == token.c_str() || *end != '\0') fail(source, field + ": '" + token + "' is not a number");
+    if (end == token.c_str() || *end != '\0')
+      fail(source, field + ": '" + token + "' is not a number");
     values.push_back(x);
   }
   std::size_t first = 0;
@@ -183,7 +184,8 @@ Vocabulary loadYaml(const std::filesystem::path& path) {
       r.weight = static_cast<double>(w);
       const cv::FileNode d = n["descriptor"];
       if (d.empty() || !d.isString()) fail(source, nodeField(i, "descriptor") + ": missing");
-      r.descriptor = parseDescriptor(static_cast<std::string>(d), source, nodeField(i, "descriptor"));
+      r.descriptor =
+          parseDescriptor(static_cast<std::string>(d), source, nodeField(i, "descriptor"));
       records.push_back(r);
     }
     const cv::FileNode list = voc["words"];
@@ -226,13 +228,13 @@ Vocabulary loadBinary(const std::filesystem::path& path) {
   const auto n = get<std::uint32_t>(in, source, "node count");
   const auto w = get<std::uint32_t>(in, source, "word count");
   // Sizes checked against the file before allocating, so a corrupt count cannot exhaust memory.
-  const auto expected = sizeof(kMagic) + 16 + std::uintmax_t{n} * (16 + kDescriptorBytes) +
-                        std::uintmax_t{w} * 4;
+  const auto expected =
+      sizeof(kMagic) + 16 + std::uintmax_t{n} * (16 + kDescriptorBytes) + std::uintmax_t{w} * 4;
   const auto actual = std::filesystem::file_size(path);
   if (actual != expected)
-    fail(source, "size " + std::to_string(actual) + " bytes, expected " +
-                     std::to_string(expected) + " for " + std::to_string(n) + " nodes and " +
-                     std::to_string(w) + " words (truncated or corrupt)");
+    fail(source, "size " + std::to_string(actual) + " bytes, expected " + std::to_string(expected) +
+                     " for " + std::to_string(n) + " nodes and " + std::to_string(w) +
+                     " words (truncated or corrupt)");
   if (k > 1000 || levels > 100) fail(source, "k/L: implausible values (corrupt header)");
   std::vector<Vocabulary::NodeRecord> records(n);
   for (std::uint32_t i = 0; i < n; ++i) {
@@ -241,7 +243,8 @@ Vocabulary loadBinary(const std::filesystem::path& path) {
     records[i].parent = get<std::uint32_t>(in, source, field);
     records[i].weight = get<double>(in, source, field);
     std::array<std::uint8_t, kDescriptorBytes> bytes{};
-    if (!in.read(reinterpret_cast<char*>(bytes.data()), bytes.size())) fail(source, field + ": truncated");
+    if (!in.read(reinterpret_cast<char*>(bytes.data()), bytes.size()))
+      fail(source, field + ": truncated");
     records[i].descriptor = toBinaryDescriptor(bytes.data());
   }
   std::vector<std::pair<WordId, NodeId>> words(w);
@@ -285,8 +288,8 @@ void Vocabulary::save(const std::filesystem::path& path) const {
       put(out, node.parent);
       put(out, node.weight);
       for (int b = 0; b < kDescriptorBytes; ++b)
-        put(out, static_cast<std::uint8_t>(
-                     node.descriptor[static_cast<std::size_t>(b / 8)] >> (8 * (b % 8))));
+        put(out, static_cast<std::uint8_t>(node.descriptor[static_cast<std::size_t>(b / 8)] >>
+                                           (8 * (b % 8))));
       queue.push_back(c);
     }
   }

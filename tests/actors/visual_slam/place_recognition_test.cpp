@@ -11,8 +11,8 @@
 
 #include <catch2/catch.hpp>
 
-#include <opencv2/imgproc.hpp>
 #include <zlib.h>
+#include <opencv2/imgproc.hpp>
 
 #include <algorithm>
 #include <cmath>
@@ -145,8 +145,8 @@ TEST_CASE("toy vocabulary: words, tf-idf weights and the L1 score by hand", "[vi
 TEST_CASE("training recovers well-separated clusters and their idf", "[visual_slam][bow]") {
   // Four prototypes: P0 zero, P1 bytes 0-7 set (64 bits from P0), P2 all set, P3 bytes 0-7 clear
   // (64 bits from P2); the pairs are >= 192 bits apart. Noisy copies flip 3 bits.
-  const std::vector<std::array<std::uint8_t, 32>> protos = {
-      bytes(0x00), bytes(0x00, 0, 8, 0xFF), bytes(0xFF), bytes(0xFF, 0, 8, 0x00)};
+  const std::vector<std::array<std::uint8_t, 32>> protos = {bytes(0x00), bytes(0x00, 0, 8, 0xFF),
+                                                            bytes(0xFF), bytes(0xFF, 0, 8, 0x00)};
   std::mt19937 rng(7);
   std::uniform_int_distribution<int> bit(0, 255);
   auto noisy = [&](std::size_t p) {
@@ -283,9 +283,9 @@ TEST_CASE("keyframe database: eta, the alpha threshold and the normaliser skip",
   o.min_normaliser = 0.05;
   vs::KeyframeDatabase db(o);
   CHECK(db.query({{1, 1.0}}).status == vs::QueryStatus::kTooFewEntries);
-  db.add({{1, 1.0}});          // 0
-  db.add({{2, 1.0}});          // 1
-  db.add({{3, 1.0}});          // 2
+  db.add({{1, 1.0}});            // 0
+  db.add({{2, 1.0}});            // 1
+  db.add({{3, 1.0}});            // 2
   db.add({{4, 0.5}, {5, 0.5}});  // 3 (latest)
   CHECK(db.entriesWith(1) == std::vector<std::size_t>{0});
   // v shares word 1 with entry 0 and word 4 with the latest entry: s(v, e0) = 0.4,
@@ -330,7 +330,8 @@ TEST_CASE("keyframe database: temporal consistency accepts after k consecutive m
   vs::KeyframeDatabase db(o);
   // A route of 10 places (words 10..19), each keyframe sees its place and the next one.
   auto place = [](vs::WordId p) { return vs::BowVector{{10 + p, 0.5}, {11 + p, 0.5}}; };
-  for (vs::WordId p = 0; p < 10; ++p) CHECK(db.detect(place(p)).status != vs::QueryStatus::kAccepted);
+  for (vs::WordId p = 0; p < 10; ++p)
+    CHECK(db.detect(place(p)).status != vs::QueryStatus::kAccepted);
   // Back at the start: a keyframe seeing places 0 and 1 and the last place (so the normaliser is
   // not zero). The first two revisits are not consistent enough yet, the third is accepted.
   auto revisit = [](vs::WordId p) {
@@ -367,10 +368,10 @@ TEST_CASE("7-Scenes RedKitchen: whole-image scores with the DBoW3 vocabulary",
   REQUIRE(seq.frames.size() >= 450);
   const auto& k = seq.intrinsics;
   const vs::FeatureExtractor extractor({}, {k.fx, k.fy, k.cx, k.cy, k.width, k.height});
-  // Every 10th frame of 0-449: 45 images.
+  // Every 5th frame of 0-449: 90 images.
   std::vector<std::size_t> frames;
   std::vector<vs::BowVector> bows;
-  for (std::size_t i = 0; i < 450; i += 10) {
+  for (std::size_t i = 0; i < 450; i += 5) {
     auto images = tessera::datasets::loadRgbdImages(seq, i);
     const cv::Mat rgb(images.height, images.width, CV_8UC3, images.color.data());
     cv::Mat gray;
@@ -393,12 +394,13 @@ TEST_CASE("7-Scenes RedKitchen: whole-image scores with the DBoW3 vocabulary",
         best_score = s;
         best = b;
       }
-      if (b >= a + 10) pairs.push_back({a, b, s});  // >= 100 frames apart
+      if (b >= a + 20) pairs.push_back({a, b, s});  // >= 100 frames apart
     }
     CHECK(best == a);  // every image scores itself highest (s = 1)
     CHECK(best_score == Approx(1.0));
   }
-  std::sort(pairs.begin(), pairs.end(), [](const Pair& x, const Pair& y) { return x.score > y.score; });
+  std::sort(pairs.begin(), pairs.end(),
+            [](const Pair& x, const Pair& y) { return x.score > y.score; });
   // Report the best-scoring pairs at least 100 frames apart with how far apart the cameras were
   // (ground truth): a revisit is a pair whose cameras are close and look the same way.
   int revisits = 0;
@@ -408,12 +410,33 @@ TEST_CASE("7-Scenes RedKitchen: whole-image scores with the DBoW3 vocabulary",
     const auto& pa = *seq.frames[frames[p.a]].pose;
     const auto& pb = *seq.frames[frames[p.b]].pose;
     const double dist = (pa.translation() - pb.translation()).norm();
-    const double angle = Eigen::AngleAxisd(pa.linear().transpose() * pb.linear()).angle() * 180 / M_PI;
+    const double angle =
+        Eigen::AngleAxisd(pa.linear().transpose() * pb.linear()).angle() * 180 / M_PI;
     const bool revisit = dist < 0.5 && angle < 30;
     revisits += revisit;
     WARN("frames " << frames[p.a] << " and " << frames[p.b] << ": s = " << p.score << ", cameras "
                    << dist << " m and " << angle << " deg apart" << (revisit ? " (revisit)" : ""));
   }
+  // The keyframe database over the same images in order (each one a keyframe; the 20 most recent,
+  // 100 frames, excluded): what it accepts, judged by the same pose criterion. Reported, not
+  // checked: this is the candidate stage, geometric verification decides what becomes a loop.
+  vs::KeyframeDatabase db;
+  int accepted = 0, accepted_true = 0, queries_with_candidates = 0;
+  for (std::size_t i = 0; i < bows.size(); ++i) {
+    const auto r = db.detect(bows[i]);
+    if (!r.candidates.empty()) ++queries_with_candidates;
+    if (!r.accepted) continue;
+    ++accepted;
+    const auto& pa = *seq.frames[frames[i]].pose;
+    const auto& pb = *seq.frames[frames[r.accepted->entry]].pose;
+    const double dist = (pa.translation() - pb.translation()).norm();
+    const double angle =
+        Eigen::AngleAxisd(pa.linear().transpose() * pb.linear()).angle() * 180 / M_PI;
+    accepted_true += dist < 0.5 && angle < 30;
+  }
+  WARN("keyframe database: " << queries_with_candidates << " of " << bows.size()
+                             << " queries with candidates, " << accepted << " accepted, "
+                             << accepted_true << " of them revisits by the pose criterion");
   WARN(revisits << " of the " << shown << " best pairs >= 100 frames apart are revisits "
                 << "(cameras < 0.5 m and < 30 deg apart)");
 }

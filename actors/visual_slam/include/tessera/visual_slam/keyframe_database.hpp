@@ -26,13 +26,13 @@
 namespace tessera::visual_slam {
 
 struct KeyframeDatabaseOptions {
-  int recent_excluded = 20;      ///< most recent entries never returned as candidates
+  int recent_excluded = 20;       ///< most recent entries never returned as candidates
   double min_normaliser = 0.005;  ///< skip the query when s(v_t, v_{t-1}) is below this
-  double alpha = 0.3;            ///< smallest normalised score eta of a candidate
-  int max_candidates = 10;       ///< ranked candidates kept per query
-  int min_common_words = 1;      ///< an entry must share this many words with the query
-  int min_consistency = 3;       ///< consecutive consistent queries to accept a loop
-  int consistency_window = 3;    ///< [entries] how far a candidate may move between queries
+  double alpha = 0.3;             ///< smallest normalised score eta of a candidate
+  int max_candidates = 10;        ///< ranked candidates kept per query
+  int min_common_words = 1;       ///< an entry must share this many words with the query
+  int min_consistency = 3;        ///< consecutive consistent queries to accept a loop
+  int consistency_window = 3;     ///< [entries] how far a candidate may move between queries
 
   template <class V>
   void visit(V& v) {

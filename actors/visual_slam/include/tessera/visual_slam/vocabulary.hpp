@@ -78,9 +78,9 @@ class Vocabulary {
     NodeId parent = 0;
     std::vector<NodeId> children;
     BinaryDescriptor descriptor{};
-    double weight = 0;   ///< idf for words, 0 for inner nodes
-    int word = -1;       ///< word id for leaves, -1 for inner nodes
-    int depth = 0;       ///< 0 for the root
+    double weight = 0;  ///< idf for words, 0 for inner nodes
+    int word = -1;      ///< word id for leaves, -1 for inner nodes
+    int depth = 0;      ///< 0 for the root
   };
 
   Vocabulary() = default;
@@ -133,8 +133,8 @@ class Vocabulary {
  private:
   int k_ = 0;
   int levels_ = 0;
-  std::vector<Node> nodes_;     ///< index = node id; nodes_[0] is the root
-  std::vector<NodeId> words_;   ///< index = word id
+  std::vector<Node> nodes_;    ///< index = node id; nodes_[0] is the root
+  std::vector<NodeId> words_;  ///< index = word id
 };
 
 }  // namespace tessera::visual_slam
