@@ -55,7 +55,7 @@ RgbdCameraActor::RgbdCameraActor(RgbdCameraOptions options)
   } catch (const std::invalid_argument& e) {
     // What the config check cannot see: the wall height, and the mount against it.
     const std::string what = e.what();
-    kErrors.fail(what.find("wall_height") != std::string::npos ? "wall_height" : "camera.mount.z",
+    kErrors.fail(what.find("mount.z") != std::string::npos ? "camera.mount.z" : "wall_height",
                  what);
   }
   noise_seed_ = detail::seededStream(o.seed, detail::NoiseStream::kRgbdCamera)();

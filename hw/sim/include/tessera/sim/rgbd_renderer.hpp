@@ -6,13 +6,15 @@
 // per wall face, per box face, floor and ceiling) so that a corner detector finds features
 // everywhere; faces are shaded by their orientation so edges show too.
 //
-// Rendering casts one ray per pixel through its centre: an exact grid traversal over the wall
-// cells (as RayCaster), bounded by the floor and ceiling, and slab tests against the furniture
-// boxes near the camera; rows run in parallel (TBB). Depth is the z coordinate in the camera
-// (not the ray length), with optional Gaussian noise of std depth_noise * z^2 (structured-light
-// cameras' error grows with z squared) and 0 (no reading) outside [range_min, range_max]; colour
-// gets optional Gaussian noise of image_noise grey levels per channel. The noise of a frame is a
-// function of its noise seed alone, so renders repeat exactly whatever the thread count.
+// Rendering casts one ray per pixel: an exact grid traversal over the wall cells (as RayCaster,
+// but jumping across open space with a distance field), bounded by the floor and ceiling, and slab
+// tests against the furniture boxes whose projection covers the pixel; rows run in parallel (TBB).
+// Depth is the z coordinate in the camera (not the ray length), with optional noise of std
+// depth_noise * z^2 (structured-light cameras' error grows with z squared) and 0 (no reading)
+// outside [range_min, range_max]; colour gets optional noise of image_noise grey levels per
+// channel. Noise is near-Gaussian (a sum of four uniforms: zero mean, the given std, bounded at
+// 3.46 std). The noise of a frame is a function of its noise seed alone, so renders repeat
+// exactly whatever the thread count.
 //
 // Frames: the camera is in the optical convention (x right, y down, z forward); pixel (u, v) with
 // depth z is at ((u - cx) z / fx, (v - cy) z / fy, z). The mount is the pose of the camera body
@@ -30,6 +32,7 @@
 #include <Eigen/Geometry>
 
 #include <cstdint>
+#include <span>
 #include <vector>
 
 namespace tessera::sim {
@@ -108,12 +111,14 @@ class RgbdRenderer {
 
  private:
   struct Hit;
-  Hit trace(const Eigen::Vector3d& o, const Eigen::Vector3d& d,
-            const std::vector<int>& boxes) const;
+  /// The first surface along o + t d among the walls, floor, ceiling and the given boxes.
+  Hit trace(const Eigen::Vector3d& o, const Eigen::Vector3d& d, std::span<const int> boxes) const;
 
   const World* world_;
   double wall_height_;
   RgbdCameraConfig config_;
+  /// Per cell: Chebyshev distance in cells to the nearest wall cell, capped at 255 (0 = wall).
+  std::vector<std::uint8_t> skip_;
 };
 
 }  // namespace tessera::sim
