@@ -194,6 +194,17 @@ World World::builtinOffice() {
                              {21.0, 27.5, 0.5}, {3.0, 27.0, 0.35},  {37.0, 3.0, 0.4}};
   for (const auto& d : discs) w.fillDisc(d[0], d[1], d[2]);
 
+  // 3D-only furniture (furniture.hpp) near the route through the rooms: tables whose tops
+  // (0.75 m) the planar laser passes under, chairs and a shelf, for the RGB-D camera.
+  w.addFurniture(makeTable(18.6, 4.6, 20.0, 5.6));
+  w.addFurniture(makeChair(19.3, 4.1, 3));
+  w.addFurniture(makeTable(35.2, 11.4, 36.6, 12.2));
+  w.addFurniture(makeChair(36.9, 11.8, 0));
+  w.addFurniture(makeTable(8.6, 24.7, 10.0, 25.5));
+  w.addFurniture(makeChair(9.3, 26.0, 1));
+  w.addFurniture(makeShelf(16.15, 1.0, 16.55, 2.4, 1.8, 4, 2));
+  w.addFurniture(makeShelf(39.35, 9.0, 39.75, 10.4, 1.8, 4, 0));
+
   // Default route, counter-clockwise: the bottom corridor with a detour through the middle
   // bottom room, the east corridor with a detour into the lower east room, the top corridor with
   // the north-west room, down the west corridor, east through the cross corridor with the

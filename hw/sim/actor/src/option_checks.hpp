@@ -40,6 +40,7 @@ enum class NoiseStream : std::uint32_t {
   kLaser = 0x6c617372u,           // "lasr"
   kLandmarkSensor = 0x6c6d6b73u,  // "lmks"
   kCameras = 0x63616d73u,         // "cams"
+  kRgbdCamera = 0x72676264u,      // "rgbd"
 };
 std::mt19937_64 seededStream(std::uint64_t seed, NoiseStream stream);
 

@@ -9,12 +9,17 @@
 // A world may carry a default route (waypoints in metres, in free space) that the simulator
 // drives when the profile gives none. The built-in office has one; image worlds do not.
 //
+// A world may also carry furniture for its 3D view (furniture.hpp): boxes the RGB-D renderer draws
+// and the planar laser does not see. The built-in office has tables, chairs and a shelf.
+//
 // A world may also carry scenario data its built-in scenario needs: ceiling camera sites (the
 // seed 000 camera floor), point landmarks (the seed 004 landmark world). wallSegments() derives
 // the true straight wall faces from the bitmap (to score line maps against, seed 001 room).
 //
 // Ownership: a World is a value (copyable); it owns its cells and route.
 #pragma once
+
+#include <tessera/sim/furniture.hpp>
 
 #include <Eigen/Core>
 
@@ -131,6 +136,12 @@ class World {
   const std::vector<PointLandmark>& landmarks() const { return landmarks_; }
   void setLandmarks(std::vector<PointLandmark> landmarks) { landmarks_ = std::move(landmarks); }
 
+  /// Furniture boxes of the 3D view (empty unless the world has them).
+  const std::vector<FurnitureBox>& furniture() const { return furniture_; }
+  void addFurniture(const std::vector<FurnitureBox>& boxes) {
+    furniture_.insert(furniture_.end(), boxes.begin(), boxes.end());
+  }
+
   friend bool operator==(const World& a, const World& b) {
     return a.width_ == b.width_ && a.height_ == b.height_ && a.resolution_ == b.resolution_ &&
            a.cells_ == b.cells_;
@@ -144,6 +155,7 @@ class World {
   std::string name_;
   std::vector<CameraSite> camera_sites_;
   std::vector<PointLandmark> landmarks_;
+  std::vector<FurnitureBox> furniture_;
 };
 
 /// The wall faces of the bitmap: every boundary between a wall cell and a free cell inside the
