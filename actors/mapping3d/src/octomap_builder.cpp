@@ -85,14 +85,20 @@ void insertScan(octomap::OcTree& tree, const Scan& scan, const OctoMapOptions& o
   const double range = o.max_range > 0 ? o.max_range : -1.0;
   switch (o.method) {
     case InsertMethod::kPointCloud:
-      tree.insertPointCloud(scan.points, scan.origin, range, false, false);
+      tree.insertPointCloud(scan.points, scan.origin, range, o.lazy_eval, false);
       break;
     case InsertMethod::kDiscretized:
-      tree.insertPointCloud(scan.points, scan.origin, range, false, true);
+      tree.insertPointCloud(scan.points, scan.origin, range, o.lazy_eval, true);
       break;
     case InsertMethod::kRays:
-      tree.insertPointCloudRays(scan.points, scan.origin, range, false);
+      tree.insertPointCloudRays(scan.points, scan.origin, range, o.lazy_eval);
       break;
+  }
+  if (o.lazy_eval) {
+    // What the eager path does per voxel, once per cloud: parents' occupancy, then merging of
+    // children that agree (without it the tree keeps every leaf and uses ~5x the memory).
+    tree.updateInnerOccupancy();
+    tree.prune();
   }
 }
 

@@ -106,6 +106,15 @@ TEST_CASE("a wall is occupied where it is, free in front and unknown behind",
     CHECK(map->occupancy({0.025, 0.025, 2.025}) == Occupancy::kUnknown);
     CHECK(map->occupancy({0.025, 0.025, 1.025}) == Occupancy::kFree);
   }
+  SECTION("lazy evaluation gives the same map") {
+    OctoMapOptions options;
+    options.lazy_eval = false;
+    const auto eager = wallMap(options);
+    const auto lazy = wallMap({});
+    CHECK(lazy->stats().occupied_leaves == eager->stats().occupied_leaves);
+    CHECK(lazy->stats().leaves == eager->stats().leaves);
+    CHECK(lazy->occupancy({0.025, 0.025, 2.025}) == Occupancy::kOccupied);
+  }
   SECTION("downsampling before insertion keeps the wall") {
     OctoMapOptions options;
     options.downsample_leaf = 0.05;

@@ -55,6 +55,10 @@ struct OctoMapOptions {
   /// [m] voxel-filter each cloud at this leaf before insertion (0 = off); at the resolution it
   /// keeps one point per voxel, which is what the tree can hold anyway.
   double downsample_leaf = 0.0;
+  /// octomap's lazy evaluation: inner nodes are updated and pruned once per cloud
+  /// (updateInnerOccupancy, prune) instead of after every voxel update: the same tree, faster
+  /// (docs/benchmarks.md#octomap-insertion-tessera-bench-octomap).
+  bool lazy_eval = true;
 
   template <class V>
   void visit(V& v) {
@@ -67,6 +71,7 @@ struct OctoMapOptions {
     v("log_odds_occupied", log_odds_occupied, "log-odds above which a voxel is occupied");
     v("method", method, "insertion: pointcloud, discretized or rays");
     v("downsample_leaf", downsample_leaf, "voxel-filter clouds before insertion; 0 = off [m]");
+    v("lazy_eval", lazy_eval, "update inner nodes once per cloud instead of per voxel");
   }
   /// Throws std::invalid_argument naming the first bad option (l_min < l_occupied < l_max,
   /// l_miss < 0 < l_hit, resolution > 0, all finite).
