@@ -15,6 +15,7 @@ void addBenchCommands(CLI::App& app, int& result) {
   addBenchLandmarksCommand(*bench, result);
   addBenchMatcherCommand(*bench, result);
   addBenchRgbdCommand(*bench, result);
+  addBenchOctomapCommand(*bench, result);
 }
 
 }  // namespace tessera::app

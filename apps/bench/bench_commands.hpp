@@ -20,5 +20,7 @@ void addBenchLandmarksCommand(CLI::App& bench, int& result);
 void addBenchMatcherCommand(CLI::App& bench, int& result);
 /// Adds `tessera bench rgbd` (RGB-D visual odometry: our tracker beside OpenCV contrib's).
 void addBenchRgbdCommand(CLI::App& bench, int& result);
+/// Adds `tessera bench octomap` (OctoMap insertion rate and memory from RGB-D keyframe clouds).
+void addBenchOctomapCommand(CLI::App& bench, int& result);
 
 }  // namespace tessera::app

@@ -1,0 +1,272 @@
+// OctoMapBuilder: octomap::OcTree insertion with our log-odds options, and the background rebuild
+// that swaps a fresh tree in once every keyframe has been re-inserted at its new pose.
+#include <tessera/mapping3d/octomap_builder.hpp>
+
+#include <octomap/OcTree.h>
+
+#include <cmath>
+#include <condition_variable>
+#include <mutex>
+#include <stdexcept>
+#include <thread>
+
+namespace tessera::mapping3d {
+
+std::string_view methodName(InsertMethod m) {
+  for (const auto& [name, value] : optionNames(m))
+    if (value == m) return name;
+  return "?";
+}
+
+void OctoMapOptions::validate() const {
+  auto finite = [](double x, const char* name) {
+    if (!std::isfinite(x)) throw std::invalid_argument(std::string(name) + " must be finite");
+  };
+  finite(resolution, "resolution");
+  finite(max_range, "max_range");
+  finite(log_odds_hit, "log_odds_hit");
+  finite(log_odds_miss, "log_odds_miss");
+  finite(log_odds_min, "log_odds_min");
+  finite(log_odds_max, "log_odds_max");
+  finite(log_odds_occupied, "log_odds_occupied");
+  finite(downsample_leaf, "downsample_leaf");
+  if (resolution <= 0) throw std::invalid_argument("resolution must be > 0");
+  if (log_odds_hit <= 0) throw std::invalid_argument("log_odds_hit must be > 0");
+  if (log_odds_miss >= 0) throw std::invalid_argument("log_odds_miss must be < 0");
+  if (!(log_odds_min < log_odds_occupied && log_odds_occupied < log_odds_max))
+    throw std::invalid_argument("log_odds_occupied must lie between log_odds_min and log_odds_max");
+  if (downsample_leaf < 0) throw std::invalid_argument("downsample_leaf must be >= 0");
+}
+
+namespace {
+
+// octomap takes its thresholds as probabilities and stores them as log-odds: p = 1 / (1 + e^-L).
+double probability(double log_odds) {
+  return 1.0 / (1.0 + std::exp(-log_odds));
+}
+
+std::shared_ptr<octomap::OcTree> makeTree(const OctoMapOptions& o) {
+  auto tree = std::make_shared<octomap::OcTree>(o.resolution);
+  tree->setProbHit(probability(o.log_odds_hit));
+  tree->setProbMiss(probability(o.log_odds_miss));
+  tree->setClampingThresMin(probability(o.log_odds_min));
+  tree->setClampingThresMax(probability(o.log_odds_max));
+  tree->setOccupancyThres(probability(o.log_odds_occupied));
+  return tree;
+}
+
+// One cloud ready for octomap: points in the world frame and the sensor origin.
+struct Scan {
+  octomap::Pointcloud points;
+  octomap::point3d origin;
+};
+
+Scan toScan(const PointCloud& cloud, const Eigen::Isometry3d& camera_to_world,
+            const OctoMapOptions& o) {
+  const PointCloud& source = cloud;
+  PointCloud filtered;
+  if (o.downsample_leaf > 0) filtered = voxelFilter(cloud, o.downsample_leaf);
+  const auto& points = o.downsample_leaf > 0 ? filtered.points : source.points;
+  const Eigen::Isometry3f t = camera_to_world.cast<float>();
+  Scan scan;
+  scan.points.reserve(points.size());
+  for (const auto& p : points) {
+    if (!p.allFinite()) continue;
+    const Eigen::Vector3f w = t * p;
+    scan.points.push_back(w.x(), w.y(), w.z());
+  }
+  const Eigen::Vector3d o3 = camera_to_world.translation();
+  scan.origin = octomap::point3d(static_cast<float>(o3.x()), static_cast<float>(o3.y()),
+                                 static_cast<float>(o3.z()));
+  return scan;
+}
+
+void insertScan(octomap::OcTree& tree, const Scan& scan, const OctoMapOptions& o) {
+  const double range = o.max_range > 0 ? o.max_range : -1.0;
+  switch (o.method) {
+    case InsertMethod::kPointCloud:
+      tree.insertPointCloud(scan.points, scan.origin, range, o.lazy_eval, false);
+      break;
+    case InsertMethod::kDiscretized:
+      tree.insertPointCloud(scan.points, scan.origin, range, o.lazy_eval, true);
+      break;
+    case InsertMethod::kRays:
+      tree.insertPointCloudRays(scan.points, scan.origin, range, o.lazy_eval);
+      break;
+  }
+  if (o.lazy_eval) {
+    // What the eager path does per voxel, once per cloud: parents' occupancy, then merging of
+    // children that agree (without it the tree keeps every leaf and uses ~5x the memory).
+    tree.updateInnerOccupancy();
+    tree.prune();
+  }
+}
+
+}  // namespace
+
+struct OctoMapBuilder::State {
+  mutable std::mutex mutex;
+  std::condition_variable changed;
+  std::shared_ptr<octomap::OcTree> tree;  // served; replaced whole by a finished rebuild
+  std::size_t clouds = 0, points = 0, rebuilds = 0;
+
+  // Rebuild: the latest request not yet taken by the worker, whether the worker is building, and
+  // the scans inserted since the request being built was made (applied to its tree before the
+  // swap). `generation` tells the worker its request was superseded.
+  std::optional<std::vector<PlacedCloud>> request;
+  bool building = false, stop = false;
+  std::uint64_t generation = 0;
+  std::vector<Scan> since_request;
+  std::thread worker;
+
+  void work(const OctoMapOptions& o);
+};
+
+void OctoMapBuilder::State::work(const OctoMapOptions& o) {
+  std::unique_lock lock(mutex);
+  for (;;) {
+    changed.wait(lock, [&] { return stop || request.has_value(); });
+    if (stop) return;
+    std::vector<PlacedCloud> keyframes = std::move(*request);
+    request.reset();
+    building = true;
+    const std::uint64_t mine = generation;
+    lock.unlock();
+
+    auto fresh = makeTree(o);
+    std::size_t fresh_points = 0;
+    bool superseded = false;
+    for (const auto& k : keyframes) {
+      {
+        std::lock_guard check(mutex);
+        superseded = stop || generation != mine;
+      }
+      if (superseded) break;
+      const Scan scan = toScan(*k.cloud, k.camera_to_world, o);
+      insertScan(*fresh, scan, o);
+      fresh_points += scan.points.size();
+    }
+
+    lock.lock();
+    if (!superseded && !stop && generation == mine) {
+      // Clouds inserted into the old tree while this one was built: the swap must not lose them.
+      for (const auto& scan : since_request) {
+        insertScan(*fresh, scan, o);
+        fresh_points += scan.points.size();
+      }
+      clouds = keyframes.size() + since_request.size();
+      points = fresh_points;
+      since_request.clear();
+      tree = std::move(fresh);
+      ++rebuilds;
+    }
+    building = false;
+    changed.notify_all();
+  }
+}
+
+OctoMapBuilder::OctoMapBuilder(const OctoMapOptions& options)
+    : options_(options), state_(std::make_unique<State>()) {
+  options_.validate();
+  state_->tree = makeTree(options_);
+}
+
+OctoMapBuilder::~OctoMapBuilder() {
+  {
+    std::lock_guard lock(state_->mutex);
+    state_->stop = true;
+  }
+  state_->changed.notify_all();
+  if (state_->worker.joinable()) state_->worker.join();
+}
+
+void OctoMapBuilder::insert(const PointCloud& cloud, const Eigen::Isometry3d& camera_to_world) {
+  checkPose(camera_to_world, "pose");
+  Scan scan = toScan(cloud, camera_to_world, options_);
+  std::lock_guard lock(state_->mutex);
+  insertScan(*state_->tree, scan, options_);
+  ++state_->clouds;
+  state_->points += scan.points.size();
+  if (state_->request || state_->building) state_->since_request.push_back(std::move(scan));
+}
+
+void OctoMapBuilder::rebuild(std::vector<PlacedCloud> keyframes) {
+  for (const auto& k : keyframes) {
+    checkPose(k.camera_to_world, "pose");
+    if (!k.cloud) throw std::invalid_argument("cloud: null");
+  }
+  {
+    std::lock_guard lock(state_->mutex);
+    state_->request = std::move(keyframes);
+    ++state_->generation;
+    // The new request's snapshot holds every cloud inserted so far.
+    state_->since_request.clear();
+    if (!state_->worker.joinable())
+      state_->worker = std::thread([this] { state_->work(options_); });
+  }
+  state_->changed.notify_all();
+}
+
+bool OctoMapBuilder::rebuilding() const {
+  std::lock_guard lock(state_->mutex);
+  return state_->request.has_value() || state_->building;
+}
+
+void OctoMapBuilder::waitForRebuild() {
+  std::unique_lock lock(state_->mutex);
+  state_->changed.wait(lock, [&] { return !state_->request && !state_->building; });
+}
+
+std::optional<double> OctoMapBuilder::logOdds(const Eigen::Vector3d& point) const {
+  std::lock_guard lock(state_->mutex);
+  const octomap::OcTreeNode* node = state_->tree->search(point.x(), point.y(), point.z());
+  if (node == nullptr) return std::nullopt;
+  return node->getLogOdds();
+}
+
+Occupancy OctoMapBuilder::occupancy(const Eigen::Vector3d& point) const {
+  const auto l = logOdds(point);
+  if (!l) return Occupancy::kUnknown;
+  return *l >= options_.log_odds_occupied ? Occupancy::kOccupied : Occupancy::kFree;
+}
+
+OctoMapStats OctoMapBuilder::stats() const {
+  std::lock_guard lock(state_->mutex);
+  OctoMapStats s;
+  const auto& tree = *state_->tree;
+  for (auto it = tree.begin_leafs(), end = tree.end_leafs(); it != end; ++it) {
+    ++s.leaves;
+    if (tree.isNodeOccupied(*it))
+      ++s.occupied_leaves;
+    else
+      ++s.free_leaves;
+  }
+  s.memory_bytes = tree.memoryUsage();
+  s.clouds_inserted = state_->clouds;
+  s.points_inserted = state_->points;
+  s.rebuilds_completed = state_->rebuilds;
+  return s;
+}
+
+void OctoMapBuilder::writeBinary(const std::filesystem::path& file) const {
+  std::lock_guard lock(state_->mutex);
+  if (!state_->tree->writeBinaryConst(file.string()))
+    throw std::runtime_error(file.string() + ": writing the OctoMap failed");
+}
+
+void OctoMapBuilder::readBinary(const std::filesystem::path& file) {
+  auto tree = makeTree(options_);
+  if (!tree->readBinary(file.string()))
+    throw std::runtime_error(file.string() + ": not a readable OctoMap binary file");
+  if (std::abs(tree->getResolution() - options_.resolution) > 1e-9)
+    throw std::runtime_error(file.string() + ": resolution " +
+                             std::to_string(tree->getResolution()) + " is not the map's " +
+                             std::to_string(options_.resolution));
+  waitForRebuild();
+  std::lock_guard lock(state_->mutex);
+  state_->tree = std::move(tree);
+  state_->clouds = 0;
+  state_->points = 0;
+}
+
+}  // namespace tessera::mapping3d

@@ -1,0 +1,194 @@
+// OctoMapBuilder: log-odds clamping, a synthetic wall (occupied at the wall, free in front,
+// unknown behind) for each insertion method, the background rebuild after keyframes move, .bt
+// round trip and bad input.
+#include <tessera/mapping3d/octomap_builder.hpp>
+
+#include <catch2/catch.hpp>
+
+#include <fstream>
+#include <memory>
+
+#include "../../shared_data.hpp"
+#include "mapping3d_fixtures.hpp"
+
+using Catch::Matchers::Contains;
+using namespace tessera::mapping3d;
+using tessera::test::mapping3d::smallCamera;
+using tessera::test::mapping3d::wallFrame;
+
+namespace {
+
+// Voxel centres at 5 cm: k * 0.05 + 0.025.
+Eigen::Isometry3d at(double x, double y, double z) {
+  Eigen::Isometry3d pose = Eigen::Isometry3d::Identity();
+  pose.translation() = Eigen::Vector3d(x, y, z);
+  return pose;
+}
+
+PointCloud onePoint(float x, float y, float z) {
+  PointCloud c;
+  c.points.emplace_back(x, y, z);
+  return c;
+}
+
+PointCloud wallCloud(double z) {
+  KeyframeCloudOptions options;
+  options.stride = 1;
+  options.voxel_leaf = 0;
+  return makeKeyframeCloud(smallCamera(), wallFrame(smallCamera(), z), options);
+}
+
+// A map with the wall at 2.02 m seen from the origin.
+std::unique_ptr<OctoMapBuilder> wallMap(const OctoMapOptions& options) {
+  auto map = std::make_unique<OctoMapBuilder>(options);
+  map->insert(wallCloud(2.02), Eigen::Isometry3d::Identity());
+  return map;
+}
+
+}  // namespace
+
+TEST_CASE("octomap log-odds saturate at the clamping thresholds", "[mapping3d][octomap]") {
+  OctoMapOptions options;
+  options.log_odds_hit = 1.0;
+  options.log_odds_miss = -0.5;
+  options.log_odds_min = -1.8;
+  options.log_odds_max = 3.0;
+  options.max_range = 0;
+  OctoMapBuilder map(options);
+  const Eigen::Vector3d hit(0.025, 0.025, 1.025), crossed(0.025, 0.025, 0.525);
+  CHECK(map.occupancy(hit) == Occupancy::kUnknown);
+  // The point 1 m straight ahead of a camera at a voxel centre: one hit, misses on the way.
+  const auto point = onePoint(0, 0, 1);
+  const auto origin = at(0.025, 0.025, 0.025);
+  map.insert(point, origin);
+  CHECK(*map.logOdds(hit) == Approx(1.0).margin(1e-4));
+  CHECK(*map.logOdds(crossed) == Approx(-0.5).margin(1e-4));
+  map.insert(point, origin);
+  CHECK(*map.logOdds(hit) == Approx(2.0).margin(1e-4));
+  for (int i = 0; i < 20; ++i) map.insert(point, origin);
+  // L = clamp(L + l_z, l_min, l_max): 22 hits stop at l_max, 22 misses at l_min.
+  CHECK(*map.logOdds(hit) == Approx(3.0).margin(1e-4));
+  CHECK(*map.logOdds(crossed) == Approx(-1.8).margin(1e-4));
+  CHECK(map.occupancy(hit) == Occupancy::kOccupied);
+  CHECK(map.occupancy(crossed) == Occupancy::kFree);
+  // One contrary observation moves a saturated voxel by one step only.
+  map.insert(onePoint(0, 0, 2), origin);
+  CHECK(*map.logOdds(hit) == Approx(2.5).margin(1e-4));
+  const auto s = map.stats();
+  CHECK(s.clouds_inserted == 23);
+  CHECK(s.points_inserted == 23);
+}
+
+TEST_CASE("a wall is occupied where it is, free in front and unknown behind",
+          "[mapping3d][octomap]") {
+  for (const auto& [name, method] : optionNames(InsertMethod{})) {
+    CAPTURE(name);
+    OctoMapOptions options;
+    options.method = method;
+    const auto map_ptr = wallMap(options);
+    const auto& map = *map_ptr;
+    CHECK(map.occupancy({0.025, 0.025, 2.025}) == Occupancy::kOccupied);
+    CHECK(map.occupancy({-0.475, 0.325, 2.025}) == Occupancy::kOccupied);
+    CHECK(map.occupancy({0.025, 0.025, 1.025}) == Occupancy::kFree);
+    CHECK(map.occupancy({0.025, 0.025, 0.225}) == Occupancy::kFree);
+    CHECK(map.occupancy({0.025, 0.025, 2.525}) == Occupancy::kUnknown);
+    CHECK(map.occupancy({3.025, 0.025, 1.025}) == Occupancy::kUnknown);  // outside the view
+    const auto s = map.stats();
+    CHECK(s.occupied_leaves > 100);
+    CHECK(s.free_leaves > s.occupied_leaves);
+    CHECK(s.memory_bytes > 0);
+    CHECK(s.points_inserted == wallCloud(2.02).size());
+  }
+  SECTION("max_range cuts rays: a wall beyond it is not marked") {
+    OctoMapOptions options;
+    options.max_range = 1.5;
+    const auto map = wallMap(options);
+    CHECK(map->occupancy({0.025, 0.025, 2.025}) == Occupancy::kUnknown);
+    CHECK(map->occupancy({0.025, 0.025, 1.025}) == Occupancy::kFree);
+  }
+  SECTION("lazy evaluation gives the same map") {
+    OctoMapOptions options;
+    options.lazy_eval = false;
+    const auto eager = wallMap(options);
+    const auto lazy = wallMap({});
+    CHECK(lazy->stats().occupied_leaves == eager->stats().occupied_leaves);
+    CHECK(lazy->stats().leaves == eager->stats().leaves);
+    CHECK(lazy->occupancy({0.025, 0.025, 2.025}) == Occupancy::kOccupied);
+  }
+  SECTION("downsampling before insertion keeps the wall") {
+    OctoMapOptions options;
+    options.downsample_leaf = 0.05;
+    const auto map = wallMap(options);
+    CHECK(map->occupancy({0.025, 0.025, 2.025}) == Occupancy::kOccupied);
+    CHECK(map->stats().points_inserted < wallCloud(2.02).size());
+  }
+}
+
+TEST_CASE("octomap rebuild re-inserts moved keyframes and keeps newer clouds",
+          "[mapping3d][octomap]") {
+  OctoMapBuilder map;
+  auto wall = std::make_shared<const PointCloud>(wallCloud(2.02));
+  map.insert(*wall, Eigen::Isometry3d::Identity());
+  REQUIRE(map.occupancy({0.025, 0.025, 2.025}) == Occupancy::kOccupied);
+
+  // The pose graph moved the keyframe 0.5 m back: the wall is now at z = 1.52.
+  map.rebuild({PlacedCloud{wall, at(0, 0, -0.5)}});
+  // A cloud inserted while the rebuild runs must survive the swap.
+  map.insert(onePoint(0, 0, 1), at(1.025, 1.025, 0.025));
+  map.waitForRebuild();
+  CHECK_FALSE(map.rebuilding());
+  CHECK(map.occupancy({0.025, 0.025, 1.525}) == Occupancy::kOccupied);
+  CHECK(map.occupancy({0.025, 0.025, 2.025}) == Occupancy::kUnknown);
+  CHECK(map.occupancy({1.025, 1.025, 1.025}) == Occupancy::kOccupied);
+  const auto s = map.stats();
+  CHECK(s.rebuilds_completed == 1);
+  CHECK(s.clouds_inserted == 2);
+
+  SECTION("a newer rebuild supersedes a running one") {
+    map.rebuild({PlacedCloud{wall, at(0, 0, 0.5)}, PlacedCloud{wall, at(0, 0, 0.5)}});
+    map.rebuild({PlacedCloud{wall, at(0, 0, 1.0)}});
+    map.waitForRebuild();
+    CHECK(map.occupancy({0.025, 0.025, 3.025}) == Occupancy::kOccupied);
+    CHECK(map.occupancy({0.025, 0.025, 2.525}) == Occupancy::kFree);
+    CHECK(map.stats().clouds_inserted == 1);
+  }
+}
+
+TEST_CASE("octomap .bt files round-trip and bad input is named", "[mapping3d][octomap]") {
+  const auto dir = tessera::test::scratchDir("mapping3d_bt");
+  const auto map_ptr = wallMap({});
+  auto& map = *map_ptr;
+  map.writeBinary(dir / "map.bt");
+  REQUIRE(std::filesystem::file_size(dir / "map.bt") > 100);
+  OctoMapBuilder back;
+  back.readBinary(dir / "map.bt");
+  CHECK(back.occupancy({0.025, 0.025, 2.025}) == Occupancy::kOccupied);
+  CHECK(back.occupancy({0.025, 0.025, 1.025}) == Occupancy::kFree);
+  CHECK(back.occupancy({0.025, 0.025, 2.525}) == Occupancy::kUnknown);
+  CHECK(back.stats().occupied_leaves == map.stats().occupied_leaves);
+
+  std::ofstream(dir / "junk.bt") << "# Octomap OcTree binary file\nnot really\n";
+  CHECK_THROWS_WITH(back.readBinary(dir / "junk.bt"), Contains("junk.bt"));
+  CHECK_THROWS_WITH(back.readBinary(dir / "missing.bt"), Contains("missing.bt"));
+  OctoMapOptions coarse;
+  coarse.resolution = 0.1;
+  CHECK_THROWS_WITH(OctoMapBuilder(coarse).readBinary(dir / "map.bt"), Contains("resolution"));
+  CHECK_THROWS_WITH(map.writeBinary(dir / "no_such_dir" / "x.bt"), Contains("x.bt"));
+
+  Eigen::Isometry3d nan_pose = Eigen::Isometry3d::Identity();
+  nan_pose.translation().z() = std::nan("");
+  CHECK_THROWS_WITH(map.insert(onePoint(0, 0, 1), nan_pose), Contains("pose"));
+  CHECK_THROWS_WITH(map.rebuild({PlacedCloud{nullptr, Eigen::Isometry3d::Identity()}}),
+                    Contains("cloud"));
+  // Non-finite points are skipped, not inserted.
+  map.insert(onePoint(std::nanf(""), 0, 1), Eigen::Isometry3d::Identity());
+  OctoMapOptions bad;
+  bad.log_odds_max = -3;
+  CHECK_THROWS_WITH(OctoMapBuilder{bad}, Contains("log_odds_occupied"));
+  bad = {};
+  bad.resolution = 0;
+  CHECK_THROWS_WITH(OctoMapBuilder{bad}, Contains("resolution"));
+  bad = {};
+  bad.log_odds_miss = 0.2;
+  CHECK_THROWS_WITH(OctoMapBuilder{bad}, Contains("log_odds_miss"));
+}
