@@ -12,9 +12,8 @@ TEST_CASE("vocab train on an RGB-D sequence, then info", "[vocab_cli][dataset]")
   TESSERA_SHARED_DATA(folder, "tum-rgbd-fr1-desk-9frames");
   const auto dir = tessera::test::scratchDir("vocab_cli");
   const auto out = dir / "desk.tvoc";
-  auto run = runCli("vocab train --rgbd " + folder.string() + " --k 6 --L 3 --out " +
-                        out.string(),
-                    dir);
+  auto run =
+      runCli("vocab train --rgbd " + folder.string() + " --k 6 --L 3 --out " + out.string(), dir);
   INFO(run.err);
   REQUIRE(run.exit_code == 0);
   CHECK(run.out.find("k 6, L 3") != std::string::npos);
