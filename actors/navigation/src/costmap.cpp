@@ -1,0 +1,141 @@
+// Costmap construction: the static layer from an occupancy map, the obstacle distance transform
+// and inflation.
+#include <tessera/navigation/costmap.hpp>
+
+#include <tessera/config/config_check.hpp>
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <stdexcept>
+#include <string>
+
+namespace tessera::navigation {
+
+Costmap::Costmap(int w, int h, double res, const Pose2& o, std::uint8_t fill)
+    : resolution(res), width(w), height(h), origin(o) {
+  if (w <= 0 || h <= 0)
+    throw std::invalid_argument("costmap: size must be positive, got " + std::to_string(w) +
+                                " x " + std::to_string(h));
+  if (!(std::isfinite(res) && res > 0))
+    throw std::invalid_argument("costmap: resolution must be positive, got " +
+                                std::to_string(res));
+  cells.assign(static_cast<std::size_t>(w) * static_cast<std::size_t>(h), fill);
+}
+
+void StaticLayerOptions::validate() const {
+  ConfigCheck()
+      .require(occupied_threshold >= 0 && occupied_threshold <= 100, "occupied_threshold",
+               "must be in [0, 100]", occupied_threshold)
+      .require(free_threshold >= 0 && free_threshold < occupied_threshold, "free_threshold",
+               "must be in [0, occupied_threshold)", free_threshold)
+      .throwIfBad("static layer");
+}
+
+Costmap fromOccupancy(const grid::OccupancyMap& map, const StaticLayerOptions& options) {
+  options.validate();
+  if (map.empty() || map.cells.size() != static_cast<std::size_t>(map.width) * map.height)
+    throw std::invalid_argument("static layer: occupancy map is empty or its cells (" +
+                                std::to_string(map.cells.size()) + ") are not width x height");
+  Costmap out(map.width, map.height, map.resolution, map.origin);
+  const std::uint8_t unknown = options.unknown_is_free ? cost::kFree : cost::kUnknown;
+  for (std::size_t i = 0; i < map.cells.size(); ++i) {
+    const int v = map.cells[i];
+    if (v < 0)
+      out.cells[i] = unknown;
+    else if (v >= options.occupied_threshold)
+      out.cells[i] = cost::kLethal;
+    else if (v <= options.free_threshold)
+      out.cells[i] = cost::kFree;
+    else
+      out.cells[i] = unknown;
+  }
+  return out;
+}
+
+void InflationOptions::validate() const {
+  ConfigCheck()
+      .nonNegative("inscribed_radius", inscribed_radius)
+      .require(std::isfinite(inflation_radius) && inflation_radius >= inscribed_radius,
+               "inflation_radius", "must be >= inscribed_radius", inflation_radius)
+      .nonNegative("cost_scaling", cost_scaling)
+      .throwIfBad("inflation");
+}
+
+namespace {
+
+// Squared distance transform of one line (Felzenszwalb and Huttenlocher's lower envelope of
+// parabolas): d[q] = min_p (q - p)^2 + f[p]. v, z are scratch of n and n + 1 entries.
+void distanceTransform1d(const double* f, int n, std::size_t stride, double* d, int* v,
+                         double* z) {
+  constexpr double kInf = std::numeric_limits<double>::infinity();
+  int k = 0;
+  v[0] = 0;
+  z[0] = -kInf;
+  z[1] = kInf;
+  for (int q = 1; q < n; ++q) {
+    const double fq = f[q * stride] + double(q) * q;
+    double s = 0;
+    while (true) {  // z[0] = -inf ends the loop: every f is finite
+      const int p = v[k];
+      s = (fq - (f[p * stride] + double(p) * p)) / (2.0 * (q - p));
+      if (s > z[k]) break;
+      --k;
+    }
+    ++k;
+    v[k] = q;
+    z[k] = s;
+    z[k + 1] = kInf;
+  }
+  k = 0;
+  for (int q = 0; q < n; ++q) {
+    while (z[k + 1] < q) ++k;
+    const double dq = q - v[k];
+    d[q * stride] = dq * dq + f[v[k] * stride];
+  }
+}
+
+}  // namespace
+
+std::vector<float> obstacleDistance(const Costmap& map) {
+  const int w = map.width, h = map.height;
+  const std::size_t n = static_cast<std::size_t>(w) * static_cast<std::size_t>(h);
+  // A large finite "no obstacle" keeps the parabola intersections free of inf - inf.
+  const double kFar = 1e18;
+  std::vector<double> f(n), g(n);
+  for (std::size_t i = 0; i < n; ++i) f[i] = map.cells[i] == cost::kLethal ? 0.0 : kFar;
+  const int longest = std::max(w, h);
+  std::vector<int> v(static_cast<std::size_t>(longest));
+  std::vector<double> z(static_cast<std::size_t>(longest) + 1);
+  for (int c = 0; c < w; ++c)  // columns (along y)
+    distanceTransform1d(f.data() + c, h, static_cast<std::size_t>(w), g.data() + c, v.data(),
+                        z.data());
+  for (int r = 0; r < h; ++r)  // then rows
+    distanceTransform1d(g.data() + map.index(0, r), w, 1, f.data() + map.index(0, r), v.data(),
+                        z.data());
+  std::vector<float> out(n);
+  for (std::size_t i = 0; i < n; ++i)
+    out[i] = f[i] >= kFar * 0.5 ? std::numeric_limits<float>::infinity()
+                                : static_cast<float>(std::sqrt(f[i]) * map.resolution);
+  return out;
+}
+
+void inflate(Costmap& map, const InflationOptions& options) {
+  options.validate();
+  const std::vector<float> distance = obstacleDistance(map);
+  for (std::size_t i = 0; i < map.cells.size(); ++i) {
+    std::uint8_t& c = map.cells[i];
+    if (c == cost::kLethal || c == cost::kUnknown) continue;
+    // Distances are floats: a cell exactly at a radius must not fall out of it by rounding.
+    const double d = distance[i] - 1e-4 * map.resolution;
+    std::uint8_t inflated = cost::kFree;
+    if (d <= options.inscribed_radius)
+      inflated = cost::kInscribed;
+    else if (d <= options.inflation_radius)
+      inflated = static_cast<std::uint8_t>(std::lround(
+          cost::kMaxTraversable * std::exp(-options.cost_scaling * (d - options.inscribed_radius))));
+    c = std::max(c, inflated);
+  }
+}
+
+}  // namespace tessera::navigation
