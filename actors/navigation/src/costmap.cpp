@@ -15,11 +15,10 @@ namespace tessera::navigation {
 Costmap::Costmap(int w, int h, double res, const Pose2& o, std::uint8_t fill)
     : resolution(res), width(w), height(h), origin(o) {
   if (w <= 0 || h <= 0)
-    throw std::invalid_argument("costmap: size must be positive, got " + std::to_string(w) +
-                                " x " + std::to_string(h));
+    throw std::invalid_argument("costmap: size must be positive, got " + std::to_string(w) + " x " +
+                                std::to_string(h));
   if (!(std::isfinite(res) && res > 0))
-    throw std::invalid_argument("costmap: resolution must be positive, got " +
-                                std::to_string(res));
+    throw std::invalid_argument("costmap: resolution must be positive, got " + std::to_string(res));
   cells.assign(static_cast<std::size_t>(w) * static_cast<std::size_t>(h), fill);
 }
 
@@ -66,8 +65,7 @@ namespace {
 
 // Squared distance transform of one line (Felzenszwalb and Huttenlocher's lower envelope of
 // parabolas): d[q] = min_p (q - p)^2 + f[p]. v, z are scratch of n and n + 1 entries.
-void distanceTransform1d(const double* f, int n, std::size_t stride, double* d, int* v,
-                         double* z) {
+void distanceTransform1d(const double* f, int n, std::size_t stride, double* d, int* v, double* z) {
   constexpr double kInf = std::numeric_limits<double>::infinity();
   int k = 0;
   v[0] = 0;
@@ -132,8 +130,9 @@ void inflate(Costmap& map, const InflationOptions& options) {
     if (d <= options.inscribed_radius)
       inflated = cost::kInscribed;
     else if (d <= options.inflation_radius)
-      inflated = static_cast<std::uint8_t>(std::lround(
-          cost::kMaxTraversable * std::exp(-options.cost_scaling * (d - options.inscribed_radius))));
+      inflated = static_cast<std::uint8_t>(
+          std::lround(cost::kMaxTraversable *
+                      std::exp(-options.cost_scaling * (d - options.inscribed_radius))));
     c = std::max(c, inflated);
   }
 }

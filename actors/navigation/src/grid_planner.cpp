@@ -22,12 +22,18 @@ void GridPlannerOptions::validate() const {
 
 std::string_view statusName(PlanStatus status) {
   switch (status) {
-    case PlanStatus::kOk: return "ok";
-    case PlanStatus::kStartOutside: return "start outside the map";
-    case PlanStatus::kGoalOutside: return "goal outside the map";
-    case PlanStatus::kStartBlocked: return "start in an obstacle";
-    case PlanStatus::kGoalBlocked: return "goal in an obstacle";
-    case PlanStatus::kNoPath: return "no path";
+    case PlanStatus::kOk:
+      return "ok";
+    case PlanStatus::kStartOutside:
+      return "start outside the map";
+    case PlanStatus::kGoalOutside:
+      return "goal outside the map";
+    case PlanStatus::kStartBlocked:
+      return "start in an obstacle";
+    case PlanStatus::kGoalBlocked:
+      return "goal in an obstacle";
+    case PlanStatus::kNoPath:
+      return "no path";
   }
   return "?";
 }

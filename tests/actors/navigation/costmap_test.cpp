@@ -59,8 +59,8 @@ TEST_CASE("inflation marks the inscribed disc and decays beyond it", "[navigatio
   CHECK(int(map.at(24, 20)) == cost::kInscribed);  // 0.20 m
   CHECK(map.at(25, 20) == std::lround(252 * std::exp(-5 * 0.05)));
   CHECK(map.at(32, 20) == std::lround(252 * std::exp(-5 * 0.4)));  // 0.60 m: the last ring
-  CHECK(map.at(33, 20) == cost::kFree);                             // 0.65 m
-  CHECK(map.at(20, 30) == 200);                                     // never lowered
+  CHECK(map.at(33, 20) == cost::kFree);                            // 0.65 m
+  CHECK(map.at(20, 30) == 200);                                    // never lowered
   CHECK(map.at(0, 0) == cost::kUnknown);
   // Monotone decay along a ray.
   for (int c = 25; c < 33; ++c) CHECK(int(map.at(c, 20)) >= int(map.at(c + 1, 20)));

@@ -76,7 +76,8 @@ struct StaticLayerOptions {
 
   template <class V>
   void visit(V& v) {
-    v("occupied_threshold", occupied_threshold, "[%] occupancy at and above which a cell is lethal");
+    v("occupied_threshold", occupied_threshold,
+      "[%] occupancy at and above which a cell is lethal");
     v("free_threshold", free_threshold, "[%] occupancy at and below which a cell is free");
     v("unknown_is_free", unknown_is_free, "plan through unknown cells");
   }

@@ -30,9 +30,9 @@ constexpr std::array<std::pair<const char*, SearchAlgorithm>, 2> optionNames(Sea
 
 struct GridPlannerOptions {
   SearchAlgorithm algorithm = SearchAlgorithm::kAStar;
-  double cost_weight = 3.0;     ///< a step into cost 252 costs (1 + cost_weight) × its length
-  bool allow_unknown = false;   ///< may paths cross kUnknown cells
-  int unknown_cost = 128;       ///< the cost an unknown cell counts as, when allowed
+  double cost_weight = 3.0;    ///< a step into cost 252 costs (1 + cost_weight) × its length
+  bool allow_unknown = false;  ///< may paths cross kUnknown cells
+  int unknown_cost = 128;      ///< the cost an unknown cell counts as, when allowed
 
   template <class V>
   void visit(V& v) {
