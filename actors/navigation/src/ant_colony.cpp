@@ -71,7 +71,8 @@ std::vector<Eigen::Vector2i> AntColonyRefiner::refine(const Costmap& map,
   if (nest.empty()) return best;
 
   std::mt19937_64 rng(options_.seed);
-  std::unordered_map<std::int64_t, double> tau;  // (cell index * 8 + move) -> pheromone; 1 if absent
+  std::unordered_map<std::int64_t, double>
+      tau;  // (cell index * 8 + move) -> pheromone; 1 if absent
   auto key = [&](const Eigen::Vector2i& c, int move) {
     return static_cast<std::int64_t>(map.index(c.x(), c.y())) * 8 + move;
   };
