@@ -3,6 +3,7 @@
 #include <tessera/navigation/costmap.hpp>
 
 #include <tessera/config/config_check.hpp>
+#include <tessera/grid/distance_transform.hpp>
 
 #include <algorithm>
 #include <cmath>
@@ -61,61 +62,12 @@ void InflationOptions::validate() const {
       .throwIfBad("inflation");
 }
 
-namespace {
-
-// Squared distance transform of one line (Felzenszwalb and Huttenlocher's lower envelope of
-// parabolas): d[q] = min_p (q - p)^2 + f[p]. v, z are scratch of n and n + 1 entries.
-void distanceTransform1d(const double* f, int n, std::size_t stride, double* d, int* v, double* z) {
-  constexpr double kInf = std::numeric_limits<double>::infinity();
-  int k = 0;
-  v[0] = 0;
-  z[0] = -kInf;
-  z[1] = kInf;
-  for (int q = 1; q < n; ++q) {
-    const double fq = f[q * stride] + double(q) * q;
-    double s = 0;
-    while (true) {  // z[0] = -inf ends the loop: every f is finite
-      const int p = v[k];
-      s = (fq - (f[p * stride] + double(p) * p)) / (2.0 * (q - p));
-      if (s > z[k]) break;
-      --k;
-    }
-    ++k;
-    v[k] = q;
-    z[k] = s;
-    z[k + 1] = kInf;
-  }
-  k = 0;
-  for (int q = 0; q < n; ++q) {
-    while (z[k + 1] < q) ++k;
-    const double dq = q - v[k];
-    d[q * stride] = dq * dq + f[v[k] * stride];
-  }
-}
-
-}  // namespace
-
 std::vector<float> obstacleDistance(const Costmap& map) {
-  const int w = map.width, h = map.height;
-  const std::size_t n = static_cast<std::size_t>(w) * static_cast<std::size_t>(h);
-  // A large finite "no obstacle" keeps the parabola intersections free of inf - inf.
-  const double kFar = 1e18;
-  std::vector<double> f(n), g(n);
-  for (std::size_t i = 0; i < n; ++i) f[i] = map.cells[i] == cost::kLethal ? 0.0 : kFar;
-  const int longest = std::max(w, h);
-  std::vector<int> v(static_cast<std::size_t>(longest));
-  std::vector<double> z(static_cast<std::size_t>(longest) + 1);
-  for (int c = 0; c < w; ++c)  // columns (along y)
-    distanceTransform1d(f.data() + c, h, static_cast<std::size_t>(w), g.data() + c, v.data(),
-                        z.data());
-  for (int r = 0; r < h; ++r)  // then rows
-    distanceTransform1d(g.data() + map.index(0, r), w, 1, f.data() + map.index(0, r), v.data(),
-                        z.data());
-  std::vector<float> out(n);
-  for (std::size_t i = 0; i < n; ++i)
-    out[i] = f[i] >= kFar * 0.5 ? std::numeric_limits<float>::infinity()
-                                : static_cast<float>(std::sqrt(f[i]) * map.resolution);
-  return out;
+  std::vector<std::uint8_t> lethal(map.cells.size());
+  for (std::size_t i = 0; i < lethal.size(); ++i) lethal[i] = map.cells[i] == cost::kLethal;
+  std::vector<float> d = grid::distanceTransform(lethal, map.width, map.height);
+  for (float& x : d) x = static_cast<float>(x * map.resolution);  // inf stays inf
+  return d;
 }
 
 void inflate(Costmap& map, const InflationOptions& options) {

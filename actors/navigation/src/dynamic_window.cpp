@@ -56,8 +56,8 @@ Pose2 advance(const Pose2& p, double v, double w, double dt) {
   if (std::abs(w) < 1e-9)
     return {p.x + v * dt * std::cos(p.theta), p.y + v * dt * std::sin(p.theta), p.theta};
   const double r = v / w, th = p.theta + w * dt;
-  return {p.x + r * (std::sin(th) - std::sin(p.theta)), p.y - r * (std::cos(th) - std::cos(p.theta)),
-          th};
+  return {p.x + r * (std::sin(th) - std::sin(p.theta)),
+          p.y - r * (std::cos(th) - std::cos(p.theta)), th};
 }
 
 std::vector<double> samples(double lo, double hi, int n) {
@@ -114,7 +114,8 @@ DynamicWindowResult DynamicWindow::choose(const Pose2& pose, const Velocity& cur
       s.admissible = std::abs(v) <= std::sqrt(2.0 * clear * o.brake);
       if (!s.admissible) continue;
       ++out.admissible;
-      const double bearing = normalizeAngle(std::atan2(target.y() - p.y, target.x() - p.x) - p.theta);
+      const double bearing =
+          normalizeAngle(std::atan2(target.y() - p.y, target.x() - p.x) - p.theta);
       s.heading = std::numbers::pi - std::abs(bearing);
       s.clearance = std::min(clear, o.max_clearance);
       s.velocity = v - std::min(0.0, o.min_speed);

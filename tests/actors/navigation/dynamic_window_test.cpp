@@ -64,7 +64,8 @@ TEST_CASE("driving the window's commands around a wall never touches it", "[navi
   Costmap inflated = map;
   inflate(inflated, InflationOptions{0.25, 0.6, 5.0});
   const Eigen::Vector2d goal(4.0, 0.0);
-  const GridPath path = GridPlanner().plan(inflated, inflated.cellOf({0, 0}), inflated.cellOf(goal));
+  const GridPath path =
+      GridPlanner().plan(inflated, inflated.cellOf({0, 0}), inflated.cellOf(goal));
   REQUIRE(path.ok());
   DynamicWindowOptions o;
   const DynamicWindow dwa(o);
@@ -75,9 +76,8 @@ TEST_CASE("driving the window's commands around a wall never touches it", "[navi
   std::size_t along = 0;  // the path cell nearest the robot so far
   for (int k = 0; k < 1200 && !reached; ++k) {
     const Eigen::Vector2d here(pose.x, pose.y);
-    while (along + 1 < path.cells.size() &&
-           (map.cellCenter(path.cells[along + 1]) - here).norm() <
-               (map.cellCenter(path.cells[along]) - here).norm())
+    while (along + 1 < path.cells.size() && (map.cellCenter(path.cells[along + 1]) - here).norm() <
+                                                (map.cellCenter(path.cells[along]) - here).norm())
       ++along;
     std::size_t ahead = along;
     while (ahead + 1 < path.cells.size() && (map.cellCenter(path.cells[ahead]) - here).norm() < 0.8)
@@ -91,9 +91,10 @@ TEST_CASE("driving the window's commands around a wall never touches it", "[navi
       pose = Pose2(pose.x + vel.v * dt * std::cos(pose.theta),
                    pose.y + vel.v * dt * std::sin(pose.theta), pose.theta);
     else
-      pose = Pose2(pose.x + vel.v / vel.w * (std::sin(pose.theta + vel.w * dt) - std::sin(pose.theta)),
-                   pose.y - vel.v / vel.w * (std::cos(pose.theta + vel.w * dt) - std::cos(pose.theta)),
-                   pose.theta + vel.w * dt);
+      pose =
+          Pose2(pose.x + vel.v / vel.w * (std::sin(pose.theta + vel.w * dt) - std::sin(pose.theta)),
+                pose.y - vel.v / vel.w * (std::cos(pose.theta + vel.w * dt) - std::cos(pose.theta)),
+                pose.theta + vel.w * dt);
     closest = std::min(closest, obstacles.at({pose.x, pose.y}));
     reached = (Eigen::Vector2d(pose.x, pose.y) - goal).norm() < 0.25;
   }

@@ -45,14 +45,14 @@ struct DynamicWindowOptions {
   double period = 0.05;            ///< [s] control period (20 Hz): the window's reach
   int speed_samples = 11;
   int turn_samples = 21;
-  double horizon = 1.5;            ///< [s] arcs are rolled out this long
-  double step = 0.05;              ///< [s] rollout step
-  double footprint_radius = 0.2;   ///< [m] circular footprint
-  double max_clearance = 1.0;      ///< [m] clearance counted up to this
+  double horizon = 1.5;           ///< [s] arcs are rolled out this long
+  double step = 0.05;             ///< [s] rollout step
+  double footprint_radius = 0.2;  ///< [m] circular footprint
+  double max_clearance = 1.0;     ///< [m] clearance counted up to this
   double heading_weight = 0.8;
   double clearance_weight = 0.2;
   double velocity_weight = 0.2;
-  bool smooth = true;              ///< average each score with its 4 grid neighbours
+  bool smooth = true;  ///< average each score with its 4 grid neighbours
 
   template <class V>
   void visit(V& v) {
@@ -83,12 +83,12 @@ struct Velocity {
 };
 
 struct DynamicWindowResult {
-  bool ok = false;    ///< an admissible pair was found; otherwise command is (0, 0)
-  Velocity command;   ///< for the next period
+  bool ok = false;   ///< an admissible pair was found; otherwise command is (0, 0)
+  Velocity command;  ///< for the next period
   int sampled = 0;
   int admissible = 0;
-  double clearance = 0;         ///< [m] clear arc length of the chosen pair
-  std::vector<Pose2> rollout;   ///< the chosen arc, for display
+  double clearance = 0;        ///< [m] clear arc length of the chosen pair
+  std::vector<Pose2> rollout;  ///< the chosen arc, for display
 };
 
 class DynamicWindow {
