@@ -16,8 +16,7 @@ TEST_CASE("distance transform of a single marked cell is the Euclidean distance"
     for (int c = 0; c < 7; ++c) CHECK(d[r * 7 + c] == Approx(std::hypot(c - 3, r - 2)));
 }
 
-TEST_CASE("distance transform handles empty and unmarked grids and rejects bad sizes",
-          "[grid]") {
+TEST_CASE("distance transform handles empty and unmarked grids and rejects bad sizes", "[grid]") {
   CHECK(distanceTransform({}, 0, 0).empty());
   for (const float x : distanceTransform(std::vector<std::uint8_t>(6, 0), 3, 2))
     CHECK(std::isinf(x));
