@@ -63,9 +63,8 @@ Pose2 MonteCarloLocalizer::randomFreePose() {
   std::uniform_real_distribution<double> unit(0.0, 1.0);
   const Eigen::Vector2i c = free_cells_[cell(rng_)];
   const grid::OccupancyMap& m = field_.map();
-  const Eigen::Vector2d p =
-      m.origin * Eigen::Vector2d((c.x() + unit(rng_)) * m.resolution,
-                                 (c.y() + unit(rng_)) * m.resolution);
+  const Eigen::Vector2d p = m.origin * Eigen::Vector2d((c.x() + unit(rng_)) * m.resolution,
+                                                       (c.y() + unit(rng_)) * m.resolution);
   return {p.x(), p.y(), (2 * unit(rng_) - 1) * std::numbers::pi};
 }
 
@@ -73,9 +72,10 @@ void MonteCarloLocalizer::initialise(const Pose2& mean, const Eigen::Matrix3d& c
   if (!mean.isFinite() || !covariance.allFinite())
     throw std::invalid_argument("monte carlo localisation: initial pose or covariance not finite");
   Eigen::LLT<Eigen::Matrix3d> llt(0.5 * (covariance + covariance.transpose()));
-  const Eigen::Matrix3d l = llt.info() == Eigen::Success
-                                ? Eigen::Matrix3d(llt.matrixL())
-                                : Eigen::Matrix3d(covariance.diagonal().cwiseAbs().cwiseSqrt().asDiagonal());
+  const Eigen::Matrix3d l =
+      llt.info() == Eigen::Success
+          ? Eigen::Matrix3d(llt.matrixL())
+          : Eigen::Matrix3d(covariance.diagonal().cwiseAbs().cwiseSqrt().asDiagonal());
   std::normal_distribution<double> n01(0.0, 1.0);
   particles_.assign(static_cast<std::size_t>(options_.max_particles), {});
   for (Particle& p : particles_) {
@@ -122,7 +122,8 @@ bool MonteCarloLocalizer::update(const Pose2& odom, std::span<const Eigen::Vecto
     if (points[i].allFinite()) beams.push_back(points[i]);
 
   // Motion: rotation, translation, rotation in the odometry frame, each with noise.
-  const double rot1 = moved < 0.01 ? 0.0 : angleDiff(std::atan2(odom.y - last.y, odom.x - last.x), last.theta);
+  const double rot1 =
+      moved < 0.01 ? 0.0 : angleDiff(std::atan2(odom.y - last.y, odom.x - last.x), last.theta);
   const double rot2 = angleDiff(delta.theta, rot1);
   // Driving backwards is a small rotation, not a half turn, for the noise.
   const double r1 = std::min(std::abs(rot1), std::abs(angleDiff(rot1, std::numbers::pi)));
@@ -172,7 +173,8 @@ struct BinKey {
   std::int64_t operator()(const Pose2& p, double bxy, double bth) const {
     const auto x = static_cast<std::int64_t>(std::floor(p.x / bxy)) & 0xFFFFF;
     const auto y = static_cast<std::int64_t>(std::floor(p.y / bxy)) & 0xFFFFF;
-    const auto t = static_cast<std::int64_t>(std::floor((p.theta + std::numbers::pi) / bth)) & 0xFFF;
+    const auto t =
+        static_cast<std::int64_t>(std::floor((p.theta + std::numbers::pi) / bth)) & 0xFFF;
     return (x << 32) | (y << 12) | t;
   }
 };
@@ -196,9 +198,9 @@ void MonteCarloLocalizer::resample() {
       pose = randomFreePose();
     } else {
       const auto it = std::lower_bound(cumulative.begin(), cumulative.end(), unit(rng_) * acc);
-      pose = particles_[static_cast<std::size_t>(
-                            std::min<std::ptrdiff_t>(it - cumulative.begin(),
-                                                     static_cast<std::ptrdiff_t>(particles_.size()) - 1))]
+      pose = particles_[static_cast<std::size_t>(std::min<std::ptrdiff_t>(
+                            it - cumulative.begin(),
+                            static_cast<std::ptrdiff_t>(particles_.size()) - 1))]
                  .pose;
     }
     next.push_back({pose, 0});
@@ -215,10 +217,10 @@ PoseEstimate MonteCarloLocalizer::estimate() const {
   const double bxy = options_.bin_xy, bth = options_.bin_theta;
   const int theta_bins = static_cast<int>(std::ceil(2 * std::numbers::pi / bth));
   auto cellOf = [&](const Pose2& p) {
-    return Eigen::Vector3i(static_cast<int>(std::floor(p.x / bxy)),
-                           static_cast<int>(std::floor(p.y / bxy)),
-                           std::clamp(static_cast<int>(std::floor((p.theta + std::numbers::pi) / bth)),
-                                      0, theta_bins - 1));
+    return Eigen::Vector3i(
+        static_cast<int>(std::floor(p.x / bxy)), static_cast<int>(std::floor(p.y / bxy)),
+        std::clamp(static_cast<int>(std::floor((p.theta + std::numbers::pi) / bth)), 0,
+                   theta_bins - 1));
   };
   auto key = [](const Eigen::Vector3i& c) {
     return (static_cast<std::int64_t>(c.x() & 0xFFFFF) << 32) |
@@ -257,7 +259,8 @@ PoseEstimate MonteCarloLocalizer::estimate() const {
     label[i] = cluster_of[key(cellOf(particles_[i].pose))];
     weight[static_cast<std::size_t>(label[i])] += particles_[i].weight;
   }
-  const int best = static_cast<int>(std::max_element(weight.begin(), weight.end()) - weight.begin());
+  const int best =
+      static_cast<int>(std::max_element(weight.begin(), weight.end()) - weight.begin());
   double w = 0, x = 0, y = 0, s = 0, c = 0;
   for (std::size_t i = 0; i < particles_.size(); ++i) {
     if (label[i] != best) continue;

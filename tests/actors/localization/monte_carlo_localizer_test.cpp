@@ -31,8 +31,8 @@ grid::OccupancyMap room() {
   box(0, 8.9, 12, 9);
   box(0, 0, 0.1, 9);
   box(11.9, 0, 12, 9);
-  box(4, 0, 4.1, 5);     // a wall from the bottom
-  box(8, 4, 8.1, 9);     // a wall from the top
+  box(4, 0, 4.1, 5);  // a wall from the bottom
+  box(8, 4, 8.1, 9);  // a wall from the top
   box(1.5, 6.5, 2.5, 7.2);
   box(9.5, 1.0, 10.0, 2.5);
   box(5.5, 7.0, 6.0, 7.5);
@@ -62,7 +62,7 @@ std::vector<Eigen::Vector2d> scan(const grid::OccupancyMap& m, const Pose2& pose
 
 /// A loop through the room's three bays, as poses every 10 cm.
 std::vector<Pose2> route() {
-  const std::vector<Eigen::Vector2d> corners = {{2, 2},   {2, 5.5},  {3.2, 8.0}, {6.5, 8.2},
+  const std::vector<Eigen::Vector2d> corners = {{2, 2},   {2, 5.5},  {3.2, 8.0},  {6.5, 8.2},
                                                 {6.5, 2}, {10.8, 3}, {10.8, 7.5}, {9, 8.2}};
   std::vector<Pose2> out;
   for (std::size_t i = 0; i + 1 < corners.size(); ++i) {
@@ -176,7 +176,8 @@ TEST_CASE("a kidnapped robot is found again through random particles", "[localiz
   MonteCarloOptions o;
   o.max_particles = 5000;
   MonteCarloLocalizer mcl(m, 8.0, o);
-  mcl.initialise(truth.front(), Eigen::Vector3d(0.05 * 0.05, 0.05 * 0.05, 0.02 * 0.02).asDiagonal());
+  mcl.initialise(truth.front(),
+                 Eigen::Vector3d(0.05 * 0.05, 0.05 * 0.05, 0.02 * 0.02).asDiagonal());
   // Tracks the first 4 m, then is carried 6 m along the route without odometry seeing it.
   std::vector<Pose2> kidnapped(truth.begin(), truth.begin() + 40);
   kidnapped.insert(kidnapped.end(), truth.begin() + 100, truth.end());

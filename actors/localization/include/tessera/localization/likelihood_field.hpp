@@ -20,10 +20,10 @@
 namespace tessera::localization {
 
 struct LikelihoodFieldOptions {
-  double sigma_hit = 0.2;     ///< [m] endpoint noise
-  double z_hit = 0.95;        ///< weight of the hit component
-  double z_rand = 0.05;       ///< weight of the uniform component
-  double max_distance = 2.0;  ///< [m] distances are capped here
+  double sigma_hit = 0.2;       ///< [m] endpoint noise
+  double z_hit = 0.95;          ///< weight of the hit component
+  double z_rand = 0.05;         ///< weight of the uniform component
+  double max_distance = 2.0;    ///< [m] distances are capped here
   int occupied_threshold = 65;  ///< [%] cells at or above this are obstacles
 
   template <class V>

@@ -8,9 +8,9 @@
 //   n = (k − 1) / (2ε) · (1 − 2/(9(k − 1)) + √(2/(9(k − 1))) · z)³,
 // between min_particles and max_particles. Updates happen only after the robot moved update_min_d
 // or turned update_min_a (or when forced). When the short-term average fit (of the best particle)
-// drops below the long-term one (w_fast < w_slow), a fraction 1 − w_fast / w_slow of the resampled particles is
-// drawn uniformly over free space instead (augmented MCL): that recovers a kidnapped robot. The estimate is the
-// weighted mean and covariance of the heaviest cluster of adjacent bins.
+// drops below the long-term one (w_fast < w_slow), a fraction 1 − w_fast / w_slow of the resampled
+// particles is drawn uniformly over free space instead (augmented MCL): that recovers a kidnapped
+// robot. The estimate is the weighted mean and covariance of the heaviest cluster of adjacent bins.
 //
 // Owns its particles and a copy of the likelihood field's map; one thread calls it.
 #pragma once
@@ -48,13 +48,13 @@ struct MotionNoise {
 struct MonteCarloOptions {
   int min_particles = 500;
   int max_particles = 2000;
-  double kld_error = 0.01;   ///< ε: bound on the KL divergence of the sample set
-  double kld_z = 2.326;      ///< upper standard normal quantile 1 − δ (δ = 0.01)
-  double bin_xy = 0.5;       ///< [m] histogram bin for KLD and clustering
-  double bin_theta = 0.1745; ///< [rad] (10°)
-  double update_min_d = 0.2; ///< [m] translation between filter updates
-  double update_min_a = 0.5236;  ///< [rad] rotation between filter updates (30°)
-  int max_beams = 60;        ///< beams used per update, evenly spread
+  double kld_error = 0.01;             ///< ε: bound on the KL divergence of the sample set
+  double kld_z = 2.326;                ///< upper standard normal quantile 1 − δ (δ = 0.01)
+  double bin_xy = 0.5;                 ///< [m] histogram bin for KLD and clustering
+  double bin_theta = 0.1745;           ///< [rad] (10°)
+  double update_min_d = 0.2;           ///< [m] translation between filter updates
+  double update_min_a = 0.5236;        ///< [rad] rotation between filter updates (30°)
+  int max_beams = 60;                  ///< beams used per update, evenly spread
   double recovery_alpha_slow = 0.001;  ///< long-term fit average rate (0 disables recovery)
   double recovery_alpha_fast = 0.1;    ///< short-term fit average rate
   MotionNoise motion;
