@@ -30,8 +30,8 @@ WheelGyroEkf::WheelGyroEkf(const WheelGyroEkfOptions& options, const Pose2& star
 
 bool WheelGyroEkf::step(double left_ticks, double right_ticks, double dt,
                         std::optional<double> gyro_angle) {
-  if (!std::isfinite(left_ticks) || !std::isfinite(right_ticks) || !std::isfinite(dt) ||
-      dt <= 0 || (gyro_angle && !std::isfinite(*gyro_angle)))
+  if (!std::isfinite(left_ticks) || !std::isfinite(right_ticks) || !std::isfinite(dt) || dt <= 0 ||
+      (gyro_angle && !std::isfinite(*gyro_angle)))
     return false;
   const WheelGyroEkfOptions& o = options_;
   const double k2 = o.metres_per_tick, k1 = k2 / o.wheel_base;

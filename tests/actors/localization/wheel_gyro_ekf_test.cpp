@@ -55,8 +55,7 @@ TEST_CASE("the gyro bias is learnt while the robot stands still", "[localization
   CHECK(std::abs(ekf.pose().theta) < 1e-6);
 }
 
-TEST_CASE("heading drifts at least 5x less with the gyro than on wheels alone",
-          "[localization]") {
+TEST_CASE("heading drifts at least 5x less with the gyro than on wheels alone", "[localization]") {
   // A 5 s stop, then 300 s of driving arcs at 50 Hz. The true wheel base is 2 % off the
   // calibrated one, wheels slip, and the gyro has a 0.003 rad/s bias and noise.
   const double dt = 0.02, true_base = 0.306, mpt = 1e-4;  // calibrated base: 0.3 m

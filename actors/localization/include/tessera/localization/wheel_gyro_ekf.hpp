@@ -6,12 +6,12 @@
 // distance D = K2/2 (Δright + Δleft) (K2 = metres per tick, K1 = K2 / wheel base); the gyro gives
 // the angle it integrated over the step, Δg = θ + b·dt + noise. The step's rotation θ enters the
 // filter as a state with prior θ_w (variance (σ_θ θ_w)² + (σ_θd D)²: a standing robot does not
-// turn, which is what lets the gyro's bias be learnt at every stop), is corrected by Δg, and the pose
-// then moves along the arc (mid-step heading) x += D cos(φ + θ/2), y += D sin(φ + θ/2), φ += θ,
-// with Q_D = (σ_D D)² on the distance and a random walk on the bias. The bias (and through its
+// turn, which is what lets the gyro's bias be learnt at every stop), is corrected by Δg, and the
+// pose then moves along the arc (mid-step heading) x += D cos(φ + θ/2), y += D sin(φ + θ/2), φ +=
+// θ, with Q_D = (σ_D D)² on the distance and a random walk on the bias. The bias (and through its
 // correlation the pose) is corrected at stops only: while the wheels turn those are "consider"
-// states (Schmidt-Kalman), because a wheel base a few per cent off would otherwise pass for bias. Without a gyro reading the step is the plain
-// wheel model. Units: ticks, metres, radians, seconds.
+// states (Schmidt-Kalman), because a wheel base a few per cent off would otherwise pass for bias.
+// Without a gyro reading the step is the plain wheel model. Units: ticks, metres, radians, seconds.
 #pragma once
 
 #include <tessera/geometry/pose2.hpp>
@@ -23,14 +23,14 @@
 namespace tessera::localization {
 
 struct WheelGyroEkfOptions {
-  double metres_per_tick = 1e-4;   ///< K2
-  double wheel_base = 0.3;         ///< [m] distance between the wheels (K1 = K2 / wheel_base)
-  double sigma_distance = 0.02;    ///< σ_D: distance noise per metre
-  double sigma_rotation = 0.05;    ///< σ_θ: wheel rotation noise per radian
+  double metres_per_tick = 1e-4;  ///< K2
+  double wheel_base = 0.3;        ///< [m] distance between the wheels (K1 = K2 / wheel_base)
+  double sigma_distance = 0.02;   ///< σ_D: distance noise per metre
+  double sigma_rotation = 0.05;   ///< σ_θ: wheel rotation noise per radian
   double sigma_rotation_per_metre = 0.01;  ///< σ_θd [rad/m]: slip when driving straight
-  double gyro_noise = 5e-4;        ///< [rad/√s] angle random walk of the gyro
-  double gyro_bias_walk = 1e-4;    ///< [rad/s/√s] bias random walk
-  double initial_bias_sigma = 0.01;  ///< [rad/s]
+  double gyro_noise = 5e-4;                ///< [rad/√s] angle random walk of the gyro
+  double gyro_bias_walk = 1e-4;            ///< [rad/s/√s] bias random walk
+  double initial_bias_sigma = 0.01;        ///< [rad/s]
 
   template <class V>
   void visit(V& v) {
