@@ -60,9 +60,16 @@ std::vector<float> distanceTransform(const std::vector<std::uint8_t>& marked, in
   const int longest = std::max(w, h);
   std::vector<int> v(static_cast<std::size_t>(longest));
   std::vector<double> z(static_cast<std::size_t>(longest) + 1);
-  for (int c = 0; c < w; ++c)  // columns (along y)
-    distanceTransform1d(f.data() + c, h, static_cast<std::size_t>(w), g.data() + c, v.data(),
-                        z.data());
+  // Columns (along y) through a contiguous copy: strided access inside the envelope search
+  // would miss the cache on every step of a wide map.
+  std::vector<double> column(static_cast<std::size_t>(h)), column_out(static_cast<std::size_t>(h));
+  for (int c = 0; c < w; ++c) {
+    for (int r = 0; r < h; ++r)
+      column[static_cast<std::size_t>(r)] = f[static_cast<std::size_t>(r) * w + c];
+    distanceTransform1d(column.data(), h, 1, column_out.data(), v.data(), z.data());
+    for (int r = 0; r < h; ++r)
+      g[static_cast<std::size_t>(r) * w + c] = column_out[static_cast<std::size_t>(r)];
+  }
   for (int r = 0; r < h; ++r) {  // then rows
     const std::size_t row = static_cast<std::size_t>(r) * static_cast<std::size_t>(w);
     distanceTransform1d(g.data() + row, w, 1, f.data() + row, v.data(), z.data());

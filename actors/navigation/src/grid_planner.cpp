@@ -4,6 +4,7 @@
 #include <tessera/config/config_check.hpp>
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <cstdlib>
 #include <functional>
@@ -75,7 +76,7 @@ GridPath GridPlanner::plan(const Costmap& map, const Eigen::Vector2i& start,
     touched_.clear();
   }
 
-  const int w = map.width;
+  const int w = map.width, h = map.height;
   const double res = map.resolution, diag = std::sqrt(2.0) * res;
   const bool astar = options_.algorithm == SearchAlgorithm::kAStar;
   auto heuristic = [&](int col, int row) {
@@ -83,40 +84,56 @@ GridPath GridPlanner::plan(const Costmap& map, const Eigen::Vector2i& start,
     const int dx = std::abs(col - goal.x()), dy = std::abs(row - goal.y());
     return res * (std::max(dx, dy) - std::min(dx, dy)) + diag * std::min(dx, dy);
   };
-  using Entry = std::pair<double, std::int32_t>;
+  // Step cost factor per cell cost (negative = impassable), looked up rather than recomputed.
+  std::array<double, 256> factor{};
+  for (int c = 0; c < 256; ++c)
+    factor[static_cast<std::size_t>(c)] =
+        passable(static_cast<std::uint8_t>(c)) ? stepFactor(static_cast<std::uint8_t>(c)) : -1.0;
+  // Equal f: the deeper entry first. On open floor many cells tie, and preferring the one
+  // closest to the goal walks straight there instead of widening the whole tie front.
+  struct Entry {
+    double f, g;
+    std::int32_t i;
+    bool operator>(const Entry& o) const { return f > o.f || (f == o.f && g < o.g); }
+  };
   std::priority_queue<Entry, std::vector<Entry>, std::greater<>> open;
   const auto s = static_cast<std::int32_t>(map.index(start.x(), start.y()));
   const auto t = static_cast<std::int32_t>(map.index(goal.x(), goal.y()));
   g_[static_cast<std::size_t>(s)] = 0;
   touched_.push_back(s);
-  open.emplace(heuristic(start.x(), start.y()), s);
+  open.push({heuristic(start.x(), start.y()), 0.0, s});
 
   static constexpr int kDx[8] = {1, -1, 0, 0, 1, 1, -1, -1};
   static constexpr int kDy[8] = {0, 0, 1, -1, 1, -1, 1, -1};
+  const std::uint8_t* cells = map.cells.data();
   while (!open.empty()) {
-    const auto [f, i] = open.top();
+    const Entry top = open.top();
     open.pop();
-    const auto ui = static_cast<std::size_t>(i);
+    const auto ui = static_cast<std::size_t>(top.i);
     if (state_[ui] == 2) continue;  // a stale entry of a cell already closed
     state_[ui] = 2;
     ++out.expanded;
-    if (i == t) break;
-    const int col = i % w, row = i / w;
+    if (top.i == t) break;
+    const int col = top.i % w, row = top.i / w;
+    const double g0 = g_[ui];
     for (int k = 0; k < 8; ++k) {
       const int nc = col + kDx[k], nr = row + kDy[k];
-      if (!map.contains(nc, nr)) continue;
-      const std::size_t ni = map.index(nc, nr);
-      if (state_[ni] == 2 || !passable(map.cells[ni])) continue;
+      if (nc < 0 || nr < 0 || nc >= w || nr >= h) continue;
+      const std::size_t ni =
+          static_cast<std::size_t>(nr) * static_cast<std::size_t>(w) + static_cast<std::size_t>(nc);
+      const double f = factor[cells[ni]];
+      if (f < 0 || state_[ni] == 2) continue;
       // No diagonal squeezes between two blocked cells.
-      if (k >= 4 && (!passable(map.at(col + kDx[k], row)) || !passable(map.at(col, row + kDy[k]))))
+      if (k >= 4 && (factor[cells[static_cast<std::size_t>(row) * w + nc]] < 0 ||
+                     factor[cells[static_cast<std::size_t>(nr) * w + col]] < 0))
         continue;
-      const double g = g_[ui] + (k < 4 ? res : diag) * stepFactor(map.cells[ni]);
+      const double g = g0 + (k < 4 ? res : diag) * f;
       if (g >= g_[ni]) continue;
       if (state_[ni] == 0) touched_.push_back(static_cast<std::int32_t>(ni));
       state_[ni] = 1;
       g_[ni] = g;
-      parent_[ni] = i;
-      open.emplace(g + heuristic(nc, nr), static_cast<std::int32_t>(ni));
+      parent_[ni] = top.i;
+      open.push({g + heuristic(nc, nr), g, static_cast<std::int32_t>(ni)});
     }
   }
   if (state_[static_cast<std::size_t>(t)] != 2) return out.status = PlanStatus::kNoPath, out;

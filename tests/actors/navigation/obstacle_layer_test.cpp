@@ -53,8 +53,8 @@ TEST_CASE("a table top seen in depth blocks the cells beneath it", "[navigation]
   std::vector<Eigen::Vector3d> points;
   for (double y = -0.3; y <= 0.3; y += 0.05) {
     for (double x = 1.8; x <= 2.2; x += 0.05) points.emplace_back(x, y, 0.75);
-    points.emplace_back(3.0, y, 0.0);    // the floor: clears, never marks
-    points.emplace_back(2.6, y, 2.5);    // the ceiling: above the band
+    points.emplace_back(3.0, y, 0.0);  // the floor: clears, never marks
+    points.emplace_back(2.6, y, 2.5);  // the ceiling: above the band
   }
   layer.addPoints(camera, points);
   CHECK(cellAt(layer, map, 2.0, 0.0) == Cell::kObstacle);

@@ -24,7 +24,8 @@
 namespace tessera::navigation {
 
 struct ObstacleLayerOptions {
-  double mark_range = 2.5;   ///< [m] points farther than this from the sensor (in the plane) do not mark
+  double mark_range =
+      2.5;  ///< [m] points farther than this from the sensor (in the plane) do not mark
   double clear_range = 3.0;  ///< [m] clearing stops this far from the sensor (in the plane)
   double min_height = 0.05;  ///< [m] lowest obstacle height (above the floor's noise)
   double max_height = 1.0;   ///< [m] highest point the robot could hit
