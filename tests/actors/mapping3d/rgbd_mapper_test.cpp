@@ -191,3 +191,21 @@ TEST_CASE("rgbd_mapper rejects bad options naming the key", "[actors][mapping3d]
   o.move_threshold_m = kNaN;
   CHECK_THROWS_WITH(RgbdMapperActor(o), Catch::Contains("move_threshold_m"));
 }
+
+TEST_CASE("rgbd_mapper saves periodically with save_period_s", "[actors][mapping3d][rgbd_mapper]") {
+  const fs::path out = test::scratchDir("rgbd_mapper_periodic");
+  RgbdMapperOptions o;
+  o.save_period_s = 1.0;
+  o.ply_file = "";  // an empty name: that file is not written
+  ActorHarness h(std::make_unique<RgbdMapperActor>(o), out.string());
+  h.advance(kNanosPerSecond * 3 / 2);  // nothing mapped yet: nothing written
+  CHECK_FALSE(fs::exists(out / "cloud.pcd"));
+  pushKeyframe(h, 0, translation(0, 0, 0));
+  h.advance(kNanosPerSecond);
+  CHECK(fs::exists(out / "cloud.pcd"));
+  CHECK(fs::exists(out / "map.bt"));
+  CHECK_FALSE(fs::exists(out / "cloud.ply"));
+  CHECK(summaryInt(h, "saves") == 1);
+  h.stop();
+  CHECK(summaryInt(h, "saves") == 2);
+}

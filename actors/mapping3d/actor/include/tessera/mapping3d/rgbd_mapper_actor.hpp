@@ -28,6 +28,7 @@
 #include <tessera/runtime/actor.hpp>
 #include <tessera/runtime/options.hpp>
 
+#include <cstddef>
 #include <cstdint>
 #include <map>
 #include <memory>
@@ -76,7 +77,7 @@ class RgbdMapperActor final : public Actor {
   void configure(ActorContext& ctx) override;
   void stop() override;
   /// keyframes (received, mapped, bad by kind), points, OctoMap leaves and memory, pose messages,
-  /// keyframes moved, rebuilds, insertion ms, the files written.
+  /// keyframes moved, rebuilds, ms per keyframe (cloud, OctoMap insertion), the files written.
   void summarize(Summary& out) const override;
 
   const CloudMap& cloudMap() const { return cloud_map_; }
@@ -97,7 +98,8 @@ class RgbdMapperActor final : public Actor {
   std::uint64_t keyframes_ = 0, mapped_ = 0, empty_clouds_ = 0;
   std::uint64_t pose_messages_ = 0, keyframes_moved_ = 0, rebuilds_ = 0, saves_ = 0;
   std::map<std::string, std::uint64_t> keyframes_bad_, poses_bad_;
-  double insert_ms_total_ = 0, insert_ms_max_ = 0;
+  double cloud_ms_total_ = 0, insert_ms_total_ = 0, insert_ms_max_ = 0, write_ms_ = 0;
+  std::size_t assembled_points_ = 0;
   std::string pcd_path_, ply_path_, octomap_path_, write_error_;
 };
 
