@@ -9,10 +9,15 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <condition_variable>
+#include <exception>
 #include <filesystem>
+#include <functional>
 #include <iostream>
+#include <mutex>
 #include <optional>
 #include <stdexcept>
+#include <thread>
 #include <utility>
 #include <vector>
 
@@ -82,6 +87,64 @@ std::string readDepth(msg::Keyframe::Reader m, KeyframeDepth& out) {
   return "";
 }
 
+}  // namespace
+
+// Runs each task on one thread of its own while the caller waits. The map's long-lived memory
+// (keyframe clouds, octree nodes) is allocated there, so it sits in that thread's malloc arena
+// instead of the executor threads' ones: interleaved with the front end's per-frame image
+// buffers, it made glibc return and re-fault those buffers every frame (the front end's handler
+// took 2.3 times as long on 7-Scenes with the mapper: docs/algorithms.md#rgb-d-maps).
+class RgbdMapperActor::MapThread {
+ public:
+  MapThread() : thread_([this] { loop(); }) {}
+  ~MapThread() {
+    {
+      std::lock_guard lock(mutex_);
+      stop_ = true;
+    }
+    changed_.notify_all();
+    thread_.join();
+  }
+  MapThread(const MapThread&) = delete;
+  MapThread& operator=(const MapThread&) = delete;
+
+  /// Runs `task` there and returns when it is done; its exception is rethrown here.
+  void run(const std::function<void()>& task) {
+    std::exception_ptr error;
+    std::unique_lock lock(mutex_);
+    task_ = [&] {
+      try {
+        task();
+      } catch (...) {
+        error = std::current_exception();
+      }
+    };
+    changed_.notify_all();
+    changed_.wait(lock, [&] { return !task_; });
+    if (error) std::rethrow_exception(error);
+  }
+
+ private:
+  void loop() {
+    std::unique_lock lock(mutex_);
+    for (;;) {
+      changed_.wait(lock, [&] { return stop_ || task_; });
+      if (stop_) return;
+      task_();
+      task_ = nullptr;
+      changed_.notify_all();
+    }
+  }
+
+  std::mutex mutex_;
+  std::condition_variable changed_;
+  std::function<void()> task_;
+  bool stop_ = false;
+  std::thread thread_;  // last: starts once the members above exist
+};
+
+namespace {
+
 double rotationAngle(const Eigen::Isometry3d& a, const Eigen::Isometry3d& b) {
   return Eigen::AngleAxisd(a.linear().transpose() * b.linear()).angle();
 }
@@ -92,7 +155,8 @@ RgbdMapperActor::RgbdMapperActor(RgbdMapperOptions options)
     : options_(std::move(options)),
       cloud_map_(configured("map", [&] { return CloudMap(options_.map); })),
       octomap_(configured("octomap",
-                          [&] { return std::make_unique<OctoMapBuilder>(options_.octomap); })) {
+                          [&] { return std::make_unique<OctoMapBuilder>(options_.octomap); })),
+      map_thread_(std::make_unique<MapThread>()) {
   configured("cloud", [&] {
     options_.cloud.validate();
     return 0;
@@ -141,10 +205,13 @@ void RgbdMapperActor::onKeyframe(const Message<msg::Keyframe>& m) {
   const auto t0 = Clock::now();
   auto t1 = t0;
   try {
-    // Placed at the pose it arrives with: the graph's poses for it come after it.
-    cloud_map_.setKeyframe(id, makeKeyframeCloud(depth.camera, depth.frame, options_.cloud), *pose);
-    t1 = Clock::now();
-    octomap_->insert(*cloud_map_.keyframe(id).cloud, *pose);
+    map_thread_->run([&] {
+      // Placed at the pose it arrives with: the graph's poses for it come after it.
+      cloud_map_.setKeyframe(id, makeKeyframeCloud(depth.camera, depth.frame, options_.cloud),
+                             *pose);
+      t1 = Clock::now();
+      octomap_->insert(*cloud_map_.keyframe(id).cloud, *pose);
+    });
   } catch (const std::invalid_argument& e) {
     return bad(keyframes_bad_, what + " (" + e.what() + ")", "cloud");
   }
@@ -204,9 +271,9 @@ void RgbdMapperActor::writeOutputs() {
   const auto t0 = std::chrono::steady_clock::now();
   try {
     // Assembled (every keyframe moved and voxel-filtered) once for both files.
-    const PointCloud cloud = options_.pcd_file.empty() && options_.ply_file.empty()
-                                 ? PointCloud{}
-                                 : cloud_map_.assemble();
+    PointCloud cloud;
+    if (!options_.pcd_file.empty() || !options_.ply_file.empty())
+      map_thread_->run([&] { cloud = cloud_map_.assemble(); });
     assembled_points_ = cloud.size();
     if (!options_.pcd_file.empty()) {
       writePcd(cloud, dir / options_.pcd_file);

@@ -93,6 +93,8 @@ class RgbdMapperActor final : public Actor {
   RgbdMapperOptions options_;
   CloudMap cloud_map_;
   std::unique_ptr<OctoMapBuilder> octomap_;
+  class MapThread;  ///< where clouds are built and stored (see the .cpp)
+  std::unique_ptr<MapThread> map_thread_;
   std::string output_dir_;
 
   std::uint64_t keyframes_ = 0, mapped_ = 0, empty_clouds_ = 0;
