@@ -91,9 +91,9 @@ std::string readDepth(msg::Keyframe::Reader m, KeyframeDepth& out) {
 
 // Runs each task on one thread of its own while the caller waits. The map's long-lived memory
 // (keyframe clouds, octree nodes) is allocated there, so it sits in that thread's malloc arena
-// instead of the executor threads' ones: interleaved with the front end's per-frame image
-// buffers, it made glibc return and re-fault those buffers every frame (the front end's handler
-// took 2.3 times as long on 7-Scenes with the mapper: docs/algorithms.md#rgb-d-maps).
+// instead of the executor threads' ones. There, it made the front end's per-frame image buffers
+// page-fault every frame (glibc apparently releasing and re-mapping them): the front end's
+// handler took 2.3 times as long on 7-Scenes with the mapper (docs/algorithms.md#rgb-d-maps).
 class RgbdMapperActor::MapThread {
  public:
   MapThread() : thread_([this] { loop(); }) {}

@@ -15,6 +15,8 @@
 // Writes (with an output directory, in stop(), after any running rebuild): cloud.pcd and
 // cloud.ply (the assembled cloud, pcl_viewer / CloudCompare) and map.bt (octovis); also every
 // save_period_s when that is > 0.
+// Threads: clouds are built and stored, and inserted into the OctoMap, on a thread the actor owns
+// (the handler waits for it; see the .cpp for why); the OctoMap rebuild runs on its own thread.
 // Colour: keyframe messages carry no colour image, so the clouds have none (x y z only); viewers
 // colour by height themselves (apps/profiles/rgbd_slam.yaml names the tools).
 // A bad keyframe (no or mismatched depth, non-finite pose, bad intrinsics) and a bad pose entry
