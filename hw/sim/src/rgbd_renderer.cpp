@@ -447,13 +447,18 @@ void RgbdRenderer::render(const Eigen::Isometry3d& camera_to_world, std::uint64_
           const auto k = static_cast<std::size_t>(
               std::upper_bound(gaps.q.begin(), gaps.q.end(), q) - gaps.q.begin());
           const Hit& face = gaps.faces[k];
-          if (face.axis >= 0) {
-            // As the traversal computes it: the face's coordinate against the ray's reciprocal.
-            const double t = (face.plane - o[face.axis]) * (1.0 / d[face.axis]);
-            if (t < hit.t) {
-              hit = face;
-              hit.t = t;
-            }
+          // As the traversal computes it: the face's coordinate against the ray's reciprocal.
+          const double t =
+              face.axis >= 0 ? (face.plane - o[face.axis]) * (1.0 / d[face.axis]) : kInf;
+          // A ray through a corner (to rounding) or along a face's line (a camera on a grid
+          // line, looking along it): the traversal decides, as its cell rule is the reference.
+          const double tie = 1e-9 * (1 + std::abs(q));
+          if ((k > 0 && q - gaps.q[k - 1] < tie) || (k < gaps.q.size() && gaps.q[k] - q < tie) ||
+              std::isnan(t) || t < 0) {
+            traceWalls(o, d, hit);
+          } else if (t < hit.t) {
+            hit = face;
+            hit.t = t;
           }
         } else {
           traceWalls(o, d, hit);
