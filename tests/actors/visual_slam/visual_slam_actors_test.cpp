@@ -105,9 +105,15 @@ TEST_CASE("rgbd_front_end tracks the TUM fr1/desk frames and publishes poses and
     h.push("rgbd", f);
     h.runUntilIdle();
   }
-  const auto poses = h.published<msg::GroundTruthPose3D>("camera_pose");
+  const auto poses = h.published<msg::PoseStamped3D>("camera_pose");
   const auto keyframes = h.published<msg::Keyframe>("keyframes");
-  CHECK(poses.size() == 9);
+  REQUIRE(poses.size() == 9);
+  CHECK(poses[0]->getStatus() == msg::PoseStamped3D::TrackingStatus::INITIALISED);
+  for (std::size_t i = 0; i < poses.size(); ++i) {
+    CHECK(poses[i]->getFrameIndex() == frames[i]->getFrameIndex());
+    CHECK(std::string(poses[i]->getChildFrameId().cStr()) == "camera");
+    if (i > 0) CHECK(poses[i]->getStatus() == msg::PoseStamped3D::TrackingStatus::TRACKING);
+  }
   REQUIRE(keyframes.size() >= 1);
   for (const auto& k : keyframes) {
     CHECK(keyframeMessageError(*k) == "");
