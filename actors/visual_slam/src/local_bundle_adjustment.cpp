@@ -3,6 +3,8 @@
 
 #include <tessera/visual_slam/tracker.hpp>
 
+#include "rotation_vector.hpp"
+
 #include <ceres/ceres.h>
 #include <ceres/rotation.h>
 
@@ -22,6 +24,7 @@ namespace {
 struct ObservationCost {
   double u, v, disparity, fxb;  // disparity = fx b / z measured; fxb = 0: no depth residual
   double fx, fy, cx, cy;
+  double weight;  // of the reprojection residuals: 1 / the keypoint's pyramid scale
 
   template <typename T>
   bool operator()(const T* pose, const T* point, T* residual) const {
@@ -31,27 +34,23 @@ struct ObservationCost {
     c[1] += pose[4];
     c[2] += pose[5];
     if (c[2] < T(1e-3)) return false;  // behind the camera: this step is rejected
-    residual[0] = T(fx) * c[0] / c[2] + T(cx) - T(u);
-    residual[1] = T(fy) * c[1] / c[2] + T(cy) - T(v);
+    residual[0] = T(weight) * (T(fx) * c[0] / c[2] + T(cx) - T(u));
+    residual[1] = T(weight) * (T(fy) * c[1] / c[2] + T(cy) - T(v));
     residual[2] = fxb > 0 ? T(fxb) / c[2] - T(disparity) : T(0);
     return true;
   }
 };
 
-std::array<double, 6> toParams(const Eigen::Isometry3d& camera_from_world) {
-  const Eigen::AngleAxisd aa(camera_from_world.rotation());
-  const Eigen::Vector3d r = aa.axis() * aa.angle();
-  const Eigen::Vector3d t = camera_from_world.translation();
-  return {r.x(), r.y(), r.z(), t.x(), t.y(), t.z()};
+// A keypoint found on pyramid level L is located to about scale^L pixels of level 0 (ORB's
+// 1.2 between levels; SIFT's packed octaves are taken as level 0).
+double pyramidWeight(int octave) {
+  return octave > 0 && octave < 16 ? std::pow(1.2, -octave) : 1.0;
 }
 
-Eigen::Isometry3d fromParams(const std::array<double, 6>& p) {
-  const Eigen::Vector3d r(p[0], p[1], p[2]);
-  Eigen::Isometry3d t = Eigen::Isometry3d::Identity();
-  if (const double angle = r.norm(); angle > 1e-12)
-    t.linear() = Eigen::AngleAxisd(angle, r / angle).toRotationMatrix();
-  t.translation() = Eigen::Vector3d(p[3], p[4], p[5]);
-  return t;
+std::array<double, 6> toParams(const Eigen::Isometry3d& camera_from_world) {
+  std::array<double, 6> p{};
+  detail::toRvecTvec(camera_from_world, p.data());
+  return p;
 }
 
 }  // namespace
@@ -121,7 +120,8 @@ LocalBundleAdjustmentStats adjustLocalWindow(std::vector<Keyframe>& keyframes,
                            camera.fx,
                            camera.fy,
                            camera.cx,
-                           camera.cy};
+                           camera.cy,
+                           pyramidWeight(kf.keypoints[j].octave)};
       problem.AddResidualBlock(
           new ceres::AutoDiffCostFunction<ObservationCost, 3, 6, 3>(new ObservationCost(cost)),
           loss, poses[k - oldest].data(), points[it->second].data());
@@ -167,7 +167,7 @@ LocalBundleAdjustmentStats adjustLocalWindow(std::vector<Keyframe>& keyframes,
   if (!summary.IsSolutionUsable() || !(summary.final_cost <= summary.initial_cost)) return stats;
 
   for (std::size_t k = first; k < n; ++k)
-    keyframes[k].camera_to_world = fromParams(poses[k - oldest]).inverse();
+    keyframes[k].camera_to_world = detail::fromRvecTvec(poses[k - oldest].data()).inverse();
   for (std::size_t k = oldest; k < n; ++k) {
     Keyframe& kf = keyframes[k];
     for (std::size_t j = 0; j < kf.point_ids.size(); ++j) {
