@@ -6,10 +6,12 @@
 #include <tessera/players/rgbd_player.hpp>
 #include <tessera/pose_graph/pose_graph_io.hpp>
 #include <tessera/runtime/harness.hpp>
+#include <tessera/runtime/options.hpp>
 #include <tessera/visual_slam/keyframe_graph_actor.hpp>
 #include <tessera/visual_slam/keyframe_message.hpp>
 #include <tessera/visual_slam/rgbd_front_end_actor.hpp>
 
+#include <yaml-cpp/yaml.h>
 #include <catch2/catch.hpp>
 
 #include <cmath>
@@ -131,6 +133,22 @@ TEST_CASE("rgbd_front_end tracks the TUM fr1/desk frames and publishes poses and
   CHECK(std::get<double>(s.at("ate_rmse_m")) < 0.02);
   CHECK(s.count("ms_per_frame_p95"));
   CHECK(s.count("ms_extraction_mean"));
+}
+
+TEST_CASE("rgbd_front_end options: registration and matching live in the tracker's options",
+          "[visual_slam][actors]") {
+  const auto load = [](const std::string& yaml) {
+    return loadOptions<RgbdFrontEndOptions>(Params(YAML::Load(yaml), "test"));
+  };
+  CHECK(load("{}").tracker.register_depth);
+  const auto o = load("tracker: {register_depth: false, match_algorithm: flann}\n");
+  CHECK_FALSE(o.tracker.register_depth);
+  CHECK(o.tracker.matcher.algorithm == MatchAlgorithm::kFlann);
+  CHECK_THROWS_WITH(load("register_depth: false\n"), Catch::Contains("tracker.register_depth"));
+  CHECK_THROWS_WITH(load("tracker: {match_algorithm: kdtree}\n"),
+                    Catch::Contains("brute_force | flann"));
+  CHECK_THROWS_AS(load("tracker: {local_ba_keyframes: -1}\n").tracker.validate(),
+                  std::invalid_argument);
 }
 
 TEST_CASE("rgbd_front_end skips and counts frames it cannot read", "[visual_slam][actors]") {
