@@ -60,13 +60,14 @@ struct Inputs {
 
 class Sequence {
  public:
-  Sequence(const std::string& path, int frames, bool allow_registration)
+  Sequence(const std::string& path, int frames, bool register_depth)
       : seq_(datasets::readRgbdSequence(path)) {
     const auto& k = seq_.intrinsics;
     depth_cam_ = {k.fx, k.fy, k.cx, k.cy, k.width, k.height};
-    calib_ = vs::sevenScenesColorCalibration();
-    registered_ = allow_registration && !seq_.color_registered;
-    if (!registered_) calib_ = {depth_cam_, Eigen::Isometry3d::Identity(), "none"};
+    const auto calib = vs::depthRegistration(seq_.color_registered, register_depth);
+    registered_ = calib.has_value();
+    calib_ =
+        calib ? *calib : vs::ColorCalibration{depth_cam_, Eigen::Isometry3d::Identity(), "none"};
     count_ = std::min<std::size_t>(static_cast<std::size_t>(frames), seq_.frames.size());
   }
   std::size_t size() const { return count_; }
@@ -142,6 +143,7 @@ MethodResult runTessera(const Sequence& s, const vs::TrackerOptions& options) {
     r.split.local_map_ms += res.timing.local_map_ms / n;
     r.split.matching_ms += res.timing.matching_ms / n;
     r.split.pnp_ms += res.timing.pnp_ms / n;
+    r.split.local_ba_ms += res.timing.local_ba_ms / n;
     poses.push_back(res.camera_to_world * s.calibration().color_from_depth);
   }
   r.frames = s.size();
@@ -217,7 +219,8 @@ void addBenchRgbdCommand(CLI::App& bench, int& result) {
                   "tracker option key=value (repeatable; see the tracker's "
                   "options in docs/algorithms.md)");
   cmd->add_flag("--no-registration", o->no_registration,
-                "7-Scenes: use colour as if registered to depth");
+                "7-Scenes: use colour as if registered to depth (sets the tracker's "
+                "register_depth=false)");
   cmd->add_flag("--json", o->json, "print exactly one JSON object on stdout");
   cmd->callback([o, &result] {
     if (o->frames < 2) throw ConfigError("--frames must be >= 2");
@@ -225,8 +228,9 @@ void addBenchRgbdCommand(CLI::App& bench, int& result) {
       if (m != "tessera" && m != "opencv_rgbd" && m != "opencv_rgbd_icp" && m != "opencv_icp" &&
           m != "opencv_fast_icp")
         throw ConfigError("bench rgbd: unknown method '" + m + "'");
-    const vs::TrackerOptions tracker_options = trackerOptions(o->params);
-    const Sequence s(o->path, o->frames, !o->no_registration);
+    vs::TrackerOptions tracker_options = trackerOptions(o->params);
+    if (o->no_registration) tracker_options.register_depth = false;
+    const Sequence s(o->path, o->frames, tracker_options.register_depth);
     nlohmann::json results = nlohmann::json::array();
     std::vector<MethodResult> runs;
     for (const auto& m : o->methods) {
@@ -272,8 +276,8 @@ void addBenchRgbdCommand(CLI::App& bench, int& result) {
       if (r.method == "tessera")
         std::cout << "\ntessera per frame: extraction " << r.split.extraction_ms
                   << " ms, local map " << r.split.local_map_ms << " ms, matching "
-                  << r.split.matching_ms << " ms, PnP " << r.split.pnp_ms << " ms; p50 "
-                  << percentile(r.ms, 0.5) << " ms\n";
+                  << r.split.matching_ms << " ms, PnP " << r.split.pnp_ms << " ms, local BA "
+                  << r.split.local_ba_ms << " ms; p50 " << percentile(r.ms, 0.5) << " ms\n";
     result = 0;
   });
 }

@@ -52,6 +52,24 @@ struct GroundTruthPose3D {
   childFrameId @2 :Text;
 }
 
+# An estimated 3D pose of one frame (visual odometry's per-frame camera pose): pose of
+# childFrameId in header.frameId (the world frame), camera-to-world.
+struct PoseStamped3D {
+  header @0 :Common.Header;      # stamp of the frame the pose is for
+  pose @1 :Pose3D;
+  childFrameId @2 :Text;
+  frameIndex @3 :UInt32;         # the frame's index in its source (RgbdFrame.frameIndex)
+  status @4 :TrackingStatus;
+
+  # How the pose was found (lost and skipped frames publish no pose).
+  enum TrackingStatus {
+    tracking @0;          # against the local map
+    initialised @1;       # the first frame: the map starts here
+    trackingPrevious @2;  # against the previous frame (the local map was too weak)
+    relocalised @3;       # found again against a stored keyframe after being lost
+  }
+}
+
 # One colour + depth frame of an RGB-D camera or dataset.
 struct RgbdFrame {
   header @0 :Common.Header;          # stamp of the colour image; frameId = camera optical frame

@@ -27,6 +27,11 @@ ColorCalibration sevenScenesColorCalibration() {
   return c;
 }
 
+std::optional<ColorCalibration> depthRegistration(bool color_registered, bool register_depth) {
+  if (color_registered || !register_depth) return std::nullopt;
+  return sevenScenesColorCalibration();
+}
+
 cv::Mat registerDepth(const cv::Mat& depth, const PinholeCamera& depth_camera,
                       const ColorCalibration& calib) {
   depth_camera.validate();

@@ -1,8 +1,9 @@
-// FeatureMatcher: brute-force kNN with the ratio test and the minimum-distance filter.
+// FeatureMatcher: brute-force or FLANN kNN with the ratio test and the minimum-distance filter.
 #include <tessera/visual_slam/feature_matcher.hpp>
 
 #include <opencv2/core/hal/hal.hpp>
 #include <opencv2/features2d.hpp>
+#include <opencv2/flann.hpp>
 
 #include <algorithm>
 #include <cmath>
@@ -18,6 +19,9 @@ void FeatureMatcherOptions::validate() const {
     throw std::invalid_argument("matcher: min_distance_factor must be >= 0");
   if (!(min_distance_floor >= 0) || !std::isfinite(min_distance_floor))
     throw std::invalid_argument("matcher: min_distance_floor must be >= 0");
+  if (algorithm != MatchAlgorithm::kBruteForce && algorithm != MatchAlgorithm::kFlann)
+    throw std::invalid_argument("matcher: unknown match_algorithm");
+  if (flann_checks < 1) throw std::invalid_argument("matcher: flann_checks must be >= 1");
 }
 
 double descriptorDistance(const cv::Mat& a, int i, const cv::Mat& b, int j) {
@@ -43,9 +47,21 @@ std::vector<cv::DMatch> FeatureMatcher::match(const cv::Mat& query, const cv::Ma
   if (query.type() != CV_8U && query.type() != CV_32F)
     throw std::invalid_argument("matcher: descriptors must be CV_8U (binary) or CV_32F");
 
-  cv::BFMatcher bf(query.type() == CV_8U ? cv::NORM_HAMMING : cv::NORM_L2);
+  const bool binary = query.type() == CV_8U;
   std::vector<std::vector<cv::DMatch>> knn;
-  bf.knnMatch(query, train, knn, 2);
+  if (options_.algorithm == MatchAlgorithm::kFlann) {
+    // LSH: 12 tables of 20-bit keys probed at 2 levels, OpenCV's suggested start for ORB.
+    cv::Ptr<cv::flann::IndexParams> index;
+    if (binary)
+      index = cv::makePtr<cv::flann::LshIndexParams>(12, 20, 2);
+    else
+      index = cv::makePtr<cv::flann::KDTreeIndexParams>(4);
+    cv::FlannBasedMatcher flann(index, cv::makePtr<cv::flann::SearchParams>(options_.flann_checks));
+    flann.knnMatch(query, train, knn, 2);
+  } else {
+    cv::BFMatcher bf(binary ? cv::NORM_HAMMING : cv::NORM_L2);
+    bf.knnMatch(query, train, knn, 2);
+  }
   for (const auto& m : knn) {
     if (m.empty()) continue;
     if (m.size() == 2 && options_.ratio < 1 && !(m[0].distance < options_.ratio * m[1].distance))

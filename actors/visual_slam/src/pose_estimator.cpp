@@ -2,6 +2,8 @@
 // motion-only refinement (Ceres) and the inlier re-count (see the header).
 #include <tessera/visual_slam/pose_estimator.hpp>
 
+#include "rotation_vector.hpp"
+
 #include <opencv2/calib3d.hpp>
 
 #include <ceres/ceres.h>
@@ -59,23 +61,8 @@ struct ReprojectionDepthCost {
   }
 };
 
-Eigen::Isometry3d fromRvecTvec(const double* p) {
-  const Eigen::Vector3d r(p[0], p[1], p[2]);
-  const double angle = r.norm();
-  Eigen::Isometry3d t = Eigen::Isometry3d::Identity();
-  if (angle > 1e-12) t.linear() = Eigen::AngleAxisd(angle, r / angle).toRotationMatrix();
-  t.translation() = Eigen::Vector3d(p[3], p[4], p[5]);
-  return t;
-}
-
-void toRvecTvec(const Eigen::Isometry3d& t, double* p) {
-  const Eigen::AngleAxisd aa(t.rotation());
-  const Eigen::Vector3d r = aa.axis() * aa.angle();
-  for (int i = 0; i < 3; ++i) {
-    p[i] = r[i];
-    p[3 + i] = t.translation()[i];
-  }
-}
+using detail::fromRvecTvec;
+using detail::toRvecTvec;
 
 int cvFlags(PnpMethod m) {
   switch (m) {

@@ -46,6 +46,7 @@ struct Tracker::Attempt {
   // The correspondences given to PnP: current keypoint and the map's world point.
   std::vector<int> keypoints;
   std::vector<Eigen::Vector3d> points;
+  std::vector<std::int64_t> point_ids;  // the map points' ids (-1: none)
   bool ok(int min_inliers) const {
     return estimate.ok && static_cast<int>(estimate.inliers.size()) >= min_inliers;
   }
@@ -56,6 +57,7 @@ void TrackerOptions::validate() const {
   matcher.validate();
   pnp.validate();
   keyframes.validate();
+  local_ba.validate();
   const auto bad = [](const std::string& what) { throw std::invalid_argument("tracker: " + what); };
   if (local_map_keyframes < 1) bad("local_map_keyframes must be >= 1");
   if (local_map_nearby < 0) bad("local_map_nearby must be >= 0");
@@ -126,10 +128,14 @@ Keyframe Tracker::makeKeyframe(const Features& f, const Eigen::Isometry3d& camer
   // with it: the map then stays anchored where the point was first seen instead of being
   // re-measured (and re-drifted) by every keyframe.
   std::vector<const Eigen::Vector3d*> reuse(f.size(), nullptr);
+  std::vector<std::int64_t> reuse_id(f.size(), -1);
   if (tracked != nullptr && tracked->estimate.ok)
-    for (int c : tracked->estimate.inliers)
-      reuse[static_cast<std::size_t>(tracked->keypoints[static_cast<std::size_t>(c)])] =
-          &tracked->points[static_cast<std::size_t>(c)];
+    for (int c : tracked->estimate.inliers) {
+      const auto ci = static_cast<std::size_t>(c);
+      const auto kp = static_cast<std::size_t>(tracked->keypoints[ci]);
+      reuse[kp] = &tracked->points[ci];
+      reuse_id[kp] = tracked->point_ids[ci];
+    }
   const auto& eo = options_.extractor;
   Keyframe k;
   k.frame = frame;
@@ -142,14 +148,20 @@ Keyframe Tracker::makeKeyframe(const Features& f, const Eigen::Isometry3d& camer
   k.keypoints.reserve(rows.size());
   k.points_camera.reserve(rows.size());
   k.points_world.reserve(rows.size());
+  k.point_ids.reserve(rows.size());
   k.descriptors.create(static_cast<int>(rows.size()), f.descriptors.cols, f.descriptors.type());
   for (std::size_t r = 0; r < rows.size(); ++r) {
     const auto i = static_cast<std::size_t>(rows[r]);
     Eigen::Vector3d world = camera_to_world * f.points[i];
+    std::int64_t id = -1;
     if (reuse[i] != nullptr && options_.reuse_map_points) {
       const double tolerance = eo.depth_edge_abs + eo.depth_edge_rel * f.points[i].z();
-      if ((*reuse[i] - world).norm() < tolerance) world = *reuse[i];
+      if ((*reuse[i] - world).norm() < tolerance) {
+        world = *reuse[i];
+        id = reuse_id[i];
+      }
     }
+    k.point_ids.push_back(id);
     k.keypoints.push_back(f.keypoints[i]);
     k.points_camera.push_back(f.points[i]);
     k.points_world.push_back(world);
@@ -258,6 +270,7 @@ Tracker::Attempt Tracker::trackLocalMap(const Features& f, const Eigen::Isometry
     points.push_back(ref.kf->points_world[static_cast<std::size_t>(ref.index)]);
     pixels.emplace_back(f.keypoints[k].pt.x, f.keypoints[k].pt.y);
     a.keypoints.push_back(static_cast<int>(k));
+    a.point_ids.push_back(ref.kf->point_ids[static_cast<std::size_t>(ref.index)]);
   }
   timing.local_map_ms += msSince(t0);
   a.matches = points.size();
@@ -288,6 +301,7 @@ Tracker::Attempt Tracker::trackFrame(const Features& f, const Keyframe& referenc
     const auto& pt = f.keypoints[static_cast<std::size_t>(m.queryIdx)].pt;
     pixels.emplace_back(pt.x, pt.y);
     a.keypoints.push_back(m.queryIdx);
+    a.point_ids.push_back(reference.point_ids[static_cast<std::size_t>(m.trainIdx)]);
   }
   const auto t1 = Clock::now();
   std::optional<Eigen::Isometry3d> camera_from_world;
@@ -331,6 +345,7 @@ TrackResult Tracker::track(const RgbdFrame& frame) {
     pose_ = initial_pose_;
     keyframes_.push_back(makeKeyframe(f, pose_, r.frame, frame.timestamp, nullptr));
     keyframes_.back().id = 0;
+    for (auto& id : keyframes_.back().point_ids) id = next_point_id_++;
     reference_keyframe_ = 0;
     previous_ = keyframes_.back();
     ++stats_.keyframes;
@@ -417,12 +432,28 @@ TrackResult Tracker::track(const RgbdFrame& frame) {
   if ((decision == KeyframeDecision::kKeyframe || forced) &&
       static_cast<int>(current.points_world.size()) >= options_.min_init_features) {
     current.id = keyframes_.size();
+    for (auto& id : current.point_ids)
+      if (id < 0) id = next_point_id_++;
     keyframes_.push_back(current);
     reference_keyframe_ = keyframes_.size() - 1;
     ++stats_.keyframes;
     if (forced && decision != KeyframeDecision::kKeyframe) ++stats_.forced_keyframes;
     large_drops_ = 0;
     r.keyframe = true;
+    if (options_.local_ba.keyframes > 0) {
+      const auto tb = Clock::now();
+      if (adjustLocalWindow(keyframes_, camera_, options_.local_ba).ran) {
+        ++stats_.local_ba_runs;
+        // This frame is the newest keyframe: it reports, and the next frame predicts from, the
+        // adjusted pose.
+        const Eigen::Isometry3d adjusted = keyframes_.back().camera_to_world;
+        if (has_velocity_) velocity_ = velocity_ * pose_.inverse() * adjusted;
+        pose_ = adjusted;
+        r.camera_to_world = pose_;
+        current = keyframes_.back();
+      }
+      r.timing.local_ba_ms = msSince(tb);
+    }
   }
   previous_ = std::move(current);
   r.timing.total_ms = msSince(t0);

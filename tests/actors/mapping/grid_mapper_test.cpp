@@ -1,4 +1,5 @@
 // Tests for the grid mapper core, the grid_mapper actor, and the map/trajectory writer actors.
+#include <tessera/msg/image.capnp.h>
 #include <tessera/mapping/grid_mapper.hpp>
 #include <tessera/mapping/grid_mapper_actor.hpp>
 #include <tessera/mapping/map_io.hpp>
@@ -396,6 +397,25 @@ TEST_CASE("trajectory_writer follows its message option", "[writers]") {
   REQUIRE(poses.size() == 1);
   CHECK(poses[0].stamp_ns == 5 * kSec);
   CHECK(poses[0].planar().x == 1.5);
+
+  // 3D estimates (PoseStamped3D, e.g. the RGB-D front end's camera_pose) in full 3D.
+  mapping::TrajectoryWriterOptions o3;
+  o3.message = "pose_3d";
+  ActorHarness h3(std::make_unique<mapping::TrajectoryWriterActor>(o3), dir.path.string());
+  h3.push<msg::PoseStamped3D>("poses", [&](msg::PoseStamped3D::Builder b) {
+    setHeader(b.initHeader(), 6 * kSec, "world", 0);
+    writePose(b.initPose(), Pose3{Eigen::Vector3d(1, 2, 3), Eigen::Quaterniond(Eigen::AngleAxisd(
+                                                                0.5, Eigen::Vector3d::UnitX()))});
+    b.setFrameIndex(12);
+    b.setStatus(msg::PoseStamped3D::TrackingStatus::RELOCALISED);
+  });
+  h3.runUntilIdle();
+  h3.stop();
+  const auto poses3 = tessera::mapping::readTum(dir.path / "trajectory.tum");
+  REQUIRE(poses3.size() == 1);
+  CHECK(poses3[0].stamp_ns == 6 * kSec);
+  CHECK(poses3[0].position.z() == 3);
+  CHECK(Eigen::AngleAxisd(poses3[0].orientation).angle() == Approx(0.5));
 
   mapping::TrajectoryWriterOptions bad;
   bad.message = "imu";

@@ -1,5 +1,6 @@
 // Visual SLAM front end on synthetic inputs: bucketed extraction and depth checks, the matcher's
-// ratio and minimum-distance filters, RANSAC PnP with outliers, the keyframe rule, and bad input.
+// ratio and minimum-distance filters, brute force against FLANN, RANSAC PnP with outliers, the
+// keyframe rule, and bad input.
 #include <tessera/visual_slam/depth_registration.hpp>
 #include <tessera/visual_slam/feature_extractor.hpp>
 #include <tessera/visual_slam/feature_matcher.hpp>
@@ -143,6 +144,46 @@ TEST_CASE("matcher applies the ratio test and the minimum-distance filter", "[vi
   CHECK(matcher.match(cv::Mat(), train).empty());
   CHECK_THROWS_AS(matcher.match(query, cv::Mat(3, 16, CV_8U, cv::Scalar(0))),
                   std::invalid_argument);
+}
+
+TEST_CASE("matcher with FLANN finds the brute-force matches of ORB and SIFT", "[visual_slam]") {
+  // Real features of a textured image against the same image shifted by (7, 3) px: both matchers
+  // must pair almost every feature with its shifted self (LSH and KD-trees are approximate).
+  const cv::Mat img = texturedImage(4);
+  cv::Mat shifted(img.size(), img.type(), cv::Scalar(128));
+  img(cv::Rect(0, 0, 633, 477)).copyTo(shifted(cv::Rect(7, 3, 633, 477)));
+  for (const auto type : {vs::FeatureType::kOrb, vs::FeatureType::kSift}) {
+    vs::FeatureExtractorOptions eo;
+    eo.type = type;
+    eo.max_features = 500;
+    const vs::FeatureExtractor ex(eo, kinect());
+    const auto a = ex.extract(img, cv::Mat(), 1000.0);
+    const auto b = ex.extract(shifted, cv::Mat(), 1000.0);
+    REQUIRE(a.size() > 200);
+    vs::FeatureMatcherOptions bo, fo;
+    fo.algorithm = vs::MatchAlgorithm::kFlann;
+    const auto brute = vs::FeatureMatcher(bo).match(a.descriptors, b.descriptors);
+    const auto flann = vs::FeatureMatcher(fo).match(a.descriptors, b.descriptors);
+    const auto correct = [&](const std::vector<cv::DMatch>& m) {
+      std::size_t n = 0;
+      for (const auto& d : m) {
+        const cv::Point2f moved = a.keypoints[d.queryIdx].pt + cv::Point2f(7, 3);
+        if (cv::norm(moved - b.keypoints[d.trainIdx].pt) < 2) ++n;
+      }
+      return n;
+    };
+    INFO((type == vs::FeatureType::kOrb ? "ORB" : "SIFT"));
+    CHECK(brute.size() > a.size() / 2);
+    CHECK(correct(brute) > 0.95 * brute.size());
+    CHECK(flann.size() > 0.8 * brute.size());
+    CHECK(correct(flann) > 0.95 * flann.size());
+    for (std::size_t i = 1; i < flann.size(); ++i) CHECK(flann[i - 1].queryIdx < flann[i].queryIdx);
+    CHECK(vs::FeatureMatcher(fo).match(cv::Mat(), b.descriptors).empty());
+    CHECK(vs::FeatureMatcher(fo).match(a.descriptors.rowRange(0, 1), b.descriptors).size() <= 1);
+  }
+  vs::FeatureMatcherOptions bad;
+  bad.flann_checks = 0;
+  CHECK_THROWS_AS(vs::FeatureMatcher(bad), std::invalid_argument);
 }
 
 TEST_CASE("RANSAC iteration count follows k = log(1-p)/log(1-w^m)", "[visual_slam]") {
@@ -300,6 +341,11 @@ TEST_CASE("depth registration moves readings into the colour camera", "[visual_s
   CHECK(moved.at<std::uint16_t>(240, 635) == 0);
   CHECK(moved.at<std::uint16_t>(240, 5) == 2000);
   CHECK_THROWS_AS(vs::registerDepth(cv::Mat(480, 640, CV_32F), cam, same), std::invalid_argument);
+  // The one decision: only unregistered input with register_depth gets the 7-Scenes calibration.
+  CHECK(vs::depthRegistration(false, true).has_value());
+  CHECK_FALSE(vs::depthRegistration(false, false).has_value());
+  CHECK_FALSE(vs::depthRegistration(true, true).has_value());
+  CHECK(vs::TrackerOptions{}.register_depth);
   const auto seven = vs::sevenScenesColorCalibration();
   CHECK(seven.color.fx == 525);
   CHECK(seven.color_from_depth.translation().x() == Approx(-0.0256).margin(1e-4));

@@ -6,10 +6,12 @@
 #include <tessera/players/rgbd_player.hpp>
 #include <tessera/pose_graph/pose_graph_io.hpp>
 #include <tessera/runtime/harness.hpp>
+#include <tessera/runtime/options.hpp>
 #include <tessera/visual_slam/keyframe_graph_actor.hpp>
 #include <tessera/visual_slam/keyframe_message.hpp>
 #include <tessera/visual_slam/rgbd_front_end_actor.hpp>
 
+#include <yaml-cpp/yaml.h>
 #include <catch2/catch.hpp>
 
 #include <cmath>
@@ -105,9 +107,15 @@ TEST_CASE("rgbd_front_end tracks the TUM fr1/desk frames and publishes poses and
     h.push("rgbd", f);
     h.runUntilIdle();
   }
-  const auto poses = h.published<msg::GroundTruthPose3D>("camera_pose");
+  const auto poses = h.published<msg::PoseStamped3D>("camera_pose");
   const auto keyframes = h.published<msg::Keyframe>("keyframes");
-  CHECK(poses.size() == 9);
+  REQUIRE(poses.size() == 9);
+  CHECK(poses[0]->getStatus() == msg::PoseStamped3D::TrackingStatus::INITIALISED);
+  for (std::size_t i = 0; i < poses.size(); ++i) {
+    CHECK(poses[i]->getFrameIndex() == frames[i]->getFrameIndex());
+    CHECK(std::string(poses[i]->getChildFrameId().cStr()) == "camera");
+    if (i > 0) CHECK(poses[i]->getStatus() == msg::PoseStamped3D::TrackingStatus::TRACKING);
+  }
   REQUIRE(keyframes.size() >= 1);
   for (const auto& k : keyframes) {
     CHECK(keyframeMessageError(*k) == "");
@@ -125,6 +133,22 @@ TEST_CASE("rgbd_front_end tracks the TUM fr1/desk frames and publishes poses and
   CHECK(std::get<double>(s.at("ate_rmse_m")) < 0.02);
   CHECK(s.count("ms_per_frame_p95"));
   CHECK(s.count("ms_extraction_mean"));
+}
+
+TEST_CASE("rgbd_front_end options: registration and matching live in the tracker's options",
+          "[visual_slam][actors]") {
+  const auto load = [](const std::string& yaml) {
+    return loadOptions<RgbdFrontEndOptions>(Params(YAML::Load(yaml), "test"));
+  };
+  CHECK(load("{}").tracker.register_depth);
+  const auto o = load("tracker: {register_depth: false, match_algorithm: flann}\n");
+  CHECK_FALSE(o.tracker.register_depth);
+  CHECK(o.tracker.matcher.algorithm == MatchAlgorithm::kFlann);
+  CHECK_THROWS_WITH(load("register_depth: false\n"), Catch::Contains("tracker.register_depth"));
+  CHECK_THROWS_WITH(load("tracker: {match_algorithm: kdtree}\n"),
+                    Catch::Contains("brute_force | flann"));
+  CHECK_THROWS_AS(load("tracker: {local_ba_keyframes: -1}\n").tracker.validate(),
+                  std::invalid_argument);
 }
 
 TEST_CASE("rgbd_front_end skips and counts frames it cannot read", "[visual_slam][actors]") {

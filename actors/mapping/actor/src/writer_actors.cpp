@@ -107,35 +107,53 @@ TESSERA_REGISTER_ACTOR("map_writer", MapWriterActor, MapWriterOptions,
 // ---- trajectory_writer ----
 
 namespace {
-// 3D poses (RGB-D ground truth) are written as they are; every other type goes through the
-// planar pose subscriptions shared with the mapper.
-constexpr const char* kPose3dMessage = "ground_truth_3d";
+// 3D poses (RGB-D ground truth, visual odometry's estimates) are written as they are; every other
+// type goes through the planar pose subscriptions shared with the mapper.
+constexpr const char* kGroundTruth3dMessage = "ground_truth_3d";
+constexpr const char* kPose3dMessage = "pose_3d";
+
+bool is3d(const std::string& message) {
+  return message == kGroundTruth3dMessage || message == kPose3dMessage;
+}
+
+tessera::mapping::TumPose tumPose(std::int64_t stamp_ns, msg::Pose3D::Reader p) {
+  tessera::mapping::TumPose pose;
+  pose.stamp_ns = stamp_ns;
+  pose.position = {p.getX(), p.getY(), p.getZ()};
+  pose.orientation = Eigen::Quaterniond(p.getQw(), p.getQx(), p.getQy(), p.getQz()).normalized();
+  return pose;
+}
 }  // namespace
 
 TrajectoryWriterActor::TrajectoryWriterActor(TrajectoryWriterOptions options)
     : options_(std::move(options)) {
-  if (options_.message != kPose3dMessage)
+  if (!is3d(options_.message))
     (void)detail::parsePoseMessage(options_.message, "trajectory_writer", "message");
   if (options_.file.empty()) throw ConfigError("trajectory_writer: file must not be empty");
 }
 
 TrajectoryWriterActor::~TrajectoryWriterActor() = default;
 
+void TrajectoryWriterActor::write3d(const tessera::mapping::TumPose& pose) {
+  if (!writer_) return;
+  writer_->write(pose);
+  if (++poses_written_ % 256 == 0) writer_->flush();
+}
+
 void TrajectoryWriterActor::configure(ActorContext& ctx) {
   ctx_ = &ctx;
-  if (options_.message == kPose3dMessage) {
+  if (options_.message == kGroundTruth3dMessage) {
     ctx.subscribe<msg::GroundTruthPose3D>(
         "poses", MailboxPolicy::reliable(), [this](const Message<msg::GroundTruthPose3D>& m) {
-          if (!writer_) return;
-          const auto p = m->getPose();
-          tessera::mapping::TumPose pose;
-          pose.stamp_ns = m->getHeader().getStampNs();
-          pose.position = {p.getX(), p.getY(), p.getZ()};
-          pose.orientation =
-              Eigen::Quaterniond(p.getQw(), p.getQx(), p.getQy(), p.getQz()).normalized();
-          writer_->write(pose);
-          if (++poses_written_ % 256 == 0) writer_->flush();
+          write3d(tumPose(m->getHeader().getStampNs(), m->getPose()));
         });
+    return;
+  }
+  if (options_.message == kPose3dMessage) {
+    ctx.subscribe<msg::PoseStamped3D>("poses", MailboxPolicy::reliable(),
+                                      [this](const Message<msg::PoseStamped3D>& m) {
+                                        write3d(tumPose(m->getHeader().getStampNs(), m->getPose()));
+                                      });
     return;
   }
   detail::subscribePoses(ctx, "poses", MailboxPolicy::reliable(),

@@ -58,6 +58,19 @@ Eigen::Isometry3d isometry(msg::Pose3D::Reader p) {
   return T;
 }
 
+msg::PoseStamped3D::TrackingStatus status(TrackingState s) {
+  switch (s) {
+    case TrackingState::kInitialised:
+      return msg::PoseStamped3D::TrackingStatus::INITIALISED;
+    case TrackingState::kTrackingPrevious:
+      return msg::PoseStamped3D::TrackingStatus::TRACKING_PREVIOUS;
+    case TrackingState::kRelocalised:
+      return msg::PoseStamped3D::TrackingStatus::RELOCALISED;
+    default:
+      return msg::PoseStamped3D::TrackingStatus::TRACKING;
+  }
+}
+
 mapping::TumPose tum(std::int64_t stamp, const Eigen::Isometry3d& T) {
   return {stamp, T.translation(), Eigen::Quaterniond(T.rotation())};
 }
@@ -81,7 +94,7 @@ RgbdFrontEndActor::~RgbdFrontEndActor() = default;
 void RgbdFrontEndActor::configure(ActorContext& ctx) {
   ctx.subscribe<msg::RgbdFrame>("rgbd", MailboxPolicy::keepLatest(1),
                                 [this](const Message<msg::RgbdFrame>& m) { onFrame(m); });
-  pose_pub_ = ctx.advertise<msg::GroundTruthPose3D>("camera_pose");
+  pose_pub_ = ctx.advertise<msg::PoseStamped3D>("camera_pose");
   keyframe_pub_ = ctx.advertise<msg::Keyframe>("keyframes");
 }
 
@@ -99,12 +112,9 @@ std::string RgbdFrontEndActor::setUp(msg::RgbdFrame::Reader f) {
                    static_cast<int>(in.getHeight())};
   try {
     depth_camera_.validate();
-    PinholeCamera tracked = depth_camera_;
-    if (!f.getColorRegistered() && options_.register_depth) {
-      calibration_ = sevenScenesColorCalibration();
-      tracked = calibration_->color;
-    }
-    tracker_ = std::make_unique<Tracker>(options_.tracker, tracked);
+    calibration_ = depthRegistration(f.getColorRegistered(), options_.tracker.register_depth);
+    tracker_ = std::make_unique<Tracker>(options_.tracker,
+                                         calibration_ ? calibration_->color : depth_camera_);
   } catch (const std::invalid_argument& e) {
     std::cerr << "[rgbd_front_end] frame " << f.getFrameIndex() << ": " << e.what() << "\n";
     return "bad_intrinsics";
@@ -168,6 +178,7 @@ void RgbdFrontEndActor::onFrame(const Message<msg::RgbdFrame>& m) {
   split_sum_.local_map_ms += r.timing.local_map_ms;
   split_sum_.matching_ms += r.timing.matching_ms;
   split_sum_.pnp_ms += r.timing.pnp_ms;
+  split_sum_.local_ba_ms += r.timing.local_ba_ms;
   if (!r.pose_valid) return;  // lost: counted by the tracker
 
   const Eigen::Isometry3d camera =
@@ -178,6 +189,8 @@ void RgbdFrontEndActor::onFrame(const Message<msg::RgbdFrame>& m) {
     writePose(loan->initPose(),
               Pose3{camera.translation(), Eigen::Quaterniond(camera.rotation()).normalized()});
     loan->setChildFrameId(options_.frame_id.c_str());
+    loan->setFrameIndex(f.getFrameIndex());
+    loan->setStatus(status(r.state));
     pose_pub_.publish(std::move(loan));
     ++published_;
   }
@@ -221,6 +234,7 @@ void RgbdFrontEndActor::summarize(Summary& out) const {
     out["lost"] = i64(s.lost);
     out["relocalised"] = i64(s.relocalised);
     out["forced_keyframes"] = i64(s.forced_keyframes);
+    out["local_ba_runs"] = i64(s.local_ba_runs);
     out["depth_registered"] = std::int64_t{calibration_ ? 1 : 0};
   }
   if (!ms_.empty()) {
@@ -237,6 +251,7 @@ void RgbdFrontEndActor::summarize(Summary& out) const {
     out["ms_local_map_mean"] = split_sum_.local_map_ms / n;
     out["ms_matching_mean"] = split_sum_.matching_ms / n;
     out["ms_pnp_mean"] = split_sum_.pnp_ms / n;
+    out["ms_local_ba_mean"] = split_sum_.local_ba_ms / n;
   }
   if (!truth_.empty() && !estimate_.empty()) {
     std::vector<mapping::TumPose> est, ref;

@@ -18,6 +18,7 @@
 
 #include <Eigen/Geometry>
 
+#include <optional>
 #include <string>
 
 namespace tessera::visual_slam {
@@ -33,6 +34,11 @@ struct ColorCalibration {
 /// (projet.liris.cnrs.fr/voir/activities-dataset/kinect-calibration.html): about 2.6 cm along
 /// x and rotations below 0.5 degrees. An approximation: 7-Scenes publishes no calibration.
 ColorCalibration sevenScenesColorCalibration();
+
+/// The one place that decides whether depth is registered: the calibration to apply when colour
+/// and depth are not registered and `register_depth` asks for it (7-Scenes' usual one,
+/// sevenScenesColorCalibration()), else none (track the depth image's camera as given).
+std::optional<ColorCalibration> depthRegistration(bool color_registered, bool register_depth);
 
 /// `depth` (CV_16UC1, in depth_camera) re-projected into calib.color: each reading is
 /// back-projected, moved by color_from_depth and projected, the nearest reading winning where

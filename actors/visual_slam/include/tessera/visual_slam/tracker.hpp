@@ -20,7 +20,10 @@
 //      one gives relocalisation_min_inliers;
 //   6. the keyframe rule (KeyframeSelector) on the motion since the last keyframe; a keyframe
 //      stores the frame's features with their 3D points in the world (a feature that matched
-//      a map point and agrees with it keeps that point's position: reuse_map_points).
+//      a map point and agrees with it keeps that point's position and identity:
+//      reuse_map_points); with local_ba_keyframes > 0, a local bundle adjustment then refines
+//      the newest keyframes' poses and their points (local_bundle_adjustment.hpp), and the new
+//      keyframe's frame reports its adjusted pose.
 // The first frame with at least min_init_features 3D points starts the map at the identity pose
 // (or at set_initial_pose); frames before it are skipped. A frame that cannot be used (empty
 // image, wrong size or type, no depth before initialisation) is skipped and counted, never an
@@ -35,6 +38,7 @@
 #include <tessera/visual_slam/feature_extractor.hpp>
 #include <tessera/visual_slam/feature_matcher.hpp>
 #include <tessera/visual_slam/keyframe_selector.hpp>
+#include <tessera/visual_slam/local_bundle_adjustment.hpp>
 #include <tessera/visual_slam/pose_estimator.hpp>
 
 #include <opencv2/core.hpp>
@@ -42,6 +46,7 @@
 #include <Eigen/Geometry>
 
 #include <cstddef>
+#include <cstdint>
 #include <optional>
 #include <string>
 #include <string_view>
@@ -54,6 +59,7 @@ struct TrackerOptions {
   FeatureMatcherOptions matcher;
   PoseEstimatorOptions pnp;
   KeyframeOptions keyframes;
+  LocalBundleAdjustmentOptions local_ba;
   int local_map_keyframes = 5;  ///< recent keyframes whose points form the local map
   int local_map_nearby = 10;    ///< plus at most this many older keyframes near the prediction
   double local_map_nearby_motion = 0.5;  ///< "near": motion size e below this [rad + m]
@@ -75,6 +81,11 @@ struct TrackerOptions {
   /// within the depth-edge tolerance) keeps that point's position instead of its own
   /// measurement, so the map is not re-anchored to the drifting pose at every keyframe.
   bool reuse_map_points = true;
+  /// Colour and depth that are not registered (7-Scenes): track the colour camera with the
+  /// depth re-projected into it (depth_registration.hpp), and report poses of the depth camera.
+  /// The Tracker itself never registers; its callers (the rgbd_front_end actor, `bench rgbd`)
+  /// decide through depthRegistration(), so this is the one default for both.
+  bool register_depth = true;
 
   template <class V>
   void visit(V& v) {
@@ -82,6 +93,7 @@ struct TrackerOptions {
     matcher.visit(v);
     pnp.visit(v);
     keyframes.visit(v);
+    local_ba.visit(v);
     v("local_map_keyframes", local_map_keyframes, "recent keyframes forming the local map");
     v("local_map_nearby", local_map_nearby,
       "older keyframes near the predicted pose added to the local map");
@@ -101,6 +113,8 @@ struct TrackerOptions {
     v("constant_velocity", constant_velocity, "predict with the last inter-frame motion");
     v("reuse_map_points", reuse_map_points,
       "a keyframe keeps the positions of the map points its features matched");
+    v("register_depth", register_depth,
+      "unregistered colour and depth (7-Scenes): re-project depth into the colour camera");
   }
   /// Throws std::invalid_argument naming the first bad option (also of the nested groups).
   void validate() const;
@@ -116,6 +130,9 @@ struct Keyframe {
   cv::Mat descriptors;
   std::vector<Eigen::Vector3d> points_camera;  ///< [m]
   std::vector<Eigen::Vector3d> points_world;   ///< [m]
+  /// Per feature: the map point it is (shared by the keyframes that matched it; -1 = not a
+  /// keyframe's point yet). Local bundle adjustment moves every copy of a point together.
+  std::vector<std::int64_t> point_ids;
 };
 
 enum class TrackingState {
@@ -130,9 +147,11 @@ std::string_view stateName(TrackingState s);
 
 /// Wall time of one frame's stages [ms]. local_map: projecting the local map and searching it
 /// (its descriptor comparisons included); matching: brute-force matching (previous frame,
-/// relocalisation); pnp: RANSAC PnP and refinement.
+/// relocalisation); pnp: RANSAC PnP and refinement; local_ba: local bundle adjustment (keyframes
+/// only).
 struct FrameTiming {
-  double extraction_ms = 0, local_map_ms = 0, matching_ms = 0, pnp_ms = 0, total_ms = 0;
+  double extraction_ms = 0, local_map_ms = 0, matching_ms = 0, pnp_ms = 0, local_ba_ms = 0,
+         total_ms = 0;
 };
 
 struct TrackResult {
@@ -154,7 +173,7 @@ struct TrackResult {
 
 struct TrackerStats {
   std::size_t frames = 0, skipped = 0, tracked_local_map = 0, tracked_previous = 0, relocalised = 0,
-              lost = 0, keyframes = 0, forced_keyframes = 0;
+              lost = 0, keyframes = 0, forced_keyframes = 0, local_ba_runs = 0;
 };
 
 class Tracker {
@@ -199,6 +218,7 @@ class Tracker {
   std::optional<Keyframe> previous_;  ///< the last tracked frame
   std::vector<Keyframe> keyframes_;
   std::size_t frame_counter_ = 0;
+  std::int64_t next_point_id_ = 0;
   TrackerStats stats_;
 };
 

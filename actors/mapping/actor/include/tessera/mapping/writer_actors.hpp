@@ -57,7 +57,8 @@ struct TrajectoryWriterOptions {
     v("file", file, "TUM file to write, relative to the output folder");
     v("message", message,
       "message type on 'poses': ground_truth | odometry | pose_stamped (planar) | "
-      "ground_truth_3d (GroundTruthPose3D, written in full 3D)");
+      "ground_truth_3d (GroundTruthPose3D) | pose_3d (PoseStamped3D, an estimate) (both "
+      "written in full 3D)");
   }
 };
 
@@ -72,6 +73,8 @@ class TrajectoryWriterActor final : public Actor {
   void summarize(Summary& out) const override;
 
  private:
+  void write3d(const tessera::mapping::TumPose& pose);
+
   TrajectoryWriterOptions options_;
   ActorContext* ctx_ = nullptr;
   std::unique_ptr<tessera::mapping::TumWriter> writer_;

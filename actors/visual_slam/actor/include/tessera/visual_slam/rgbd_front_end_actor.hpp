@@ -4,15 +4,16 @@
 //   rgbd          msg::RgbdFrame          keep_latest(1): a frame that arrives while one is being
 //                                         tracked replaces the waiting one (counted as dropped)
 // Publishes:
-//   camera_pose   msg::GroundTruthPose3D  every tracked frame: camera-to-world of the dataset's
+//   camera_pose   msg::PoseStamped3D      every tracked frame: camera-to-world of the dataset's
 //                                         camera (the depth camera when colour and depth are not
-//                                         registered), frame world_frame, child frame_id; lost
-//                                         and skipped frames publish nothing
+//                                         registered), frame world_frame, child frame_id, the
+//                                         frame's index and how it was tracked; lost and skipped
+//                                         frames publish nothing
 //   keyframes     msg::Keyframe           reliable, each keyframe the tracker inserts (the
 //                                         colour camera: keypoints, descriptors, 3D points and a
 //                                         depth image every keyframe_depth_step-th pixel)
 // Colour and depth that are not registered (7-Scenes, colorRegistered = false): with
-// register_depth, the depth is re-projected into the colour camera with 7-Scenes' usual
+// tracker.register_depth, the depth is re-projected into the colour camera with 7-Scenes' usual
 // calibration and the colour camera is tracked (depth_registration.hpp); the published
 // camera_pose is moved back to the depth camera, the frame of the dataset's poses.
 // A frame the actor cannot read (unknown encoding, sizes that disagree, data shorter than
@@ -38,17 +39,16 @@
 namespace tessera::visual_slam {
 
 struct RgbdFrontEndOptions {
-  TrackerOptions tracker;
-  bool register_depth = true;
+  TrackerOptions tracker;  ///< register_depth among them (one default with `bench rgbd`)
   int keyframe_depth_step = 4;
   std::string world_frame = "world";
   std::string frame_id = "camera";
+  /// register_depth moved into the tracker's options (shared with `bench rgbd`).
+  static constexpr RenamedKey kRenamedKeys[] = {{"register_depth", "tracker.register_depth"}};
 
   template <class V>
   void visit(V& v) {
     v("tracker", tracker, "the tracker (features, matching, PnP, keyframe rule, local map)");
-    v("register_depth", register_depth,
-      "unregistered colour and depth (7-Scenes): re-project depth into the colour camera");
     v("keyframe_depth_step", keyframe_depth_step,
       "keyframe messages keep every n-th depth pixel of every n-th row (0 = no depth)");
     v("world_frame", world_frame, "frame of the published poses");
@@ -78,7 +78,7 @@ class RgbdFrontEndActor final : public Actor {
   std::unique_ptr<Tracker> tracker_;
   PinholeCamera depth_camera_;
   std::optional<ColorCalibration> calibration_;  ///< set when depth is registered to colour
-  Publisher<msg::GroundTruthPose3D> pose_pub_;
+  Publisher<msg::PoseStamped3D> pose_pub_;
   Publisher<msg::Keyframe> keyframe_pub_;
 
   std::uint64_t frames_ = 0, published_ = 0, keyframes_ = 0;
