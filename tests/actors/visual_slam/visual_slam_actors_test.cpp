@@ -245,6 +245,44 @@ TEST_CASE("keyframe_graph closes a loop, republishes poses and writes its files"
   CHECK(summaryInt(s, "optimizations") == 1);
 }
 
+TEST_CASE("keyframe_graph moves every frame's pose with its keyframe's optimisation",
+          "[visual_slam][actors]") {
+  const fs::path out = tessera::test::scratchDir("keyframe_graph_frames");
+  KeyframeGraphActorOptions o;
+  o.graph.odometry_sigma_translation = 0.05;
+  o.frames_file = "trajectory_optimized.tum";
+  ActorHarness h(std::make_unique<KeyframeGraphActor>(o), out.string());
+  auto pushFrame = [&](std::int64_t stamp, double z, bool nan = false) {
+    h.push<msg::PoseStamped3D>("camera_pose", [&](msg::PoseStamped3D::Builder b) {
+      setHeader(b.initHeader(), stamp, "world", 0);
+      writePose(b.initPose(), Pose3{Eigen::Vector3d(0.1, nan ? std::nan("") : 0.0, z),
+                                    Eigen::Quaterniond::Identity()});
+    });
+    h.runUntilIdle();
+  };
+  // Keyframes every second along z with 10 % drift, frames every half second between them.
+  for (std::size_t i = 0; i < 4; ++i) {
+    const auto t = static_cast<std::int64_t>(i) * kNanosPerSecond;
+    pushFrame(t, 0.55 * static_cast<double>(i));
+    pushKeyframe(h, syntheticKeyframe(i, 0.55 * static_cast<double>(i)), t);
+    pushFrame(t + kNanosPerSecond / 2, 0.55 * static_cast<double>(i) + 0.2);
+  }
+  pushFrame(5 * kNanosPerSecond, 0.0, true);  // a NaN pose: counted, not written
+  pushLoop(h, 3, 0, -1.5);
+  h.stop();
+  const auto frames = mapping::readTum(out / "trajectory_optimized.tum");
+  REQUIRE(frames.size() == 8);
+  // Keyframe 3 moved from 1.65 to 1.5 m: its frame and the one after it move with it, and the
+  // frame half a second later keeps its 0.2 m offset from the keyframe.
+  CHECK(frames[6].position.z() == Approx(1.5).margin(0.01));
+  CHECK(frames[7].position.z() == Approx(1.7).margin(0.01));
+  CHECK(frames[7].position.x() == Approx(0.1).margin(1e-9));
+  CHECK(frames[0].position.z() == Approx(0.0).margin(1e-9));  // the fixed first keyframe
+  const Summary s = summaryOf(h);
+  CHECK(summaryInt(s, "frames_received") == 9);
+  CHECK(summaryInt(s, "frames_bad") == 1);
+}
+
 TEST_CASE("keyframe_graph counts and skips bad keyframe and constraint messages",
           "[visual_slam][actors]") {
   ActorHarness h(std::make_unique<KeyframeGraphActor>(KeyframeGraphActorOptions{}));

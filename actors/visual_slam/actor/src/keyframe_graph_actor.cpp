@@ -10,6 +10,7 @@
 #include <algorithm>
 #include <filesystem>
 #include <iostream>
+#include <iterator>
 #include <stdexcept>
 
 namespace tessera::visual_slam {
@@ -38,7 +39,20 @@ void KeyframeGraphActor::configure(ActorContext& ctx) {
     ctx.subscribe<msg::KeyframeConstraint>(
         "loop_constraints", MailboxPolicy::reliable(),
         [this](const Message<msg::KeyframeConstraint>& m) { onConstraint(m); });
+  if (!options_.frames_file.empty())
+    ctx.subscribe<msg::PoseStamped3D>(
+        "camera_pose", MailboxPolicy::reliable(),
+        [this](const Message<msg::PoseStamped3D>& m) { onFramePose(m); });
   poses_pub_ = ctx.advertise<msg::KeyframePoses>("keyframe_poses");
+}
+
+void KeyframeGraphActor::onFramePose(const Message<msg::PoseStamped3D>& m) {
+  const Pose3 p = toPose3(m->getPose());
+  if (!p.t.allFinite() || !p.q.coeffs().allFinite()) {
+    ++frames_bad_;
+    return;
+  }
+  frames_.emplace_back(m->getHeader().getStampNs(), p);
 }
 
 void KeyframeGraphActor::onKeyframe(const Message<msg::Keyframe>& m) {
@@ -55,6 +69,8 @@ void KeyframeGraphActor::onKeyframe(const Message<msg::Keyframe>& m) {
     return;
   }
   stamps_[id] = m->getHeader().getStampNs();
+  by_stamp_[m->getHeader().getStampNs()] = id;
+  tracked_[id] = keyframePose(*m);
   last_stamp_ = std::max(last_stamp_, m->getHeader().getStampNs());
   // A loop that waited for this keyframe may now be in the graph.
   if (graph_.needsOptimization()) optimizeAndPublish();
@@ -140,6 +156,24 @@ void KeyframeGraphActor::writeFiles() {
       pose_graph::writeG2o(graph_.graph(), dir / options_.g2o_file);
       graph_path_ = (dir / options_.g2o_file).string();
     }
+    if (!options_.frames_file.empty()) {
+      const auto optimised = graph_.poses();
+      mapping::TumWriter writer(dir / options_.frames_file);
+      for (const auto& [stamp, pose] : frames_) {
+        auto it = by_stamp_.upper_bound(stamp);
+        if (it == by_stamp_.begin()) {
+          writer.write({stamp, pose.t, pose.q});  // before the first keyframe: as tracked
+          continue;
+        }
+        const std::int64_t id = std::prev(it)->second;
+        const auto opt = optimised.find(id);
+        const Pose3 corrected =
+            opt == optimised.end() ? pose : opt->second * tracked_.at(id).inverse() * pose;
+        writer.write({stamp, corrected.t, corrected.q});
+      }
+      writer.flush();
+      frames_path_ = (dir / options_.frames_file).string();
+    }
   } catch (const std::exception& e) {
     write_error_ = e.what();
     std::cerr << "[keyframe_graph] " << write_error_ << "\n";
@@ -162,6 +196,11 @@ void KeyframeGraphActor::summarize(Summary& out) const {
   if (solver_failures_ > 0) out["solver_failures"] = i64(solver_failures_);
   if (!keyframes_path_.empty()) out["keyframes_path"] = keyframes_path_;
   if (!graph_path_.empty()) out["graph_path"] = graph_path_;
+  if (!options_.frames_file.empty()) {
+    out["frames_received"] = i64(frames_.size() + frames_bad_);
+    out["frames_bad"] = i64(frames_bad_);
+  }
+  if (!frames_path_.empty()) out["frames_path"] = frames_path_;
   if (!write_error_.empty()) out["write_error"] = write_error_;
 }
 

@@ -7,17 +7,23 @@
 //   loop_constraints   msg::KeyframeConstraint  reliable, only with `loops`: loop edges
 //                                               (robust); each accepted one triggers an
 //                                               optimisation
+//   camera_pose        msg::PoseStamped3D       reliable, only with `frames_file`: the front
+//                                               end's pose of every frame
 // Publishes:
 //   keyframe_poses     msg::KeyframePoses       after every optimisation, and in stop()
 // Writes (with an output directory, in stop()): keyframes.tum (keyframes_file: the optimised
 // camera-to-world of every keyframe at its stamp, TUM format) and keyframe_graph.g2o (g2o_file:
-// VERTEX_SE3:QUAT per keyframe, EDGE_SE3:QUAT per odometry and loop edge, FIX for the first).
+// VERTEX_SE3:QUAT per keyframe, EDGE_SE3:QUAT per odometry and loop edge, FIX for the first)
+// and, with frames_file, every frame's pose corrected by the optimisation: a frame moves with the
+// latest keyframe at or before its stamp, T' = T_k,optimised · T_k,tracked⁻¹ · T (a correction in
+// the world frame, so it holds whichever camera frame the front end reports poses in).
 // A bad message (no keypoints or descriptors, counts that disagree, a non-finite pose or
 // covariance, a constraint naming itself) is counted by kind and skipped, never a crash. A
 // constraint naming a keyframe not seen yet waits for it; at stop the ones still waiting are
 // counted (constraints_unresolved).
 #pragma once
 
+#include <tessera/msg/image.capnp.h>
 #include <tessera/msg/keyframe.capnp.h>
 #include <tessera/runtime/actor.hpp>
 #include <tessera/runtime/options.hpp>
@@ -26,6 +32,8 @@
 #include <cstdint>
 #include <map>
 #include <string>
+#include <utility>
+#include <vector>
 
 namespace tessera::visual_slam {
 
@@ -35,6 +43,7 @@ struct KeyframeGraphActorOptions {
   std::string frame_id = "world";
   std::string keyframes_file = "keyframes.tum";
   std::string g2o_file = "keyframe_graph.g2o";
+  std::string frames_file;  ///< e.g. trajectory_optimized.tum; empty: no camera_pose input
 
   template <class V>
   void visit(V& v) {
@@ -44,6 +53,9 @@ struct KeyframeGraphActorOptions {
     v("keyframes_file", keyframes_file,
       "optimised keyframe poses written here (TUM) at stop, in the output directory; empty: none");
     v("g2o_file", g2o_file, "final graph written here (g2o) at stop; empty: none");
+    v("frames_file", frames_file,
+      "every frame's pose (camera_pose) corrected by the optimised keyframes, written here (TUM) "
+      "at stop; empty: camera_pose not subscribed");
   }
 };
 
@@ -60,6 +72,7 @@ class KeyframeGraphActor final : public Actor {
  private:
   void onKeyframe(const Message<msg::Keyframe>& m);
   void onConstraint(const Message<msg::KeyframeConstraint>& m);
+  void onFramePose(const Message<msg::PoseStamped3D>& m);
   void optimizeAndPublish();
   void publishPoses(double chi2, int iterations);
   void writeFiles();
@@ -68,12 +81,16 @@ class KeyframeGraphActor final : public Actor {
   KeyframeGraph graph_;
   Publisher<msg::KeyframePoses> poses_pub_;
   std::string output_dir_;
-  std::map<std::int64_t, std::int64_t> stamps_;  ///< keyframe id -> header stamp [ns]
+  std::map<std::int64_t, std::int64_t> stamps_;         ///< keyframe id -> header stamp [ns]
+  std::map<std::int64_t, std::int64_t> by_stamp_;       ///< keyframe header stamp [ns] -> id
+  std::map<std::int64_t, Pose3> tracked_;               ///< keyframe id -> the tracker's pose
+  std::vector<std::pair<std::int64_t, Pose3>> frames_;  ///< (stamp, tracked pose) per frame
+  std::uint64_t frames_bad_ = 0;
   std::int64_t last_stamp_ = 0;
   std::uint64_t keyframes_ = 0, keyframes_bad_ = 0, constraints_ = 0, constraints_bad_ = 0;
   std::uint64_t optimizations_ = 0, published_ = 0, solver_failures_ = 0;
   double optimize_seconds_ = 0, last_chi2_ = 0;
-  std::string keyframes_path_, graph_path_, write_error_;
+  std::string keyframes_path_, graph_path_, frames_path_, write_error_;
 };
 
 }  // namespace tessera::visual_slam
