@@ -57,8 +57,8 @@ TEST_CASE("LoopVerifier accepts a true loop with its relative pose", "[loop_clos
 
   const vs::LoopVerifier verifier(o, kCamera);
   const auto r = verifier.verify(query, candidate);
-  INFO("sigma " << sigma << " matches " << r.matches << " inliers " << r.inliers << " rms " << r.rms_px << " reason "
-                  << vs::rejectionName(r.rejection));
+  INFO("sigma " << sigma << " matches " << r.matches << " inliers " << r.inliers << " rms "
+                << r.rms_px << " reason " << vs::rejectionName(r.rejection));
   REQUIRE(r.accepted);
   CHECK(r.inliers >= o.min_inliers);
   CHECK(r.depth_agreement > 0.9);

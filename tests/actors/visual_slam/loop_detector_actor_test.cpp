@@ -37,9 +37,9 @@ Keyframe wallKeyframe(const test::Wall& wall, std::size_t id, const Eigen::Isome
   k.camera_to_world = pose;
   k.descriptors = v.descriptors;
   for (std::size_t i = 0; i < v.size(); ++i) {
-    k.keypoints.emplace_back(cv::Point2f(static_cast<float>(v.pixels[i].x()),
-                                         static_cast<float>(v.pixels[i].y())),
-                             31.f);
+    k.keypoints.emplace_back(
+        cv::Point2f(static_cast<float>(v.pixels[i].x()), static_cast<float>(v.pixels[i].y())),
+        31.f);
     k.points_camera.push_back(v.points[i]);
   }
   return k;
@@ -60,7 +60,8 @@ void pushKeyframe(ActorHarness& h, const Keyframe& k,
 
 }  // namespace
 
-TEST_CASE("rgbd_loop_detector publishes verified loops of a revisit", "[visual_slam][actors][loops]") {
+TEST_CASE("rgbd_loop_detector publishes verified loops of a revisit",
+          "[visual_slam][actors][loops]") {
   LoopDetectorActorOptions o;
   o.detector.bootstrap_keyframes = 12;
   o.detector.bootstrap_k = 8;
@@ -117,7 +118,8 @@ TEST_CASE("rgbd_loop_detector counts and skips keyframes it cannot use",
   CHECK(h.publishedCount("loop_constraints") == 0);
 }
 
-TEST_CASE("rgbd_loop_detector refuses bad options and vocabulary files", "[visual_slam][actors][loops]") {
+TEST_CASE("rgbd_loop_detector refuses bad options and vocabulary files",
+          "[visual_slam][actors][loops]") {
   LoopDetectorActorOptions o;
   o.vocabulary.path = "/nonexistent/voc.yml.gz";
   CHECK_THROWS_AS(LoopDetectorActor(o), ConfigError);

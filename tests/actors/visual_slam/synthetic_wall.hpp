@@ -40,8 +40,8 @@ struct Wall {
 
 // The view of `wall` from camera_to_world: pixels with 0.5 px noise, descriptors with a few
 // flipped bits, camera-frame points with point_sigma [m] noise on each axis.
-inline vs::LoopView view(const Wall& wall, const Eigen::Isometry3d& camera_to_world, std::uint32_t seed,
-                         double point_sigma = 0.005) {
+inline vs::LoopView view(const Wall& wall, const Eigen::Isometry3d& camera_to_world,
+                         std::uint32_t seed, double point_sigma = 0.005) {
   std::mt19937 rng(seed);
   std::normal_distribution<double> px(0, 0.5), mm(0, point_sigma);
   std::uniform_int_distribution<int> bit(0, 255);

@@ -81,7 +81,7 @@ LoopDetectorActor::LoopDetectorActor(LoopDetectorActorOptions options)
     throw ConfigError(std::string("rgbd_loop_detector: detector: ") + e.what());
   }
   auto vocabulary = loadVocabulary(options_.vocabulary.path);
-  vocabulary_source_ = vocabulary ? "file"
+  vocabulary_source_ = vocabulary                                  ? "file"
                        : options_.detector.bootstrap_keyframes > 0 ? "bootstrap"
                                                                    : "none";
   detector_ = std::make_unique<LoopDetector>(options_.detector, std::move(vocabulary));

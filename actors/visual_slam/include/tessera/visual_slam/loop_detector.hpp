@@ -70,16 +70,16 @@ struct LoopKeyframe {
 struct LoopQuery {
   std::int64_t query = 0;
   QueryStatus status = QueryStatus::kTooFewEntries;
-  std::optional<std::int64_t> candidate;      ///< the database's accepted candidate
+  std::optional<std::int64_t> candidate;         ///< the database's accepted candidate
   std::optional<LoopVerification> verification;  ///< of that candidate
   bool accepted() const { return verification && verification->accepted; }
 };
 
 struct LoopDetectorStats {
   std::size_t keyframes = 0, bad = 0, queries = 0, candidates = 0, verified = 0, rejected = 0;
-  std::map<std::string, std::size_t> skipped;   ///< queries without a candidate, by status
+  std::map<std::string, std::size_t> skipped;      ///< queries without a candidate, by status
   std::map<std::string, std::size_t> rejected_by;  ///< verification failures, by reason
-  bool bootstrapped = false;                      ///< the vocabulary was trained here
+  bool bootstrapped = false;                       ///< the vocabulary was trained here
   double bootstrap_seconds = 0;
 };
 
