@@ -1,8 +1,10 @@
 // End to end: apps/profiles/rgbd_slam.yaml on the 9 TUM fr1/desk frames (player -> front end ->
-// loop detector and keyframe graph -> writers): the outputs exist and the ATE against the
-// dataset is below 2 cm.
+// loop detector and keyframe graph -> writers, keyframes -> mapper): the outputs exist, the ATE
+// against the dataset is below 2 cm, and the mapper's cloud and OctoMap files load.
 #include <tessera/evaluation/trajectory_metrics.hpp>
 #include <tessera/mapping/trajectory_io.hpp>
+#include <tessera/mapping3d/cloud_map.hpp>
+#include <tessera/mapping3d/octomap_builder.hpp>
 #include <tessera/runtime/profile.hpp>
 
 #include <nlohmann/json.hpp>
@@ -58,4 +60,14 @@ TEST_CASE("rgbd_slam tracks the TUM fr1/desk frames to under 2 cm ATE",
   CHECK(loops.at("keyframes_received") == fe.at("keyframes"));
   CHECK(loops.at("keyframes_bad") == 0);
   CHECK(loops.at("published") == 0);
+
+  const auto& mapper = summary.at("actors").at("mapper");
+  CHECK(mapper.at("keyframes_mapped") == fe.at("keyframes"));
+  CHECK(mapper.at("keyframes_bad") == 0);
+  const auto cloud = mapping3d::readPcd(out / "cloud.pcd");
+  CHECK(cloud.size() > 1000);
+  CHECK(mapping3d::readPly(out / "cloud.ply").size() == cloud.size());
+  mapping3d::OctoMapBuilder octomap;
+  REQUIRE_NOTHROW(octomap.readBinary(out / "map.bt"));
+  CHECK(octomap.stats().occupied_leaves > 100);
 }

@@ -111,15 +111,3 @@ TEST_CASE("sim_landmarks writes trajectories, true landmarks, observations and c
   CHECK(ctl.size() == truth.size() - 1);
   fs::remove_all(out);
 }
-
-TEST_CASE("sim_rgbd renders camera frames with their 3D ground truth", "[e2e][rgbd]") {
-  const fs::path out = test::scratchDir("e2e_sim_rgbd");
-  const RunReport report = runProfile("sim_rgbd", out, {"max_duration_s=4"});
-  CHECK(report.stop_reason == "reached max_duration_s");
-  const auto truth = tessera::mapping::readTum(out / "ground_truth.tum");
-  REQUIRE(truth.size() >= 55);  // 15 Hz over 4 s
-  CHECK(truth.size() <= 62);
-  for (const auto& p : truth) CHECK(p.position.z() == Approx(1.0));  // the camera mount height
-  CHECK(tessera::mapping::readTum(out / "robot_ground_truth.tum").size() > truth.size());
-  fs::remove_all(out);
-}

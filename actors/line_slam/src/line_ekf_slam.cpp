@@ -1,6 +1,6 @@
 #include <tessera/line_slam/line_ekf_slam.hpp>
 
-#include "option_checks.hpp"
+#include <tessera/config/config_check.hpp>
 
 #include <Eigen/Cholesky>
 #include <Eigen/LU>
@@ -52,27 +52,29 @@ Eigen::Vector2d MapLine::p1() const {
 }
 
 LineEkfSlam::LineEkfSlam(LineEkfSlamOptions o) : options_(o) {
-  using detail::nonNegative, detail::positive, detail::require;
-  require(nonNegative(o.odom_sigma_d), "odom_sigma_d", ">= 0");
-  require(nonNegative(o.odom_sigma_theta_per_m), "odom_sigma_theta_per_m", ">= 0");
-  require(nonNegative(o.odom_sigma_theta), "odom_sigma_theta", ">= 0");
-  require(positive(o.odom_sigma_min), "odom_sigma_min", "> 0");
-  require(nonNegative(o.speed_sigma), "speed_sigma", ">= 0");
-  require(nonNegative(o.steering_sigma), "steering_sigma", ">= 0");
-  require(positive(o.obs_sigma_r), "obs_sigma_r", "> 0");
-  require(positive(o.obs_sigma_phi), "obs_sigma_phi", "> 0");
-  require(positive(o.gate_angle), "gate_angle", "> 0");
-  require(positive(o.gate_distance), "gate_distance", "> 0");
-  require(nonNegative(o.gate_overlap), "gate_overlap", ">= 0");
-  require(nonNegative(o.overlap_margin), "overlap_margin", ">= 0");
-  require(nonNegative(o.cost_overlap_weight), "cost_overlap_weight", ">= 0");
-  require(o.tentative_sightings >= 1, "tentative_sightings", ">= 1");
-  require(nonNegative(o.min_segment_length), "min_segment_length", ">= 0");
-  require(o.merge_interval >= 0, "merge_interval", ">= 0");
-  require(nonNegative(o.merge_angle), "merge_angle", ">= 0");
-  require(nonNegative(o.merge_distance), "merge_distance", ">= 0");
-  require(nonNegative(o.merge_gap), "merge_gap", ">= 0");
-  require(positive(o.merge_chi2), "merge_chi2", "> 0");
+  ConfigCheck()
+      .nonNegative("odom_sigma_d", o.odom_sigma_d)
+      .nonNegative("odom_sigma_theta_per_m", o.odom_sigma_theta_per_m)
+      .nonNegative("odom_sigma_theta", o.odom_sigma_theta)
+      .positive("odom_sigma_min", o.odom_sigma_min)
+      .nonNegative("speed_sigma", o.speed_sigma)
+      .nonNegative("steering_sigma", o.steering_sigma)
+      .positive("obs_sigma_r", o.obs_sigma_r)
+      .positive("obs_sigma_phi", o.obs_sigma_phi)
+      .positive("gate_angle", o.gate_angle)
+      .positive("gate_distance", o.gate_distance)
+      .nonNegative("gate_overlap", o.gate_overlap)
+      .nonNegative("overlap_margin", o.overlap_margin)
+      .nonNegative("cost_overlap_weight", o.cost_overlap_weight)
+      .require(o.tentative_sightings >= 1, "tentative_sightings", "must be >= 1",
+               o.tentative_sightings)
+      .nonNegative("min_segment_length", o.min_segment_length)
+      .require(o.merge_interval >= 0, "merge_interval", "must be >= 0", o.merge_interval)
+      .nonNegative("merge_angle", o.merge_angle)
+      .nonNegative("merge_distance", o.merge_distance)
+      .nonNegative("merge_gap", o.merge_gap)
+      .positive("merge_chi2", o.merge_chi2)
+      .throwIfBad();
   reset(Pose2());
 }
 

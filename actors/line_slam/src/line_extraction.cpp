@@ -1,6 +1,6 @@
 #include <tessera/line_slam/line_extraction.hpp>
 
-#include "option_checks.hpp"
+#include <tessera/config/config_check.hpp>
 
 #include <algorithm>
 #include <cmath>
@@ -117,21 +117,23 @@ LineSegment transformSegment(const LineSegment& s, const Pose2& pose) {
 }
 
 LineExtractor::LineExtractor(LineExtractorOptions o) : options_(o) {
-  using detail::nonNegative, detail::positive, detail::require;
-  require(positive(o.range_sigma), "range_sigma", "> 0");
-  require(nonNegative(o.range_sigma_rel), "range_sigma_rel", ">= 0");
-  require(positive(o.breakpoint_distance), "breakpoint_distance", "> 0");
-  require(nonNegative(o.breakpoint_factor), "breakpoint_factor", ">= 0");
-  require(positive(o.split_mse), "split_mse", "> 0");
-  require(positive(o.split_max_distance), "split_max_distance", "> 0");
-  require(o.fuzzy_iterations >= 0, "fuzzy_iterations", ">= 0");
-  require(std::isfinite(o.fuzzy_exponent) && o.fuzzy_exponent > 1, "fuzzy_exponent", "> 1");
-  require(positive(o.fuzzy_far_distance), "fuzzy_far_distance", "> 0");
-  require(o.min_points >= 2, "min_points", ">= 2");
-  require(nonNegative(o.min_length), "min_length", ">= 0");
-  require(nonNegative(o.merge_angle), "merge_angle", ">= 0");
-  require(nonNegative(o.merge_distance), "merge_distance", ">= 0");
-  require(positive(o.max_range), "max_range", "> 0");
+  ConfigCheck()
+      .positive("range_sigma", o.range_sigma)
+      .nonNegative("range_sigma_rel", o.range_sigma_rel)
+      .positive("breakpoint_distance", o.breakpoint_distance)
+      .nonNegative("breakpoint_factor", o.breakpoint_factor)
+      .positive("split_mse", o.split_mse)
+      .positive("split_max_distance", o.split_max_distance)
+      .require(o.fuzzy_iterations >= 0, "fuzzy_iterations", "must be >= 0", o.fuzzy_iterations)
+      .require(std::isfinite(o.fuzzy_exponent) && o.fuzzy_exponent > 1, "fuzzy_exponent",
+               "must be > 1", o.fuzzy_exponent)
+      .positive("fuzzy_far_distance", o.fuzzy_far_distance)
+      .require(o.min_points >= 2, "min_points", "must be >= 2", o.min_points)
+      .nonNegative("min_length", o.min_length)
+      .nonNegative("merge_angle", o.merge_angle)
+      .nonNegative("merge_distance", o.merge_distance)
+      .positive("max_range", o.max_range)
+      .throwIfBad();
 }
 
 LineFit LineExtractor::fit(std::span<const Eigen::Vector2d> points, std::span<const double> sigmas,

@@ -70,6 +70,17 @@ struct RgbdRenderer::Hit {
   double t = kInf;
   std::uint64_t key = 0;  // surface identity for its texture
   int axis = 2;           // axis of the face normal (0 x, 1 y, 2 z)
+  double plane = 0;       // walls: the face's x (axis 0) or y (axis 1) [m]
+};
+
+// The wall faces seen from one camera position, by horizontal direction. A direction w in front
+// of the camera (w . forward > 0) has the coordinate q = (w . right) / (w . forward), increasing
+// with its angle; `q` holds the corners' coordinates, sorted, and gap k, the directions between
+// q[k - 1] and q[k] (the first and last gaps are open), sees `faces[k]` (axis -1: no wall).
+struct RgbdRenderer::Gaps {
+  Eigen::Vector2d forward = Eigen::Vector2d::Zero(), right = Eigen::Vector2d::Zero();
+  std::vector<double> q;
+  std::vector<Hit> faces;
 };
 
 Eigen::Isometry3d Mount3D::bodyToBase() const {
@@ -144,6 +155,18 @@ RgbdRenderer::RgbdRenderer(const World& world, double wall_height, const RgbdCam
       relax(c, r, c, r + 1);
       relax(c, r, c - 1, r + 1);
     }
+
+  // Corners of the wall outline: grid points whose four cells are neither all alike nor split
+  // by one straight edge (two side by side wall cells).
+  const double res = world.resolution();
+  for (int r = 0; r <= H; ++r)
+    for (int c = 0; c <= W; ++c) {
+      const bool a = world.wall(c - 1, r - 1), b = world.wall(c, r - 1);
+      const bool e = world.wall(c - 1, r), f = world.wall(c, r);
+      const int n = a + b + e + f;
+      const bool straight = n == 2 && (a == b || a == e);
+      if (n != 0 && n != 4 && !straight) corners_.emplace_back(c * res, r * res);
+    }
 }
 
 Eigen::Isometry3d RgbdRenderer::cameraPose(const Pose2& base) const {
@@ -160,6 +183,13 @@ Eigen::Isometry3d RgbdRenderer::cameraPose(const Pose2& base) const {
 
 RgbdRenderer::Hit RgbdRenderer::trace(const Eigen::Vector3d& o, const Eigen::Vector3d& d,
                                       std::span<const int> boxes) const {
+  Hit hit = traceFloorBoxes(o, d, boxes);
+  traceWalls(o, d, hit);
+  return hit;
+}
+
+RgbdRenderer::Hit RgbdRenderer::traceFloorBoxes(const Eigen::Vector3d& o, const Eigen::Vector3d& d,
+                                                std::span<const int> boxes) const {
   Hit hit;
   // Floor and ceiling bound every ray that is not parallel to them.
   if (d.z() < 0) {
@@ -198,7 +228,10 @@ RgbdRenderer::Hit RgbdRenderer::trace(const Eigen::Vector3d& o, const Eigen::Vec
     }
   }
   if (hit.key == kFloor || hit.key == kCeiling) hit.axis = 2;
+  return hit;
+}
 
+void RgbdRenderer::traceWalls(const Eigen::Vector3d& o, const Eigen::Vector3d& d, Hit& hit) const {
   // Walls: exact traversal of the grid cells the ray's floor projection crosses, up to the
   // nearest hit so far. In open space it jumps: a cell whose nearest wall cell is k >= 3 cells
   // away (Chebyshev) is the centre of a free square of radius k - 1, which the ray crosses in one
@@ -207,7 +240,10 @@ RgbdRenderer::Hit RgbdRenderer::trace(const Eigen::Vector3d& o, const Eigen::Vec
   const double res = w.resolution();
   int col = static_cast<int>(std::floor(o.x() / res));
   int row = static_cast<int>(std::floor(o.y() / res));
-  if (w.wall(col, row)) return {0.0, kWallX, 0};
+  if (w.wall(col, row)) {
+    hit = {0.0, kWallX, 0, o.x()};
+    return;
+  }
   const int step_c = d.x() > 0 ? 1 : -1, step_r = d.y() > 0 ? 1 : -1;
   // Reciprocals: the traversal multiplies where it would divide (inf along an axis not moved on).
   const double inv_x = d.x() != 0 ? 1.0 / d.x() : kInf, inv_y = d.y() != 0 ? 1.0 / d.y() : kInf;
@@ -226,6 +262,7 @@ RgbdRenderer::Hit RgbdRenderer::trace(const Eigen::Vector3d& o, const Eigen::Vec
     hit.t = t;
     hit.axis = axis;
     hit.key = hash3(axis == 0 ? kWallX : kWallY, line, axis == 0 ? step_c : step_r);
+    hit.plane = static_cast<double>(line) * res;
   };
   const auto leaving = [&] {
     // Outside the map nothing stands, and a ray that has left never comes back.
@@ -288,7 +325,37 @@ RgbdRenderer::Hit RgbdRenderer::trace(const Eigen::Vector3d& o, const Eigen::Vec
       break;
     }
   }
-  return hit;
+}
+
+void RgbdRenderer::buildGaps(const Eigen::Vector3d& o, const Eigen::Vector2d& forward,
+                             Gaps& gaps) const {
+  gaps.forward = forward;
+  gaps.right = Eigen::Vector2d(forward.y(), -forward.x());
+  gaps.q.clear();
+  for (const Eigen::Vector2d& p : corners_) {
+    const Eigen::Vector2d w = p - o.head<2>();
+    const double ahead = w.dot(gaps.forward);
+    if (ahead > 0) gaps.q.push_back(w.dot(gaps.right) / ahead);
+  }
+  std::sort(gaps.q.begin(), gaps.q.end());
+  gaps.q.erase(std::unique(gaps.q.begin(), gaps.q.end()), gaps.q.end());
+  // One traversal per gap, along a direction inside it (its middle; 1 beyond the open ends).
+  const std::size_t n = gaps.q.size();
+  gaps.faces.assign(n + 1, Hit{});
+  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, n + 1, 64),
+                    [&](const tbb::blocked_range<std::size_t>& range) {
+                      for (std::size_t k = range.begin(); k != range.end(); ++k) {
+                        const double q = n == 0   ? 0.0
+                                         : k == 0 ? gaps.q[0] - 1
+                                         : k == n ? gaps.q[n - 1] + 1
+                                                  : 0.5 * (gaps.q[k - 1] + gaps.q[k]);
+                        const Eigen::Vector2d w = gaps.forward + q * gaps.right;
+                        Hit face;
+                        traceWalls(o, Eigen::Vector3d(w.x(), w.y(), 0), face);
+                        if (face.key == 0) face.axis = -1;
+                        gaps.faces[k] = face;
+                      }
+                    });
 }
 
 double RgbdRenderer::castRay(const Eigen::Vector3d& origin, const Eigen::Vector3d& dir) const {
@@ -348,6 +415,16 @@ void RgbdRenderer::render(const Eigen::Isometry3d& camera_to_world, std::uint64_
     views.push_back(view);
   }
 
+  // The wall faces by horizontal direction, unless the camera looks (nearly) straight up or
+  // down or stands in a wall cell: then every pixel traverses the grid.
+  Gaps gaps;
+  const Eigen::Vector2d ahead = R.col(2).head<2>();
+  const World& w = *world_;
+  const bool use_gaps =
+      ahead.norm() > 1e-3 && !w.wall(static_cast<int>(std::floor(o.x() / w.resolution())),
+                                     static_cast<int>(std::floor(o.y() / w.resolution())));
+  if (use_gaps) buildGaps(o, ahead.normalized(), gaps);
+
   tbb::parallel_for(tbb::blocked_range<int>(0, c.height), [&](const tbb::blocked_range<int>& rows) {
     std::vector<const BoxView*> row_views;
     std::vector<int> pixel_boxes;
@@ -363,7 +440,29 @@ void RgbdRenderer::render(const Eigen::Isometry3d& camera_to_world, std::uint64_
         pixel_boxes.clear();
         for (const BoxView* bv : row_views)
           if (u >= bv->u0 && u <= bv->u1) pixel_boxes.push_back(bv->index);
-        const Hit hit = trace(o, d, pixel_boxes);
+        Hit hit = traceFloorBoxes(o, d, pixel_boxes);
+        const double front = d.x() * gaps.forward.x() + d.y() * gaps.forward.y();
+        if (use_gaps && front > 1e-3 * (std::abs(d.x()) + std::abs(d.y()))) {
+          const double q = (d.x() * gaps.right.x() + d.y() * gaps.right.y()) / front;
+          const auto k = static_cast<std::size_t>(
+              std::upper_bound(gaps.q.begin(), gaps.q.end(), q) - gaps.q.begin());
+          const Hit& face = gaps.faces[k];
+          // As the traversal computes it: the face's coordinate against the ray's reciprocal.
+          const double t =
+              face.axis >= 0 ? (face.plane - o[face.axis]) * (1.0 / d[face.axis]) : kInf;
+          // A ray through a corner (to rounding) or along a face's line (a camera on a grid
+          // line, looking along it): the traversal decides, as its cell rule is the reference.
+          const double tie = 1e-9 * (1 + std::abs(q));
+          if ((k > 0 && q - gaps.q[k - 1] < tie) || (k < gaps.q.size() && gaps.q[k] - q < tie) ||
+              std::isnan(t) || t < 0) {
+            traceWalls(o, d, hit);
+          } else if (t < hit.t) {
+            hit = face;
+            hit.t = t;
+          }
+        } else {
+          traceWalls(o, d, hit);
+        }
         const std::size_t i = static_cast<std::size_t>(v) * c.width + u;
         std::uint8_t* px = &out.rgb[i * 3];
         if (!std::isfinite(hit.t)) {

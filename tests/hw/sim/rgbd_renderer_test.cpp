@@ -15,6 +15,7 @@
 #include <chrono>
 #include <cmath>
 #include <cstdio>
+#include <cstdlib>
 #include <limits>
 #include <numbers>
 #include <random>
@@ -260,4 +261,103 @@ TEST_CASE("rgbd renderer: bad options name the key", "[sim][rgbd]") {
   fails(c, "mount.z");
   fails({}, "wall_height", 0.0);
   fails({}, "wall_height", std::numeric_limits<double>::quiet_NaN());
+}
+
+TEST_CASE("rgbd renderer: walls found by direction gaps equal the per-ray grid traversal",
+          "[sim][rgbd]") {
+  // The renderer looks walls up per gap between wall corners (rgbd_renderer.hpp); castRay
+  // traverses the grid for each ray. Noise-free depth must agree on every sampled pixel, in
+  // corridors (long grazing rays), at doors and round pillars, and with the camera rolled.
+  const World office = World::builtinOffice();
+  auto c = exactCamera(1.0, 0.15);
+  c.range_min = 0;
+  c.range_max = 100;
+  const double pi = std::numbers::pi;
+  for (const auto& [base, roll] : {std::pair{Pose2{7.5, 12.0, pi / 2}, 0.0},
+                                   {Pose2{14.6, 15.0, 0.02}, 0.0},
+                                   {Pose2{32.5, 8.0, 2.0}, 0.3},
+                                   {Pose2{23.0, 14.2, 1.3}, 0.0}}) {
+    c.mount.roll = roll;
+    const RgbdRenderer r(office, 2.5, c);
+    const Eigen::Isometry3d pose = r.cameraPose(base);
+    RgbdImage im;
+    r.render(pose, 1, im);
+    int checked = 0, differ = 0;
+    for (int v = 0; v < c.height; v += 3)
+      for (int u = 0; u < c.width; u += 3) {
+        const Eigen::Vector3d d =
+            pose.linear() * Eigen::Vector3d((u - c.cx) / c.fx, (v - c.cy) / c.fy, 1.0);
+        const double t = r.castRay(pose.translation(), d);
+        ++checked;
+        differ += std::abs(depthAt(im, u, v) - static_cast<float>(t)) > 1e-5f * t ? 1 : 0;
+      }
+    INFO("pose " << base.x << " " << base.y << " " << base.theta << ", roll " << roll);
+    CHECK(checked > 30000);
+    CHECK(differ == 0);
+  }
+}
+
+// Hidden: per-view render times over office views (corridors are the slowest), for before/after
+// comparisons: build/bin/tessera_tests "[.rgbd_render_bench]". With TESSERA_RENDER_DUMP=DIR it
+// writes each view's colour and depth there, with TESSERA_RENDER_COMPARE=DIR it compares them.
+TEST_CASE("rgbd renderer: render time per office view", "[.rgbd_render_bench]") {
+  const World office = World::builtinOffice();
+  const RgbdCameraConfig config;
+  const RgbdRenderer r(office, 2.5, config);
+  const double pi = std::numbers::pi;
+  const std::vector<std::pair<const char*, Pose2>> views = {
+      {"west corridor north", {7.5, 12.0, pi / 2}},
+      {"bottom corridor east", {7.5, 7.5, 0}},
+      {"cross corridor east", {14.6, 15.0, 0}},
+      {"east corridor north", {32.5, 8.0, pi / 2}},
+      {"top corridor west", {32.5, 22.5, pi}},
+      {"south room", {21.0, 4.0, -pi / 2}},
+      {"room table", {23.5, 3.0, pi}},
+      {"east room", {37.0, 10.5, 0.3}}};
+  RgbdImage im;
+  const char* dump = std::getenv("TESSERA_RENDER_DUMP");
+  const char* compare = std::getenv("TESSERA_RENDER_COMPARE");
+  double total = 0;
+  for (std::size_t k = 0; k < views.size(); ++k) {
+    const Eigen::Isometry3d pose = r.cameraPose(views[k].second);
+    r.render(pose, 1, im);  // warm up
+    std::vector<double> ms;
+    for (int i = 0; i < 7; ++i) {
+      const auto t0 = std::chrono::steady_clock::now();
+      r.render(pose, 1, im);
+      ms.push_back(
+          std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count());
+    }
+    std::sort(ms.begin(), ms.end());
+    total += ms[3];
+    std::printf("%-22s median %6.1f ms (min %6.1f)\n", views[k].first, ms[3], ms[0]);
+    const std::string base = std::string("/view") + std::to_string(k);
+    if (dump) {
+      std::FILE* f = std::fopen((dump + base).c_str(), "wb");
+      REQUIRE(f);
+      std::fwrite(im.rgb.data(), 1, im.rgb.size(), f);
+      std::fwrite(im.depth.data(), sizeof(float), im.depth.size(), f);
+      std::fclose(f);
+    }
+    if (compare) {
+      std::FILE* f = std::fopen((compare + base).c_str(), "rb");
+      REQUIRE(f);
+      std::vector<std::uint8_t> rgb(im.rgb.size());
+      std::vector<float> depth(im.depth.size());
+      REQUIRE(std::fread(rgb.data(), 1, rgb.size(), f) == rgb.size());
+      REQUIRE(std::fread(depth.data(), sizeof(float), depth.size(), f) == depth.size());
+      std::fclose(f);
+      std::size_t rgb_diff = 0, depth_diff = 0;
+      double depth_max = 0;
+      for (std::size_t i = 0; i < rgb.size(); ++i) rgb_diff += rgb[i] != im.rgb[i] ? 1 : 0;
+      for (std::size_t i = 0; i < depth.size(); ++i) {
+        const double e = std::abs(static_cast<double>(depth[i]) - im.depth[i]);
+        depth_diff += e > 0 ? 1 : 0;
+        depth_max = std::max(depth_max, e);
+      }
+      std::printf("  vs reference: %zu colour bytes and %zu depths differ (max %.3g m)\n", rgb_diff,
+                  depth_diff, depth_max);
+    }
+  }
+  std::printf("sum of medians %.1f ms\n", total);
 }

@@ -2,6 +2,7 @@
 
 #include <tessera/messages/views.hpp>
 #include <tessera/runtime/options.hpp>
+#include <tessera/runtime/periodic.hpp>
 #include <tessera/runtime/registry.hpp>
 
 #include <algorithm>
@@ -40,15 +41,9 @@ void MapAssemblerActor::configure(ActorContext& ctx) {
         "submap_poses", MailboxPolicy::keepLatest(1),
         [this](const Message<msg::SubmapPoses>& m) { onOptimizedPoses(m); });
   map_pub_ = ctx.advertise<msg::OccupancyGrid>("map");
-  if (options_.publish_period_s > 0) {
-    const Nanos period = std::max<Nanos>(1, secondsToNanos(options_.publish_period_s));
-    ctx.addTimer(
-        period,
-        [this] {
-          if (dirty_) publishMap();
-        },
-        period);
-  }
+  addPeriodicTimer(ctx, options_.publish_period_s, [this] {
+    if (dirty_) publishMap();
+  });
 }
 
 void MapAssemblerActor::onSubmap(const Message<msg::Submap>& m) {

@@ -1,5 +1,6 @@
 #include <tessera/laser_slam/submap_builder_actor.hpp>
 
+#include <tessera/messages/geometry.hpp>
 #include <tessera/messages/views.hpp>
 #include <tessera/runtime/options.hpp>
 #include <tessera/runtime/registry.hpp>
@@ -52,8 +53,7 @@ void SubmapBuilderActor::configure(ActorContext& ctx) {
   ctx.subscribe<msg::Odometry>(
       "odom", MailboxPolicy::keepLatest(static_cast<std::size_t>(options_.odom_queue)),
       [this](const Message<msg::Odometry>& m) {
-        const auto p = m->getPose();
-        onOdometry(m->getHeader().getStampNs(), {p.getX(), p.getY(), p.getTheta()});
+        onOdometry(m->getHeader().getStampNs(), toPose2(m->getPose()));
       });
   if (options_.camera_trigger) {
     ctx.subscribe<msg::CameraEvent>(

@@ -1,5 +1,6 @@
 #include <tessera/line_slam/line_slam_actor.hpp>
 
+#include <tessera/messages/geometry.hpp>
 #include <tessera/messages/views.hpp>
 #include <tessera/runtime/options.hpp>
 #include <tessera/runtime/registry.hpp>
@@ -60,15 +61,13 @@ void LineSlamActor::configure(ActorContext& ctx) {
   ctx.subscribe<msg::Odometry>(
       "odom", MailboxPolicy::keepLatest(static_cast<std::size_t>(options_.odom_queue)),
       [this](const Message<msg::Odometry>& m) {
-        const auto p = m->getPose();
-        onOdometry(m->getHeader().getStampNs(), {p.getX(), p.getY(), p.getTheta()});
+        onOdometry(m->getHeader().getStampNs(), toPose2(m->getPose()));
       });
   if (options_.ground_truth) {
     ctx.subscribe<msg::GroundTruthPose>(
         "ground_truth", MailboxPolicy::keepLatest(static_cast<std::size_t>(options_.odom_queue)),
         [this](const Message<msg::GroundTruthPose>& m) {
-          const auto p = m->getPose();
-          truth_.add(m->getHeader().getStampNs(), {p.getX(), p.getY(), p.getTheta()});
+          truth_.add(m->getHeader().getStampNs(), toPose2(m->getPose()));
         });
   }
   pose_pub_ = ctx.advertise<msg::PoseStamped>("pose");

@@ -5,6 +5,7 @@
 #include <tessera/messages/types.hpp>
 #include <tessera/messages/views.hpp>
 #include <tessera/runtime/options.hpp>
+#include <tessera/runtime/periodic.hpp>
 #include <tessera/runtime/registry.hpp>
 
 #include <algorithm>
@@ -48,15 +49,9 @@ void GridMapperActor::configure(ActorContext& ctx) {
       detail::parsePoseMessage(options_.pose_message, "grid_mapper", "pose_message"),
       [this](Nanos stamp, const tessera::Pose2& pose) { onPose(stamp, pose); });
   map_pub_ = ctx.advertise<msg::OccupancyGrid>("map");
-  if (options_.publish_period_s > 0) {
-    const Nanos period = std::max<Nanos>(1, secondsToNanos(options_.publish_period_s));
-    ctx.addTimer(
-        period,
-        [this] {
-          if (dirty_) publishMap();
-        },
-        period);
-  }
+  addPeriodicTimer(ctx, options_.publish_period_s, [this] {
+    if (dirty_) publishMap();
+  });
 }
 
 void GridMapperActor::onScan(const Message<msg::LaserScan>& scan) {

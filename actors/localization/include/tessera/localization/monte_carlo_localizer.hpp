@@ -1,0 +1,140 @@
+// MonteCarloLocalizer: adaptive Monte Carlo localisation on an occupancy map
+// (docs/algorithms.md#monte-carlo-localisation).
+//
+// Particles (map-frame poses) move by the odometry increment since the last filter update through
+// the odometry motion model (rotation, translation, rotation, each with noise from alpha1..4),
+// are weighted by the likelihood field (TBB over particles), and are resampled with KLD-adaptive
+// size: as many as the number k of occupied histogram bins needs for the KLD bound
+//   n = (k − 1) / (2ε) · (1 − 2/(9(k − 1)) + √(2/(9(k − 1))) · z)³,
+// between min_particles and max_particles. Updates happen only after the robot moved update_min_d
+// or turned update_min_a (or when forced). When the short-term average fit (of the best particle)
+// drops below the long-term one (w_fast < w_slow), a fraction 1 − w_fast / w_slow of the resampled
+// particles is drawn uniformly over free space instead (augmented MCL): that recovers a kidnapped
+// robot. The estimate is the weighted mean and covariance of the heaviest cluster of adjacent bins.
+//
+// Owns its particles and a copy of the likelihood field's map; one thread calls it.
+#pragma once
+
+#include <tessera/geometry/pose2.hpp>
+#include <tessera/grid/occupancy_map.hpp>
+#include <tessera/localization/likelihood_field.hpp>
+
+#include <Eigen/Core>
+
+#include <cstdint>
+#include <optional>
+#include <random>
+#include <span>
+#include <vector>
+
+namespace tessera::localization {
+
+/// The odometry motion model's noise (Probabilistic Robotics' alpha1..4, as AMCL's odom_alpha1..4).
+struct MotionNoise {
+  double alpha1 = 0.2;  ///< rotation noise from rotation
+  double alpha2 = 0.2;  ///< rotation noise from translation [rad/m]
+  double alpha3 = 0.2;  ///< translation noise from translation
+  double alpha4 = 0.2;  ///< translation noise from rotation [m/rad]
+
+  template <class V>
+  void visit(V& v) {
+    v("alpha1", alpha1, "rotation noise from rotation");
+    v("alpha2", alpha2, "rotation noise from translation");
+    v("alpha3", alpha3, "translation noise from translation");
+    v("alpha4", alpha4, "translation noise from rotation");
+  }
+};
+
+struct MonteCarloOptions {
+  int min_particles = 500;
+  int max_particles = 2000;
+  double kld_error = 0.01;             ///< ε: bound on the KL divergence of the sample set
+  double kld_z = 2.326;                ///< upper standard normal quantile 1 − δ (δ = 0.01)
+  double bin_xy = 0.5;                 ///< [m] histogram bin for KLD and clustering
+  double bin_theta = 0.1745;           ///< [rad] (10°)
+  double update_min_d = 0.2;           ///< [m] translation between filter updates
+  double update_min_a = 0.5236;        ///< [rad] rotation between filter updates (30°)
+  int max_beams = 60;                  ///< beams used per update, evenly spread
+  double recovery_alpha_slow = 0.001;  ///< long-term fit average rate (0 disables recovery)
+  double recovery_alpha_fast = 0.1;    ///< short-term fit average rate
+  MotionNoise motion;
+  LikelihoodFieldOptions field;
+  std::uint64_t seed = 1;
+
+  template <class V>
+  void visit(V& v) {
+    v("min_particles", min_particles, "particles kept at least");
+    v("max_particles", max_particles, "particles at most");
+    v("kld_error", kld_error, "KLD bound epsilon");
+    v("kld_z", kld_z, "upper standard normal quantile of the KLD bound");
+    v("bin_xy", bin_xy, "[m] histogram bin size in x and y");
+    v("bin_theta", bin_theta, "[rad] histogram bin size in heading");
+    v("update_min_d", update_min_d, "[m] translation between filter updates");
+    v("update_min_a", update_min_a, "[rad] rotation between filter updates");
+    v("max_beams", max_beams, "beams used per update");
+    v("recovery_alpha_slow", recovery_alpha_slow, "long-term fit average rate (0: no recovery)");
+    v("recovery_alpha_fast", recovery_alpha_fast, "short-term fit average rate");
+    v("motion", motion, "odometry motion model noise");
+    v("field", field, "likelihood-field sensor model");
+    v("seed", seed, "random seed");
+  }
+  void validate() const;  ///< throws std::invalid_argument naming the bad field
+};
+
+struct Particle {
+  Pose2 pose;
+  double weight = 0;  ///< normalised
+};
+
+struct PoseEstimate {
+  Pose2 pose;  ///< map frame, at the last filter update
+  /// The odometry pose of that update: the robot's map pose now is pose ⊕ (odom⁻¹ ⊕ odom_now),
+  /// and map→odom is pose ⊕ odom⁻¹.
+  Pose2 odom;
+  Eigen::Matrix3d covariance = Eigen::Matrix3d::Zero();  ///< over (x, y, theta)
+  double cluster_weight = 0;  ///< share of the weight in the chosen cluster
+  int clusters = 0;
+};
+
+/// The KLD bound for k occupied bins (at least 1 sample).
+int kldSampleCount(int k, double epsilon, double z);
+
+class MonteCarloLocalizer {
+ public:
+  /// Throws std::invalid_argument for bad options or a map the likelihood field refuses.
+  MonteCarloLocalizer(const grid::OccupancyMap& map, double range_max,
+                      const MonteCarloOptions& options = {});
+
+  /// Particles from a Gaussian around `mean` (covariance over x, y, theta).
+  void initialise(const Pose2& mean, const Eigen::Matrix3d& covariance);
+  /// Particles uniformly over the map's free cells, max_particles of them.
+  void initialiseGlobal();
+  bool initialised() const { return !particles_.empty(); }
+
+  /// One filter step at odometry pose `odom` with the scan endpoints `points` (robot frame, beams
+  /// at range_max left out). Does nothing (returns false) until the robot moved far enough since
+  /// the last update, unless `force`. Non-finite input is ignored (returns false).
+  bool update(const Pose2& odom, std::span<const Eigen::Vector2d> points, bool force = false);
+
+  PoseEstimate estimate() const;
+  std::span<const Particle> particles() const { return particles_; }
+  /// The recovery's current share of random particles, 1 − w_fast / w_slow (≥ 0).
+  double randomShare() const;
+  const LikelihoodField& field() const { return field_; }
+  int updates() const { return updates_; }
+
+ private:
+  Pose2 randomFreePose();
+  void resample();
+
+  MonteCarloOptions options_;
+  LikelihoodField field_;
+  std::vector<Eigen::Vector2i> free_cells_;
+  std::vector<Particle> particles_;
+  std::optional<Pose2> last_odom_;
+  double w_slow_ = 0, w_fast_ = 0;
+  int updates_ = 0;
+  std::mt19937_64 rng_;
+};
+
+}  // namespace tessera::localization

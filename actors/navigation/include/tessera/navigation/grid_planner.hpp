@@ -1,0 +1,94 @@
+// GridPlanner: global paths on a Costmap by 8-connected Dijkstra or A*
+// (docs/algorithms.md#global-planning), and line-of-sight shortening of a path.
+//
+// A step between neighbouring cells costs its length [m] (resolution, or √2 · resolution
+// diagonally) times 1 + cost_weight · c / 252, c being the cost of the cell entered, so paths
+// keep away from inflated obstacles when the detour is cheap. Cells at kInscribed and above are
+// never entered (kUnknown only with allow_unknown, at unknown_cost). A*'s heuristic is the octile
+// distance, a lower bound of that cost, so A* returns a path as cheap as Dijkstra's.
+//
+// The planner keeps its search buffers between calls (one per map size): one planner per thread.
+#pragma once
+
+#include <tessera/navigation/costmap.hpp>
+
+#include <Eigen/Core>
+
+#include <array>
+#include <cstddef>
+#include <cstdint>
+#include <string_view>
+#include <utility>
+#include <vector>
+
+namespace tessera::navigation {
+
+enum class SearchAlgorithm { kAStar, kDijkstra };
+constexpr std::array<std::pair<const char*, SearchAlgorithm>, 2> optionNames(SearchAlgorithm) {
+  return {{{"astar", SearchAlgorithm::kAStar}, {"dijkstra", SearchAlgorithm::kDijkstra}}};
+}
+
+struct GridPlannerOptions {
+  SearchAlgorithm algorithm = SearchAlgorithm::kAStar;
+  double cost_weight = 3.0;    ///< a step into cost 252 costs (1 + cost_weight) × its length
+  bool allow_unknown = false;  ///< may paths cross kUnknown cells
+  int unknown_cost = 128;      ///< the cost an unknown cell counts as, when allowed
+
+  template <class V>
+  void visit(V& v) {
+    v("algorithm", algorithm, "graph search");
+    v("cost_weight", cost_weight, "extra cost factor of a step into the highest traversable cost");
+    v("allow_unknown", allow_unknown, "may paths cross unknown cells");
+    v("unknown_cost", unknown_cost, "cost (0-252) of an unknown cell when allowed");
+  }
+  void validate() const;  ///< throws std::invalid_argument naming the bad field
+};
+
+enum class PlanStatus { kOk, kStartOutside, kGoalOutside, kStartBlocked, kGoalBlocked, kNoPath };
+std::string_view statusName(PlanStatus status);
+
+struct GridPath {
+  PlanStatus status = PlanStatus::kNoPath;
+  std::vector<Eigen::Vector2i> cells;  ///< start … goal; empty unless kOk
+  double cost = 0;                     ///< the search's cost of the path [m, cost-weighted]
+  double length = 0;                   ///< [m] geometric length
+  std::size_t expanded = 0;            ///< cells taken from the open list
+  bool ok() const { return status == PlanStatus::kOk; }
+};
+
+class GridPlanner {
+ public:
+  explicit GridPlanner(const GridPlannerOptions& options = {});
+
+  GridPath plan(const Costmap& map, const Eigen::Vector2i& start, const Eigen::Vector2i& goal);
+
+  const GridPlannerOptions& options() const { return options_; }
+
+ private:
+  bool passable(std::uint8_t c) const;
+  double stepFactor(std::uint8_t c) const;
+
+  GridPlannerOptions options_;
+  // Search state per cell, reused between plans; `touched_` lists the cells to reset.
+  std::vector<double> g_;
+  std::vector<std::int32_t> parent_;
+  std::vector<std::uint8_t> state_;
+  std::vector<std::int32_t> touched_;
+};
+
+/// Geometric length [m] of a cell path (centre to centre).
+double pathLength(const Costmap& map, const std::vector<Eigen::Vector2i>& cells);
+
+/// Whether the straight segment between the centres of a and b crosses only cells of cost
+/// <= max_cost (every cell the segment touches, corners included).
+bool lineOfSight(const Costmap& map, const Eigen::Vector2i& a, const Eigen::Vector2i& b,
+                 std::uint8_t max_cost);
+
+/// Line-of-sight shortening: from the first cell, jump to the last path cell visible from it,
+/// and repeat from there. Returns the kept cells (start and goal included); consecutive kept
+/// cells see each other under max_cost.
+std::vector<Eigen::Vector2i> shortenPath(const Costmap& map,
+                                         const std::vector<Eigen::Vector2i>& path,
+                                         std::uint8_t max_cost);
+
+}  // namespace tessera::navigation
