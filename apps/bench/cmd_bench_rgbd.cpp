@@ -3,9 +3,12 @@
 // frame to frame, chained) on the same frames in one run, and reports ATE RMSE after rigid
 // alignment (evaluation core), ms per frame (mean, p95), keyframes and lost frames (ours: lost
 // or skipped; OpenCV: frames whose compute() failed, the pose then held). Image
-// decoding and 7-Scenes' depth registration are outside the timed part.
+// decoding and 7-Scenes' depth registration are outside the timed part. For "tessera", the loop
+// detector and the keyframe graph run beside the tracker on its keyframes, outside the timed part
+// (rgbd_loop_eval.hpp: loops accepted and false, recall, keyframe ATE with and without loops).
 #include "bench_commands.hpp"
 #include "bench_util.hpp"
+#include "rgbd_loop_eval.hpp"
 
 #include <tessera/datasets/rgbd_sequence.hpp>
 #include <tessera/evaluation/trajectory_metrics.hpp>
@@ -26,6 +29,7 @@
 #include <iostream>
 #include <limits>
 #include <memory>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -42,6 +46,10 @@ struct Options {
   std::vector<std::string> params;  // tracker options, key=value
   bool no_registration = false;
   bool json = false;
+  bool no_loops = false;
+  std::string vocabulary;                // empty: bootstrapped from the first keyframes
+  std::vector<std::string> loop_params;  // loop detector options, key=value
+  double loop_max_error_m = 0.10, loop_max_error_deg = 5.0, revisit_overlap = 0.5;
 };
 
 struct MethodResult {
@@ -49,7 +57,8 @@ struct MethodResult {
   std::size_t frames = 0, keyframes = 0, lost = 0;
   std::vector<double> ms;
   double ate_rmse = 0;
-  vs::FrameTiming split;  // tessera: mean per frame of each stage [ms]
+  vs::FrameTiming split;                 // tessera: mean per frame of each stage [ms]
+  std::optional<LoopEvalFigures> loops;  // tessera with loops
 };
 
 // One frame as every method reads it: grey colour, depth in the camera the method tracks.
@@ -75,6 +84,12 @@ class Sequence {
   const vs::ColorCalibration& calibration() const { return calib_; }
   bool registered() const { return registered_; }
   std::string name() const { return seq_.folder.filename().string(); }
+  /// The dataset's camera-to-world of frame i moved to the tracked (colour) camera.
+  std::optional<Eigen::Isometry3d> trackedTruth(std::size_t i) const {
+    const auto& p = seq_.frames.at(i).pose;
+    if (!p) return std::nullopt;
+    return Eigen::Isometry3d(*p * calib_.color_from_depth.inverse());
+  }
 
   /// Frame i; `in_color`: depth registered to the colour camera (when registration applies).
   Inputs load(std::size_t i, bool in_color) const {
@@ -116,19 +131,31 @@ double msSince(std::chrono::steady_clock::time_point t0) {
   return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
 }
 
-// Tracker options from `--param key=value` pairs, read as a profile's params block would be.
-vs::TrackerOptions trackerOptions(const std::vector<std::string>& pairs) {
+// Options from `--param key=value` pairs, read as a profile's params block would be; a dotted
+// key (verifier.ratio=0.8) names a nested group.
+template <class T>
+T paramOptions(const std::vector<std::string>& pairs) {
   YAML::Node node(YAML::NodeType::Map);
   for (const auto& p : pairs) {
     const auto eq = p.find('=');
     if (eq == std::string::npos || eq == 0)
       throw ConfigError("bench rgbd: --param expects key=value, got '" + p + "'");
-    node[p.substr(0, eq)] = YAML::Load(p.substr(eq + 1));
+    YAML::Node group = node;
+    std::string key = p.substr(0, eq);
+    for (auto dot = key.find('.'); dot != std::string::npos; dot = key.find('.')) {
+      const std::string name = key.substr(0, dot);
+      if (!group[name]) group[name] = YAML::Node(YAML::NodeType::Map);
+      YAML::Node inner = group[name];
+      group.reset(inner);  // rebinds (assignment would copy into the node)
+      key = key.substr(dot + 1);
+    }
+    group[key] = YAML::Load(p.substr(eq + 1));
   }
-  return loadOptions<vs::TrackerOptions>(Params(node, "--param"));
+  return loadOptions<T>(Params(node, "--param"));
 }
 
-MethodResult runTessera(const Sequence& s, const vs::TrackerOptions& options) {
+MethodResult runTessera(const Sequence& s, const vs::TrackerOptions& options,
+                        LoopEvaluation* loops) {
   MethodResult r;
   r.method = "tessera";
   vs::Tracker tracker(options, s.calibration().color);
@@ -145,7 +172,12 @@ MethodResult runTessera(const Sequence& s, const vs::TrackerOptions& options) {
     r.split.pnp_ms += res.timing.pnp_ms / n;
     r.split.local_ba_ms += res.timing.local_ba_ms / n;
     poses.push_back(res.camera_to_world * s.calibration().color_from_depth);
+    if (loops && res.keyframe && !tracker.keyframes().empty()) {
+      const vs::Keyframe& k = tracker.keyframes().back();
+      loops->addKeyframe(k, res.inliers, s.trackedTruth(k.frame));
+    }
   }
+  if (loops) r.loops = loops->finish();
   r.frames = s.size();
   r.keyframes = tracker.stats().keyframes;
   r.lost = tracker.stats().lost + tracker.stats().skipped;
@@ -199,6 +231,23 @@ MethodResult runOpenCv(const Sequence& s, const std::string& method) {
   return r;
 }
 
+void printLoops(const LoopEvalFigures& f, const Options& o) {
+  std::cout << "\nloops (" << f.vocabulary << " vocabulary, outside the timed part, "
+            << std::setprecision(1) << f.ms_per_keyframe << " ms per keyframe): " << f.keyframes
+            << " keyframes, " << f.queries << " queries, " << f.candidates << " candidates, "
+            << f.accepted << " accepted, " << f.false_loops << " false (error > "
+            << std::setprecision(2) << o.loop_max_error_m << " m or " << o.loop_max_error_deg
+            << " deg)";
+  for (const auto& [reason, n] : f.rejected_by) std::cout << ", " << n << " " << reason;
+  std::cout << "\nrecall: " << f.true_detected << " of " << f.revisits
+            << " revisit keyframes (>= " << o.revisit_overlap * 100
+            << " % of the points in an older keyframe's image) closed by a true loop; worst "
+               "true loop error "
+            << std::setprecision(3) << f.worst_true_error_m << " m\nkeyframe ATE "
+            << std::setprecision(4) << f.keyframe_ate_m << " m tracker, " << f.keyframe_ate_loops_m
+            << " m after the keyframe graph with the loops\n";
+}
+
 }  // namespace
 
 void addBenchRgbdCommand(CLI::App& bench, int& result) {
@@ -222,20 +271,41 @@ void addBenchRgbdCommand(CLI::App& bench, int& result) {
                 "7-Scenes: use colour as if registered to depth (sets the tracker's "
                 "register_depth=false)");
   cmd->add_flag("--json", o->json, "print exactly one JSON object on stdout");
+  cmd->add_flag("--no-loops", o->no_loops, "tessera: no loop detection beside the tracker");
+  cmd->add_option("--vocabulary", o->vocabulary,
+                  "loop detection vocabulary (DBoW2/3 YAML or ours); default: bootstrapped from "
+                  "the first keyframes");
+  cmd->add_option("--loop-param", o->loop_params,
+                  "loop detector option key=value (repeatable; rgbd_loop_detector's detector.*)");
+  cmd->add_option("--loop-max-error", o->loop_max_error_m,
+                  "a loop is false beyond this translation error against the dataset [m]")
+      ->capture_default_str();
+  cmd->add_option("--loop-max-error-deg", o->loop_max_error_deg, "... or this rotation error [deg]")
+      ->capture_default_str();
+  cmd->add_option("--revisit-overlap", o->revisit_overlap,
+                  "a keyframe revisits when this share of its points falls in an old keyframe")
+      ->capture_default_str();
   cmd->callback([o, &result] {
     if (o->frames < 2) throw ConfigError("--frames must be >= 2");
     for (const auto& m : o->methods)
       if (m != "tessera" && m != "opencv_rgbd" && m != "opencv_rgbd_icp" && m != "opencv_icp" &&
           m != "opencv_fast_icp")
         throw ConfigError("bench rgbd: unknown method '" + m + "'");
-    vs::TrackerOptions tracker_options = trackerOptions(o->params);
+    vs::TrackerOptions tracker_options = paramOptions<vs::TrackerOptions>(o->params);
     if (o->no_registration) tracker_options.register_depth = false;
+    const auto loop_options = paramOptions<vs::LoopDetectorOptions>(o->loop_params);
     const Sequence s(o->path, o->frames, tracker_options.register_depth);
     nlohmann::json results = nlohmann::json::array();
     std::vector<MethodResult> runs;
     for (const auto& m : o->methods) {
       if (!o->json) std::cerr << "[bench rgbd] " << m << " ...\n";
-      runs.push_back(m == "tessera" ? runTessera(s, tracker_options) : runOpenCv(s, m));
+      std::unique_ptr<LoopEvaluation> loops;
+      if (m == "tessera" && !o->no_loops)
+        loops = std::make_unique<LoopEvaluation>(loop_options, o->vocabulary, s.calibration().color,
+                                                 o->loop_max_error_m, o->loop_max_error_deg,
+                                                 o->revisit_overlap);
+      runs.push_back(m == "tessera" ? runTessera(s, tracker_options, loops.get())
+                                    : runOpenCv(s, m));
       const auto& r = runs.back();
       double mean = 0;
       for (double x : r.ms) mean += x / static_cast<double>(r.ms.size());
@@ -246,9 +316,19 @@ void addBenchRgbdCommand(CLI::App& bench, int& result) {
                          {"ms_per_frame_mean", mean},
                          {"ms_per_frame_p95", percentile(r.ms, 0.95)},
                          {"keyframes", r.keyframes},
-                         {"loops_accepted", 0},
-                         {"loops_false", 0},
+                         {"loops_accepted", r.loops ? r.loops->accepted : 0},
+                         {"loops_false", r.loops ? r.loops->false_loops : 0},
                          {"lost_frames", r.lost}});
+      if (r.loops)
+        results.back()["loop_closure"] = {
+            {"revisit_keyframes", r.loops->revisits},
+            {"recall", r.loops->revisits ? static_cast<double>(r.loops->true_detected) /
+                                               static_cast<double>(r.loops->revisits)
+                                         : 0.0},
+            {"keyframe_ate_m", r.loops->keyframe_ate_m},
+            {"keyframe_ate_with_loops_m", r.loops->keyframe_ate_loops_m},
+            {"ms_per_keyframe", r.loops->ms_per_keyframe},
+            {"vocabulary", r.loops->vocabulary}};
     }
     if (o->json) {
       std::cout << nlohmann::json{{"machine", machineDescription()}, {"results", results}}.dump(2)
@@ -278,6 +358,8 @@ void addBenchRgbdCommand(CLI::App& bench, int& result) {
                   << " ms, local map " << r.split.local_map_ms << " ms, matching "
                   << r.split.matching_ms << " ms, PnP " << r.split.pnp_ms << " ms, local BA "
                   << r.split.local_ba_ms << " ms; p50 " << percentile(r.ms, 0.5) << " ms\n";
+    for (const auto& r : runs)
+      if (r.loops) printLoops(*r.loops, *o);
     result = 0;
   });
 }

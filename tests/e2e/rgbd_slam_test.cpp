@@ -1,6 +1,6 @@
 // End to end: apps/profiles/rgbd_slam.yaml on the 9 TUM fr1/desk frames (player -> front end ->
-// keyframe graph -> writers, keyframes -> mapper): the outputs exist, the ATE against the dataset
-// is below 2 cm, and the mapper's cloud and OctoMap files load.
+// loop detector and keyframe graph -> writers, keyframes -> mapper): the outputs exist, the ATE
+// against the dataset is below 2 cm, and the mapper's cloud and OctoMap files load.
 #include <tessera/evaluation/trajectory_metrics.hpp>
 #include <tessera/mapping/trajectory_io.hpp>
 #include <tessera/mapping3d/cloud_map.hpp>
@@ -54,6 +54,12 @@ TEST_CASE("rgbd_slam tracks the TUM fr1/desk frames to under 2 cm ATE",
   CHECK(fe.at("ate_rmse_m").get<double>() < 0.02);
   CHECK(std::abs(fe.at("ate_rmse_m").get<double>() - ate) < 1e-6);
   CHECK(summary.at("actors").at("graph").at("graph_keyframes") == fe.at("keyframes"));
+  // The loop detector sees every keyframe; 5 keyframes are fewer than its vocabulary bootstrap
+  // needs, so no query runs and no loop is published.
+  const auto& loops = summary.at("actors").at("loops");
+  CHECK(loops.at("keyframes_received") == fe.at("keyframes"));
+  CHECK(loops.at("keyframes_bad") == 0);
+  CHECK(loops.at("published") == 0);
 
   const auto& mapper = summary.at("actors").at("mapper");
   CHECK(mapper.at("keyframes_mapped") == fe.at("keyframes"));

@@ -1,0 +1,81 @@
+// rgbd_loop_detector actor (type name; laser_slam has its own loop_detector): bag-of-words loop
+// closure over RGB-D keyframes (LoopDetector, loop_detector.hpp; docs/algorithms.md#loop-closure).
+//
+// Subscribes:
+//   keyframes          msg::Keyframe            reliable: each is transformed with the
+//                                               vocabulary, queried against the earlier ones
+//                                               (eta, temporal consistency), the accepted
+//                                               candidate verified (direct-index matching,
+//                                               RANSAC PnP, 3D check), then indexed
+// Publishes:
+//   loop_constraints   msg::KeyframeConstraint  reliable, each verified loop: from = the earlier
+//                                               (candidate) keyframe, to = the query, relative =
+//                                               the query's pose in the candidate's frame with
+//                                               its covariance, inliers = PnP inliers
+// Vocabulary: vocabulary.path names a DBoW2/DBoW3 YAML (.yml, .yml.gz) or our binary file (loaded
+// in the constructor; a bad file is a ConfigError). Empty: the detector trains one on the first
+// detector.bootstrap_keyframes keyframes (their loops are then searched in order), so a run
+// without external data (the simulated office) still closes loops.
+// A keyframe it cannot use (checks of keyframe_message.hpp, non-binary or non-32-byte
+// descriptors, NaN pixels) is counted by reason and skipped, never a crash.
+#pragma once
+
+#include <tessera/msg/keyframe.capnp.h>
+#include <tessera/runtime/actor.hpp>
+#include <tessera/runtime/options.hpp>
+#include <tessera/visual_slam/loop_detector.hpp>
+
+#include <cstdint>
+#include <map>
+#include <memory>
+#include <string>
+
+namespace tessera::visual_slam {
+
+struct VocabularySource {
+  std::string path;
+
+  template <class V>
+  void visit(V& v) {
+    v("path", path,
+      "DBoW2/DBoW3 YAML (.yml, .yml.gz) or tessera binary vocabulary; empty: bootstrap from the "
+      "first keyframes");
+  }
+};
+
+struct LoopDetectorActorOptions {
+  VocabularySource vocabulary;
+  LoopDetectorOptions detector;
+
+  template <class V>
+  void visit(V& v) {
+    v("vocabulary", vocabulary, "the bag-of-words vocabulary");
+    v("detector", detector, "candidates, verification and the vocabulary bootstrap");
+  }
+};
+
+class LoopDetectorActor final : public Actor {
+ public:
+  /// Throws ConfigError on invalid options or an unreadable vocabulary file.
+  explicit LoopDetectorActor(LoopDetectorActorOptions options);
+  void configure(ActorContext& ctx) override;
+  /// keyframes_received, keyframes_bad (and bad_<reason>), queries, candidates, verified,
+  /// rejected (and rejected_<reason>), skipped_<status>, published, vocabulary source and size.
+  void summarize(Summary& out) const override;
+
+  const LoopDetector& detector() const { return *detector_; }
+
+ private:
+  void onKeyframe(const Message<msg::Keyframe>& m);
+  void publish(const LoopQuery& q);
+
+  LoopDetectorActorOptions options_;
+  std::unique_ptr<LoopDetector> detector_;
+  std::string vocabulary_source_;
+  Publisher<msg::KeyframeConstraint> pub_;
+  std::map<std::int64_t, std::int64_t> stamps_;  ///< keyframe id -> header stamp [ns]
+  std::map<std::string, std::uint64_t> bad_;
+  std::uint64_t received_ = 0, published_ = 0;
+};
+
+}  // namespace tessera::visual_slam

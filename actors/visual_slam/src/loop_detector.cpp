@@ -1,0 +1,99 @@
+// LoopDetector: vocabulary bootstrap, database queries and verification (see the header).
+#include <tessera/visual_slam/loop_detector.hpp>
+
+#include <chrono>
+#include <stdexcept>
+#include <utility>
+
+namespace tessera::visual_slam {
+
+void LoopDetectorOptions::validate() const {
+  database.validate();
+  verifier.validate();
+  if (bootstrap_keyframes < 0)
+    throw std::invalid_argument("loop detector: bootstrap_keyframes must be >= 0");
+  VocabularyTrainOptions t;
+  t.k = bootstrap_k;
+  t.levels = bootstrap_levels;
+  t.validate();
+}
+
+LoopDetector::LoopDetector(const LoopDetectorOptions& options,
+                           std::shared_ptr<const Vocabulary> vocabulary)
+    : options_((options.validate(), options)),
+      vocabulary_(std::move(vocabulary)),
+      database_(options.database) {
+  if (vocabulary_ && vocabulary_->empty()) vocabulary_.reset();
+}
+
+std::vector<LoopQuery> LoopDetector::add(LoopKeyframe keyframe, std::string* error) {
+  ++stats_.keyframes;
+  std::string why = keyframe.view.check();
+  if (why.empty() && keyframe.view.size() == 0) why = "no features";
+  if (why.empty()) {
+    try {
+      keyframe.camera.validate();
+    } catch (const std::invalid_argument& e) {
+      why = e.what();
+    }
+  }
+  if (error) *error = why;
+  if (!why.empty()) {
+    ++stats_.bad;
+    return {};
+  }
+  keyframe.view.features.clear();  // ours to fill, whatever the caller left there
+  if (vocabulary_) return {query(std::move(keyframe))};
+  if (options_.bootstrap_keyframes == 0) return {};
+  held_.push_back(std::move(keyframe));
+  if (held_.size() < static_cast<std::size_t>(options_.bootstrap_keyframes)) return {};
+  return bootstrap();
+}
+
+std::vector<LoopQuery> LoopDetector::bootstrap() {
+  const auto t0 = std::chrono::steady_clock::now();
+  std::vector<cv::Mat> images;
+  for (const auto& k : held_) images.push_back(k.view.descriptors);
+  VocabularyTrainOptions t;
+  t.k = options_.bootstrap_k;
+  t.levels = options_.bootstrap_levels;
+  vocabulary_ = std::make_shared<const Vocabulary>(Vocabulary::train(images, t));
+  stats_.bootstrapped = true;
+  stats_.bootstrap_seconds =
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  std::vector<LoopQuery> out;
+  std::vector<LoopKeyframe> held = std::move(held_);
+  held_.clear();
+  for (auto& k : held) out.push_back(query(std::move(k)));
+  return out;
+}
+
+LoopQuery LoopDetector::query(LoopKeyframe keyframe) {
+  LoopQuery q;
+  q.query = keyframe.id;
+  BowVector bow;
+  vocabulary_->transform(keyframe.view.descriptors, bow, keyframe.view.features,
+                         options_.verifier.direct_depth);
+  const QueryResult r = database_.detect(bow);
+  ++stats_.queries;
+  q.status = r.status;
+  if (r.status == QueryStatus::kAccepted && r.accepted) {
+    ++stats_.candidates;
+    const LoopKeyframe& candidate = entries_.at(r.accepted->entry);
+    q.candidate = candidate.id;
+    const LoopVerifier verifier(options_.verifier, keyframe.camera);
+    q.verification = verifier.verify(keyframe.view, candidate.view);
+    if (q.verification->accepted) {
+      ++stats_.verified;
+    } else {
+      ++stats_.rejected;
+      ++stats_.rejected_by[std::string(rejectionName(q.verification->rejection))];
+    }
+  } else {
+    ++stats_.skipped[std::string(statusName(r.status))];
+  }
+  entries_.push_back(std::move(keyframe));
+  return q;
+}
+
+}  // namespace tessera::visual_slam
