@@ -15,10 +15,6 @@ namespace {
 
 namespace vs = tessera::visual_slam;
 
-Pose3 toPose3(const Eigen::Isometry3d& T) {
-  return {T.translation(), Eigen::Quaterniond(T.rotation()).normalized()};
-}
-
 double keyframeAte(const std::vector<std::pair<double, Eigen::Isometry3d>>& estimate,
                    const std::vector<std::pair<double, Eigen::Isometry3d>>& truth) {
   std::vector<mapping::TumPose> est, ref;
@@ -143,17 +139,18 @@ LoopEvalFigures LoopEvaluation::finish() {
   if (!loops_.empty()) {
     vs::KeyframeGraph graph(vs::KeyframeGraphOptions{});
     for (std::size_t i = 0; i < entries_.size(); ++i)
-      graph.addKeyframe(static_cast<std::int64_t>(i), toPose3(entries_[i].estimate), inliers_[i]);
+      graph.addKeyframe(static_cast<std::int64_t>(i), Pose3::fromIsometry(entries_[i].estimate),
+                        inliers_[i]);
     for (const auto& l : loops_)
       graph.addLoop({static_cast<std::int64_t>(l.from), static_cast<std::int64_t>(l.to),
-                     toPose3(l.relative), l.covariance});
+                     Pose3::fromIsometry(l.relative), l.covariance});
     graph.optimize();
     est.clear();
     for (const auto& [id, p] : graph.poses()) {
-      Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
-      T.linear() = p.q.toRotationMatrix();
-      T.translation() = p.t;
-      est.emplace_back(entries_[static_cast<std::size_t>(id)].timestamp, T);
+      const Entry& e = entries_[static_cast<std::size_t>(id)];
+      f_.corrections.push_back({static_cast<std::int64_t>(std::llround(e.timestamp * 1e9)),
+                                Pose3::fromIsometry(e.estimate), p});
+      est.emplace_back(e.timestamp, p.isometry());
     }
     f_.keyframe_ate_loops_m = keyframeAte(est, ref);
   } else {

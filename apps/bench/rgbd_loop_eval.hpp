@@ -10,10 +10,11 @@
 //    pose, land in i's image at depths in (0.3, 6) m; recall = keyframes whose accepted loop is
 //    true / revisit keyframes;
 //  * keyframe ATE (rigid alignment) of the tracker's keyframe poses and of the graph's after
-//    optimising with the loops.
+//    optimising with the loops, and the keyframes' corrections for moving every frame.
 // Poses given here are the tracked (colour) camera's; ground truth comes as the same camera.
 #pragma once
 
+#include <tessera/visual_slam/keyframe_graph.hpp>
 #include <tessera/visual_slam/loop_detector.hpp>
 #include <tessera/visual_slam/tracker.hpp>
 
@@ -36,6 +37,8 @@ struct LoopEvalFigures {
   double keyframe_ate_m = 0, keyframe_ate_loops_m = 0;
   double worst_true_error_m = 0;  ///< largest translation error among true accepted loops
   std::string vocabulary;         ///< "file" or "bootstrap"
+  /// Each keyframe's tracked and optimised pose (empty without loops), to move the frames with.
+  std::vector<visual_slam::KeyframeCorrection> corrections;
 };
 
 class LoopEvaluation {

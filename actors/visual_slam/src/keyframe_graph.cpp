@@ -5,6 +5,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <iterator>
 #include <stdexcept>
 
 namespace tessera::visual_slam {
@@ -142,6 +143,25 @@ std::map<std::int64_t, Pose3> KeyframeGraph::poses() const {
 
 double KeyframeGraph::chi2() const {
   return graph_.edges.empty() ? 0.0 : pose_graph::chi2(graph_);
+}
+
+std::vector<Pose3> correctFramePoses(const std::vector<std::pair<std::int64_t, Pose3>>& frames,
+                                     std::vector<KeyframeCorrection> keyframes) {
+  std::sort(keyframes.begin(), keyframes.end(),
+            [](const auto& a, const auto& b) { return a.stamp_ns < b.stamp_ns; });
+  std::vector<Pose3> out;
+  out.reserve(frames.size());
+  for (const auto& [stamp, pose] : frames) {
+    const auto it = std::upper_bound(keyframes.begin(), keyframes.end(), stamp,
+                                     [](std::int64_t t, const auto& k) { return t < k.stamp_ns; });
+    if (it == keyframes.begin()) {
+      out.push_back(pose);
+      continue;
+    }
+    const KeyframeCorrection& k = *std::prev(it);
+    out.push_back(k.optimised * k.tracked.inverse() * pose);
+  }
+  return out;
 }
 
 }  // namespace tessera::visual_slam

@@ -10,7 +10,6 @@
 #include <algorithm>
 #include <filesystem>
 #include <iostream>
-#include <iterator>
 #include <stdexcept>
 
 namespace tessera::visual_slam {
@@ -158,19 +157,14 @@ void KeyframeGraphActor::writeFiles() {
     }
     if (!options_.frames_file.empty()) {
       const auto optimised = graph_.poses();
+      std::vector<KeyframeCorrection> corrections;
+      for (const auto& [stamp, id] : by_stamp_)
+        if (const auto it = optimised.find(id); it != optimised.end())
+          corrections.push_back({stamp, tracked_.at(id), it->second});
+      const std::vector<Pose3> corrected = correctFramePoses(frames_, std::move(corrections));
       mapping::TumWriter writer(dir / options_.frames_file);
-      for (const auto& [stamp, pose] : frames_) {
-        auto it = by_stamp_.upper_bound(stamp);
-        if (it == by_stamp_.begin()) {
-          writer.write({stamp, pose.t, pose.q});  // before the first keyframe: as tracked
-          continue;
-        }
-        const std::int64_t id = std::prev(it)->second;
-        const auto opt = optimised.find(id);
-        const Pose3 corrected =
-            opt == optimised.end() ? pose : opt->second * tracked_.at(id).inverse() * pose;
-        writer.write({stamp, corrected.t, corrected.q});
-      }
+      for (std::size_t i = 0; i < frames_.size(); ++i)
+        writer.write({frames_[i].first, corrected[i].t, corrected[i].q});
       writer.flush();
       frames_path_ = (dir / options_.frames_file).string();
     }

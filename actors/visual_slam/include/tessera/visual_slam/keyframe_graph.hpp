@@ -31,6 +31,7 @@
 #include <map>
 #include <optional>
 #include <string>
+#include <utility>
 #include <vector>
 
 namespace tessera::visual_slam {
@@ -115,5 +116,19 @@ class KeyframeGraph {
   bool dirty_ = false;
   std::string error_;
 };
+
+/// A keyframe's pose before and after optimisation, at its time.
+struct KeyframeCorrection {
+  std::int64_t stamp_ns = 0;
+  Pose3 tracked, optimised;
+};
+
+/// Every frame's pose moved with the optimisation of the keyframes: a frame follows the latest
+/// keyframe at or before its time, T' = T_k,optimised · T_k,tracked⁻¹ · T. The correction acts
+/// in the world frame, so frames may be reported in another camera frame than the keyframes
+/// (7-Scenes: the depth camera). Frames before the first keyframe stay as they are.
+/// `frames`: (time [ns], tracked camera-to-world); `keyframes` in any order.
+std::vector<Pose3> correctFramePoses(const std::vector<std::pair<std::int64_t, Pose3>>& frames,
+                                     std::vector<KeyframeCorrection> keyframes);
 
 }  // namespace tessera::visual_slam

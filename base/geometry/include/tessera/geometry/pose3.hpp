@@ -21,6 +21,17 @@ struct Pose3 {
     const Eigen::Quaterniond qi = q.conjugate();
     return {-(qi * t), qi};
   }
+
+  /// From and to Eigen's isometry (OpenCV- and Eigen-facing code holds poses that way).
+  static Pose3 fromIsometry(const Eigen::Isometry3d& T) {
+    return {T.translation(), Eigen::Quaterniond(T.rotation()).normalized()};
+  }
+  Eigen::Isometry3d isometry() const {
+    Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
+    T.linear() = q.toRotationMatrix();
+    T.translation() = t;
+    return T;
+  }
 };
 
 }  // namespace tessera
