@@ -1,23 +1,27 @@
-// `tessera eval relations|ate|rpe|landmarks`: accuracy of a trajectory or landmark map against a
-// reference. Without --json the summary goes to stdout; with --json stdout holds exactly one JSON
-// object and the summary goes to stderr, so the output can be piped into other tools.
-// Exit codes: 0 ok; 2 usage errors (bad option values, an input file that does not exist);
-// 1 bad input contents (malformed line: the message names file:line) or nothing to compare.
+// `tessera eval relations|ate|rpe|landmarks|loops`: accuracy of a trajectory or landmark map
+// against a reference. Without --json the summary goes to stdout; with --json stdout holds exactly
+// one JSON object and the summary goes to stderr, so the output can be piped into other tools. Exit
+// codes: 0 ok; 2 usage errors (bad option values, an input file that does not exist); 1 bad input
+// contents (malformed line: the message names file:line) or nothing to compare.
 #include "cli_inputs.hpp"
 #include "commands.hpp"
 
 #include <tessera/datasets/relations.hpp>
 #include <tessera/evaluation/landmark_io.hpp>
+#include <tessera/evaluation/loop_metrics.hpp>
 #include <tessera/evaluation/trajectory_metrics.hpp>
 #include <tessera/mapping/trajectory_io.hpp>
+#include <tessera/pose_graph/pose_graph_io.hpp>
 #include <tessera/runtime/options.hpp>
 
 #include <nlohmann/json.hpp>
 
+#include <algorithm>
 #include <cmath>
 #include <filesystem>
 #include <iomanip>
 #include <iostream>
+#include <map>
 #include <memory>
 #include <sstream>
 
@@ -309,6 +313,90 @@ void addLandmarks(CLI::App& eval, int& result) {
   });
 }
 
+void addLoops(CLI::App& eval, int& result) {
+  auto* cmd = eval.add_subcommand(
+      "loops", "loop closures of a keyframe graph against a reference trajectory (precision)");
+  struct Args {
+    std::string graph, keyframes, reference;
+    LoopCheckOptions check;
+    bool json = false;
+  };
+  auto a = std::make_shared<Args>();
+  cmd->add_option("--graph", a->graph, "keyframe graph, g2o (keyframe_graph.g2o)")->required();
+  cmd->add_option("--keyframes", a->keyframes,
+                  "the graph's keyframes in id order, TUM (keyframes.tum): their stamps")
+      ->required();
+  cmd->add_option("--reference", a->reference, "reference trajectory, TUM (ground_truth.tum)")
+      ->required();
+  cmd->add_option("--max-error", a->check.max_error_m, "[m] a loop further off is false")
+      ->capture_default_str();
+  cmd->add_option("--max-error-deg", a->check.max_error_deg, "[deg] a loop further off is false")
+      ->capture_default_str();
+  cmd->add_option("--max-diff", a->check.max_difference_s,
+                  "[s] largest stamp difference to a reference pose")
+      ->capture_default_str();
+  cmd->add_flag("--json", a->json, "print one JSON object on stdout");
+  cmd->callback([a, &result] {
+    requireFinite(a->check.max_error_m, "--max-error");
+    requireFinite(a->check.max_error_deg, "--max-error-deg");
+    requireFile(a->graph, "--graph");
+    const pose_graph::PoseGraphFile file = pose_graph::readPoseGraph(a->graph);
+    if (file.dimension != 3)
+      throw TrajectoryError(a->graph + ": a 2D graph; loops of an SE(3) keyframe graph expected");
+    const auto keyframes = loadTrajectory(a->keyframes, "--keyframes");
+    const auto reference = loadTrajectory(a->reference, "--reference");
+    const pose_graph::Graph3D& g = file.graph3d;
+    if (keyframes.size() != static_cast<std::size_t>(g.size()))
+      throw TrajectoryError(a->keyframes + ": " + std::to_string(keyframes.size()) +
+                            " keyframes for a graph of " + std::to_string(g.size()) + " nodes");
+    // keyframes.tum lists the keyframes by increasing id, as the graph's node ids sort.
+    std::vector<std::int64_t> ids = g.ids;
+    std::sort(ids.begin(), ids.end());
+    std::map<std::int64_t, std::int64_t> stamp_of;
+    for (std::size_t i = 0; i < ids.size(); ++i) stamp_of[ids[i]] = keyframes[i].stamp_ns;
+    // Loop edges join non-consecutive keyframes; odometry edges join each to the next.
+    std::vector<RelativeMeasurement> loops;
+    for (const auto& e : g.edges) {
+      const std::int64_t from = g.ids[static_cast<std::size_t>(e.from)];
+      const std::int64_t to = g.ids[static_cast<std::size_t>(e.to)];
+      const auto fi = std::lower_bound(ids.begin(), ids.end(), from) - ids.begin();
+      const auto ti = std::lower_bound(ids.begin(), ids.end(), to) - ids.begin();
+      if (std::abs(ti - fi) == 1) continue;
+      loops.push_back({stamp_of.at(from), stamp_of.at(to), e.measurement});
+    }
+    const LoopCheckResult r = checkLoops(loops, reference, a->check);
+    Summary s("loop closures against the reference");
+    s.row("loops",
+          std::to_string(r.loops) + " (" + std::to_string(r.checked) + " with reference poses)");
+    s.row("false", std::to_string(r.false_loops) + " (error > " +
+                       Summary::num(a->check.max_error_m, 3) + " m or " +
+                       Summary::num(a->check.max_error_deg, 1) + " deg)");
+    s.row("precision", r.checked
+                           ? Summary::num(100.0 * static_cast<double>(r.checked - r.false_loops) /
+                                              static_cast<double>(r.checked),
+                                          1) +
+                                 " %"
+                           : std::string("n/a"));
+    s.stats("translation", r.translation, "m", 4);
+    s.stats("rotation", r.rotation_deg, "deg", 3);
+    s.print(a->json);
+    if (a->json) {
+      nlohmann::json j;
+      j["loops"] = r.loops;
+      j["checked"] = r.checked;
+      j["false"] = r.false_loops;
+      j["precision"] = r.checked ? static_cast<double>(r.checked - r.false_loops) /
+                                       static_cast<double>(r.checked)
+                                 : 0.0;
+      j["worst_true_error_m"] = r.worst_true_m;
+      j["translation_rmse_m"] = r.translation.rmse;
+      j["rotation_max_deg"] = r.rotation_deg.max;
+      std::cout << j.dump(2) << "\n";
+    }
+    result = 0;
+  });
+}
+
 }  // namespace
 
 void addEvalCommand(CLI::App& app, int& result) {
@@ -318,6 +406,7 @@ void addEvalCommand(CLI::App& app, int& result) {
   addAte(*eval, result);
   addRpe(*eval, result);
   addLandmarks(*eval, result);
+  addLoops(*eval, result);
 }
 
 }  // namespace tessera::app

@@ -1,6 +1,7 @@
 // `tessera eval ...` end to end: runs the built CLI on files written here and reads its JSON.
 #include <tessera/evaluation/landmark_io.hpp>
 #include <tessera/mapping/trajectory_io.hpp>
+#include <tessera/pose_graph/pose_graph_io.hpp>
 
 #include <nlohmann/json.hpp>
 
@@ -157,4 +158,60 @@ TEST_CASE("tessera eval: missing files are usage errors, bad lines name file:lin
       runCli("eval ate --estimate " + (dir / "late.tum").string() + " --reference " + good, dir);
   CHECK(disjoint.exit_code == 1);
   CHECK_THAT(disjoint.err, Catch::Contains("no estimate/reference stamps"));
+}
+
+TEST_CASE("tessera eval loops counts a loop that disagrees with the reference as false",
+          "[eval][cli]") {
+  const auto dir = tessera::test::scratchDir("eval_loops_cli");
+  // Keyframes every second along x; ground truth the same.
+  std::vector<TumPose> keyframes;
+  pose_graph::Graph3D g;
+  for (int i = 0; i < 6; ++i) {
+    const std::int64_t t = i * 1'000'000'000LL;
+    const Pose3 p{Eigen::Vector3d(i * 0.5, 0, 0), Eigen::Quaterniond::Identity()};
+    keyframes.push_back({t, p.t, p.q});
+    g.ids.push_back(i);
+    g.poses.push_back(p);
+    g.fixed.push_back(i == 0);
+  }
+  auto edge = [&](int from, int to, double dx) {
+    pose_graph::Edge3D e;
+    e.from = from;
+    e.to = to;
+    e.measurement = Pose3{Eigen::Vector3d(dx, 0, 0), Eigen::Quaterniond::Identity()};
+    g.edges.push_back(e);
+  };
+  for (int i = 0; i + 1 < 6; ++i) edge(i, i + 1, 0.5);  // odometry: never counted as loops
+  edge(5, 0, -2.5);                                     // true: 0 is 2.5 m behind 5
+  edge(4, 1, -1.0);                                     // false: 1 is 1.5 m behind 4
+  pose_graph::writeG2o(g, dir / "graph.g2o");
+  writeTum(dir / "keyframes.tum", keyframes);
+  writeTum(dir / "ref.tum", keyframes);
+  const std::string args = "eval loops --graph " + (dir / "graph.g2o").string() + " --keyframes " +
+                           (dir / "keyframes.tum").string() + " --reference " +
+                           (dir / "ref.tum").string();
+  const CliRun run = runCli(args + " --json", dir);
+  INFO(run.err);
+  REQUIRE(run.exit_code == 0);
+  const auto j = nlohmann::json::parse(run.out);
+  CHECK(j["loops"] == 2);
+  CHECK(j["checked"] == 2);
+  CHECK(j["false"] == 1);
+  CHECK(j["precision"].get<double>() == Approx(0.5));
+
+  // Keyframes that do not match the graph's nodes, and a missing graph, are clear errors.
+  keyframes.pop_back();
+  writeTum(dir / "short.tum", keyframes);
+  const CliRun bad =
+      runCli("eval loops --graph " + (dir / "graph.g2o").string() + " --keyframes " +
+                 (dir / "short.tum").string() + " --reference " + (dir / "ref.tum").string(),
+             dir);
+  CHECK(bad.exit_code == 1);
+  CHECK_THAT(bad.err, Catch::Contains("5 keyframes for a graph of 6 nodes"));
+  const CliRun missing =
+      runCli("eval loops --graph " + (dir / "none.g2o").string() + " --keyframes " +
+                 (dir / "short.tum").string() + " --reference " + (dir / "ref.tum").string(),
+             dir);
+  CHECK(missing.exit_code == 2);
+  CHECK_THAT(missing.err, Catch::Contains("none.g2o"));
 }
