@@ -12,10 +12,9 @@ namespace {
 /// The reference pose nearest to t, if within max_difference_s.
 std::optional<Pose3> nearest(const std::vector<mapping::TumPose>& sorted, std::int64_t t,
                              double max_difference_s) {
-  const auto it = std::lower_bound(sorted.begin(), sorted.end(), t,
-                                   [](const mapping::TumPose& p, std::int64_t x) {
-                                     return p.stamp_ns < x;
-                                   });
+  const auto it =
+      std::lower_bound(sorted.begin(), sorted.end(), t,
+                       [](const mapping::TumPose& p, std::int64_t x) { return p.stamp_ns < x; });
   const mapping::TumPose* best = nullptr;
   if (it != sorted.end()) best = &*it;
   if (it != sorted.begin() &&

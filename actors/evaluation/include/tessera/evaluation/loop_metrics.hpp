@@ -31,7 +31,7 @@ struct LoopCheckResult {
   std::size_t loops = 0, checked = 0, false_loops = 0;
   ErrorStats translation;  ///< [m] over the checked loops
   ErrorStats rotation_deg;
-  double worst_true_m = 0;  ///< largest translation error among the true loops
+  double worst_true_m = 0;                 ///< largest translation error among the true loops
   std::vector<std::size_t> false_indices;  ///< into the measurements
 };
 
