@@ -11,6 +11,7 @@
 #include <array>
 #include <cmath>
 #include <cstdint>
+#include <memory>
 #include <stdexcept>
 #include <string>
 #include <unordered_map>
@@ -101,8 +102,13 @@ LocalBundleAdjustmentStats adjustLocalWindow(std::vector<Keyframe>& keyframes,
     poses[k - oldest] = toParams(keyframes[k].camera_to_world.inverse());
   std::vector<bool> used(n - oldest, false);
 
-  ceres::Problem problem;
-  ceres::LossFunction* loss = new ceres::HuberLoss(options.huber_delta);  // owned by problem
+  // The loss outlives the problem and is ours: a window with no usable observation adds no
+  // residual block, and a problem owns only the losses its blocks use.
+  const auto huber = std::make_unique<ceres::HuberLoss>(options.huber_delta);
+  ceres::Problem::Options problem_options;
+  problem_options.loss_function_ownership = ceres::DO_NOT_TAKE_OWNERSHIP;
+  ceres::Problem problem(problem_options);
+  ceres::LossFunction* loss = huber.get();
   const double fxb = camera.fx * options.depth_baseline;
   bool any_fixed = false;
   for (std::size_t k = oldest; k < n; ++k) {
