@@ -9,20 +9,14 @@
 namespace tessera::evaluation {
 namespace {
 
-/// The reference pose nearest to t, if within max_difference_s.
-std::optional<Pose3> nearest(const std::vector<mapping::TumPose>& sorted, std::int64_t t,
+/// The reference pose nearest to t, if within max_difference_s (`stamps` sorted, as `poses`).
+std::optional<Pose3> nearest(const std::vector<mapping::TumPose>& poses,
+                             const std::vector<std::int64_t>& stamps, std::int64_t t,
                              double max_difference_s) {
-  const auto it =
-      std::lower_bound(sorted.begin(), sorted.end(), t,
-                       [](const mapping::TumPose& p, std::int64_t x) { return p.stamp_ns < x; });
-  const mapping::TumPose* best = nullptr;
-  if (it != sorted.end()) best = &*it;
-  if (it != sorted.begin() &&
-      (!best || std::llabs(std::prev(it)->stamp_ns - t) < std::llabs(best->stamp_ns - t)))
-    best = &*std::prev(it);
-  if (!best || std::llabs(best->stamp_ns - t) > std::llround(max_difference_s * 1e9))
-    return std::nullopt;
-  return Pose3{best->position, best->orientation.normalized()};
+  if (stamps.empty()) return std::nullopt;
+  const mapping::TumPose& p = poses[nearestIndex(stamps, t)];
+  if (std::llabs(p.stamp_ns - t) > std::llround(max_difference_s * 1e9)) return std::nullopt;
+  return Pose3{p.position, p.orientation.normalized()};
 }
 
 }  // namespace
@@ -33,12 +27,14 @@ LoopCheckResult checkLoops(const std::vector<RelativeMeasurement>& loops,
   std::vector<mapping::TumPose> sorted = reference;
   std::sort(sorted.begin(), sorted.end(),
             [](const auto& a, const auto& b) { return a.stamp_ns < b.stamp_ns; });
+  std::vector<std::int64_t> stamps;
+  for (const auto& p : sorted) stamps.push_back(p.stamp_ns);
   LoopCheckResult out;
   out.loops = loops.size();
   std::vector<double> translation, rotation;
   for (std::size_t i = 0; i < loops.size(); ++i) {
-    const auto a = nearest(sorted, loops[i].from_ns, options.max_difference_s);
-    const auto b = nearest(sorted, loops[i].to_ns, options.max_difference_s);
+    const auto a = nearest(sorted, stamps, loops[i].from_ns, options.max_difference_s);
+    const auto b = nearest(sorted, stamps, loops[i].to_ns, options.max_difference_s);
     if (!a || !b) continue;
     ++out.checked;
     const Pose3 truth = a->inverse() * *b;

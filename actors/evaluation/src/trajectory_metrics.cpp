@@ -34,15 +34,6 @@ std::vector<std::size_t> stampOrder(const std::vector<mapping::TumPose>& poses) 
   return order;
 }
 
-/// Index into sorted `stamps` of the stamp nearest to t (the earlier one on a tie).
-std::size_t nearestIndex(const std::vector<std::int64_t>& stamps, std::int64_t t) {
-  const auto it = std::lower_bound(stamps.begin(), stamps.end(), t);
-  if (it == stamps.begin()) return 0;
-  if (it == stamps.end()) return stamps.size() - 1;
-  const std::size_t hi = static_cast<std::size_t>(it - stamps.begin());
-  return (*it - t) < (t - stamps[hi - 1]) ? hi : hi - 1;
-}
-
 Eigen::Isometry3d isometry(const mapping::TumPose& p) {
   Eigen::Isometry3d t = Eigen::Isometry3d::Identity();
   t.linear() = p.orientation.normalized().toRotationMatrix();
@@ -366,6 +357,14 @@ LandmarkResult computeLandmarkError(const std::vector<Landmark>& estimate,
     errors.push_back((r.alignment.apply(from.col(k)) - to.col(k)).head<2>().norm());
   r.error = summarize(std::move(errors));
   return r;
+}
+
+std::size_t nearestIndex(const std::vector<std::int64_t>& stamps, std::int64_t t) {
+  const auto it = std::lower_bound(stamps.begin(), stamps.end(), t);
+  if (it == stamps.begin()) return 0;
+  if (it == stamps.end()) return stamps.size() - 1;
+  const std::size_t hi = static_cast<std::size_t>(it - stamps.begin());
+  return (*it - t) < (t - stamps[hi - 1]) ? hi : hi - 1;
 }
 
 }  // namespace tessera::evaluation

@@ -1,4 +1,5 @@
 #include <tessera/evaluation/landmark_io.hpp>
+#include <tessera/evaluation/loop_metrics.hpp>
 #include <tessera/evaluation/trajectory_metrics.hpp>
 
 #include <catch2/catch.hpp>
@@ -388,4 +389,24 @@ TEST_CASE("landmark files round-trip and malformed lines name file:line", "[eval
                                               Catch::Contains("duplicate landmark id 1") &&
                                               Catch::Contains("line 1"));
   CHECK_THROWS_AS(readLandmarks(dir / "absent.txt"), LandmarkFileError);
+}
+
+TEST_CASE("checkLoops leaves loops without reference unchecked and counts NaN loops false",
+          "[evaluation]") {
+  std::vector<mapping::TumPose> ref;
+  for (int i = 0; i < 5; ++i)
+    ref.push_back({i * 1'000'000'000LL, Eigen::Vector3d(i, 0, 0), Eigen::Quaterniond::Identity()});
+  const Pose3 back{Eigen::Vector3d(-3, 0, 0), Eigen::Quaterniond::Identity()};
+  Pose3 broken = back;
+  broken.t.x() = std::nan("");
+  const std::vector<RelativeMeasurement> loops = {
+      {4'000'000'000LL, 1'000'000'000LL, back},    // true
+      {4'000'000'000LL, 1'000'000'000LL, broken},  // NaN: false, never true
+      {9'000'000'000LL, 1'000'000'000LL, back}};   // no reference pose at 9 s
+  const LoopCheckResult r = checkLoops(loops, ref);
+  CHECK(r.loops == 3);
+  CHECK(r.checked == 2);
+  CHECK(r.false_loops == 1);
+  CHECK(r.false_indices == std::vector<std::size_t>{1});
+  CHECK(checkLoops(loops, {}).checked == 0);
 }

@@ -74,6 +74,9 @@ struct Alignment {
 Alignment alignPoints(const Eigen::Matrix3Xd& from, const Eigen::Matrix3Xd& to, bool planar,
                       bool with_scale);
 
+/// Index into sorted, non-empty `stamps` of the stamp nearest to t (the earlier one on a tie).
+std::size_t nearestIndex(const std::vector<std::int64_t>& stamps, std::int64_t t);
+
 struct AssociationOptions {
   double max_difference_s = 0.02;  ///< [s] largest stamp difference of a pair (TUM default)
   double offset_s = 0.0;           ///< [s] added to the estimate stamps before comparing
