@@ -11,4 +11,8 @@ cmake -S . -B build-asan -G Ninja -DCMAKE_BUILD_TYPE=Release -DCMAKE_CXX_FLAGS_R
 cmake --build build-asan -j "$(nproc)" --target tessera_unit_tests
 export ASAN_OPTIONS=detect_leaks=1:abort_on_error=1:strict_string_checks=1
 export UBSAN_OPTIONS=print_stacktrace=1:halt_on_error=1
+# Without arguments every test but the [slow] ones: those (whole-dataset tracking, long rendered
+# routes) run the same code as shorter tests under the sanitizers many times over and would take
+# most of CI's time; the regular build runs them.
+if [ $# -eq 0 ]; then set -- "~[slow]"; fi
 build-asan/bin/tessera_unit_tests "$@"

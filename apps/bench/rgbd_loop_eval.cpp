@@ -2,10 +2,12 @@
 // keyframe graph and its ATE (see the header).
 #include "rgbd_loop_eval.hpp"
 
+#include <tessera/evaluation/loop_metrics.hpp>
 #include <tessera/evaluation/trajectory_metrics.hpp>
 #include <tessera/runtime/options.hpp>
 #include <tessera/visual_slam/keyframe_graph.hpp>
 
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <stdexcept>
@@ -77,17 +79,6 @@ void LoopEvaluation::addKeyframe(const vs::Keyframe& keyframe, int inliers,
   }
 }
 
-bool LoopEvaluation::trueLoop(std::size_t from, std::size_t to, const Eigen::Isometry3d& measured,
-                              double* error_m) const {
-  const Entry& a = entries_[from];
-  const Entry& b = entries_[to];
-  if (!a.has_truth || !b.has_truth) return false;
-  const Eigen::Isometry3d err = (a.truth.inverse() * b.truth).inverse() * measured;
-  *error_m = err.translation().norm();
-  const double deg = Eigen::AngleAxisd(err.rotation()).angle() * 180 / M_PI;
-  return *error_m <= max_error_m_ && deg <= max_error_deg_;
-}
-
 LoopEvalFigures LoopEvaluation::finish() {
   const auto& s = detector_->stats();
   f_.keyframes = entries_.size();
@@ -97,15 +88,31 @@ LoopEvalFigures LoopEvaluation::finish() {
   f_.accepted = loops_.size();
   f_.ms_per_keyframe = entries_.empty() ? 0 : ms_ / static_cast<double>(entries_.size());
 
+  // Each loop against the true relative pose of its keyframes (evaluation::checkLoops, the check
+  // `tessera eval loops` makes); a loop whose keyframes lack a true pose counts as false here.
+  const auto ns = [](double t) { return static_cast<std::int64_t>(std::llround(t * 1e9)); };
+  std::vector<evaluation::RelativeMeasurement> measured;
+  for (const auto& l : loops_)
+    measured.push_back({ns(entries_[l.from].timestamp), ns(entries_[l.to].timestamp),
+                        Pose3::fromIsometry(l.relative)});
+  std::vector<mapping::TumPose> reference;
+  for (const auto& e : entries_)
+    if (e.has_truth)
+      reference.push_back(
+          {ns(e.timestamp), e.truth.translation(), Eigen::Quaterniond(e.truth.rotation())});
+  evaluation::LoopCheckOptions check;
+  check.max_error_m = max_error_m_;
+  check.max_error_deg = max_error_deg_;
+  check.max_difference_s = 1e-6;  // keyframe stamps are the reference's own
+  const evaluation::LoopCheckResult checked = checkLoops(measured, reference, check);
+  f_.false_loops = checked.false_loops + (checked.loops - checked.checked);
+  f_.worst_true_error_m = checked.worst_true_m;
   std::vector<char> detected(entries_.size(), 0);
-  for (const auto& l : loops_) {
-    double err = 0;
-    if (trueLoop(l.from, l.to, l.relative, &err)) {
-      detected[l.to] = 1;
-      f_.worst_true_error_m = std::max(f_.worst_true_error_m, err);
-    } else {
-      ++f_.false_loops;
-    }
+  for (std::size_t i = 0; i < loops_.size(); ++i) {
+    const auto& l = loops_[i];
+    const bool is_false = std::find(checked.false_indices.begin(), checked.false_indices.end(),
+                                    i) != checked.false_indices.end();
+    if (!is_false && entries_[l.from].has_truth && entries_[l.to].has_truth) detected[l.to] = 1;
   }
   // Ground-truth revisits: enough of keyframe j's points fall in an old keyframe's image.
   const auto gap = static_cast<std::size_t>(options_.database.recent_excluded);

@@ -61,8 +61,6 @@ class LoopEvaluation {
     double timestamp = 0;
     std::vector<Eigen::Vector3d> points;
   };
-  bool trueLoop(std::size_t from, std::size_t to, const Eigen::Isometry3d& measured,
-                double* error_m) const;
 
   visual_slam::LoopDetectorOptions options_;
   visual_slam::PinholeCamera camera_;

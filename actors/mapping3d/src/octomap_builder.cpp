@@ -36,6 +36,7 @@ void OctoMapOptions::validate() const {
   if (!(log_odds_min < log_odds_occupied && log_odds_occupied < log_odds_max))
     throw std::invalid_argument("log_odds_occupied must lie between log_odds_min and log_odds_max");
   if (downsample_leaf < 0) throw std::invalid_argument("downsample_leaf must be >= 0");
+  if (prune_period < 1) throw std::invalid_argument("prune_period must be >= 1");
 }
 
 namespace {
@@ -81,7 +82,17 @@ Scan toScan(const PointCloud& cloud, const Eigen::Isometry3d& camera_to_world,
   return scan;
 }
 
-void insertScan(octomap::OcTree& tree, const Scan& scan, const OctoMapOptions& o) {
+// What the eager path does per voxel, for the whole tree at once: parents' occupancy, then
+// merging of children that agree (without it the tree keeps every leaf and uses ~5x the memory).
+void finalize(octomap::OcTree& tree) {
+  tree.updateInnerOccupancy();
+  tree.prune();
+}
+
+// Inserts a scan; with lazy evaluation `*unfinalized` counts the clouds since the tree was last
+// finalized, which happens every prune_period clouds.
+void insertScan(octomap::OcTree& tree, const Scan& scan, const OctoMapOptions& o,
+                int* unfinalized) {
   const double range = o.max_range > 0 ? o.max_range : -1.0;
   switch (o.method) {
     case InsertMethod::kPointCloud:
@@ -94,11 +105,9 @@ void insertScan(octomap::OcTree& tree, const Scan& scan, const OctoMapOptions& o
       tree.insertPointCloudRays(scan.points, scan.origin, range, o.lazy_eval);
       break;
   }
-  if (o.lazy_eval) {
-    // What the eager path does per voxel, once per cloud: parents' occupancy, then merging of
-    // children that agree (without it the tree keeps every leaf and uses ~5x the memory).
-    tree.updateInnerOccupancy();
-    tree.prune();
+  if (o.lazy_eval && ++*unfinalized >= o.prune_period) {
+    finalize(tree);
+    *unfinalized = 0;
   }
 }
 
@@ -109,6 +118,15 @@ struct OctoMapBuilder::State {
   std::condition_variable changed;
   std::shared_ptr<octomap::OcTree> tree;  // served; replaced whole by a finished rebuild
   std::size_t clouds = 0, points = 0, rebuilds = 0;
+  int unfinalized = 0;  // clouds in `tree` since its inner nodes were last updated
+
+  // Inner nodes up to date before anything reads the tree as a whole (stats, files).
+  void finalizeServed() {
+    if (unfinalized > 0) {
+      finalize(*tree);
+      unfinalized = 0;
+    }
+  }
 
   // Rebuild: the latest request not yet taken by the worker, whether the worker is building, and
   // the scans inserted since the request being built was made (applied to its tree before the
@@ -135,6 +153,7 @@ void OctoMapBuilder::State::work(const OctoMapOptions& o) {
 
     auto fresh = makeTree(o);
     std::size_t fresh_points = 0;
+    int fresh_unfinalized = 0;
     bool superseded = false;
     for (const auto& k : keyframes) {
       {
@@ -143,7 +162,7 @@ void OctoMapBuilder::State::work(const OctoMapOptions& o) {
       }
       if (superseded) break;
       const Scan scan = toScan(*k.cloud, k.camera_to_world, o);
-      insertScan(*fresh, scan, o);
+      insertScan(*fresh, scan, o, &fresh_unfinalized);
       fresh_points += scan.points.size();
     }
 
@@ -151,9 +170,10 @@ void OctoMapBuilder::State::work(const OctoMapOptions& o) {
     if (!superseded && !stop && generation == mine) {
       // Clouds inserted into the old tree while this one was built: the swap must not lose them.
       for (const auto& scan : since_request) {
-        insertScan(*fresh, scan, o);
+        insertScan(*fresh, scan, o, &fresh_unfinalized);
         fresh_points += scan.points.size();
       }
+      unfinalized = fresh_unfinalized;
       clouds = keyframes.size() + since_request.size();
       points = fresh_points;
       since_request.clear();
@@ -184,7 +204,7 @@ void OctoMapBuilder::insert(const PointCloud& cloud, const Eigen::Isometry3d& ca
   checkPose(camera_to_world, "pose");
   Scan scan = toScan(cloud, camera_to_world, options_);
   std::lock_guard lock(state_->mutex);
-  insertScan(*state_->tree, scan, options_);
+  insertScan(*state_->tree, scan, options_, &state_->unfinalized);
   ++state_->clouds;
   state_->points += scan.points.size();
   if (state_->request || state_->building) state_->since_request.push_back(std::move(scan));
@@ -232,6 +252,7 @@ Occupancy OctoMapBuilder::occupancy(const Eigen::Vector3d& point) const {
 
 OctoMapStats OctoMapBuilder::stats() const {
   std::lock_guard lock(state_->mutex);
+  state_->finalizeServed();
   OctoMapStats s;
   const auto& tree = *state_->tree;
   for (auto it = tree.begin_leafs(), end = tree.end_leafs(); it != end; ++it) {
@@ -250,6 +271,7 @@ OctoMapStats OctoMapBuilder::stats() const {
 
 void OctoMapBuilder::writeBinary(const std::filesystem::path& file) const {
   std::lock_guard lock(state_->mutex);
+  state_->finalizeServed();
   if (!state_->tree->writeBinaryConst(file.string()))
     throw std::runtime_error(file.string() + ": writing the OctoMap failed");
 }
@@ -265,6 +287,7 @@ void OctoMapBuilder::readBinary(const std::filesystem::path& file) {
   waitForRebuild();
   std::lock_guard lock(state_->mutex);
   state_->tree = std::move(tree);
+  state_->unfinalized = 0;
   state_->clouds = 0;
   state_->points = 0;
 }

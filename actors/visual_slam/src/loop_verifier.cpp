@@ -5,6 +5,7 @@
 #include <Eigen/Geometry>
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <limits>
 #include <stdexcept>
@@ -74,6 +75,12 @@ void LoopVerifierOptions::validate() const {
        "max_point_distance_rel must be >= 0");
   need(std::isfinite(min_depth_agreement) && min_depth_agreement >= 0 && min_depth_agreement <= 1,
        "min_depth_agreement must be in [0, 1]");
+  need(std::isfinite(min_coverage) && min_coverage >= 0 && min_coverage <= 1,
+       "min_coverage must be in [0, 1]");
+  need(std::isfinite(max_pose_disagreement_m) && max_pose_disagreement_m >= 0,
+       "max_pose_disagreement_m must be >= 0");
+  need(std::isfinite(max_pose_disagreement_rad) && max_pose_disagreement_rad >= 0,
+       "max_pose_disagreement_rad must be >= 0");
   need(std::isfinite(min_sigma_translation) && min_sigma_translation > 0,
        "min_sigma_translation must be > 0");
   need(std::isfinite(min_sigma_rotation) && min_sigma_rotation > 0,
@@ -101,6 +108,10 @@ std::string_view rejectionName(LoopRejection r) {
       return "high_error";
     case LoopRejection::kDepthDisagrees:
       return "depth_disagrees";
+    case LoopRejection::kLowCoverage:
+      return "low_coverage";
+    case LoopRejection::kPoseDisagrees:
+      return "pose_disagrees";
   }
   return "?";
 }
@@ -192,9 +203,15 @@ LoopVerification LoopVerifier::verify(const LoopView& query, const LoopView& can
   const Eigen::Isometry3d& query_from_candidate = est.camera_from_world;
   int with_depth = 0;
   std::vector<std::pair<int, int>> agreeing;  // inliers whose depths pass the 3D check
+  constexpr int kCells = 4;
+  std::array<bool, kCells * kCells> covered{};
   for (int i : est.inliers) {
     const auto [qi, cj] = pairs[static_cast<std::size_t>(i)];
     r.inlier_pairs.emplace_back(qi, cj);
+    const Eigen::Vector2d& px = query.pixels[qi];
+    const int cx = std::clamp(static_cast<int>(px.x() * kCells / camera_.width), 0, kCells - 1);
+    const int cy = std::clamp(static_cast<int>(px.y() * kCells / camera_.height), 0, kCells - 1);
+    covered[static_cast<std::size_t>(cy * kCells + cx)] = true;
     const Eigen::Vector3d& qp = query.points[qi];
     if (!qp.allFinite()) continue;
     ++with_depth;
@@ -204,7 +221,10 @@ LoopVerification LoopVerifier::verify(const LoopView& query, const LoopView& can
   }
   const auto agree = static_cast<int>(agreeing.size());
   r.depth_agreement = with_depth > 0 ? static_cast<double>(agree) / with_depth : 0.0;
+  r.coverage =
+      static_cast<double>(std::count(covered.begin(), covered.end(), true)) / (kCells * kCells);
   r.candidate_from_query = query_from_candidate.inverse();
+  bool fitted = false;
   if (options_.align_3d && agree >= 3) {
     // Rigid 3D-3D fit (least squares, Eigen's Umeyama) of the inliers that passed the 3D check:
     // at Kinect range the measured depths fix the pose better than reprojections of a few dozen
@@ -215,8 +235,15 @@ LoopVerification LoopVerifier::verify(const LoopView& query, const LoopView& can
       dst.col(c) = query.points[agreeing[static_cast<std::size_t>(c)].first];
     }
     const Eigen::Matrix4d m = Eigen::umeyama(src, dst, false);
-    Eigen::Isometry3d fit(m);
-    if (fit.matrix().allFinite()) r.candidate_from_query = fit.inverse();
+    const Eigen::Isometry3d fit(m);
+    if (fit.matrix().allFinite()) {
+      fitted = true;
+      r.candidate_from_query = fit.inverse();
+      r.fit_rms_m = std::sqrt((fit * src - dst).colwise().squaredNorm().mean());
+      const Eigen::Isometry3d diff = query_from_candidate.inverse() * fit;
+      r.pose_disagreement_m = diff.translation().norm();
+      r.pose_disagreement_rad = Eigen::AngleAxisd(diff.rotation()).angle();
+    }
   }
 
   if (r.inliers < options_.min_inliers)
@@ -227,6 +254,11 @@ LoopVerification LoopVerifier::verify(const LoopView& query, const LoopView& can
     r.rejection = LoopRejection::kHighError;
   else if (r.depth_agreement < options_.min_depth_agreement)
     r.rejection = LoopRejection::kDepthDisagrees;
+  else if (r.coverage < options_.min_coverage)
+    r.rejection = LoopRejection::kLowCoverage;
+  else if (fitted && (r.pose_disagreement_m > options_.max_pose_disagreement_m ||
+                      r.pose_disagreement_rad > options_.max_pose_disagreement_rad))
+    r.rejection = LoopRejection::kPoseDisagrees;
   else
     r.rejection = LoopRejection::kNone;
   r.accepted = r.rejection == LoopRejection::kNone;

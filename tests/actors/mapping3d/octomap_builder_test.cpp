@@ -124,6 +124,36 @@ TEST_CASE("a wall is occupied where it is, free in front and unknown behind",
   }
 }
 
+TEST_CASE("octomap prune_period changes neither the leaves nor their log-odds",
+          "[mapping3d][octomap]") {
+  // The same seven clouds (a wall seen from seven places) into a map that updates its inner
+  // nodes after every cloud and into one that does so every third cloud.
+  OctoMapOptions every, third;
+  every.prune_period = 1;
+  third.prune_period = 3;
+  OctoMapBuilder a(every), b(third);
+  const PointCloud wall = wallCloud(2.02);
+  for (int i = 0; i < 7; ++i) {
+    const Eigen::Isometry3d pose = at(0.05 * i, -0.03 * i, 0.02 * i);
+    a.insert(wall, pose);
+    b.insert(wall, pose);
+  }
+  for (double x = -0.5; x <= 0.8; x += 0.05)
+    for (double z = 0.1; z <= 2.5; z += 0.1) {
+      const Eigen::Vector3d p(x + 0.025, 0.025, z + 0.025);
+      const auto la = a.logOdds(p), lb = b.logOdds(p);
+      REQUIRE(la.has_value() == lb.has_value());
+      if (la) CHECK(*la == Approx(*lb).margin(1e-6));
+    }
+  const OctoMapStats sa = a.stats(), sb = b.stats();
+  CHECK(sa.leaves == sb.leaves);
+  CHECK(sa.occupied_leaves == sb.occupied_leaves);
+  CHECK(sa.memory_bytes == sb.memory_bytes);
+  OctoMapOptions bad;
+  bad.prune_period = 0;
+  CHECK_THROWS_WITH(OctoMapBuilder(bad), Contains("prune_period"));
+}
+
 TEST_CASE("octomap rebuild re-inserts moved keyframes and keeps newer clouds",
           "[mapping3d][octomap]") {
   OctoMapBuilder map;

@@ -107,6 +107,80 @@ TEST_CASE("LoopVerifier rejects unrelated views and shuffled points", "[loop_clo
   }
 }
 
+namespace {
+
+// `v` without the features whose pixel fails `keep` (the direct index is rebuilt by the caller).
+template <class Keep>
+vs::LoopView keepOnly(const vs::LoopView& v, Keep&& keep) {
+  vs::LoopView out;
+  std::vector<int> rows;
+  for (std::size_t i = 0; i < v.size(); ++i) {
+    if (!keep(v.pixels[i])) continue;
+    out.pixels.push_back(v.pixels[i]);
+    out.points.push_back(v.points[i]);
+    rows.push_back(static_cast<int>(i));
+  }
+  out.descriptors = cv::Mat(static_cast<int>(rows.size()), 32, CV_8UC1);
+  for (std::size_t r = 0; r < rows.size(); ++r)
+    v.descriptors.row(rows[r]).copyTo(out.descriptors.row(static_cast<int>(r)));
+  return out;
+}
+
+}  // namespace
+
+TEST_CASE("LoopVerifier rejects inliers bunched in part of the image", "[loop_closure]") {
+  const Wall wall(1);
+  vs::LoopView candidate = view(wall, cameraAt(3.0), 2);
+  const vs::LoopView full = view(wall, cameraAt(3.25, 0.08, 0.1), 3);
+  // Only the left half of the query image: at most 8 of the 16 cells.
+  vs::LoopView query = keepOnly(full, [](const Eigen::Vector2d& px) { return px.x() < 320; });
+  const auto voc = vocabularyFor({candidate, full});
+  vs::LoopVerifierOptions o;
+  index(*voc, candidate, o.direct_depth);
+  index(*voc, query, o.direct_depth);
+
+  const auto loose = vs::LoopVerifier(o, kCamera).verify(query, candidate);
+  INFO("inliers " << loose.inliers << " coverage " << loose.coverage << " reason "
+                  << vs::rejectionName(loose.rejection));
+  REQUIRE(loose.accepted);
+  CHECK(loose.coverage > 0.25);
+  CHECK(loose.coverage <= 0.5);
+  o.min_coverage = 0.6;
+  const auto strict = vs::LoopVerifier(o, kCamera).verify(query, candidate);
+  CHECK_FALSE(strict.accepted);
+  CHECK(strict.rejection == vs::LoopRejection::kLowCoverage);
+}
+
+TEST_CASE("LoopVerifier rejects a loop whose PnP and 3D poses disagree", "[loop_closure]") {
+  const Wall wall(1);
+  vs::LoopView candidate = view(wall, cameraAt(3.0), 2);
+  vs::LoopView query = view(wall, cameraAt(3.25, 0.08, 0.1), 3);
+  const auto voc = vocabularyFor({candidate, query});
+  vs::LoopVerifierOptions o;
+  index(*voc, candidate, o.direct_depth);
+  index(*voc, query, o.direct_depth);
+
+  const auto good = vs::LoopVerifier(o, kCamera).verify(query, candidate);
+  REQUIRE(good.accepted);
+  CHECK(good.pose_disagreement_m < 0.02);
+  CHECK(good.fit_rms_m < 0.02);
+
+  // A depth scale error of 3 % in the query (a badly calibrated sensor): each point still passes
+  // the 3D check, but the 3D fit moves ~9 cm along the optical axis while PnP, driven by the
+  // reprojections, does not follow.
+  for (auto& p : query.points) p *= 1.03;
+  const auto scaled = vs::LoopVerifier(o, kCamera).verify(query, candidate);
+  INFO("disagreement " << scaled.pose_disagreement_m << " m, depth agreement "
+                       << scaled.depth_agreement << " reason "
+                       << vs::rejectionName(scaled.rejection));
+  REQUIRE(scaled.accepted);
+  CHECK(scaled.pose_disagreement_m > 0.03);
+  o.max_pose_disagreement_m = 0.03;
+  const auto strict = vs::LoopVerifier(o, kCamera).verify(query, candidate);
+  CHECK_FALSE(strict.accepted);
+  CHECK(strict.rejection == vs::LoopRejection::kPoseDisagrees);
+}
+
 TEST_CASE("LoopVerifier and LoopView handle bad input", "[loop_closure]") {
   const Wall wall(1);
   vs::LoopView good = view(wall, cameraAt(3.0), 2);

@@ -360,7 +360,7 @@ TEST_CASE("keyframe database: temporal consistency accepts after k consecutive m
 }
 
 TEST_CASE("7-Scenes RedKitchen: whole-image scores with the DBoW3 vocabulary",
-          "[visual_slam][bow][dataset]") {
+          "[visual_slam][bow][dataset][slow]") {
   TESSERA_SHARED_DATA(folder, "7scenes-redkitchen-rgbd");
   TESSERA_SHARED_DATA(vocabulary, "orb-vocabulary-dbow3-small/vocabulary.yml.gz");
   const auto voc = vs::Vocabulary::load(vocabulary);

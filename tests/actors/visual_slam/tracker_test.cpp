@@ -91,7 +91,7 @@ void report(const char* name, const RunFigures& f) {
 
 }  // namespace
 
-TEST_CASE("tracker on 7-Scenes RedKitchen frames 0-449", "[visual_slam][dataset]") {
+TEST_CASE("tracker on 7-Scenes RedKitchen frames 0-449", "[visual_slam][dataset][slow]") {
   TESSERA_SHARED_DATA(folder, "7scenes-redkitchen-rgbd");
   const auto seq = tessera::datasets::readRgbdSequence(folder);
   REQUIRE(seq.frames.size() >= 450);

@@ -182,7 +182,8 @@ TEST_CASE("rgbd renderer: the office has tables the camera sees, and textures gi
   CHECK(features.with_depth > features.size() / 2);
 }
 
-TEST_CASE("rgbd renderer: the visual_slam tracker follows a short rendered route", "[sim][rgbd]") {
+TEST_CASE("rgbd renderer: the visual_slam tracker follows a short rendered route",
+          "[sim][rgbd][slow]") {
   const World office = World::builtinOffice();
   const RgbdCameraConfig config;
   const RgbdRenderer r(office, 2.5, config);

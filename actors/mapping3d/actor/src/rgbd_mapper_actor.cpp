@@ -260,7 +260,10 @@ void RgbdMapperActor::onPoses(const Message<msg::KeyframePoses>& m) {
 }
 
 void RgbdMapperActor::stop() {
+  const auto t0 = std::chrono::steady_clock::now();
   octomap_->waitForRebuild();
+  stop_wait_ms_ =
+      std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
   if (!output_dir_.empty()) writeOutputs();
 }
 
@@ -275,6 +278,8 @@ void RgbdMapperActor::writeOutputs() {
     if (!options_.pcd_file.empty() || !options_.ply_file.empty())
       map_thread_->run([&] { cloud = cloud_map_.assemble(); });
     assembled_points_ = cloud.size();
+    assemble_ms_ =
+        std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
     if (!options_.pcd_file.empty()) {
       writePcd(cloud, dir / options_.pcd_file);
       pcd_path_ = (dir / options_.pcd_file).string();
@@ -322,6 +327,7 @@ void RgbdMapperActor::summarize(Summary& out) const {
   out["keyframes_moved"] = i64(keyframes_moved_);
   out["rebuilds"] = i64(rebuilds_);
   out["rebuilds_completed"] = i64(s.rebuilds_completed);
+  out["stop_rebuild_wait_ms"] = stop_wait_ms_;  // stop() waiting for the last rebuild
   // Per mapped keyframe: the cloud (back-projection, voxel filter) and the OctoMap
   // insertion; max is of both together.
   const double n = mapped_ > 0 ? static_cast<double>(mapped_) : 1.0;
@@ -334,6 +340,7 @@ void RgbdMapperActor::summarize(Summary& out) const {
     out["saves"] = i64(saves_);
     out["assembled_points"] = i64(assembled_points_);
     out["write_ms"] = write_ms_;  // the last save
+    out["assemble_ms"] = assemble_ms_;
   }
   if (!pcd_path_.empty()) out["pcd_path"] = pcd_path_;
   if (!ply_path_.empty()) out["ply_path"] = ply_path_;

@@ -9,6 +9,7 @@
 #include <cctype>
 #include <cmath>
 #include <cstring>
+#include <filesystem>
 #include <iostream>
 #include <limits>
 #include <stdexcept>
@@ -91,6 +92,37 @@ void LoopDetectorActor::configure(ActorContext& ctx) {
   ctx.subscribe<msg::Keyframe>("keyframes", MailboxPolicy::reliable(),
                                [this](const Message<msg::Keyframe>& m) { onKeyframe(m); });
   pub_ = ctx.advertise<msg::KeyframeConstraint>("loop_constraints");
+  if (!options_.loops_file.empty() && !ctx.outputDir().empty()) {
+    loops_path_ = (std::filesystem::path(ctx.outputDir()) / options_.loops_file).string();
+    loops_out_ = std::make_unique<std::ofstream>(loops_path_);
+    if (!*loops_out_)
+      throw ConfigError("rgbd_loop_detector: loops_file: cannot write " + loops_path_);
+    *loops_out_ << "query_id,candidate_id,query_stamp_ns,candidate_stamp_ns,accepted,rejection,"
+                   "matches,inliers,inlier_ratio,rms_px,depth_agreement,coverage,fit_rms_m,"
+                   "pose_disagreement_m,pose_disagreement_rad,x,y,z,qx,qy,qz,qw\n";
+  }
+}
+
+void LoopDetectorActor::stop() {
+  if (loops_out_) {
+    loops_out_->flush();
+    if (!*loops_out_) loops_error_ = loops_path_ + ": write failed";
+    loops_out_.reset();
+  }
+}
+
+void LoopDetectorActor::writeRow(const LoopQuery& q) {
+  if (!loops_out_ || !q.verification || !q.candidate) return;
+  const LoopVerification& v = *q.verification;
+  const Eigen::Isometry3d& T = v.candidate_from_query;
+  const Eigen::Quaterniond r(T.rotation());
+  std::ostream& o = *loops_out_;
+  o << q.query << ',' << *q.candidate << ',' << stamps_[q.query] << ',' << stamps_[*q.candidate]
+    << ',' << (v.accepted ? 1 : 0) << ',' << rejectionName(v.rejection) << ',' << v.matches << ','
+    << v.inliers << ',' << v.inlier_ratio << ',' << v.rms_px << ',' << v.depth_agreement << ','
+    << v.coverage << ',' << v.fit_rms_m << ',' << v.pose_disagreement_m << ','
+    << v.pose_disagreement_rad << ',' << T.translation().x() << ',' << T.translation().y() << ','
+    << T.translation().z() << ',' << r.x() << ',' << r.y() << ',' << r.z() << ',' << r.w() << '\n';
 }
 
 void LoopDetectorActor::onKeyframe(const Message<msg::Keyframe>& m) {
@@ -99,8 +131,10 @@ void LoopDetectorActor::onKeyframe(const Message<msg::Keyframe>& m) {
   std::string why = toLoopKeyframe(*m, k);
   if (why.empty()) {
     stamps_[k.id] = m->getHeader().getStampNs();
-    for (const auto& q : detector_->add(std::move(k), &why))
+    for (const auto& q : detector_->add(std::move(k), &why)) {
+      writeRow(q);
       if (q.accepted()) publish(q);
+    }
   }
   if (!why.empty()) {
     std::cerr << "[rgbd_loop_detector] " << why << "; skipped\n";
@@ -145,6 +179,8 @@ void LoopDetectorActor::summarize(Summary& out) const {
   if (const Vocabulary* voc = detector_->vocabulary())
     out["vocabulary_words"] = i64(voc->wordCount());
   if (s.bootstrapped) out["bootstrap_s"] = s.bootstrap_seconds;
+  if (!loops_path_.empty()) out["loops_file"] = loops_path_;
+  if (!loops_error_.empty()) out["loops_file_error"] = loops_error_;
 }
 
 TESSERA_REGISTER_ACTOR("rgbd_loop_detector", LoopDetectorActor, LoopDetectorActorOptions,

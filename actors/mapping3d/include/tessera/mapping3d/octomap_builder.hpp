@@ -55,10 +55,14 @@ struct OctoMapOptions {
   /// [m] voxel-filter each cloud at this leaf before insertion (0 = off); at the resolution it
   /// keeps one point per voxel, which is what the tree can hold anyway.
   double downsample_leaf = 0.0;
-  /// octomap's lazy evaluation: inner nodes are updated and pruned once per cloud
-  /// (updateInnerOccupancy, prune) instead of after every voxel update: the same tree, faster
-  /// (docs/benchmarks.md#octomap-insertion-tessera-bench-octomap).
+  /// octomap's lazy evaluation: inner nodes are updated and the tree pruned
+  /// (updateInnerOccupancy, prune) every `prune_period` clouds instead of after every voxel
+  /// update: the same leaves, faster (docs/benchmarks.md#octomap-insertion-tessera-bench-octomap).
   bool lazy_eval = true;
+  /// With lazy_eval: clouds between two updates of the inner nodes, and before any statistics or
+  /// write. Both walk the whole tree, so doing them after every cloud made a long run quadratic
+  /// (docs/algorithms.md#rgb-d-maps); leaf queries are exact in between.
+  int prune_period = 20;
 
   template <class V>
   void visit(V& v) {
@@ -71,7 +75,9 @@ struct OctoMapOptions {
     v("log_odds_occupied", log_odds_occupied, "log-odds above which a voxel is occupied");
     v("method", method, "insertion: pointcloud, discretized or rays");
     v("downsample_leaf", downsample_leaf, "voxel-filter clouds before insertion; 0 = off [m]");
-    v("lazy_eval", lazy_eval, "update inner nodes once per cloud instead of per voxel");
+    v("lazy_eval", lazy_eval, "update inner nodes once per prune_period clouds, not per voxel");
+    v("prune_period", prune_period,
+      "with lazy_eval: clouds between updates of the inner nodes and pruning (1 = every cloud)");
   }
   /// Throws std::invalid_argument naming the first bad option (l_min < l_occupied < l_max,
   /// l_miss < 0 < l_hit, resolution > 0, all finite).

@@ -103,6 +103,7 @@ class RgbdMapperActor final : public Actor {
   std::uint64_t pose_messages_ = 0, keyframes_moved_ = 0, rebuilds_ = 0, saves_ = 0;
   std::map<std::string, std::uint64_t> keyframes_bad_, poses_bad_;
   double cloud_ms_total_ = 0, insert_ms_total_ = 0, insert_ms_max_ = 0, write_ms_ = 0;
+  double assemble_ms_ = 0, stop_wait_ms_ = 0;
   std::size_t assembled_points_ = 0;
   std::string pcd_path_, ply_path_, octomap_path_, write_error_;
 };

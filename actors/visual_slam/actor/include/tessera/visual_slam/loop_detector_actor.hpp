@@ -16,6 +16,9 @@
 // in the constructor; a bad file is a ConfigError). Empty: the detector trains one on the first
 // detector.bootstrap_keyframes keyframes (their loops are then searched in order), so a run
 // without external data (the simulated office) still closes loops.
+// Output (with an output directory): loops_file, a CSV row per verified candidate, accepted or not
+// (ids, stamps, the verification's figures, the relative pose), to judge loops against ground
+// truth or tune the verifier (docs/algorithms.md#loop-closure).
 // A keyframe it cannot use (checks of keyframe_message.hpp, non-binary or non-32-byte
 // descriptors, NaN pixels) is counted by reason and skipped, never a crash.
 #pragma once
@@ -26,6 +29,7 @@
 #include <tessera/visual_slam/loop_detector.hpp>
 
 #include <cstdint>
+#include <fstream>
 #include <map>
 #include <memory>
 #include <string>
@@ -46,11 +50,14 @@ struct VocabularySource {
 struct LoopDetectorActorOptions {
   VocabularySource vocabulary;
   LoopDetectorOptions detector;
+  std::string loops_file = "loops.csv";
 
   template <class V>
   void visit(V& v) {
     v("vocabulary", vocabulary, "the bag-of-words vocabulary");
     v("detector", detector, "candidates, verification and the vocabulary bootstrap");
+    v("loops_file", loops_file,
+      "CSV of every verified candidate in the output directory; empty: none");
   }
 };
 
@@ -59,6 +66,7 @@ class LoopDetectorActor final : public Actor {
   /// Throws ConfigError on invalid options or an unreadable vocabulary file.
   explicit LoopDetectorActor(LoopDetectorActorOptions options);
   void configure(ActorContext& ctx) override;
+  void stop() override;
   /// keyframes_received, keyframes_bad (and bad_<reason>), queries, candidates, verified,
   /// rejected (and rejected_<reason>), skipped_<status>, published, vocabulary source and size.
   void summarize(Summary& out) const override;
@@ -68,6 +76,7 @@ class LoopDetectorActor final : public Actor {
  private:
   void onKeyframe(const Message<msg::Keyframe>& m);
   void publish(const LoopQuery& q);
+  void writeRow(const LoopQuery& q);
 
   LoopDetectorActorOptions options_;
   std::unique_ptr<LoopDetector> detector_;
@@ -76,6 +85,8 @@ class LoopDetectorActor final : public Actor {
   std::map<std::int64_t, std::int64_t> stamps_;  ///< keyframe id -> header stamp [ns]
   std::map<std::string, std::uint64_t> bad_;
   std::uint64_t received_ = 0, published_ = 0;
+  std::unique_ptr<std::ofstream> loops_out_;
+  std::string loops_path_, loops_error_;
 };
 
 }  // namespace tessera::visual_slam
