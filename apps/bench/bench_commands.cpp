@@ -16,6 +16,7 @@ void addBenchCommands(CLI::App& app, int& result) {
   addBenchMatcherCommand(*bench, result);
   addBenchRgbdCommand(*bench, result);
   addBenchOctomapCommand(*bench, result);
+  addBenchPlannerCommand(*bench, result);
 }
 
 }  // namespace tessera::app

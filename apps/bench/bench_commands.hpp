@@ -22,5 +22,7 @@ void addBenchMatcherCommand(CLI::App& bench, int& result);
 void addBenchRgbdCommand(CLI::App& bench, int& result);
 /// Adds `tessera bench octomap` (OctoMap insertion rate and memory from RGB-D keyframe clouds).
 void addBenchOctomapCommand(CLI::App& bench, int& result);
+/// Adds `tessera bench planner` (global planners on a synthetic office costmap).
+void addBenchPlannerCommand(CLI::App& bench, int& result);
 
 }  // namespace tessera::app

@@ -1,4 +1,5 @@
-// GridPlanner: 8-connected Dijkstra / A* over a Costmap, and line-of-sight shortening.
+// GridPlanner: 8-connected Dijkstra / A* over a Costmap (integer costs, a bucket queue), and
+// line-of-sight shortening.
 #include <tessera/navigation/grid_planner.hpp>
 
 #include <tessera/config/config_check.hpp>
@@ -7,15 +8,16 @@
 #include <array>
 #include <cmath>
 #include <cstdlib>
-#include <functional>
 #include <limits>
-#include <queue>
+#include <stdexcept>
+#include <string>
 
 namespace tessera::navigation {
 
 void GridPlannerOptions::validate() const {
   ConfigCheck()
       .nonNegative("cost_weight", cost_weight)
+      .require(cost_weight <= 100, "cost_weight", "must be <= 100", cost_weight)
       .require(unknown_cost >= 0 && unknown_cost <= cost::kMaxTraversable, "unknown_cost",
                "must be in [0, 252]", unknown_cost)
       .throwIfBad("grid planner");
@@ -52,6 +54,21 @@ double GridPlanner::stepFactor(std::uint8_t c) const {
   return 1.0 + options_.cost_weight * counted / cost::kMaxTraversable;
 }
 
+namespace {
+
+constexpr int kGBits = 42;
+constexpr std::uint64_t kGMask = (std::uint64_t{1} << kGBits) - 1;
+constexpr std::uint64_t kMaxGeneration = (std::uint64_t{1} << (64 - kGBits - 1)) - 1;
+
+// Moves 0-3 straight (+x, -x, +y, -y), 4-7 diagonal; a diagonal move needs both straight moves
+// beside it open (no squeezing between two blocked cells): kSideX / kSideY name them.
+constexpr int kDx[8] = {1, -1, 0, 0, 1, 1, -1, -1};
+constexpr int kDy[8] = {0, 0, 1, -1, 1, -1, 1, -1};
+constexpr int kSideX[8] = {0, 0, 0, 0, 0, 0, 1, 1};
+constexpr int kSideY[8] = {0, 0, 0, 0, 2, 3, 2, 3};
+
+}  // namespace
+
 GridPath GridPlanner::plan(const Costmap& map, const Eigen::Vector2i& start,
                            const Eigen::Vector2i& goal) {
   GridPath out;
@@ -60,89 +77,125 @@ GridPath GridPlanner::plan(const Costmap& map, const Eigen::Vector2i& start,
   if (!passable(map.at(start))) return out.status = PlanStatus::kStartBlocked, out;
   if (!passable(map.at(goal))) return out.status = PlanStatus::kGoalBlocked, out;
 
-  constexpr double kInf = std::numeric_limits<double>::infinity();
   const std::size_t n = map.cells.size();
-  if (g_.size() != n) {
-    g_.assign(n, kInf);
-    parent_.assign(n, -1);
+  if (n > static_cast<std::size_t>(std::numeric_limits<std::int32_t>::max()))
+    throw std::invalid_argument("grid planner: a map of " + std::to_string(n) +
+                                " cells is too large (cells are indexed by int32)");
+  if (state_.size() != n) {
     state_.assign(n, 0);
-    touched_.clear();
-  } else {
-    for (const std::int32_t i : touched_) {
-      g_[static_cast<std::size_t>(i)] = kInf;
-      parent_[static_cast<std::size_t>(i)] = -1;
-      state_[static_cast<std::size_t>(i)] = 0;
-    }
-    touched_.clear();
+    generation_ = 0;
   }
+  if (generation_ == kMaxGeneration) {
+    std::fill(state_.begin(), state_.end(), 0);  // marks would wrap: start over
+    generation_ = 0;
+  }
+  ++generation_;
+  const std::uint64_t open_mark = 2 * generation_, closed_mark = open_mark + 1;
+
+  // Integer step costs per cell cost (0 = impassable). The octile heuristic below is built
+  // from the same units at factor 1, so it never exceeds a step's cost: consistent, exactly.
+  std::array<std::int64_t, 256> straight{}, diagonal{};
+  for (int c = 0; c < 256; ++c) {
+    const auto b = static_cast<std::uint8_t>(c);
+    if (!passable(b)) continue;
+    straight[static_cast<std::size_t>(c)] = std::llround(kStraightUnits * stepFactor(b));
+    diagonal[static_cast<std::size_t>(c)] = std::llround(kDiagonalUnits * stepFactor(b));
+  }
+  const std::int64_t max_step = *std::max_element(diagonal.begin(), diagonal.end());
 
   const int w = map.width, h = map.height;
-  const double res = map.resolution, diag = std::sqrt(2.0) * res;
   const bool astar = options_.algorithm == SearchAlgorithm::kAStar;
-  auto heuristic = [&](int col, int row) {
-    if (!astar) return 0.0;
-    const int dx = std::abs(col - goal.x()), dy = std::abs(row - goal.y());
-    return res * (std::max(dx, dy) - std::min(dx, dy)) + diag * std::min(dx, dy);
+  const int goal_col = goal.x(), goal_row = goal.y();
+  auto heuristic = [&](int col, int row) -> std::int64_t {
+    if (!astar) return 0;
+    const std::int64_t dx = std::abs(col - goal_col), dy = std::abs(row - goal_row);
+    const std::int64_t lo = std::min(dx, dy), hi = std::max(dx, dy);
+    return kStraightUnits * (hi - lo) + kDiagonalUnits * lo;
   };
-  // Step cost factor per cell cost (negative = impassable), looked up rather than recomputed.
-  std::array<double, 256> factor{};
-  for (int c = 0; c < 256; ++c)
-    factor[static_cast<std::size_t>(c)] =
-        passable(static_cast<std::uint8_t>(c)) ? stepFactor(static_cast<std::uint8_t>(c)) : -1.0;
-  // Equal f: the deeper entry first. On open floor many cells tie, and preferring the one
-  // closest to the goal walks straight there instead of widening the whole tie front.
-  struct Entry {
-    double f, g;
-    std::int32_t i;
-    bool operator>(const Entry& o) const { return f > o.f || (f == o.f && g < o.g); }
-  };
-  std::priority_queue<Entry, std::vector<Entry>, std::greater<>> open;
+  // A push's f exceeds the last popped one by at most a step plus the heuristic's drop.
+  open_.reset(max_step + (astar ? kDiagonalUnits : 0));
+
+  std::uint64_t* state = state_.data();
+  const std::uint8_t* cells = map.cells.data();
   const auto s = static_cast<std::int32_t>(map.index(start.x(), start.y()));
   const auto t = static_cast<std::int32_t>(map.index(goal.x(), goal.y()));
-  g_[static_cast<std::size_t>(s)] = 0;
-  touched_.push_back(s);
-  open.push({heuristic(start.x(), start.y()), 0.0, s});
+  state[s] = open_mark << kGBits;
+  open_.push(heuristic(start.x(), start.y()), s);
+  std::int32_t offset[8];
+  for (int k = 0; k < 8; ++k) offset[k] = kDy[k] * w + kDx[k];
 
-  static constexpr int kDx[8] = {1, -1, 0, 0, 1, 1, -1, -1};
-  static constexpr int kDy[8] = {0, 0, 1, -1, 1, -1, 1, -1};
-  const std::uint8_t* cells = map.cells.data();
-  while (!open.empty()) {
-    const Entry top = open.top();
-    open.pop();
-    const auto ui = static_cast<std::size_t>(top.i);
-    if (state_[ui] == 2) continue;  // a stale entry of a cell already closed
-    state_[ui] = 2;
+  // Keys are exact, so cells pop in order of f; among equal f the last reached first, which
+  // walks straight on across open floor rather than widening the whole front of equal f. An
+  // entry of a cell already closed is stale (a cheaper entry of it came first): skipped.
+  while (!open_.empty()) {
+    const std::int32_t ui = open_.pop().value;
+    std::uint64_t& u = state[ui];
+    if ((u >> kGBits) == closed_mark) continue;
+    u = (closed_mark << kGBits) | (u & kGMask);
     ++out.expanded;
-    if (top.i == t) break;
-    const int col = top.i % w, row = top.i / w;
-    const double g0 = g_[ui];
+    if (ui == t) break;
+    const auto g0 = static_cast<std::int64_t>(u & kGMask);
+    const int col = ui % w, row = ui / w;
+    // Away from the border every neighbour exists: no bounds checks there.
+    const bool interior = col > 0 && row > 0 && col + 1 < w && row + 1 < h;
+    bool open_side[4] = {false, false, false, false};
     for (int k = 0; k < 8; ++k) {
       const int nc = col + kDx[k], nr = row + kDy[k];
-      if (nc < 0 || nr < 0 || nc >= w || nr >= h) continue;
-      const std::size_t ni =
-          static_cast<std::size_t>(nr) * static_cast<std::size_t>(w) + static_cast<std::size_t>(nc);
-      const double f = factor[cells[ni]];
-      if (f < 0 || state_[ni] == 2) continue;
-      // No diagonal squeezes between two blocked cells.
-      if (k >= 4 && (factor[cells[static_cast<std::size_t>(row) * w + nc]] < 0 ||
-                     factor[cells[static_cast<std::size_t>(nr) * w + col]] < 0))
-        continue;
-      const double g = g0 + (k < 4 ? res : diag) * f;
-      if (g >= g_[ni]) continue;
-      if (state_[ni] == 0) touched_.push_back(static_cast<std::int32_t>(ni));
-      state_[ni] = 1;
-      g_[ni] = g;
-      parent_[ni] = top.i;
-      open.push({g + heuristic(nc, nr), g, static_cast<std::int32_t>(ni)});
+      if (k < 4) {
+        if (!interior && (nc < 0 || nr < 0 || nc >= w || nr >= h)) continue;
+      } else if (!open_side[kSideX[k]] || !open_side[kSideY[k]]) {
+        continue;  // (with both sides inside the map, so is the diagonal cell)
+      }
+      const std::int32_t vi = ui + offset[k];
+      const std::int64_t step = (k < 4 ? straight : diagonal)[cells[vi]];
+      if (k < 4) open_side[k] = step != 0;
+      if (step == 0) continue;
+      const std::uint64_t v = state[vi];
+      const std::uint64_t mark = v >> kGBits;
+      if (mark == closed_mark) continue;
+      const std::int64_t g = g0 + step;
+      if (mark == open_mark && static_cast<std::uint64_t>(g) >= (v & kGMask)) continue;
+      if (static_cast<std::uint64_t>(g) > kGMask)
+        throw std::overflow_error("grid planner: path cost exceeds the search's range");
+      state[vi] = (open_mark << kGBits) | static_cast<std::uint64_t>(g);
+      open_.push(g + heuristic(nc, nr), vi);
     }
   }
-  if (state_[static_cast<std::size_t>(t)] != 2) return out.status = PlanStatus::kNoPath, out;
+  open_.clear();
+  if ((state[t] >> kGBits) != closed_mark) return out.status = PlanStatus::kNoPath, out;
 
-  for (std::int32_t i = t; i >= 0; i = parent_[static_cast<std::size_t>(i)])
-    out.cells.emplace_back(i % w, i / w);
+  // Back from the goal: a neighbour reached in this plan whose g plus the step equals the
+  // cell's g is a predecessor on a cheapest path (the cell's g was set exactly so from one).
+  auto reached = [&](std::int32_t i) {
+    const std::uint64_t mark = state[i] >> kGBits;
+    return mark == open_mark || mark == closed_mark;
+  };
+  std::int32_t ci = t;
+  out.cells.emplace_back(goal);
+  while (ci != s) {
+    const int col = ci % w, row = ci / w;
+    const auto g = static_cast<std::int64_t>(state[ci] & kGMask);
+    bool open_side[4] = {false, false, false, false};
+    for (int k = 0; k < 4; ++k) {
+      const int nc = col + kDx[k], nr = row + kDy[k];
+      open_side[k] = map.contains(nc, nr) && straight[cells[ci + offset[k]]] != 0;
+    }
+    std::int32_t previous = -1;
+    for (int k = 0; k < 8 && previous < 0; ++k) {
+      // The step from the neighbour into ci costs by ci's cell; a diagonal one needs both sides.
+      if (k < 4 ? !open_side[k] : (!open_side[kSideX[k]] || !open_side[kSideY[k]])) continue;
+      const std::int32_t pi = ci + offset[k];
+      const std::int64_t step = (k < 4 ? straight : diagonal)[cells[ci]];
+      if (reached(pi) && static_cast<std::int64_t>(state[pi] & kGMask) + step == g) previous = pi;
+    }
+    if (previous < 0) throw std::logic_error("grid planner: no predecessor while reading back");
+    ci = previous;
+    out.cells.emplace_back(ci % w, ci / w);
+  }
   std::reverse(out.cells.begin(), out.cells.end());
   out.status = PlanStatus::kOk;
-  out.cost = g_[static_cast<std::size_t>(t)];
+  out.cost =
+      static_cast<double>(state[t] & kGMask) / static_cast<double>(kStraightUnits) * map.resolution;
   out.length = pathLength(map, out.cells);
   return out;
 }

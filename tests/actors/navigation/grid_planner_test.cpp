@@ -64,6 +64,33 @@ TEST_CASE("A* finds paths as cheap as Dijkstra's while expanding fewer cells", "
   CHECK(expanded_astar < expanded_dijkstra);
 }
 
+TEST_CASE("the reported cost is the path's cost under the step model, and reuse changes nothing",
+          "[navigation]") {
+  // One planner reused over many maps of one size (its search state carries over between
+  // plans) against a fresh planner per plan; the cost summed in metres along the cells.
+  GridPlanner reused;
+  std::mt19937_64 rng(5);
+  int solved = 0;
+  for (int trial = 0; trial < 25; ++trial) {
+    const Costmap map = clutter(200 + static_cast<std::uint64_t>(trial));
+    const auto s = freeCell(map, rng), g = freeCell(map, rng);
+    const GridPath a = reused.plan(map, s, g), fresh = GridPlanner().plan(map, s, g);
+    REQUIRE(a.status == fresh.status);
+    CHECK(a.cells == fresh.cells);
+    CHECK(a.expanded == fresh.expanded);
+    if (!a.ok()) continue;
+    ++solved;
+    double cost = 0;
+    for (std::size_t i = 1; i < a.cells.size(); ++i) {
+      const double step = (a.cells[i] - a.cells[i - 1]).cast<double>().norm() * map.resolution;
+      cost += step * (1 + GridPlannerOptions{}.cost_weight * map.at(a.cells[i]) / 252.0);
+    }
+    // Step costs are rounded to 1/985 of a cell side's cost.
+    CHECK(a.cost == Approx(cost).epsilon(1e-3));
+  }
+  CHECK(solved >= 15);
+}
+
 TEST_CASE("costs make the planner detour around inflated cells when it is cheap", "[navigation]") {
   Costmap map(30, 11, 0.1);
   for (int c = 10; c < 20; ++c) map.at(c, 5) = 200;  // an expensive band across the straight line
@@ -99,6 +126,9 @@ TEST_CASE("the planner reports why it found no path", "[navigation]") {
   CHECK(GridPlanner(o).plan(map, {0, 0}, {4, 4}).ok());
   o.unknown_cost = 300;
   CHECK_THROWS_WITH(GridPlanner(o), Catch::Contains("unknown_cost"));
+  o.unknown_cost = 128;
+  o.cost_weight = 101;
+  CHECK_THROWS_WITH(GridPlanner(o), Catch::Contains("cost_weight"));
 }
 
 TEST_CASE("diagonal steps never squeeze between two blocked cells", "[navigation]") {

@@ -5,11 +5,16 @@
 // diagonally) times 1 + cost_weight · c / 252, c being the cost of the cell entered, so paths
 // keep away from inflated obstacles when the detour is cheap. Cells at kInscribed and above are
 // never entered (kUnknown only with allow_unknown, at unknown_cost). A*'s heuristic is the octile
-// distance, a lower bound of that cost, so A* returns a path as cheap as Dijkstra's.
+// distance, a lower bound of that cost, so A* returns a path as cheap as Dijkstra's. The search
+// adds integer step costs (kStraightUnits per cell side and kDiagonalUnits per diagonal, their
+// ratio √2 within 4e-7, each times the cell's factor, rounded): equal costs compare equal, A*'s
+// and Dijkstra's costs agree exactly, and the open list is a bucket queue
+// (docs/algorithms.md#global-planning). GridPath::cost converts back to metres.
 //
 // The planner keeps its search buffers between calls (one per map size): one planner per thread.
 #pragma once
 
+#include <tessera/navigation/bucket_queue.hpp>
 #include <tessera/navigation/costmap.hpp>
 
 #include <Eigen/Core>
@@ -30,14 +35,15 @@ constexpr std::array<std::pair<const char*, SearchAlgorithm>, 2> optionNames(Sea
 
 struct GridPlannerOptions {
   SearchAlgorithm algorithm = SearchAlgorithm::kAStar;
-  double cost_weight = 3.0;    ///< a step into cost 252 costs (1 + cost_weight) × its length
+  double cost_weight = 3.0;  ///< a step into cost 252 costs (1 + cost_weight) × its length; <= 100
   bool allow_unknown = false;  ///< may paths cross kUnknown cells
   int unknown_cost = 128;      ///< the cost an unknown cell counts as, when allowed
 
   template <class V>
   void visit(V& v) {
     v("algorithm", algorithm, "graph search");
-    v("cost_weight", cost_weight, "extra cost factor of a step into the highest traversable cost");
+    v("cost_weight", cost_weight,
+      "extra cost factor of a step into the highest traversable cost (at most 100)");
     v("allow_unknown", allow_unknown, "may paths cross unknown cells");
     v("unknown_cost", unknown_cost, "cost (0-252) of an unknown cell when allowed");
   }
@@ -56,6 +62,10 @@ struct GridPath {
   bool ok() const { return status == PlanStatus::kOk; }
 };
 
+/// Integer cost units of a straight and a diagonal step at factor 1 (1393 / 985 = √2 − 3.6e-7).
+inline constexpr std::int64_t kStraightUnits = 985;
+inline constexpr std::int64_t kDiagonalUnits = 1393;
+
 class GridPlanner {
  public:
   explicit GridPlanner(const GridPlannerOptions& options = {});
@@ -69,11 +79,13 @@ class GridPlanner {
   double stepFactor(std::uint8_t c) const;
 
   GridPlannerOptions options_;
-  // Search state per cell, reused between plans; `touched_` lists the cells to reset.
-  std::vector<double> g_;
-  std::vector<std::int32_t> parent_;
-  std::vector<std::uint8_t> state_;
-  std::vector<std::int32_t> touched_;
+  /// Search state per cell, row-major, reused between plans: (mark << 42) | g, g the cost from
+  /// the start [units], mark 2 · generation while open, 2 · generation + 1 once closed. A plan
+  /// bumps the generation instead of resetting the cells the last one touched; the path is read
+  /// back from the g values, so no parent is stored.
+  std::vector<std::uint64_t> state_;
+  std::uint64_t generation_ = 0;
+  MonotoneBucketQueue open_;
 };
 
 /// Geometric length [m] of a cell path (centre to centre).
