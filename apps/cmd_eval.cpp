@@ -152,15 +152,19 @@ struct PairArgs {
   bool planar = false, spatial = false, json = false;
 };
 
-void addPairOptions(CLI::App* cmd, PairArgs& a) {
+/// --estimate, --reference, --offset, --json and, with `dimension`, --2d / --3d.
+void addPairOptions(CLI::App* cmd, PairArgs& a, bool dimension = true) {
   cmd->add_option("--estimate", a.estimate, "estimated trajectory, TUM format")->required();
   cmd->add_option("--reference", a.reference, "reference (ground truth) trajectory, TUM format")
       ->required();
   cmd->add_option("--offset", a.offset_s, "[s] added to the estimate stamps")
       ->capture_default_str();
-  auto* p = cmd->add_flag("--2d", a.planar, "SE(2): compare in the xy plane (default: automatic)");
-  auto* s = cmd->add_flag("--3d", a.spatial, "SE(3) even for planar files");
-  p->excludes(s);
+  if (dimension) {
+    auto* p =
+        cmd->add_flag("--2d", a.planar, "SE(2): compare in the xy plane (default: automatic)");
+    auto* s = cmd->add_flag("--3d", a.spatial, "SE(3) even for planar files");
+    p->excludes(s);
+  }
   cmd->add_flag("--json", a.json, "print one JSON object on stdout");
 }
 
@@ -266,6 +270,48 @@ void addRpe(CLI::App& eval, int& result) {
       j["delta"] = a->delta;
       j["delta_unit"] = a->unit;
       j["mode"] = r.planar ? "se2" : "se3";
+      std::cout << j.dump(2) << "\n";
+    }
+    result = 0;
+  });
+}
+
+void addHeading(CLI::App& eval, int& result) {
+  auto* cmd = eval.add_subcommand(
+      "heading", "heading drift of odometry: heading error since the first pose, unaligned");
+  struct Args : PairArgs {
+    double max_diff_s = AssociationOptions{}.max_difference_s;
+  };
+  auto a = std::make_shared<Args>();
+  addPairOptions(cmd, *a, /*dimension=*/false);  // headings are planar
+  cmd->add_option("--max-diff", a->max_diff_s, "[s] largest stamp difference of a pose pair")
+      ->capture_default_str();
+  cmd->callback([a, &result] {
+    if (!(a->max_diff_s >= 0)) throw ConfigError("--max-diff must be a number >= 0");
+    requireFinite(a->offset_s, "--offset");
+    const auto estimate = loadTrajectory(a->estimate, "--estimate");
+    const auto reference = loadTrajectory(a->reference, "--reference");
+    AssociationOptions options;
+    options.max_difference_s = a->max_diff_s;
+    options.offset_s = a->offset_s;
+    const HeadingDriftResult r = computeHeadingDrift(estimate, reference, options);
+
+    Summary s("heading drift (since the first pose, unaligned)");
+    s.row("estimate", a->estimate + " (" + std::to_string(r.estimate_poses) + " poses)");
+    s.row("reference", a->reference + " (" + std::to_string(r.reference_poses) + " poses)");
+    s.row("pairs", std::to_string(r.pairs) + " over " + Summary::num(r.duration_s, 1) + " s");
+    s.row("final", Summary::num(r.final_signed_deg, 3) + " deg");
+    s.stats("heading error", r.error_deg, "deg", 3);
+    s.print(a->json);
+    if (a->json) {
+      nlohmann::json j;
+      j["pairs"] = r.pairs;
+      j["duration_s"] = r.duration_s;
+      j["final_deg"] = r.final_deg;
+      j["final_signed_deg"] = r.final_signed_deg;
+      j["rmse_deg"] = r.error_deg.rmse;
+      j["mean_deg"] = r.error_deg.mean;
+      j["max_deg"] = r.error_deg.max;
       std::cout << j.dump(2) << "\n";
     }
     result = 0;
@@ -405,6 +451,7 @@ void addEvalCommand(CLI::App& app, int& result) {
   addRelations(*eval, result);
   addAte(*eval, result);
   addRpe(*eval, result);
+  addHeading(*eval, result);
   addLandmarks(*eval, result);
   addLoops(*eval, result);
 }

@@ -32,3 +32,33 @@ struct Odometry {
   twist @3 :Common.Twist2D;
   twistCovariance @4 :List(Float64);  # 9 values, row-major, over (vx, vy, omega)
 }
+
+# Wheel encoders of a differential-drive base: cumulative tick counts since the driver started
+# (Int64: they never wrap in practice; a count that jumps backwards means the driver restarted
+# and consumers treat it as a reset). Positive ticks = that wheel rolling forward. The encoder's
+# resolution and the base's nominal geometry travel with the counts, so a recording is
+# self-describing (as LaserScan carries its mount); a consumer may still override the
+# geometry with its own calibration.
+struct WheelTicks {
+  header @0 :Common.Header;        # frameId = base_link; stamp = when the counts were latched
+  left @1 :Int64;                  # cumulative ticks of the left wheel
+  right @2 :Int64;                 # cumulative ticks of the right wheel
+  ticksPerRevolution @3 :Float64;  # ticks per wheel revolution (> 0)
+  wheelRadius @4 :Float64;         # [m] nominal wheel radius (> 0)
+  wheelBase @5 :Float64;           # [m] nominal distance between the wheels' contact points
+}
+
+# One inertial sample in the IMU frame (x forward, y left, z up; REP-103). Each value is the
+# sensor's mean over the interval since its previous sample (an integrating sensor), so
+# integrating rate x (stamp - previous stamp) gives the angle turned. A quantity the sensor does
+# not measure, or a reading it flags as invalid, is NaN: consumers skip NaN values, never
+# integrate them.
+struct ImuSample {
+  header @0 :Common.Header;        # frameId = imu (aligned with base_link in the simulator)
+  angularVelocityX @1 :Float64;    # [rad/s]
+  angularVelocityY @2 :Float64;    # [rad/s]
+  angularVelocityZ @3 :Float64;    # [rad/s] yaw rate, counter-clockwise positive
+  linearAccelerationX @4 :Float64; # [m/s^2] specific force (includes gravity)
+  linearAccelerationY @5 :Float64; # [m/s^2]
+  linearAccelerationZ @6 :Float64; # [m/s^2]
+}

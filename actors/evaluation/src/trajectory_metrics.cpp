@@ -187,6 +187,40 @@ AteResult computeAte(const std::vector<mapping::TumPose>& estimate,
   return r;
 }
 
+HeadingDriftResult computeHeadingDrift(const std::vector<mapping::TumPose>& estimate,
+                                       const std::vector<mapping::TumPose>& reference,
+                                       const AssociationOptions& options) {
+  HeadingDriftResult r;
+  r.estimate_poses = estimate.size();
+  r.reference_poses = reference.size();
+  const auto pairs = associateByTime(estimate, reference, options);
+  r.pairs = pairs.size();
+  if (pairs.empty())
+    throw MetricError("heading drift: no estimate/reference stamps within " +
+                      std::to_string(options.max_difference_s) +
+                      " s of each other (check the time bases, or --max-diff / --offset)");
+  std::vector<double> errors;
+  errors.reserve(pairs.size());
+  double e = 0;  // unwrapped [rad]
+  for (std::size_t k = 0; k < pairs.size(); ++k) {
+    if (k > 0) {
+      const double de = normalizeAngle(estimate[pairs[k].first].planar().theta -
+                                       estimate[pairs[k - 1].first].planar().theta);
+      const double dr = normalizeAngle(reference[pairs[k].second].planar().theta -
+                                       reference[pairs[k - 1].second].planar().theta);
+      e += normalizeAngle(de - dr);
+    }
+    errors.push_back(std::abs(e) * 180.0 / std::numbers::pi);
+  }
+  r.final_signed_deg = e * 180.0 / std::numbers::pi;
+  r.final_deg = errors.back();
+  r.duration_s = static_cast<double>(reference[pairs.back().second].stamp_ns -
+                                     reference[pairs.front().second].stamp_ns) *
+                 1e-9;
+  r.error_deg = summarize(std::move(errors));
+  return r;
+}
+
 RpeResult computeRpe(const std::vector<mapping::TumPose>& estimate,
                      const std::vector<mapping::TumPose>& reference, const RpeOptions& options) {
   RpeResult r;

@@ -175,13 +175,33 @@ Twist RouteFollower::command(const Pose2& pose, double dt) {
   return last_;
 }
 
+// ---- BaseLimits ----
+
+ConfigCheck BaseLimits::check() const {
+  ConfigCheck c;
+  c.nonNegative("a_max", a_max).nonNegative("alpha_max", alpha_max);
+  return c;
+}
+
+Twist BaseLimits::follow(const Twist& current, const Twist& cmd, double dt) const {
+  Twist out = cmd;
+  // Unlimited returns the command itself, bit for bit (runs without limits are unchanged).
+  if (a_max > 0) out.v = std::clamp(cmd.v, current.v - a_max * dt, current.v + a_max * dt);
+  if (alpha_max > 0)
+    out.omega =
+        std::clamp(cmd.omega, current.omega - alpha_max * dt, current.omega + alpha_max * dt);
+  return out;
+}
+
 // ---- DiffDriveRobot ----
 
-DiffDriveRobot::DiffDriveRobot(const Pose2& start, OdometryNoise noise, std::uint64_t seed)
-    : true_pose_(start), odometry_(start, noise), rng_(seed) {}
+DiffDriveRobot::DiffDriveRobot(const Pose2& start, OdometryNoise noise, std::uint64_t seed,
+                               BaseLimits limits)
+    : true_pose_(start), odometry_(start, noise), rng_(seed), limits_(limits) {}
 
 void DiffDriveRobot::step(const Twist& cmd, double dt) {
-  const double distance = cmd.v * dt, rotation = cmd.omega * dt;
+  velocity_ = limits_.follow(velocity_, cmd, dt);
+  const double distance = velocity_.v * dt, rotation = velocity_.omega * dt;
   true_pose_ = moveBy(true_pose_, distance, rotation);
   travelled_ += std::abs(distance);
   last_increment_ = odometry_.integrate(distance, rotation, rng_);

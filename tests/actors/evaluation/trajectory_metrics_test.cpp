@@ -410,3 +410,34 @@ TEST_CASE("checkLoops leaves loops without reference unchecked and counts NaN lo
   CHECK(r.false_indices == std::vector<std::size_t>{1});
   CHECK(checkLoops(loops, {}).checked == 0);
 }
+
+TEST_CASE("heading drift: unaligned, relative to the first pose, unwrapped past pi",
+          "[evaluation][heading]") {
+  using tessera::mapping::TumPose;
+  std::vector<TumPose> estimate, reference;
+  // The reference turns at 0.5 rad/s for 20 s (several wraps); the estimate, offset by a
+  // constant 1 rad (its own frame), turns 2 % faster: the error grows to 0.2 rad at the end.
+  for (int k = 0; k <= 200; ++k) {
+    const double t = 0.1 * k;
+    const std::int64_t ns = static_cast<std::int64_t>(k) * 100'000'000;
+    reference.push_back(TumPose::fromPlanar(ns, {0.1 * k, 0, 0.5 * t}));
+    estimate.push_back(TumPose::fromPlanar(ns, {0.2 * k, 3, 1.0 + 0.51 * t}));
+  }
+  const auto r = tessera::evaluation::computeHeadingDrift(estimate, reference);
+  CHECK(r.pairs == 201);
+  CHECK(r.duration_s == Approx(20));
+  const double deg = 180.0 / std::numbers::pi;
+  CHECK(r.final_deg == Approx(0.2 * deg));
+  CHECK(r.final_signed_deg == Approx(0.2 * deg));
+  CHECK(r.error_deg.max == Approx(0.2 * deg));
+  // |e| grows linearly from 0: RMS = final / sqrt(3) for many samples.
+  CHECK(r.error_deg.rmse == Approx(0.2 * deg / std::sqrt(3.0)).epsilon(0.01));
+
+  // A drift beyond pi is not folded back: 0.2 rad/s too fast over 20 s is 4 rad.
+  for (int k = 0; k <= 200; ++k)
+    estimate[k] = TumPose::fromPlanar(reference[k].stamp_ns, {0, 0, 0.7 * 0.1 * k});
+  CHECK(tessera::evaluation::computeHeadingDrift(estimate, reference).final_deg ==
+        Approx(4.0 * deg));
+  CHECK_THROWS_AS(tessera::evaluation::computeHeadingDrift({}, reference),
+                  tessera::evaluation::MetricError);
+}

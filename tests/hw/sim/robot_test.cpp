@@ -276,3 +276,34 @@ TEST_CASE("Odometry: systematic biases make dead reckoning drift", "[sim][robot]
   for (int i = 0; i < 100; ++i) turn.integrate(0.0, 0.01, rng);  // 1 rad in place
   CHECK(turn.pose().theta == Approx(1.05).margin(1e-9));
 }
+
+TEST_CASE("DiffDriveRobot: the base follows commands under its acceleration limits",
+          "[sim][robot]") {
+  OdometryNoise quiet;
+  quiet.sigma_d = quiet.sigma_theta = 0;
+  const double dt = 0.01;
+  SECTION("limited: speed ramps at a_max and alpha_max, and brakes likewise") {
+    DiffDriveRobot robot({0, 0, 0}, quiet, 1, BaseLimits{0.5, 2.0});
+    for (int i = 1; i <= 50; ++i) {
+      robot.step({1.0, -1.5}, dt);
+      CHECK(robot.velocity().v == Approx(std::min(1.0, 0.5 * dt * i)));
+      CHECK(robot.velocity().omega == Approx(std::max(-1.5, -2.0 * dt * i)));
+    }
+    // After 0.5 s: v = 0.25 m/s; distance = sum of 0.005 i dt = 0.005 * 1275 * 0.01.
+    CHECK(robot.distanceTravelled() == Approx(0.5 * dt * dt * 50 * 51 / 2));
+    robot.step({0, 0}, dt);  // braking is limited too
+    CHECK(robot.velocity().v == Approx(0.25 - 0.5 * dt));
+    CHECK(robot.velocity().omega == Approx(-1.0 + 2.0 * dt));
+  }
+  SECTION("unlimited (0): the command itself, bit for bit") {
+    DiffDriveRobot robot({0, 0, 0}, quiet, 1);
+    robot.step({0.37, -0.81}, dt);
+    CHECK(robot.velocity().v == 0.37);
+    CHECK(robot.velocity().omega == -0.81);
+  }
+  SECTION("bad limits are named") {
+    CHECK(BaseLimits{-1, 0}.check().problem()->key == "a_max");
+    CHECK(BaseLimits{0, std::numeric_limits<double>::quiet_NaN()}.check().problem()->key ==
+          "alpha_max");
+  }
+}

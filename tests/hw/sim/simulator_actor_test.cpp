@@ -328,7 +328,8 @@ TEST_CASE("SimulatorActor: options from YAML and the registry", "[sim][actor][op
   const auto* entry = ActorRegistry::instance().find("simulator");
   REQUIRE(entry != nullptr);
   const auto rows = entry->options();
-  CHECK(rows.size() == 32);
+  // 32 + base (2) + gyro (6) + encoders (9) + start_pause_s.
+  CHECK(rows.size() == 50);
   for (const auto& row : rows) CHECK_FALSE(row[2].empty());  // every key documented
   auto actor = ActorRegistry::instance().create(
       "simulator", Params(YAML::Load("{route: [[7.5, 7.5], [12, 7.5]]}"), "test"));
@@ -413,4 +414,105 @@ TEST_CASE("SimulatorActor: bad options are ConfigErrors that say what is wrong",
              }),
              "option 'laser.mount'");
   }
+}
+
+TEST_CASE("SimulatorActor: gyro and wheel encoders are off by default and publish when enabled",
+          "[sim][actor][wheel_sensors]") {
+  {
+    ActorHarness h(make(shortRun()));
+    h.advance(kNanosPerSecond);
+    CHECK(h.publishedCount("imu") == 0);
+    CHECK(h.publishedCount("wheel_ticks") == 0);
+  }
+  SimulatorOptions o = shortRun();
+  o.gyro.enabled = true;
+  o.encoders.enabled = true;
+  o.encoders.slip = 0;
+  o.gyro.bias_walk = 0;
+  o.start_pause_s = 1.0;
+  ActorHarness h(make(o));
+  h.advance(secondsToNanos(3.0));
+  const auto imu = h.published<msg::ImuSample>("imu");
+  const auto ticks = h.published<msg::WheelTicks>("wheel_ticks");
+  REQUIRE(imu.size() == 301);    // 100 Hz, from 0 s
+  REQUIRE(ticks.size() == 151);  // 50 Hz
+  std::map<std::int64_t, tessera::Pose2> truth;
+  for (const auto& g : h.published<msg::GroundTruthPose>("ground_truth"))
+    truth[g->getHeader().getStampNs()] = toPose2(g->getPose());
+  for (std::size_t i = 0; i < ticks.size(); ++i) {
+    const auto hdr = ticks[i]->getHeader();
+    CHECK(hdr.getStampNs() == static_cast<std::int64_t>(i) * 20'000'000);
+    CHECK(truth.count(hdr.getStampNs()) == 1);  // ground truth with every tick message
+    CHECK(ticks[i]->getTicksPerRevolution() == o.encoders.ticks_per_revolution);
+    CHECK(ticks[i]->getWheelRadius() == o.encoders.wheel_radius);
+    CHECK(ticks[i]->getWheelBase() == o.encoders.wheel_base);
+  }
+  // Standing still for the first second: the counters do not move, the gyro reads its bias.
+  CHECK(ticks[50]->getLeft() == 0);
+  CHECK(ticks[50]->getRight() == 0);
+  double mean = 0;
+  for (std::size_t i = 0; i <= 100; ++i) mean += imu[i]->getAngularVelocityZ() / 101;
+  // White noise 2.5e-4 / sqrt(0.01 s) = 2.5e-3 rad/s per sample: the mean's std is 2.5e-4.
+  CHECK(mean == Approx(o.gyro.bias).margin(1e-3));
+  for (std::size_t i = 0; i <= 100; ++i)
+    CHECK(imu[i]->getLinearAccelerationX() == Approx(0).margin(0.1));
+  // Then driving straight along the corridor: the counts follow the true distance through the
+  // true (larger) wheels.
+  const double distance = truth.rbegin()->second.x - 7.5;
+  REQUIRE(distance > 0.2);
+  const double per_metre = o.encoders.ticks_per_revolution / (2 * std::numbers::pi * 0.05);
+  CHECK(ticks.back()->getLeft() ==
+        Approx(distance * per_metre / (1 + o.encoders.left_radius_error)).margin(2));
+  CHECK(ticks.back()->getRight() ==
+        Approx(distance * per_metre / (1 + o.encoders.right_radius_error)).margin(2));
+  Summary s;
+  h.actor().summarize(s);
+  CHECK(std::get<std::int64_t>(s.at("imu_published")) == 301);
+  CHECK(std::get<std::int64_t>(s.at("wheel_ticks_published")) == 151);
+}
+
+TEST_CASE("SimulatorActor: the base follows the follower under its acceleration limits",
+          "[sim][actor][wheel_sensors]") {
+  SimulatorOptions o = shortRun();
+  o.base.a_max = 0.1;  // slower than the follower's own 0.5 m/s^2
+  ActorHarness h(make(o));
+  h.advance(secondsToNanos(2.0));
+  const auto gt = h.published<msg::GroundTruthPose>("ground_truth");
+  const double x = toPose2(gt.back()->getPose()).x - 7.5;
+  // At most 0.1 m/s^2 from rest: 0.5 a t^2 = 0.2 m after 2 s; the follower alone would do 1 m.
+  CHECK(x <= 0.1 * 0.01 * 0.01 * 200 * 201 / 2 + 1e-9);  // the discrete ramp
+  CHECK(x > 0.9 * 0.5 * 0.1 * 4);
+  const auto odom = h.published<msg::Odometry>("odom");
+  CHECK(odom.back()->getTwist().getVx() == Approx(0.2).margin(0.01));
+}
+
+TEST_CASE("SimulatorActor: gyro, encoder and base options from YAML; bad ones named",
+          "[sim][actor][wheel_sensors][options]") {
+  const SimulatorOptions o = optionsFromYaml(
+      "gyro: {enabled: true, rate_hz: 50, bias: 0.01}\n"
+      "encoders: {enabled: true, ticks_per_revolution: 2048, left_radius_error: 0.01}\n"
+      "base: {a_max: 0.3, alpha_max: 1.5}\nstart_pause_s: 2\n");
+  CHECK(o.gyro.enabled);
+  CHECK(o.gyro.rate_hz == 50);
+  CHECK(o.gyro.bias == 0.01);
+  CHECK(o.encoders.ticks_per_revolution == 2048);
+  CHECK(o.encoders.left_radius_error == 0.01);
+  CHECK(o.base.alpha_max == 1.5);
+  CHECK(o.start_pause_s == 2);
+
+  SimulatorOptions bad = shortRun();
+  bad.gyro.enabled = true;
+  bad.gyro.rate_hz = 30;  // does not divide 100
+  CHECK_THAT(configErrorOf(bad), Catch::Contains("gyro.rate_hz"));
+  bad = shortRun();
+  bad.gyro.rate_hz = 30;  // off: not checked
+  CHECK(configErrorOf(bad).empty());
+  bad.encoders.slip = -1;
+  CHECK_THAT(configErrorOf(bad), Catch::Contains("encoders.slip"));
+  bad = shortRun();
+  bad.base.a_max = -1;
+  CHECK_THAT(configErrorOf(bad), Catch::Contains("base.a_max"));
+  bad = shortRun();
+  bad.start_pause_s = std::numeric_limits<double>::quiet_NaN();
+  CHECK_THAT(configErrorOf(bad), Catch::Contains("start_pause_s"));
 }

@@ -41,6 +41,8 @@ enum class NoiseStream : std::uint32_t {
   kLandmarkSensor = 0x6c6d6b73u,  // "lmks"
   kCameras = 0x63616d73u,         // "cams"
   kRgbdCamera = 0x72676264u,      // "rgbd"
+  kGyro = 0x6779726fu,            // "gyro"
+  kEncoders = 0x656e6373u,        // "encs"
 };
 std::mt19937_64 seededStream(std::uint64_t seed, NoiseStream stream);
 

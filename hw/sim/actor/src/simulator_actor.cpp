@@ -37,6 +37,9 @@ SimulatorActor::SimulatorActor(SimulatorOptions options)
   };
   odom_every_ = divisor("odom_hz", o.odom_hz);
   scan_every_ = divisor("scan_hz", o.scan_hz);
+  // Only when on: the defaults need not divide the step rate of a profile without them.
+  if (o.gyro.enabled) imu_every_ = divisor("gyro.rate_hz", o.gyro.rate_hz);
+  if (o.encoders.enabled) ticks_every_ = divisor("encoders.rate_hz", o.encoders.rate_hz);
   period_ = kNanosPerSecond / o.step_hz;
   dt_ = nanosToSeconds(period_);
 
@@ -44,6 +47,20 @@ SimulatorActor::SimulatorActor(SimulatorOptions options)
   kErrors.check(o.follower.check(), "follower");
   kErrors.check(o.odometry.check(), "odometry");
   kErrors.check(o.laser.check(), "laser");
+  kErrors.check(o.base.check(), "base");
+  kErrors.check(o.gyro.check(), "gyro");
+  kErrors.check(o.encoders.check(), "encoders");
+  if (!(o.start_pause_s >= 0 && o.start_pause_s <= 1e6))
+    kErrors.fail("start_pause_s", "must be in [0, 1e6] s, got " + str(o.start_pause_s));
+  pause_steps_ = static_cast<std::uint64_t>(std::llround(o.start_pause_s * o.step_hz));
+  if (o.gyro.enabled) {
+    gyro_.emplace(o.gyro);
+    gyro_rng_ = detail::seededStream(o.seed, detail::NoiseStream::kGyro);
+  }
+  if (o.encoders.enabled) {
+    encoders_.emplace(o.encoders);
+    encoder_rng_ = detail::seededStream(o.seed, detail::NoiseStream::kEncoders);
+  }
   laser_.emplace(world_, o.laser);
   laser_rng_ = detail::seededStream(o.seed, detail::NoiseStream::kLaser);
 
@@ -56,7 +73,7 @@ SimulatorActor::SimulatorActor(SimulatorOptions options)
   } catch (const std::invalid_argument& e) {
     kErrors.fail("route", e.what());  // the follower's speeds and the laps were checked above
   }
-  robot_.emplace(follower_->startPose(), o.odometry, o.seed);
+  robot_.emplace(follower_->startPose(), o.odometry, o.seed, o.base);
 }
 
 void SimulatorActor::configure(ActorContext& ctx) {
@@ -64,6 +81,8 @@ void SimulatorActor::configure(ActorContext& ctx) {
   scan_pub_ = ctx.advertise<msg::LaserScan>("scan");
   odom_pub_ = ctx.advertise<msg::Odometry>("odom");
   gt_pub_ = ctx.advertise<msg::GroundTruthPose>("ground_truth");
+  if (gyro_) imu_pub_ = ctx.advertise<msg::ImuSample>("imu");
+  if (encoders_) ticks_pub_ = ctx.advertise<msg::WheelTicks>("wheel_ticks");
   ctx.declareFiniteSource();  // ends once every lap is driven
   ctx.addTimer(
       period_, [this] { tick(); }, 0);
@@ -72,10 +91,15 @@ void SimulatorActor::configure(ActorContext& ctx) {
 void SimulatorActor::tick() {
   if (finished_) return;
   if (step_ > 0) {
-    const Twist cmd = follower_->command(robot_->truePose(), dt_);
+    // Standing still during the start pause; then the follower drives.
+    const Twist cmd = step_ > pause_steps_ ? follower_->command(robot_->truePose(), dt_) : Twist{};
     robot_->step(cmd, dt_);
+    const Twist& vel = robot_->velocity();  // the command under the base's limits
     const Eigen::Vector2d inc = robot_->lastOdometryIncrement();
-    const Eigen::Vector2d sd = robot_->odometry().incrementStd(cmd.v * dt_, cmd.omega * dt_);
+    const Eigen::Vector2d sd = robot_->odometry().incrementStd(vel.v * dt_, vel.omega * dt_);
+    if (encoders_) encoders_->move(vel.v * dt_, vel.omega * dt_, encoder_rng_);
+    imu_rotation_ += vel.omega * dt_;
+    imu_centripetal_ += vel.v * vel.omega * dt_;
     odom_sum_d_ += inc[0];
     odom_sum_t_ += inc[1];
     odom_var_d_ += sd[0] * sd[0];
@@ -87,8 +111,11 @@ void SimulatorActor::tick() {
   const Nanos stamp = ctx_->now();
   const bool odom_due = step_ % odom_every_ == 0;
   const bool scan_due = step_ % scan_every_ == 0;
-  if (odom_due || scan_due) publishGroundTruth(stamp);
+  const bool ticks_due = encoders_ && step_ % ticks_every_ == 0;
+  if (odom_due || scan_due || ticks_due) publishGroundTruth(stamp);
   if (odom_due) publishOdometry(stamp);
+  if (gyro_ && step_ % imu_every_ == 0) publishImu(stamp);
+  if (ticks_due) publishWheelTicks(stamp);
   if (scan_due) {
     publishScan(stamp);
     ctx_->reportProgress(follower_->progress());
@@ -139,6 +166,41 @@ void SimulatorActor::publishOdometry(Nanos stamp) {
   ++odom_published_;
 }
 
+void SimulatorActor::publishImu(Nanos stamp) {
+  // The first sample (step 0) covers an interval of the robot at rest before the start.
+  const double interval = static_cast<double>(imu_every_) * dt_;
+  const double v1 = robot_->velocity().v;
+  const ImuReading r =
+      gyro_->sample(imu_rotation_, imu_v0_, v1, imu_centripetal_ / interval, interval, gyro_rng_);
+  imu_rotation_ = imu_centripetal_ = 0;
+  imu_v0_ = v1;
+  auto loan = imu_pub_.loan();
+  auto b = loan.builder();
+  setHeader(b.initHeader(), stamp, "imu", imu_pub_.nextSeq());
+  b.setAngularVelocityX(r.angular_velocity.x());
+  b.setAngularVelocityY(r.angular_velocity.y());
+  b.setAngularVelocityZ(r.angular_velocity.z());
+  b.setLinearAccelerationX(r.linear_acceleration.x());
+  b.setLinearAccelerationY(r.linear_acceleration.y());
+  b.setLinearAccelerationZ(r.linear_acceleration.z());
+  imu_pub_.publish(std::move(loan));
+  ++imu_published_;
+}
+
+void SimulatorActor::publishWheelTicks(Nanos stamp) {
+  const EncoderOptions& o = encoders_->options();
+  auto loan = ticks_pub_.loan();
+  auto b = loan.builder();
+  setHeader(b.initHeader(), stamp, "base_link", ticks_pub_.nextSeq());
+  b.setLeft(encoders_->leftTicks());
+  b.setRight(encoders_->rightTicks());
+  b.setTicksPerRevolution(o.ticks_per_revolution);
+  b.setWheelRadius(o.wheel_radius);  // nominal: the true wheels differ by the configured errors
+  b.setWheelBase(o.wheel_base);
+  ticks_pub_.publish(std::move(loan));
+  ++ticks_published_;
+}
+
 void SimulatorActor::publishScan(Nanos stamp) {
   const LaserConfig& c = laser_->config();
   auto loan = scan_pub_.loan(static_cast<std::size_t>(c.beams) * sizeof(float) + 256);
@@ -165,6 +227,11 @@ void SimulatorActor::summarize(Summary& out) const {
   out["sim_time_s"] = step_ > 0 ? static_cast<double>(step_ - 1) * dt_ : 0.0;
   out["scans_published"] = scans_published_;
   out["odom_published"] = odom_published_;
+  if (gyro_) {
+    out["imu_published"] = imu_published_;
+    out["gyro_bias_final_rad_s"] = gyro_->bias();
+  }
+  if (encoders_) out["wheel_ticks_published"] = ticks_published_;
   out["distance_travelled_m"] = robot_->distanceTravelled();
   out["odom_drift_m"] = (odom.translation() - truth.translation()).norm();
   out["odom_heading_drift_rad"] = std::abs(normalizeAngle(odom.theta - truth.theta));

@@ -15,6 +15,11 @@
 //   absolute translational error |e_xy| [m], of its square [m²], of the absolute rotational error
 //   |e_θ| [deg] and of its square [deg²]. (|e| is the same for e⁻¹, so the order of the
 //   composition does not matter; the frame convention of δ does.)
+// - Heading drift (odometry): estimate and reference associated by time as for ATE, no
+//   alignment; the heading error e_k = (θ_est,k − θ_est,0) − (θ_ref,k − θ_ref,0) of every pair
+//   relative to the first, unwrapped (accumulated from wrapped per-pair increments, so a drift
+//   beyond ±π is not folded back). Reported: the final |e|, the RMS and the max of |e| [deg].
+//   Planar: headings are the yaws of the poses.
 // - Landmarks: estimate and reference landmarks associated by id, rigid 2D alignment (Umeyama),
 //   position errors [m].
 //
@@ -101,6 +106,17 @@ struct AteResult {
 AteResult computeAte(const std::vector<mapping::TumPose>& estimate,
                      const std::vector<mapping::TumPose>& reference,
                      const AteOptions& options = {});
+
+struct HeadingDriftResult {
+  std::size_t estimate_poses = 0, reference_poses = 0, pairs = 0;
+  double final_deg = 0;         ///< |e| at the last pair [deg]
+  double final_signed_deg = 0;  ///< e at the last pair [deg]
+  double duration_s = 0;        ///< reference time from the first to the last pair [s]
+  ErrorStats error_deg;         ///< |e| over all pairs [deg]
+};
+HeadingDriftResult computeHeadingDrift(const std::vector<mapping::TumPose>& estimate,
+                                       const std::vector<mapping::TumPose>& reference,
+                                       const AssociationOptions& options = {});
 
 enum class DeltaUnit { kSeconds, kFrames };
 struct RpeOptions {

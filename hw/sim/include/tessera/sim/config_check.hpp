@@ -5,6 +5,7 @@
 
 #include <tessera/config/config_check.hpp>
 #include <tessera/geometry/pose2.hpp>
+#include <tessera/geometry/pose_fields.hpp>
 
 namespace tessera::sim {
 
@@ -12,15 +13,7 @@ using tessera::ConfigCheck;
 using tessera::ConfigProblem;
 
 /// A pose as an option group: `v("mount", PoseFields{mount}, ...)` reads `mount: {x, y, theta}`.
-struct PoseFields {
-  Pose2& pose;
-  template <class V>
-  void visit(V& v) {
-    v("x", pose.x, "[m]");
-    v("y", pose.y, "[m]");
-    v("theta", pose.theta, "[rad]");
-  }
-};
+using tessera::PoseFields;
 
 /// Whether every component of the pose is finite.
 bool allFinite(const Pose2& pose);

@@ -159,14 +159,35 @@ class RouteFollower {
   bool done_ = false;
 };
 
+/// Acceleration limits of the base's motors: a commanded velocity is followed as fast as these
+/// allow (a real base cannot jump to it). 0 = unlimited, the base follows commands at once.
+struct BaseLimits {
+  double a_max = 0;      ///< [m/s²] linear acceleration and braking
+  double alpha_max = 0;  ///< [rad/s²] angular acceleration
+
+  template <class V>
+  void visit(V& v) {
+    v("a_max", a_max, "linear acceleration and braking limit of the base [m/s^2]; 0 = none");
+    v("alpha_max", alpha_max, "angular acceleration limit of the base [rad/s^2]; 0 = none");
+  }
+  /// Both finite and >= 0.
+  ConfigCheck check() const;
+  /// The velocity reached after dt seconds commanded `cmd` from `current` under the limits.
+  Twist follow(const Twist& current, const Twist& cmd, double dt) const;
+};
+
 /// True state, odometry and follower together, stepped at a fixed rate.
 class DiffDriveRobot {
  public:
-  DiffDriveRobot(const Pose2& start, OdometryNoise noise, std::uint64_t seed);
+  DiffDriveRobot(const Pose2& start, OdometryNoise noise, std::uint64_t seed,
+                 BaseLimits limits = {});
 
-  /// Moves with (v, omega) for dt seconds: updates the true pose and the odometry.
+  /// Commands (v, omega) for dt seconds: the base's velocity follows it under its acceleration
+  /// limits and is held over the step; updates the true pose and the odometry.
   void step(const Twist& cmd, double dt);
 
+  /// The velocity the base moved with in the last step (the command when unlimited).
+  const Twist& velocity() const { return velocity_; }
   const Pose2& truePose() const { return true_pose_; }
   const Odometry& odometry() const { return odometry_; }
   /// Distance driven by the true robot [m].
@@ -179,6 +200,8 @@ class DiffDriveRobot {
   Pose2 true_pose_;
   Odometry odometry_;
   std::mt19937_64 rng_;
+  BaseLimits limits_;
+  Twist velocity_;
   double travelled_ = 0;
   Eigen::Vector2d last_increment_ = Eigen::Vector2d::Zero();
 };

@@ -6,12 +6,21 @@
 //   scan          msg::LaserScan        frame "laser"; mount pose in the message
 //   odom          msg::Odometry         frame "odom", child "base_link"; noisy dead reckoning
 //   ground_truth  msg::GroundTruthPose  frame "map", child "base_link"; the true pose
+//   wheel_ticks   msg::WheelTicks       frame "base_link"; cumulative encoder ticks with the
+//                                       nominal calibration (only with encoders.enabled)
+//   imu           msg::ImuSample        frame "imu" = base_link; gyro and accelerometer, each
+//                                       value the mean since the previous sample (only with
+//                                       gyro.enabled)
 //
 // Timing: one timer at step_hz integrates the robot on simulated time. At step k (time
 // k / step_hz, k = 0 being the start pose) odometry is published when k is a multiple of
 // step_hz / odom_hz and a scan when k is a multiple of step_hz / scan_hz; integer step counting
-// keeps the rates exact. Whenever either is published, ground_truth is published first with the
-// same stamp, so a known-pose consumer can pair every scan with its true pose exactly.
+// keeps the rates exact; wheel_ticks and imu likewise at encoders.rate_hz and gyro.rate_hz.
+// Whenever odometry, a scan or wheel ticks are published, ground_truth is published first with
+// the same stamp, so a known-pose consumer can pair every scan with its true pose exactly.
+// With start_pause_s > 0 the robot stands still that long before it drives (a gyro learns its
+// bias at stops). The base follows the route follower's commands under `base` acceleration
+// limits (none by default).
 //
 // Frames: map = world frame of the World (origin at its lower-left corner); odom coincides with
 // map at the start pose. Option errors throw ConfigError from the constructor.
@@ -22,6 +31,7 @@
 #include <tessera/runtime/options.hpp>
 #include <tessera/sim/ray_caster.hpp>
 #include <tessera/sim/robot.hpp>
+#include <tessera/sim/wheel_sensors.hpp>
 #include <tessera/sim/world.hpp>
 
 #include <array>
@@ -44,6 +54,10 @@ struct SimulatorOptions {
   FollowerConfig follower;
   OdometryNoise odometry;
   LaserConfig laser;
+  BaseLimits base;
+  GyroOptions gyro;
+  EncoderOptions encoders;
+  double start_pause_s = 0;
   std::uint64_t seed = 1;
 
   template <class V>
@@ -63,6 +77,11 @@ struct SimulatorOptions {
     v("follower", follower, "the route follower (pure pursuit) that drives the robot");
     v("odometry", odometry, "wheel odometry noise, drawn once per step");
     v("laser", laser, "the simulated planar laser");
+    v("base", base, "acceleration limits of the base's motors (0 = it follows commands at once)");
+    v("gyro", gyro, "the IMU's gyro and accelerometer (off by default)");
+    v("encoders", encoders, "wheel encoders and the true wheels' calibration errors (off)");
+    v("start_pause_s", start_pause_s,
+      "the robot stands still this long before driving [s] (a gyro learns its bias at stops)");
     v("seed", seed, "random seed; equal seeds give identical runs");
   }
 
@@ -95,7 +114,8 @@ class SimulatorActor final : public Actor {
   SimulatorActor& operator=(const SimulatorActor&) = delete;
 
   void configure(ActorContext& ctx) override;
-  /// route_length_m, sim_time_s, scans_published, odom_published, distance_travelled_m,
+  /// route_length_m, sim_time_s, scans_published, odom_published, imu_published and
+  /// wheel_ticks_published (when enabled, with gyro_bias_final_rad_s), distance_travelled_m,
   /// odom_drift_m / odom_heading_drift_rad (final odometry minus truth), route_completed (0/1),
   /// wall_contacts (steps whose true position was inside a wall).
   void summarize(Summary& out) const override;
@@ -109,6 +129,8 @@ class SimulatorActor final : public Actor {
   void publishGroundTruth(Nanos stamp);
   void publishOdometry(Nanos stamp);
   void publishScan(Nanos stamp);
+  void publishImu(Nanos stamp);
+  void publishWheelTicks(Nanos stamp);
 
   SimulatorOptions options_;
   World world_;
@@ -117,23 +139,32 @@ class SimulatorActor final : public Actor {
   std::optional<RouteFollower> follower_;
   std::optional<DiffDriveRobot> robot_;
   std::mt19937_64 laser_rng_;
+  std::optional<Gyro> gyro_;
+  std::optional<WheelEncoders> encoders_;
+  std::mt19937_64 gyro_rng_, encoder_rng_;
 
   ActorContext* ctx_ = nullptr;
   Publisher<msg::LaserScan> scan_pub_;
   Publisher<msg::Odometry> odom_pub_;
   Publisher<msg::GroundTruthPose> gt_pub_;
+  Publisher<msg::ImuSample> imu_pub_;
+  Publisher<msg::WheelTicks> ticks_pub_;
 
   Nanos period_ = 0;
   double dt_ = 0;
-  std::uint64_t odom_every_ = 1, scan_every_ = 1;
-  std::uint64_t step_ = 0;
+  std::uint64_t odom_every_ = 1, scan_every_ = 1, imu_every_ = 1, ticks_every_ = 1;
+  std::uint64_t step_ = 0, pause_steps_ = 0;
   bool finished_ = false;
 
   // Noisy increments since the last odometry message, for its twist.
   double odom_sum_d_ = 0, odom_sum_t_ = 0, odom_var_d_ = 0, odom_var_t_ = 0;
   std::uint64_t odom_steps_ = 0;
 
+  // True motion since the last imu sample: rotation [rad], ∫v·ω dt [m/s], speed at that sample.
+  double imu_rotation_ = 0, imu_centripetal_ = 0, imu_v0_ = 0;
+
   std::int64_t scans_published_ = 0, odom_published_ = 0, wall_contacts_ = 0;
+  std::int64_t imu_published_ = 0, ticks_published_ = 0;
 };
 
 }  // namespace tessera::sim
