@@ -1,3 +1,4 @@
+#include <tessera/msg/navigation.capnp.h>
 #include <tessera/messages/message.hpp>
 #include <tessera/messages/types.hpp>
 #include <tessera/messages/views.hpp>
@@ -7,6 +8,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstring>
+#include <limits>
 #include <random>
 
 using namespace tessera;
@@ -177,4 +179,33 @@ TEST_CASE("a loan without a blob has none to attach", "[messages]") {
   Loan<msg::Blob> loan;
   CHECK(loan.blob().empty());
   CHECK_THROWS_AS(loan.blobData(), std::logic_error);
+}
+
+TEST_CASE("navigation goals and status survive encode and decode", "[messages]") {
+  auto goal = makeMessage<msg::NavGoal>([](msg::NavGoal::Builder b) {
+    setHeader(b.initHeader(), 5, "map", 0);
+    writePose(b.initPose(), Pose2(3.0, -2.0, 1.5));
+    b.setId(17);
+    b.setToleranceXy(0.1);
+    b.setToleranceYaw(std::numeric_limits<double>::infinity());
+  });
+  auto g =
+      checkedMessage<msg::NavGoal>(decodeMessage(encodeMessage(*goal.storage()), "goal"), "goal");
+  CHECK(g->getId() == 17);
+  CHECK(toPose2(g->getPose()).x == 3.0);
+  CHECK(std::isinf(g->getToleranceYaw()));
+  CHECK(messageTypeOf<msg::NavGoal>().name == std::string("NavGoal"));
+
+  auto status = makeMessage<msg::NavStatus>([](msg::NavStatus::Builder b) {
+    setHeader(b.initHeader(), 6, "map", 0);
+    b.setGoalId(17);
+    b.setState(msg::NavStatus::State::REFUSED);
+    b.setReason("goal inside an obstacle");
+    b.setDistanceRemaining(std::nan(""));
+  });
+  auto s = checkedMessage<msg::NavStatus>(decodeMessage(encodeMessage(*status.storage()), "status"),
+                                          "status");
+  CHECK(s->getState() == msg::NavStatus::State::REFUSED);
+  CHECK(std::string(s->getReason().cStr()) == "goal inside an obstacle");
+  CHECK(std::isnan(s->getDistanceRemaining()));
 }

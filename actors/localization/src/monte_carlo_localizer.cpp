@@ -52,10 +52,22 @@ MonteCarloLocalizer::MonteCarloLocalizer(const grid::OccupancyMap& map, double r
                                          const MonteCarloOptions& options)
     : options_(options), field_(map, range_max, options.field), rng_(options.seed) {
   options_.validate();
-  const grid::OccupancyMap& m = field_.map();
+  free_cells_ = freeCells(field_);
+}
+
+std::vector<Eigen::Vector2i> MonteCarloLocalizer::freeCells(const LikelihoodField& field) {
+  std::vector<Eigen::Vector2i> out;
+  const grid::OccupancyMap& m = field.map();
   for (int row = 0; row < m.height; ++row)
     for (int col = 0; col < m.width; ++col)
-      if (field_.isFree(m.cellCenter(col, row))) free_cells_.emplace_back(col, row);
+      if (field.isFree(m.cellCenter(col, row))) out.emplace_back(col, row);
+  return out;
+}
+
+void MonteCarloLocalizer::setMap(const grid::OccupancyMap& map) {
+  LikelihoodField field(map, field_.rangeMax(), options_.field);  // throws before any change
+  free_cells_ = freeCells(field);
+  field_ = std::move(field);
 }
 
 Pose2 MonteCarloLocalizer::randomFreePose() {

@@ -8,74 +8,16 @@
 #include <numbers>
 #include <random>
 
+#include "toy_room.hpp"
+
 using namespace tessera;
 using namespace tessera::localization;
 
 namespace {
 
-/// A 12 x 9 m room (5 cm cells) with an asymmetric set of inner walls and boxes.
-grid::OccupancyMap room() {
-  grid::OccupancyMap m;
-  m.resolution = 0.05;
-  m.width = 240;
-  m.height = 180;
-  m.cells.assign(static_cast<std::size_t>(m.width * m.height), 0);
-  auto box = [&](double x0, double y0, double x1, double y1) {
-    for (int r = 0; r < m.height; ++r)
-      for (int c = 0; c < m.width; ++c) {
-        const Eigen::Vector2d p = m.cellCenter(c, r);
-        if (p.x() >= x0 && p.x() <= x1 && p.y() >= y0 && p.y() <= y1) m.at(c, r) = 100;
-      }
-  };
-  box(0, 0, 12, 0.1);
-  box(0, 8.9, 12, 9);
-  box(0, 0, 0.1, 9);
-  box(11.9, 0, 12, 9);
-  box(4, 0, 4.1, 5);  // a wall from the bottom
-  box(8, 4, 8.1, 9);  // a wall from the top
-  box(1.5, 6.5, 2.5, 7.2);
-  box(9.5, 1.0, 10.0, 2.5);
-  box(5.5, 7.0, 6.0, 7.5);
-  return m;
-}
-
-/// Endpoints (robot frame) of `beams` rays over 360° from pose, by marching the map.
-std::vector<Eigen::Vector2d> scan(const grid::OccupancyMap& m, const Pose2& pose, int beams,
-                                  double range_max, std::mt19937_64& rng) {
-  std::normal_distribution<double> noise(0.0, 0.02);
-  std::vector<Eigen::Vector2d> out;
-  for (int b = 0; b < beams; ++b) {
-    const double a = -std::numbers::pi + 2 * std::numbers::pi * b / beams;
-    const Eigen::Vector2d dir(std::cos(pose.theta + a), std::sin(pose.theta + a));
-    for (double r = 0.05; r < range_max; r += 0.02) {
-      const Eigen::Vector2i c = m.cellOf(Eigen::Vector2d(pose.x, pose.y) + r * dir);
-      if (!m.contains(c.x(), c.y())) break;
-      if (m.at(c.x(), c.y()) >= 65) {
-        const double range = r + noise(rng);
-        out.emplace_back(range * std::cos(a), range * std::sin(a));
-        break;
-      }
-    }
-  }
-  return out;
-}
-
-/// A loop through the room's three bays, as poses every 10 cm.
-std::vector<Pose2> route() {
-  const std::vector<Eigen::Vector2d> corners = {{2, 2},   {2, 5.5},  {3.2, 8.0},  {6.5, 8.2},
-                                                {6.5, 2}, {10.8, 3}, {10.8, 7.5}, {9, 8.2}};
-  std::vector<Pose2> out;
-  for (std::size_t i = 0; i + 1 < corners.size(); ++i) {
-    const Eigen::Vector2d a = corners[i], b = corners[i + 1];
-    const double heading = std::atan2(b.y() - a.y(), b.x() - a.x());
-    const int n = static_cast<int>((b - a).norm() / 0.1);
-    for (int k = 0; k < n; ++k) {
-      const Eigen::Vector2d p = a + (b - a) * (double(k) / n);
-      out.emplace_back(p.x(), p.y(), heading);
-    }
-  }
-  return out;
-}
+using test::toyRoom;
+using test::toyRoute;
+using test::toyScan;
 
 struct Run {
   double mean_error = 0;
@@ -101,7 +43,7 @@ Run drive(MonteCarloLocalizer& mcl, const std::vector<Pose2>& truth, int first =
       odom = odom * Pose2(d.x * (1 + 0.05 * n01(rng)), d.y * (1 + 0.05 * n01(rng)),
                           d.theta * (1 + 0.02 * n01(rng)) + 0.01 * n01(rng));
     }
-    mcl.update(odom, scan(m, truth[i], 180, 8.0, rng));
+    mcl.update(odom, toyScan(m, truth[i], 180, 8.0, rng));
     const PoseEstimate e = mcl.estimate();
     const Pose2 now = e.pose * between(e.odom, odom);  // the last update moved by odometry since
     const double err = std::hypot(now.x - truth[i].x, now.y - truth[i].y);
@@ -129,7 +71,7 @@ TEST_CASE("the KLD sample count follows the chi-square bound", "[localization]")
 
 TEST_CASE("a concentrated particle set shrinks to min_particles, a spread one grows",
           "[localization]") {
-  const grid::OccupancyMap m = room();
+  const grid::OccupancyMap m = toyRoom();
   MonteCarloOptions o;
   o.min_particles = 100;
   o.max_particles = 3000;
@@ -145,8 +87,8 @@ TEST_CASE("a concentrated particle set shrinks to min_particles, a spread one gr
 }
 
 TEST_CASE("tracking from a known start stays within a few centimetres", "[localization]") {
-  const grid::OccupancyMap m = room();
-  const auto truth = route();
+  const grid::OccupancyMap m = toyRoom();
+  const auto truth = toyRoute();
   MonteCarloLocalizer mcl(m, 8.0);
   mcl.initialise(truth.front(), Eigen::Vector3d(0.1 * 0.1, 0.1 * 0.1, 0.05 * 0.05).asDiagonal());
   const Run run = drive(mcl, truth);
@@ -157,8 +99,8 @@ TEST_CASE("tracking from a known start stays within a few centimetres", "[locali
 }
 
 TEST_CASE("global localisation converges from a uniform start", "[localization]") {
-  const grid::OccupancyMap m = room();
-  const auto truth = route();
+  const grid::OccupancyMap m = toyRoom();
+  const auto truth = toyRoute();
   MonteCarloOptions o;
   o.max_particles = 5000;
   MonteCarloLocalizer mcl(m, 8.0, o);
@@ -171,8 +113,8 @@ TEST_CASE("global localisation converges from a uniform start", "[localization]"
 }
 
 TEST_CASE("a kidnapped robot is found again through random particles", "[localization]") {
-  const grid::OccupancyMap m = room();
-  auto truth = route();
+  const grid::OccupancyMap m = toyRoom();
+  auto truth = toyRoute();
   MonteCarloOptions o;
   o.max_particles = 5000;
   MonteCarloLocalizer mcl(m, 8.0, o);
@@ -189,7 +131,7 @@ TEST_CASE("a kidnapped robot is found again through random particles", "[localiz
 }
 
 TEST_CASE("bad input never corrupts the filter", "[localization]") {
-  const grid::OccupancyMap m = room();
+  const grid::OccupancyMap m = toyRoom();
   MonteCarloLocalizer mcl(m, 8.0);
   CHECK_FALSE(mcl.update(Pose2(), {}, true));  // not initialised
   mcl.initialise(Pose2(2, 2, 0), Eigen::Matrix3d::Identity() * 0.01);
@@ -210,4 +152,39 @@ TEST_CASE("bad input never corrupts the filter", "[localization]") {
   for (auto& c : full.cells) c = 100;
   MonteCarloLocalizer blocked(full, 8.0);
   CHECK_THROWS_WITH(blocked.initialiseGlobal(), Catch::Contains("no free cell"));
+}
+
+TEST_CASE("a new map keeps the particles; a bad one changes nothing", "[localization]") {
+  const grid::OccupancyMap m = toyRoom();
+  const auto truth = toyRoute();
+  MonteCarloLocalizer mcl(m, 8.0);
+  mcl.initialise(truth.front(), Eigen::Vector3d(0.01, 0.01, 0.0025).asDiagonal());
+  drive(mcl, std::vector<Pose2>(truth.begin(), truth.begin() + 30));
+  const Pose2 before = mcl.estimate().pose;
+  const std::size_t particles = mcl.particles().size();
+
+  CHECK_THROWS_WITH(mcl.setMap(grid::OccupancyMap{}), Catch::Contains("empty"));
+  CHECK(mcl.field().map().width == m.width);
+
+  // The same room, grown by 1 m on the left and bottom (as a SLAM map grows): same frame.
+  grid::OccupancyMap grown;
+  grown.resolution = m.resolution;
+  grown.width = m.width + 20;
+  grown.height = m.height + 20;
+  grown.origin = Pose2(-1.0, -1.0, 0.0);
+  grown.cells.assign(static_cast<std::size_t>(grown.width * grown.height),
+                     grid::OccupancyMap::kUnknown);
+  for (int r = 0; r < m.height; ++r)
+    for (int c = 0; c < m.width; ++c) grown.at(c + 20, r + 20) = m.at(c, r);
+  mcl.setMap(grown);
+  CHECK(mcl.field().map().width == grown.width);
+  CHECK(mcl.particles().size() == particles);
+  CHECK(mcl.estimate().pose.x == Approx(before.x));
+  CHECK(mcl.field().distance(Eigen::Vector2d(4.05, 2.0)) < 0.05);  // the inner wall, same place
+  // Weighing goes on in the grown map: scans seen from the estimate keep it there.
+  std::mt19937_64 rng(3);
+  for (int k = 0; k < 5; ++k)
+    REQUIRE(mcl.update(mcl.estimate().odom, toyScan(grown, before, 180, 8.0, rng), true));
+  const Pose2 after = mcl.estimate().pose;
+  CHECK(std::hypot(after.x - before.x, after.y - before.y) < 0.05);
 }

@@ -110,6 +110,10 @@ class MonteCarloLocalizer {
   /// Particles uniformly over the map's free cells, max_particles of them.
   void initialiseGlobal();
   bool initialised() const { return !particles_.empty(); }
+  /// Swaps in a new map (e.g. a SLAM map that grew), same frame: the likelihood field and the
+  /// free cells are rebuilt, the particles and the fit averages are kept. Throws
+  /// std::invalid_argument (the filter unchanged) for a map the likelihood field refuses.
+  void setMap(const grid::OccupancyMap& map);
 
   /// One filter step at odometry pose `odom` with the scan endpoints `points` (robot frame, beams
   /// at range_max left out). Does nothing (returns false) until the robot moved far enough since
@@ -124,6 +128,7 @@ class MonteCarloLocalizer {
   int updates() const { return updates_; }
 
  private:
+  static std::vector<Eigen::Vector2i> freeCells(const LikelihoodField& field);
   Pose2 randomFreePose();
   void resample();
 
