@@ -3,6 +3,7 @@
 #include <tessera/runtime/harness.hpp>
 #include <tessera/runtime/registry.hpp>
 #include <tessera/runtime/runtime.hpp>
+#include <tessera/sim/furniture.hpp>
 #include <tessera/sim/ray_caster.hpp>
 #include <tessera/sim/simulator_actor.hpp>
 
@@ -258,6 +259,10 @@ TEST_CASE("SimulatorActor: the default office route with default options", "[sim
   CHECK(length < 250);
   CHECK(std::get<std::int64_t>(s.at("route_completed")) == 1);
   CHECK(std::get<std::int64_t>(s.at("wall_contacts")) == 0);
+  // The default body (0.2 m radius, 1 m tall) touches neither walls nor furniture on the way.
+  CHECK(std::get<std::int64_t>(s.at("collisions")) == 0);
+  CHECK(std::get<double>(s.at("min_clearance_m")) > 0.0);
+  CHECK(s.count("watchdog_stops") == 0);  // route mode has no commands
   CHECK(std::get<double>(s.at("distance_travelled_m")) == Approx(length).epsilon(0.02));
   CHECK(sim_time < 1.6 * length / 0.5);
   CHECK(std::get<std::int64_t>(s.at("scans_published")) ==
@@ -328,8 +333,9 @@ TEST_CASE("SimulatorActor: options from YAML and the registry", "[sim][actor][op
   const auto* entry = ActorRegistry::instance().find("simulator");
   REQUIRE(entry != nullptr);
   const auto rows = entry->options();
-  // 32 + base (2) + gyro (6) + encoders (9) + start_pause_s.
-  CHECK(rows.size() == 50);
+  // 32 + base (2) + gyro (6) + encoders (9) + start_pause_s + drive, command_timeout_s,
+  // start_pose and footprint (2).
+  CHECK(rows.size() == 55);
   for (const auto& row : rows) CHECK_FALSE(row[2].empty());  // every key documented
   auto actor = ActorRegistry::instance().create(
       "simulator", Params(YAML::Load("{route: [[7.5, 7.5], [12, 7.5]]}"), "test"));
@@ -515,4 +521,322 @@ TEST_CASE("SimulatorActor: gyro, encoder and base options from YAML; bad ones na
   bad = shortRun();
   bad.start_pause_s = std::numeric_limits<double>::quiet_NaN();
   CHECK_THAT(configErrorOf(bad), Catch::Contains("start_pause_s"));
+}
+
+// ---- drive: commands ----
+
+namespace {
+
+// A 6 m x 4 m room (one 0.05 m wall cell thick) with a 0.75 m table over [2, 3.5] x [1.5, 2.5]:
+// 0.05 m legs at the corners, the top from 0.71 m to 0.75 m.
+tessera::sim::World roomWithTable() {
+  auto w = tessera::sim::World::box(6.0, 4.0, 0.05);
+  w.addFurniture(tessera::sim::makeTable(2.0, 1.5, 3.5, 2.5));
+  return w;
+}
+
+// Commands mode from (x, y, theta), noiseless odometry so its twist is the base's velocity.
+SimulatorOptions commandsAt(double x, double y, double theta) {
+  SimulatorOptions o;
+  o.drive = "commands";
+  o.start_pose = {x, y, theta};
+  o.odometry.sigma_d = o.odometry.sigma_theta = 0;
+  return o;
+}
+
+std::unique_ptr<SimulatorActor> inRoom(const SimulatorOptions& o) {
+  return std::make_unique<SimulatorActor>(o, roomWithTable());
+}
+
+void command(ActorHarness& h, double vx, double omega) {
+  h.push<msg::Twist>("cmd_vel", [&](auto& b) {
+    setHeader(b.initHeader(), h.now(), "base_link", 0);
+    b.initTwist().setVx(vx);
+    b.getTwist().setVy(0.7);  // ignored: a differential drive has no lateral motion
+    b.getTwist().setOmega(omega);
+  });
+}
+
+// Sends (vx, omega) every 0.1 s for `seconds`, well within the watchdog's 0.5 s.
+void keepCommanding(ActorHarness& h, double vx, double omega, double seconds) {
+  const int n = static_cast<int>(std::lround(seconds * 10));
+  for (int i = 0; i < n; ++i) {
+    command(h, vx, omega);
+    h.advance(secondsToNanos(0.1));
+  }
+}
+
+tessera::Pose2 lastTruth(const ActorHarness& h) {
+  return toPose2(h.published<msg::GroundTruthPose>("ground_truth").back()->getPose());
+}
+
+std::int64_t summaryInt(ActorHarness& h, const std::string& key) {
+  Summary s;
+  h.actor().summarize(s);
+  return std::get<std::int64_t>(s.at(key));
+}
+
+double summaryDouble(ActorHarness& h, const std::string& key) {
+  Summary s;
+  h.actor().summarize(s);
+  return std::get<double>(s.at(key));
+}
+
+}  // namespace
+
+TEST_CASE("SimulatorActor commands: a constant cmd_vel drives along the heading at that speed",
+          "[sim][actor][commands]") {
+  ActorHarness h(inRoom(commandsAt(1.0, 1.0, 0.3)));
+  h.advance(0);  // the start: step 0 at the start pose
+  CHECK(lastTruth(h).x == 1.0);
+  CHECK(lastTruth(h).y == 1.0);
+  CHECK(lastTruth(h).theta == Approx(0.3));
+  keepCommanding(h, 0.3, 0.0, 2.0);
+  // 200 steps of 10 ms at 0.3 m/s (vy ignored), straight along theta = 0.3.
+  const tessera::Pose2 p = lastTruth(h);
+  CHECK(p.x == Approx(1.0 + 0.6 * std::cos(0.3)).margin(1e-9));
+  CHECK(p.y == Approx(1.0 + 0.6 * std::sin(0.3)).margin(1e-9));
+  CHECK(p.theta == Approx(0.3).margin(1e-12));
+  CHECK(h.published<msg::Odometry>("odom").back()->getTwist().getVx() == Approx(0.3));
+  CHECK(summaryInt(h, "commands_received") == 20);
+  CHECK(summaryInt(h, "watchdog_stops") == 0);
+  CHECK(summaryInt(h, "collisions") == 0);
+  CHECK(summaryDouble(h, "distance_travelled_m") == Approx(0.6));
+  // Scans and odometry at their usual rates, ground truth with them.
+  CHECK(h.publishedCount("scan") == 21);
+  CHECK(h.publishedCount("odom") == 101);
+}
+
+TEST_CASE("SimulatorActor commands: the watchdog stops the base when commands stop coming",
+          "[sim][actor][commands]") {
+  SimulatorOptions o = commandsAt(1.0, 1.0, 0.0);
+  o.command_timeout_s = 0.5;
+  ActorHarness h(inRoom(o));
+  command(h, 0.3, 0.2);
+  h.advance(secondsToNanos(2.0));
+  // Followed while at most 0.5 s old: the steps at 10, 20, ..., 500 ms; then (0, 0).
+  const tessera::Pose2 p = lastTruth(h);
+  CHECK(p.theta == Approx(50 * 0.2 * 0.01));
+  CHECK(std::hypot(p.x - 1.0, p.y - 1.0) == Approx(50 * 0.3 * 0.01).epsilon(1e-3));
+  const auto odom = h.published<msg::Odometry>("odom");
+  CHECK(odom.back()->getTwist().getVx() == 0.0);
+  CHECK(odom.back()->getTwist().getOmega() == 0.0);
+  CHECK(summaryInt(h, "watchdog_stops") == 1);
+
+  // Standing still it stays: the watchdog does not count again without a new command.
+  h.advance(secondsToNanos(1.0));
+  CHECK(lastTruth(h).x == p.x);
+  CHECK(summaryInt(h, "watchdog_stops") == 1);
+  // A new command drives again, and its silence engages the watchdog a second time.
+  command(h, 0.3, 0.0);
+  h.advance(secondsToNanos(1.0));
+  CHECK(lastTruth(h).x > p.x + 0.1);
+  CHECK(summaryInt(h, "watchdog_stops") == 2);
+}
+
+TEST_CASE("SimulatorActor commands: a non-finite command is ignored and counted",
+          "[sim][actor][commands]") {
+  ActorHarness h(inRoom(commandsAt(1.0, 1.0, 0.0)));
+  command(h, 0.3, 0.0);
+  h.advance(secondsToNanos(0.3));
+  command(h, std::numeric_limits<double>::quiet_NaN(), 0.0);
+  h.advance(secondsToNanos(0.1));
+  // The previous command still drives: 40 steps at 0.3 m/s.
+  CHECK(lastTruth(h).x == Approx(1.0 + 40 * 0.003));
+  command(h, 0.3, std::numeric_limits<double>::infinity());
+  h.advance(secondsToNanos(2.0));
+  // Then the watchdog stops it 0.5 s after the last good command: 50 steps.
+  const tessera::Pose2 p = lastTruth(h);
+  CHECK(p.x == Approx(1.0 + 50 * 0.003));
+  CHECK(p.y == 1.0);
+  CHECK(p.theta == 0.0);
+  for (const auto& gt : h.published<msg::GroundTruthPose>("ground_truth")) {
+    const tessera::Pose2 q = toPose2(gt->getPose());
+    REQUIRE((std::isfinite(q.x) && std::isfinite(q.y) && std::isfinite(q.theta)));
+  }
+  CHECK(summaryInt(h, "bad_commands") == 2);
+  CHECK(summaryInt(h, "commands_received") == 3);
+  CHECK(summaryInt(h, "watchdog_stops") == 1);
+}
+
+TEST_CASE("SimulatorActor commands: speeds above the follower's limits are clamped",
+          "[sim][actor][commands]") {
+  SimulatorOptions o = commandsAt(3.0, 1.0, 0.0);
+  o.follower.v_max = 0.5;
+  o.follower.w_max = 1.0;
+  ActorHarness h(inRoom(o));
+  keepCommanding(h, -2.0, 5.0, 1.0);  // backwards, turning left
+  const auto odom = h.published<msg::Odometry>("odom");
+  CHECK(odom.back()->getTwist().getVx() == Approx(-0.5));
+  CHECK(odom.back()->getTwist().getOmega() == Approx(1.0));
+  CHECK(lastTruth(h).theta == Approx(1.0));  // 1 s at 1 rad/s
+  CHECK(summaryInt(h, "clamped_commands") == 10);
+  keepCommanding(h, 0.2, -0.5, 0.5);  // within the limits
+  CHECK(h.published<msg::Odometry>("odom").back()->getTwist().getVx() == Approx(0.2));
+  CHECK(summaryInt(h, "clamped_commands") == 10);
+}
+
+TEST_CASE("SimulatorActor commands: the base follows them under its acceleration limits",
+          "[sim][actor][commands]") {
+  SimulatorOptions o = commandsAt(1.0, 2.0, 0.0);
+  o.base.a_max = 0.2;
+  o.base.alpha_max = 0.5;
+  ActorHarness h(inRoom(o));
+  keepCommanding(h, 0.4, 1.0, 1.0);
+  // After 1 s the base has reached 0.2 m/s and 0.5 rad/s, not the commanded 0.4 and 1.0; odometry
+  // reports the mean of the last two steps.
+  const auto twist = h.published<msg::Odometry>("odom").back()->getTwist();
+  CHECK(twist.getVx() == Approx((0.198 + 0.2) / 2));
+  CHECK(twist.getOmega() == Approx((0.495 + 0.5) / 2));
+  // The heading is the sum of the ramp: sum over k = 1..100 of 0.005 k * 0.01 s.
+  CHECK(lastTruth(h).theta == Approx(0.005 * 0.01 * 5050));
+  keepCommanding(h, 0.4, 1.0, 1.5);
+  CHECK(h.published<msg::Odometry>("odom").back()->getTwist().getVx() == Approx(0.4));
+}
+
+TEST_CASE("SimulatorActor commands: without start_pose it starts on the route's start",
+          "[sim][actor][commands]") {
+  SimulatorOptions o;
+  o.drive = "commands";
+  o.route = {{7.5, 7.5}, {7.5, 12.0}};
+  SimulatorActor a(o);
+  CHECK(a.startPose().x == 7.5);
+  CHECK(a.startPose().y == 7.5);
+  CHECK(a.startPose().theta == Approx(std::numbers::pi / 2));
+  o.route.clear();  // the office's default route
+  SimulatorActor b(o);
+  CHECK(b.startPose().x == 7.5);
+  CHECK(b.startPose().theta == 0.0);
+}
+
+TEST_CASE("SimulatorActor commands: not a finite source, the run goes on without commands",
+          "[sim][actor][commands]") {
+  SimulatorOptions o = commandsAt(1.0, 1.0, 0.0);
+  RuntimeOptions ro;
+  ro.threads = 1;
+  ro.show_progress = false;
+  ro.max_sim_duration = secondsToNanos(3);
+  Runtime rt(ro);
+  rt.add("sim", inRoom(o));
+  rt.configure(/*allow_unpublished=*/true);  // nobody publishes cmd_vel here
+  CHECK(rt.subscriptionsOf("sim") == std::vector<std::string>{"cmd_vel"});
+  const RunReport report = rt.run();
+  CHECK(report.stop_reason == "reached max_duration_s");
+  const Summary& s = report.actors.at(0).summary;
+  CHECK(std::get<std::int64_t>(s.at("scans_published")) >= 30);
+  CHECK(std::get<double>(s.at("distance_travelled_m")) == 0.0);
+  CHECK(s.count("route_completed") == 0);
+
+  // Route mode subscribes to nothing.
+  ActorHarness route(make(shortRun()));
+  CHECK(route.runtime().subscriptionsOf("actor_under_test").empty());
+  CHECK_THROWS_AS(command(route, 0.3, 0.0), std::invalid_argument);
+}
+
+TEST_CASE("SimulatorActor: collisions with furniture depend on the body's height",
+          "[sim][actor][commands][collision]") {
+  // Driving along y = 2 under the table: 0.45 m from the legs, right under the top (0.71 m).
+  auto drive = [](double height) {
+    SimulatorOptions o = commandsAt(1.0, 2.0, 0.0);
+    o.footprint.height = height;
+    auto h = std::make_unique<ActorHarness>(inRoom(o));
+    keepCommanding(*h, 0.3, 0.0, 6.0);  // to x = 2.8
+    return h;
+  };
+  auto tall = drive(1.0);
+  CHECK(lastTruth(*tall).x == Approx(2.8));
+  CHECK(summaryInt(*tall, "collisions") == 1);
+  // In contact from x = 1.8 (the top's edge at 2.0 minus the radius) on: ~1 m at 0.3 m/s.
+  CHECK(summaryInt(*tall, "collision_steps") == Approx(100.0 / 0.3).margin(2));
+  CHECK(summaryDouble(*tall, "min_clearance_m") == Approx(-0.2));
+  CHECK(summaryInt(*tall, "wall_contacts") == 0);  // the laser's world has no table
+
+  auto low = drive(0.5);  // below the top: only the legs count
+  CHECK(summaryInt(*low, "collisions") == 0);
+  CHECK(summaryInt(*low, "collision_steps") == 0);
+  CHECK(summaryDouble(*low, "min_clearance_m") == Approx(0.45 - 0.2));
+}
+
+TEST_CASE("SimulatorActor: every contact episode counts once",
+          "[sim][actor][commands][collision]") {
+  ActorHarness h(inRoom(commandsAt(1.0, 2.0, 0.0)));
+  keepCommanding(h, 0.3, 0.0, 4.0);   // under the table's edge, to x = 2.2
+  keepCommanding(h, -0.3, 0.0, 3.0);  // back out, to x = 1.3
+  CHECK(summaryInt(h, "collisions") == 1);
+  keepCommanding(h, 0.3, 0.0, 3.0);  // in again
+  CHECK(summaryInt(h, "collisions") == 2);
+  // Into the east wall: x from 2.2 to ~5.8 at 0.3 m/s, the wall's inner face at 5.95.
+  keepCommanding(h, 0.3, 0.0, 12.0);
+  CHECK(summaryInt(h, "collisions") == 3);  // out from under the table, then the wall
+  CHECK(summaryInt(h, "wall_contacts") == 0);
+}
+
+TEST_CASE("SimulatorActor: route mode counts collisions too", "[sim][actor][collision]") {
+  SimulatorOptions o;
+  o.route = {{1.0, 2.0}, {5.0, 2.0}};  // straight under the table top
+  ActorHarness h(std::make_unique<SimulatorActor>(o, roomWithTable()));
+  runToEnd(h, 60);
+  CHECK(summaryInt(h, "route_completed") == 1);
+  CHECK(summaryInt(h, "collisions") == 1);
+  // In contact for x in (1.8, 3.7) at the follower's 0.5 m/s: 3.8 s.
+  CHECK(summaryInt(h, "collision_steps") == Approx(380).margin(3));
+}
+
+TEST_CASE("SimulatorActor commands: options from YAML; bad ones are ConfigErrors naming them",
+          "[sim][actor][commands][options]") {
+  const SimulatorOptions o = optionsFromYaml(
+      "{drive: commands, command_timeout_s: 0.25, start_pose: [7.5, 7.5, 1.0],"
+      " footprint: {radius: 0.3, height: 0.6}}");
+  CHECK(o.drive == "commands");
+  CHECK(o.command_timeout_s == 0.25);
+  CHECK(o.start_pose == std::vector<double>{7.5, 7.5, 1.0});
+  CHECK(o.footprint.radius == 0.3);
+  CHECK(o.footprint.height == 0.6);
+  const SimulatorOptions d;
+  CHECK(d.drive == "route");
+  CHECK(d.command_timeout_s == 0.5);
+  CHECK(d.start_pose.empty());
+  CHECK(d.footprint.radius == 0.2);
+  CHECK(d.footprint.height == 1.0);
+
+  auto with = [](auto change) {
+    SimulatorOptions c = commandsAt(7.5, 7.5, 0.0);  // in the office's bottom corridor
+    change(c);
+    return configErrorOf(c);
+  };
+  auto contains = [](const std::string& msg, const std::string& part) {
+    INFO("message: " << msg);
+    CHECK(msg.find(part) != std::string::npos);
+  };
+  CHECK(with([](auto&) {}).empty());
+  const std::string fly = with([](auto& c) { c.drive = "fly"; });
+  contains(fly, "simulator: option 'drive'");
+  contains(fly, "'route' or 'commands'");
+  contains(fly, "fly");
+  const std::string in_wall = with([](auto& c) { c.start_pose = {15, 8.5, 0}; });  // a pillar
+  contains(in_wall, "option 'start_pose'");
+  contains(in_wall, "[15, 8.5, 0]");
+  contains(in_wall, "in a wall");
+  contains(with([](auto& c) { c.start_pose = {-1, 7.5, 0}; }), "outside world 'builtin:office'");
+  const std::string two = with([](auto& c) { c.start_pose = {7.5, 7.5}; });
+  contains(two, "option 'start_pose'");
+  contains(two, "3 numbers");
+  contains(with([](auto& c) {
+             c.start_pose = {7.5, std::numeric_limits<double>::quiet_NaN(), 0};
+           }),
+           "option 'start_pose': must be finite");
+  contains(with([](auto& c) { c.start_pose = {7.5, 7.5, 0, 1}; }), "3 numbers");
+  contains(with([](auto& c) {
+             c.drive = "route";  // a route starts on its first waypoint
+           }),
+           "option 'start_pose': is only used with drive: commands");
+  contains(with([](auto& c) { c.command_timeout_s = 0; }), "option 'command_timeout_s'");
+  contains(with([](auto& c) { c.command_timeout_s = std::numeric_limits<double>::quiet_NaN(); }),
+           "option 'command_timeout_s'");
+  contains(with([](auto& c) { c.command_timeout_s = -1; }), "option 'command_timeout_s'");
+  contains(with([](auto& c) { c.footprint.radius = 0; }), "option 'footprint.radius'");
+  contains(with([](auto& c) { c.footprint.height = std::numeric_limits<double>::infinity(); }),
+           "option 'footprint.height'");
+  CHECK_THROWS_WITH(optionsFromYaml("{start_pose: [1, two, 3]}"), Catch::Contains("start_pose"));
+  CHECK_THROWS_WITH(optionsFromYaml("{footprint: {width: 1}}"), Catch::Contains("width"));
 }

@@ -5,7 +5,9 @@
 
 #include "option_checks.hpp"
 
+#include <algorithm>
 #include <cmath>
+#include <iostream>
 #include <stdexcept>
 
 namespace tessera::sim {
@@ -16,11 +18,17 @@ using detail::str;
 
 constexpr detail::OptionErrors kErrors("simulator");
 
+// How far beyond the body's radius the collision check looks [m]: min_clearance_m is capped
+// there.
+constexpr double kClearanceMargin = 0.5;
+
 }  // namespace
 
 SimulatorActor::SimulatorActor(SimulatorOptions options)
-    : options_(std::move(options)),
-      world_(kErrors.loadWorld(options_.world, options_.world_resolution)) {
+    : SimulatorActor(options, kErrors.loadWorld(options.world, options.world_resolution)) {}
+
+SimulatorActor::SimulatorActor(SimulatorOptions options, World world)
+    : options_(std::move(options)), world_(std::move(world)) {
   const auto& o = options_;
 
   // Rates: exact integer periods, so every stamp is a whole number of steps.
@@ -64,16 +72,49 @@ SimulatorActor::SimulatorActor(SimulatorOptions options)
   laser_.emplace(world_, o.laser);
   laser_rng_ = detail::seededStream(o.seed, detail::NoiseStream::kLaser);
 
-  // Route: given, or the world's own.
-  route_ = kErrors.routeOrDefault(world_, o.route);
-  const bool open = (route_.back() - route_.front()).norm() > 1e-6;
-  try {
-    checkRoute(world_, route_, /*closed=*/o.laps > 1 && open);
-    follower_.emplace(route_, o.follower, o.laps);
-  } catch (const std::invalid_argument& e) {
-    kErrors.fail("route", e.what());  // the follower's speeds and the laps were checked above
+  if (o.drive != "route" && o.drive != "commands")
+    kErrors.fail("drive", "must be 'route' or 'commands', got '" + o.drive + "'");
+  commands_ = o.drive == "commands";
+  if (!(o.command_timeout_s > 0 && o.command_timeout_s <= 1e6))  // false for NaN
+    kErrors.fail("command_timeout_s", "must be in (0, 1e6] s, got " + str(o.command_timeout_s));
+  command_timeout_ = secondsToNanos(o.command_timeout_s);
+  kErrors.check(o.footprint.check(), "footprint");
+
+  if (!o.start_pose.empty()) {
+    std::string value = "[";
+    for (std::size_t i = 0; i < o.start_pose.size(); ++i)
+      value += (i ? ", " : "") + str(o.start_pose[i]);
+    value += "]";
+    if (!commands_)
+      kErrors.fail("start_pose",
+                   "is only used with drive: commands (a route starts on its first "
+                   "waypoint), got " +
+                       value);
+    if (o.start_pose.size() != 3)
+      kErrors.fail("start_pose", "must be 3 numbers [x, y, theta], got " + value);
+    if (!std::all_of(o.start_pose.begin(), o.start_pose.end(),
+                     [](double v) { return std::isfinite(v); }))
+      kErrors.fail("start_pose", "must be finite, got " + value);
+    const Eigen::Vector2d p(o.start_pose[0], o.start_pose[1]);
+    if (world_.blocked(p))
+      kErrors.fail("start_pose", value + " is in a wall or outside world '" + world_.name() +
+                                     "' (" + str(world_.widthMeters()) + " m x " +
+                                     str(world_.heightMeters()) + " m)");
+    start_ = Pose2{p.x(), p.y(), normalizeAngle(o.start_pose[2])};
+  } else {
+    // Route: given, or the world's own (in commands mode only for its start pose).
+    route_ = kErrors.routeOrDefault(world_, o.route);
+    const bool open = (route_.back() - route_.front()).norm() > 1e-6;
+    try {
+      checkRoute(world_, route_, /*closed=*/o.laps > 1 && open);
+      follower_.emplace(route_, o.follower, o.laps);
+    } catch (const std::invalid_argument& e) {
+      kErrors.fail("route", e.what());  // the follower's speeds and the laps were checked above
+    }
+    start_ = follower_->startPose();
+    if (commands_) follower_.reset();
   }
-  robot_.emplace(follower_->startPose(), o.odometry, o.seed, o.base);
+  robot_.emplace(start_, o.odometry, o.seed, o.base);
 }
 
 void SimulatorActor::configure(ActorContext& ctx) {
@@ -83,16 +124,66 @@ void SimulatorActor::configure(ActorContext& ctx) {
   gt_pub_ = ctx.advertise<msg::GroundTruthPose>("ground_truth");
   if (gyro_) imu_pub_ = ctx.advertise<msg::ImuSample>("imu");
   if (encoders_) ticks_pub_ = ctx.advertise<msg::WheelTicks>("wheel_ticks");
-  ctx.declareFiniteSource();  // ends once every lap is driven
+  if (commands_) {
+    // Only the newest command matters: a stale one queued behind it would be followed late.
+    ctx.subscribe<msg::Twist>("cmd_vel", MailboxPolicy::keepLatest(1),
+                              [this](const Message<msg::Twist>& cmd) { onCommand(cmd); });
+  } else {
+    ctx.declareFiniteSource();  // ends once every lap is driven
+  }
   ctx.addTimer(
       period_, [this] { tick(); }, 0);
+}
+
+void SimulatorActor::onCommand(const Message<msg::Twist>& cmd) {
+  ++commands_received_;
+  const auto twist = cmd->getTwist();
+  const double v = twist.getVx(), omega = twist.getOmega();
+  if (!std::isfinite(v) || !std::isfinite(omega)) {
+    ++bad_commands_;  // never reaches the base; the previous command ages towards the watchdog
+    return;
+  }
+  const FollowerConfig& limits = options_.follower;
+  command_ = {std::clamp(v, -limits.v_max, limits.v_max),
+              std::clamp(omega, -limits.w_max, limits.w_max)};
+  if (command_.v != v || command_.omega != omega) ++clamped_commands_;
+  command_time_ = ctx_->now();
+  have_command_ = true;
+}
+
+Twist SimulatorActor::currentCommand() {
+  const bool fresh = have_command_ && ctx_->now() - command_time_ <= command_timeout_;
+  if (following_command_ && !fresh) ++watchdog_stops_;
+  following_command_ = fresh;
+  return fresh ? command_ : Twist{};
+}
+
+void SimulatorActor::checkCollision() {
+  const double radius = options_.footprint.radius;
+  const Eigen::Vector2d p = robot_->truePose().translation();
+  const double clearance =
+      footprintClearance(world_, p, options_.footprint.height, radius + kClearanceMargin);
+  min_clearance_ = step_ == 0 ? clearance - radius : std::min(min_clearance_, clearance - radius);
+  const bool contact = clearance < radius;
+  if (contact) {
+    ++collision_steps_;
+    if (!in_contact_) {
+      ++collisions_;
+      // t: time since the start (the step's), also under a wall clock.
+      std::cerr << "simulator: collision at t=" << static_cast<double>(step_) * dt_
+                << " s, x=" << p.x() << " y=" << p.y() << " (clearance " << clearance << " m)\n";
+    }
+  }
+  in_contact_ = contact;
 }
 
 void SimulatorActor::tick() {
   if (finished_) return;
   if (step_ > 0) {
-    // Standing still during the start pause; then the follower drives.
-    const Twist cmd = step_ > pause_steps_ ? follower_->command(robot_->truePose(), dt_) : Twist{};
+    // Standing still during the start pause; then the follower or the commands drive.
+    Twist cmd;
+    if (step_ > pause_steps_)
+      cmd = commands_ ? currentCommand() : follower_->command(robot_->truePose(), dt_);
     robot_->step(cmd, dt_);
     const Twist& vel = robot_->velocity();  // the command under the base's limits
     const Eigen::Vector2d inc = robot_->lastOdometryIncrement();
@@ -107,6 +198,7 @@ void SimulatorActor::tick() {
     ++odom_steps_;
     if (world_.blocked(robot_->truePose().translation())) ++wall_contacts_;
   }
+  checkCollision();
 
   const Nanos stamp = ctx_->now();
   const bool odom_due = step_ % odom_every_ == 0;
@@ -118,11 +210,11 @@ void SimulatorActor::tick() {
   if (ticks_due) publishWheelTicks(stamp);
   if (scan_due) {
     publishScan(stamp);
-    ctx_->reportProgress(follower_->progress());
+    if (follower_) ctx_->reportProgress(follower_->progress());
   }
   ++step_;
 
-  if (follower_->done()) {
+  if (follower_ && follower_->done()) {
     finished_ = true;
     ctx_->reportProgress(1.0);
     ctx_->finished();
@@ -223,7 +315,15 @@ void SimulatorActor::publishScan(Nanos stamp) {
 void SimulatorActor::summarize(Summary& out) const {
   const Pose2& truth = robot_->truePose();
   const Pose2& odom = robot_->odometry().pose();
-  out["route_length_m"] = follower_->totalLength();
+  if (follower_) {
+    out["route_length_m"] = follower_->totalLength();
+    out["route_completed"] = static_cast<std::int64_t>(follower_->done() ? 1 : 0);
+  } else {
+    out["commands_received"] = commands_received_;
+    out["bad_commands"] = bad_commands_;
+    out["clamped_commands"] = clamped_commands_;
+    out["watchdog_stops"] = watchdog_stops_;
+  }
   out["sim_time_s"] = step_ > 0 ? static_cast<double>(step_ - 1) * dt_ : 0.0;
   out["scans_published"] = scans_published_;
   out["odom_published"] = odom_published_;
@@ -235,12 +335,14 @@ void SimulatorActor::summarize(Summary& out) const {
   out["distance_travelled_m"] = robot_->distanceTravelled();
   out["odom_drift_m"] = (odom.translation() - truth.translation()).norm();
   out["odom_heading_drift_rad"] = std::abs(normalizeAngle(odom.theta - truth.theta));
-  out["route_completed"] = static_cast<std::int64_t>(follower_->done() ? 1 : 0);
   out["wall_contacts"] = wall_contacts_;
+  out["collisions"] = collisions_;
+  out["collision_steps"] = collision_steps_;
+  out["min_clearance_m"] = min_clearance_;
 }
 
 TESSERA_REGISTER_ACTOR("simulator", SimulatorActor, SimulatorOptions,
-                       "2D world simulator: drives a route, publishes laser scans, noisy "
-                       "odometry and ground truth");
+                       "2D world simulator: drives a route or follows cmd_vel, publishes laser "
+                       "scans, noisy odometry and ground truth, counts collisions");
 
 }  // namespace tessera::sim

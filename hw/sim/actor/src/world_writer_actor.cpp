@@ -1,9 +1,12 @@
 #include <tessera/sim/world_writer_actor.hpp>
 
+#include <tessera/messages/views.hpp>
 #include <tessera/runtime/registry.hpp>
+#include <tessera/sim/collision.hpp>
 
 #include "option_checks.hpp"
 
+#include <algorithm>
 #include <cmath>
 #include <filesystem>
 #include <fstream>
@@ -33,7 +36,47 @@ void closeOut(std::ofstream& out, const std::filesystem::path& path) {
 WorldWriterActor::WorldWriterActor(WorldWriterOptions options)
     : options_(std::move(options)),
       world_(kErrors.loadWorld(options_.world, options_.world_resolution)) {
-  kErrors.check(ConfigCheck().nonNegative("walls_min_length", options_.walls_min_length));
+  const auto& o = options_;
+  kErrors.check(ConfigCheck()
+                    .nonNegative("walls_min_length", o.walls_min_length)
+                    .positive("robot_height", o.robot_height));
+  if (!(o.map_period_s > 0 && o.map_period_s <= 1e6))  // false for NaN
+    kErrors.fail("map_period_s", "must be in (0, 1e6] s, got " + detail::str(o.map_period_s));
+  if (o.publish_map) {
+    wall_cells_ = wallOccupancy(world_);
+    obstacle_cells_ = footprintOccupancy(world_, o.robot_height);
+  }
+}
+
+void WorldWriterActor::configure(ActorContext& ctx) {
+  ctx_ = &ctx;
+  if (!options_.publish_map) return;
+  map_pub_ = ctx.advertise<msg::OccupancyGrid>("map");
+  obstacle_pub_ = ctx.advertise<msg::OccupancyGrid>("obstacle_map");
+  // Republished periodically: a consumer that starts late, or keeps only the latest message,
+  // still gets the maps.
+  ctx.addTimer(
+      secondsToNanos(options_.map_period_s), [this] { publishMaps(); }, 0);
+}
+
+void WorldWriterActor::publishMaps() {
+  publishGrid(map_pub_, wall_cells_);
+  publishGrid(obstacle_pub_, obstacle_cells_);
+  ++maps_published_;
+}
+
+void WorldWriterActor::publishGrid(const Publisher<msg::OccupancyGrid>& pub,
+                                   const std::vector<std::int8_t>& cells) {
+  // The cells go in a blob: every byte is copied in, so it needs no zeroing first.
+  auto loan = pub.loanWithBlob(cells.size(), 512);
+  setHeader(loan->initHeader(), ctx_->now(), "map", pub.nextSeq());
+  loan->setResolution(static_cast<float>(world_.resolution()));
+  loan->setWidth(static_cast<std::uint32_t>(world_.width()));
+  loan->setHeight(static_cast<std::uint32_t>(world_.height()));
+  writePose(loan->initOrigin(), tessera::Pose2{0.0, 0.0, 0.0});
+  std::copy(cells.begin(), cells.end(), reinterpret_cast<std::int8_t*>(loan.blob().data()));
+  loan->adoptCells(loan.blobData());
+  pub.publish(std::move(loan));
 }
 
 void WorldWriterActor::start() {
@@ -68,9 +111,11 @@ void WorldWriterActor::start() {
 void WorldWriterActor::summarize(Summary& out) const {
   out["wall_segments"] = walls_written_;
   out["landmarks"] = landmarks_written_;
+  out["maps_published"] = maps_published_;
 }
 
 TESSERA_REGISTER_ACTOR("world_writer", WorldWriterActor, WorldWriterOptions,
-                       "writes a simulated world's true walls, landmarks and bitmap to files");
+                       "writes a simulated world's true walls, landmarks and bitmap to files; "
+                       "publishes its true wall and obstacle maps");
 
 }  // namespace tessera::sim

@@ -1,8 +1,21 @@
-// SimulatorActor ("simulator"): drives a differential-drive robot along a route in a 2D world and
-// publishes what its sensors would see. A finite source: it calls finished() once every lap of
-// the route is driven and publishes nothing after that.
+// SimulatorActor ("simulator"): drives a differential-drive robot in a 2D world with 3D
+// furniture and publishes what its sensors would see. Two ways to drive (`drive`):
+//   route     (default) a built-in route follower drives the route (given, or the world's
+//             default) `laps` times. A finite source: it calls finished() once every lap is
+//             driven and publishes nothing after that.
+//   commands  the robot follows velocity commands from `cmd_vel` (a navigation stack), starting
+//             at `start_pose` (empty: the route's start pose). Not a finite source: the run ends
+//             when another finite source finishes, at the time limit, or on Ctrl-C.
 //
-// Publishes (local topic names):
+// Subscribes (commands mode only):
+//   cmd_vel       msg::Twist            keep_latest(1); vx [m/s] and omega [rad/s] are used, vy
+//                                       is ignored (a differential drive cannot move sideways).
+//                                       |vx| and |omega| above follower.v_max / follower.w_max
+//                                       are clamped; a command with a non-finite vx or omega is
+//                                       ignored (counted). When the newest command is older
+//                                       than command_timeout_s (runtime clock, from its
+//                                       receipt) a watchdog commands (0, 0) until the next one.
+// Publishes (local topic names), the same in both modes:
 //   scan          msg::LaserScan        frame "laser"; mount pose in the message
 //   odom          msg::Odometry         frame "odom", child "base_link"; noisy dead reckoning
 //   ground_truth  msg::GroundTruthPose  frame "map", child "base_link"; the true pose
@@ -19,8 +32,14 @@
 // Whenever odometry, a scan or wheel ticks are published, ground_truth is published first with
 // the same stamp, so a known-pose consumer can pair every scan with its true pose exactly.
 // With start_pause_s > 0 the robot stands still that long before it drives (a gyro learns its
-// bias at stops). The base follows the route follower's commands under `base` acceleration
-// limits (none by default).
+// bias at stops; commands are not followed before then). The base follows the route follower's
+// or cmd_vel's commands under `base` acceleration limits (none by default).
+//
+// Collisions (both modes): every step the body (`footprint`, a vertical cylinder) is checked
+// against the true 3D world with footprintClearance() (collision.hpp): walls, the map border and
+// furniture below the body's top. The robot is not stopped by a contact (it is counted, and each
+// contact episode is reported once on stderr), so a run shows how often a planner would have hit
+// something the laser cannot see.
 //
 // Frames: map = world frame of the World (origin at its lower-left corner); odom coincides with
 // map at the start pose. Option errors throw ConfigError from the constructor.
@@ -29,6 +48,7 @@
 #include <tessera/messages/types.hpp>
 #include <tessera/runtime/actor.hpp>
 #include <tessera/runtime/options.hpp>
+#include <tessera/sim/collision.hpp>
 #include <tessera/sim/ray_caster.hpp>
 #include <tessera/sim/robot.hpp>
 #include <tessera/sim/wheel_sensors.hpp>
@@ -59,6 +79,10 @@ struct SimulatorOptions {
   EncoderOptions encoders;
   double start_pause_s = 0;
   std::uint64_t seed = 1;
+  std::string drive = "route";
+  double command_timeout_s = 0.5;
+  std::vector<double> start_pose;
+  FootprintOptions footprint;
 
   template <class V>
   void visit(V& v) {
@@ -83,6 +107,16 @@ struct SimulatorOptions {
     v("start_pause_s", start_pause_s,
       "the robot stands still this long before driving [s] (a gyro learns its bias at stops)");
     v("seed", seed, "random seed; equal seeds give identical runs");
+    v("drive", drive,
+      "'route': the route follower drives the route (a finite source); 'commands': follow "
+      "velocity commands from cmd_vel (not a finite source)");
+    v("command_timeout_s", command_timeout_s,
+      "commands mode: the base is stopped when the newest cmd_vel is older than this [s]");
+    v("start_pose", start_pose,
+      "commands mode: start pose [x, y, theta] in the map frame [m, m, rad]; empty = the "
+      "route's start (its first waypoint, facing the second)");
+    v("footprint", footprint,
+      "the robot's body for collision checks: a vertical cylinder on the floor");
   }
 
   /// The flat keys of earlier versions, now inside the follower, odometry and laser groups
@@ -110,6 +144,9 @@ class SimulatorActor final : public Actor {
   /// Loads the world and checks every option and the route; throws ConfigError naming the
   /// option (and for a route, the waypoint index and coordinates).
   explicit SimulatorActor(SimulatorOptions options);
+  /// The same in `world` instead of options.world (a world built in code, e.g. with furniture
+  /// added; world and world_resolution are not read).
+  SimulatorActor(SimulatorOptions options, World world);
   SimulatorActor(const SimulatorActor&) = delete;
   SimulatorActor& operator=(const SimulatorActor&) = delete;
 
@@ -117,15 +154,27 @@ class SimulatorActor final : public Actor {
   /// route_length_m, sim_time_s, scans_published, odom_published, imu_published and
   /// wheel_ticks_published (when enabled, with gyro_bias_final_rad_s), distance_travelled_m,
   /// odom_drift_m / odom_heading_drift_rad (final odometry minus truth), route_completed (0/1),
-  /// wall_contacts (steps whose true position was inside a wall).
+  /// wall_contacts (steps whose true position was inside a wall); collisions (contact episodes:
+  /// steps whose footprint clearance fell below footprint.radius after one that did not),
+  /// collision_steps, min_clearance_m (smallest clearance minus radius, negative = overlap).
+  /// route_length_m and route_completed in route mode only; in commands mode
+  /// commands_received, bad_commands (non-finite, ignored), clamped_commands and
+  /// watchdog_stops (times the watchdog stopped a commanded base).
   void summarize(Summary& out) const override;
 
   const World& world() const { return world_; }
-  /// The route being driven (given, or the world's default), one lap.
+  /// The route being driven (given, or the world's default), one lap; in commands mode the
+  /// route that gave the start pose (empty with start_pose).
   const Route& route() const { return route_; }
+  /// Where the robot started.
+  const Pose2& startPose() const { return start_; }
 
  private:
   void tick();
+  void onCommand(const Message<msg::Twist>& cmd);
+  /// The command for this step in commands mode: the newest one, or (0, 0) when it is stale.
+  Twist currentCommand();
+  void checkCollision();
   void publishGroundTruth(Nanos stamp);
   void publishOdometry(Nanos stamp);
   void publishScan(Nanos stamp);
@@ -136,7 +185,9 @@ class SimulatorActor final : public Actor {
   World world_;
   Route route_;
   std::optional<LaserModel> laser_;  // points into world_
-  std::optional<RouteFollower> follower_;
+  bool commands_ = false;
+  Pose2 start_;
+  std::optional<RouteFollower> follower_;  // route mode only
   std::optional<DiffDriveRobot> robot_;
   std::mt19937_64 laser_rng_;
   std::optional<Gyro> gyro_;
@@ -165,6 +216,18 @@ class SimulatorActor final : public Actor {
 
   std::int64_t scans_published_ = 0, odom_published_ = 0, wall_contacts_ = 0;
   std::int64_t imu_published_ = 0, ticks_published_ = 0;
+
+  // Commands mode: the newest accepted command, when it arrived, and whether the last step
+  // followed it (to count watchdog engagements).
+  Twist command_;
+  Nanos command_time_ = 0, command_timeout_ = 0;
+  bool have_command_ = false, following_command_ = false;
+  std::int64_t commands_received_ = 0, bad_commands_ = 0, clamped_commands_ = 0;
+  std::int64_t watchdog_stops_ = 0;
+
+  bool in_contact_ = false;
+  std::int64_t collisions_ = 0, collision_steps_ = 0;
+  double min_clearance_ = 0;  // set at the first step
 };
 
 }  // namespace tessera::sim
