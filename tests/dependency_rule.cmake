@@ -9,7 +9,8 @@
 #   hw core       -> base, hw core                 (hw/datasets, hw/sim without actor/)
 #   hw actors     -> base, messages, runtime, hw core, their own folder
 #   actors core   -> base, actors core             (actors/<domain> without actor/)
-#   actors actors -> base, messages, runtime, actors core, their own folder
+#   actors common -> base, messages, runtime, actors core, itself (actors/common: glue)
+#   actors actors -> base, messages, runtime, actors core, actors common, their own folder
 # apps/ and tests/ may include anything, except that apps/ outside apps/bench never includes
 # iceoryx. Cap'n Proto (<capnp/..>, <kj/..>) counts as messages.
 cmake_minimum_required(VERSION 3.22)
@@ -29,6 +30,8 @@ function(layer_of rel out)
     set(l hw_actor)
   elseif(rel MATCHES "^hw/")
     set(l hw_core)
+  elseif(rel MATCHES "^actors/common/")
+    set(l actor_common)
   elseif(rel MATCHES "^actors/[a-z0-9_]+/actor/")
     set(l actor)
   elseif(rel MATCHES "^actors/")
@@ -51,7 +54,8 @@ set(allowed_runtime base messages runtime)
 set(allowed_hw_core base hw_core)
 set(allowed_hw_actor base messages runtime hw_core hw_actor)
 set(allowed_core base core)
-set(allowed_actor base messages runtime core actor)
+set(allowed_actor_common base messages runtime core actor_common)
+set(allowed_actor base messages runtime core actor_common actor)
 
 # Owner of every public header: tessera/x/y.hpp -> the folder whose include/ holds it.
 file(GLOB_RECURSE headers RELATIVE ${SOURCE_DIR}

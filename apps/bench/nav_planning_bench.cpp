@@ -199,7 +199,7 @@ PlanningBenchResult runPlanningBench(const PlanningBenchOptions& options) {
   dijkstra_options.algorithm = nav::SearchAlgorithm::kDijkstra;
   nav::GridPlanner astar(astar_options), dijkstra(dijkstra_options);
   const nav::AntColonyRefiner colony(options.ant_colony_options);
-  const std::uint8_t los_cost = options.ant_colony_options.max_cost;
+  const auto los_cost = static_cast<std::uint8_t>(options.ant_colony_options.max_cost);
 
   auto search = [](nav::GridPlanner& planner, const nav::Costmap& m, const PlanningPair& p) {
     const nav::GridPath g = planner.plan(m, p.start, p.goal);

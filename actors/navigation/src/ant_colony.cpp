@@ -22,7 +22,8 @@ void AntColonyOptions::validate() const {
       .nonNegative("alpha", alpha)
       .nonNegative("nest_radius", nest_radius)
       .require(max_steps >= 1, "max_steps", "must be >= 1", max_steps)
-      .require(max_cost <= cost::kMaxTraversable, "max_cost", "must be <= 252", max_cost)
+      .require(max_cost >= 0 && max_cost <= cost::kMaxTraversable, "max_cost",
+               "must be in [0, 252]", max_cost)
       .throwIfBad("ant colony");
 }
 
@@ -50,11 +51,12 @@ std::vector<Eigen::Vector2i> AntColonyRefiner::refine(const Costmap& map,
   AntColonySummary local;
   AntColonySummary& s = summary ? *summary : local;
   s = {};
-  std::vector<Eigen::Vector2i> best = shortenPath(map, path, options_.max_cost);
+  const auto max_cost = static_cast<std::uint8_t>(options_.max_cost);
+  std::vector<Eigen::Vector2i> best = shortenPath(map, path, max_cost);
   s.input_length = s.output_length = pathLength(map, best);
   if (path.size() < 3) return best;
   const Eigen::Vector2i start = path.front(), goal = path.back();
-  const std::uint8_t max_cost = options_.max_cost;
+
   auto open = [&](int col, int row) {
     return map.contains(col, row) && map.at(col, row) <= max_cost;
   };

@@ -83,15 +83,6 @@ struct RgbdRenderer::Gaps {
   std::vector<Hit> faces;
 };
 
-Eigen::Isometry3d Mount3D::bodyToBase() const {
-  Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
-  T.translate(Eigen::Vector3d(x, y, z));
-  T.rotate(Eigen::AngleAxisd(yaw, Eigen::Vector3d::UnitZ()) *
-           Eigen::AngleAxisd(pitch, Eigen::Vector3d::UnitY()) *
-           Eigen::AngleAxisd(roll, Eigen::Vector3d::UnitX()));
-  return T;
-}
-
 ConfigCheck RgbdCameraConfig::check() const {
   ConfigCheck c;
   c.require(width > 0, "width", "must be > 0", width)
@@ -173,12 +164,7 @@ Eigen::Isometry3d RgbdRenderer::cameraPose(const Pose2& base) const {
   Eigen::Isometry3d world_base = Eigen::Isometry3d::Identity();
   world_base.translate(Eigen::Vector3d(base.x, base.y, 0));
   world_base.rotate(Eigen::AngleAxisd(base.theta, Eigen::Vector3d::UnitZ()));
-  // Optical axes in the body frame: x right = -y, y down = -z, z forward = +x.
-  Eigen::Matrix3d body_optical;
-  body_optical << 0, 0, 1, -1, 0, 0, 0, -1, 0;
-  Eigen::Isometry3d optical = Eigen::Isometry3d::Identity();
-  optical.linear() = body_optical;
-  return world_base * config_.mount.bodyToBase() * optical;
+  return world_base * config_.mount.opticalToBase();
 }
 
 RgbdRenderer::Hit RgbdRenderer::trace(const Eigen::Vector3d& o, const Eigen::Vector3d& d,

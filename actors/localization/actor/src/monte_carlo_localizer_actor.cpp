@@ -2,6 +2,7 @@
 // map_to_odom.
 #include <tessera/localization/monte_carlo_localizer_actor.hpp>
 
+#include <tessera/actor_common/map_message.hpp>
 #include <tessera/mapping/map_io.hpp>
 #include <tessera/messages/geometry.hpp>
 #include <tessera/messages/views.hpp>
@@ -51,25 +52,6 @@ Eigen::Matrix3d startCovariance(const InitialPoseOptions& i) {
   const double xy = std::max(i.sigma_xy * i.sigma_xy, 1e-12);
   const double th = std::max(i.sigma_theta * i.sigma_theta, 1e-12);
   return Eigen::Vector3d(xy, xy, th).asDiagonal();
-}
-
-/// A map message as an OccupancyMap; throws std::invalid_argument naming what is wrong.
-grid::OccupancyMap toOccupancyMap(msg::OccupancyGrid::Reader m) {
-  grid::OccupancyMap map;
-  map.resolution = m.getResolution();
-  map.width = static_cast<int>(m.getWidth());
-  map.height = static_cast<int>(m.getHeight());
-  map.origin = toPose2(m.getOrigin());
-  if (!(std::isfinite(map.resolution) && map.resolution > 0))
-    throw std::invalid_argument("resolution " + std::to_string(map.resolution));
-  if (!map.origin.isFinite()) throw std::invalid_argument("origin not finite");
-  const auto cells = viewInt8(m.getCells());
-  if (map.empty() ||
-      cells.size() != static_cast<std::size_t>(map.width) * static_cast<std::size_t>(map.height))
-    throw std::invalid_argument(std::to_string(cells.size()) + " cells for " +
-                                std::to_string(map.width) + "x" + std::to_string(map.height));
-  map.cells.assign(cells.begin(), cells.end());
-  return map;
 }
 
 }  // namespace

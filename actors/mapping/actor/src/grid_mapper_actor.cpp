@@ -1,6 +1,6 @@
 #include <tessera/mapping/grid_mapper_actor.hpp>
 
-#include "pose_source.hpp"
+#include <tessera/actor_common/pose_source.hpp>
 
 #include <tessera/messages/types.hpp>
 #include <tessera/messages/views.hpp>
@@ -29,7 +29,7 @@ GridMapperCoreOptions checkedCore(const GridMapperOptions& o) {
   if (o.scan_queue < 1 || o.pose_queue < 1 || o.scan_buffer < 1 || o.pose_history < 2)
     fail("scan_queue, pose_queue, scan_buffer must be >= 1 and pose_history >= 2");
   if (o.frame_id.empty()) fail("frame_id must not be empty");
-  (void)detail::parsePoseMessage(o.pose_message, "grid_mapper", "pose_message");
+  (void)parsePoseMessage(o.pose_message, "grid_mapper", "pose_message");
   return o.grid;
 }
 
@@ -44,10 +44,10 @@ void GridMapperActor::configure(ActorContext& ctx) {
   ctx.subscribe<msg::LaserScan>(
       "scan", MailboxPolicy::keepLatest(static_cast<std::size_t>(options_.scan_queue)),
       [this](const Message<msg::LaserScan>& m) { onScan(m); });
-  detail::subscribePoses(
-      ctx, "pose", MailboxPolicy::keepLatest(static_cast<std::size_t>(options_.pose_queue)),
-      detail::parsePoseMessage(options_.pose_message, "grid_mapper", "pose_message"),
-      [this](Nanos stamp, const tessera::Pose2& pose) { onPose(stamp, pose); });
+  subscribePoses(ctx, "pose",
+                 MailboxPolicy::keepLatest(static_cast<std::size_t>(options_.pose_queue)),
+                 parsePoseMessage(options_.pose_message, "grid_mapper", "pose_message"),
+                 [this](Nanos stamp, const tessera::Pose2& pose) { onPose(stamp, pose); });
   map_pub_ = ctx.advertise<msg::OccupancyGrid>("map");
   addPeriodicTimer(ctx, options_.publish_period_s, [this] {
     if (dirty_) publishMap();

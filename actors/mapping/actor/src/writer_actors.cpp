@@ -1,8 +1,9 @@
 #include <tessera/mapping/writer_actors.hpp>
 
-#include "pose_source.hpp"
+#include <tessera/actor_common/pose_source.hpp>
 
 #include <tessera/msg/image.capnp.h>
+#include <tessera/actor_common/map_message.hpp>
 #include <tessera/mapping/map_io.hpp>
 #include <tessera/messages/views.hpp>
 #include <tessera/runtime/options.hpp>
@@ -17,35 +18,6 @@
 
 namespace tessera::mapping {
 namespace fs = std::filesystem;
-
-namespace {
-
-/// The double a Float32 field was meant to hold: 0.05f reads back as 0.05, not
-/// 0.0500000007, so the YAML says what the user configured.
-double intendedValue(float f) {
-  std::array<char, 32> buf{};
-  const auto end = std::to_chars(buf.data(), buf.data() + buf.size(), f).ptr;
-  double d = f;
-  std::from_chars(buf.data(), end, d);
-  return d;
-}
-
-tessera::grid::OccupancyMap toOccupancyMap(const msg::OccupancyGrid::Reader& m) {
-  tessera::grid::OccupancyMap map;
-  map.resolution = intendedValue(m.getResolution());
-  map.width = static_cast<int>(m.getWidth());
-  map.height = static_cast<int>(m.getHeight());
-  map.origin = toPose2(m.getOrigin());
-  const auto cells = viewInt8(m.getCells());
-  if (cells.size() != static_cast<std::size_t>(map.width) * static_cast<std::size_t>(map.height))
-    throw tessera::mapping::MapIoError("map message holds " + std::to_string(cells.size()) +
-                                       " cells, header says " + std::to_string(map.width) + "x" +
-                                       std::to_string(map.height));
-  map.cells.assign(cells.begin(), cells.end());
-  return map;
-}
-
-}  // namespace
 
 // ---- map_writer ----
 
@@ -128,7 +100,7 @@ tessera::mapping::TumPose tumPose(std::int64_t stamp_ns, msg::Pose3D::Reader p) 
 TrajectoryWriterActor::TrajectoryWriterActor(TrajectoryWriterOptions options)
     : options_(std::move(options)) {
   if (!is3d(options_.message))
-    (void)detail::parsePoseMessage(options_.message, "trajectory_writer", "message");
+    (void)parsePoseMessage(options_.message, "trajectory_writer", "message");
   if (options_.file.empty()) throw ConfigError("trajectory_writer: file must not be empty");
 }
 
@@ -156,15 +128,15 @@ void TrajectoryWriterActor::configure(ActorContext& ctx) {
                                       });
     return;
   }
-  detail::subscribePoses(ctx, "poses", MailboxPolicy::reliable(),
-                         detail::parsePoseMessage(options_.message, "trajectory_writer", "message"),
-                         [this](Nanos stamp, const tessera::Pose2& pose) {
-                           if (!writer_) return;
-                           writer_->write(stamp, pose);
-                           // The file is flushed at stop(); flushing now and then as well bounds
-                           // what a crash (rather than a clean Ctrl-C) could lose.
-                           if (++poses_written_ % 256 == 0) writer_->flush();
-                         });
+  subscribePoses(ctx, "poses", MailboxPolicy::reliable(),
+                 parsePoseMessage(options_.message, "trajectory_writer", "message"),
+                 [this](Nanos stamp, const tessera::Pose2& pose) {
+                   if (!writer_) return;
+                   writer_->write(stamp, pose);
+                   // The file is flushed at stop(); flushing now and then as well bounds
+                   // what a crash (rather than a clean Ctrl-C) could lose.
+                   if (++poses_written_ % 256 == 0) writer_->flush();
+                 });
 }
 
 void TrajectoryWriterActor::start() {

@@ -22,12 +22,12 @@ namespace tessera::navigation {
 struct AntColonyOptions {
   int ants = 20;  ///< per iteration
   int iterations = 15;
-  double evaporation = 0.9;     ///< ρ: pheromone kept per iteration
-  double deposit = 1.0;         ///< Q [m]
-  double alpha = 1.0;           ///< weight of pheromone in the move choice
-  double nest_radius = 1.0;     ///< [m] ants start within this distance of the start
-  int max_steps = 5000;         ///< per ant
-  std::uint8_t max_cost = 252;  ///< cells an ant or a straight cut may cross
+  double evaporation = 0.9;  ///< ρ: pheromone kept per iteration
+  double deposit = 1.0;      ///< Q [m]
+  double alpha = 1.0;        ///< weight of pheromone in the move choice
+  double nest_radius = 1.0;  ///< [m] ants start within this distance of the start
+  int max_steps = 5000;      ///< per ant
+  int max_cost = 252;        ///< cells an ant or a straight cut may cross (0-252)
   std::uint64_t seed = 1;
 
   template <class V>

@@ -37,28 +37,16 @@
 
 #include <Eigen/Geometry>
 
+#include <tessera/geometry/mount3d.hpp>
+
 #include <cstdint>
 #include <span>
 #include <vector>
 
 namespace tessera::sim {
 
-/// The pose of a 3D sensor in base_link: position [m], roll, pitch, yaw [rad] (see above).
-struct Mount3D {
-  double x = 0, y = 0, z = 0, roll = 0, pitch = 0, yaw = 0;
-
-  template <class V>
-  void visit(V& v) {
-    v("x", x, "[m] forward of base_link");
-    v("y", y, "[m] left of base_link");
-    v("z", z, "[m] above the floor");
-    v("roll", roll, "[rad] about the camera's forward axis");
-    v("pitch", pitch, "[rad] about its left axis; positive looks down");
-    v("yaw", yaw, "[rad] about the vertical; positive turns left");
-  }
-  /// Camera body (x forward, y left, z up) to base_link.
-  Eigen::Isometry3d bodyToBase() const;
-};
+/// The pose of a 3D sensor in base_link (see above).
+using Mount3D = tessera::Mount3D;
 
 struct RgbdCameraConfig {
   int width = 640, height = 480;                      ///< [px]

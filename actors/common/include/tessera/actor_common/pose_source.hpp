@@ -1,5 +1,6 @@
-// Internal glue shared by the mapping actors: subscribe to a stream of planar poses carried by
-// one of several message types, chosen by an option, and hand (stamp, Pose2) to a callback.
+// Subscribe to a stream of planar poses carried by one of several message types, chosen by an
+// option, and hand (stamp, Pose2) to a callback. Shared by the mapping, localisation and
+// navigation actors.
 #pragma once
 
 #include <tessera/geometry/pose2.hpp>
@@ -11,7 +12,7 @@
 #include <string_view>
 #include <utility>
 
-namespace tessera::mapping::detail {
+namespace tessera {
 
 enum class PoseMessage { kGroundTruth, kOdometry, kPoseStamped };
 
@@ -51,4 +52,4 @@ void subscribePoses(ActorContext& ctx, std::string_view topic, MailboxPolicy pol
   }
 }
 
-}  // namespace tessera::mapping::detail
+}  // namespace tessera

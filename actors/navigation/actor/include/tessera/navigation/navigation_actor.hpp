@@ -1,0 +1,187 @@
+// NavigationActor ("navigator"): drives the robot to goals on a known map — a thin adapter over
+// Navigator (docs/algorithms.md#navigation-loop) that keeps the costmaps up to date from the
+// sensors and sends velocity commands to the base.
+//
+// Costmaps: the static layer is a map file (PGM+YAML, map_server format; a file that fails to load
+// is a ConfigError naming it) or, with map_file empty, the latest OccupancyGrid on `map` (a new
+// map replaces the static layer and empties the obstacle layer). The obstacle layer keeps what
+// the laser (scan, at laser_height) and, with use_depth, a depth camera (rgbd: 3D points within
+// the robot's height band, so a table top the laser passes under blocks the cells beneath it)
+// see now. The planning costmap (static + obstacles, inflated) is rebuilt at costmap_hz; the
+// dynamic window's obstacle distances come from a rolling window of local_size around the robot,
+// rebuilt every control period.
+//
+// Poses: the robot's map pose is the newest `pose` (message type pose_message: a localiser's
+// PoseStamped, or the simulator's ground truth) moved on by the odometry since its stamp, so
+// commands use 50 Hz odometry between 10 Hz localisation updates. Sensor data is placed with the
+// map pose at its own stamp (odometry interpolated).
+//
+// Subscribes (local names; remap in the profile):
+//   pose      pose_message type  keep_latest(pose_queue): base_link in the map frame
+//   odom      msg::Odometry      keep_latest(odom_queue): base_link in odom + its twist (the
+//                                current velocity the dynamic window starts from)
+//   scan      msg::LaserScan     keep_latest(scan_queue), with use_scan
+//   rgbd      msg::RgbdFrame     keep_latest(1), with use_depth: depth 16UC1 or 32FC1
+//   goal      msg::NavGoal       reliable: a new goal replaces the current one
+//   map       msg::OccupancyGrid keep_latest(1), only without map_file
+// Publishes:
+//   cmd_vel     msg::Twist      every control period (1 / control_hz): (0, 0) when idle, when a
+//                               goal ends, when localisation is stale (no pose for
+//                               pose_timeout_s) and instead of any non-finite command
+//   nav_status  msg::NavStatus  on every change of state or goal and every status_period_s
+//   path        msg::Path       the global path after every (re)plan, frame_id
+// Timing: all on the runtime clock (simulated in the simulator). Bad input (non-finite poses,
+// malformed scans or depth images, goals in another frame) is counted by kind and skipped.
+#pragma once
+
+#include <tessera/msg/image.capnp.h>
+#include <tessera/msg/navigation.capnp.h>
+#include <tessera/geometry/mount3d.hpp>
+#include <tessera/geometry/pose2.hpp>
+#include <tessera/geometry/pose_history.hpp>
+#include <tessera/messages/types.hpp>
+#include <tessera/navigation/costmap.hpp>
+#include <tessera/navigation/navigator.hpp>
+#include <tessera/navigation/obstacle_layer.hpp>
+#include <tessera/runtime/actor.hpp>
+#include <tessera/runtime/options.hpp>
+
+#include <Eigen/Geometry>
+
+#include <cstdint>
+#include <map>
+#include <optional>
+#include <string>
+#include <vector>
+
+namespace tessera::navigation {
+
+struct NavigationActorOptions {
+  NavigatorOptions navigator;
+  std::string map_file;
+  StaticLayerOptions static_layer;
+  InflationOptions inflation;
+  ObstacleLayerOptions obstacles;
+  bool use_scan = true;
+  double laser_height = 0.25;
+  bool use_depth = false;
+  int depth_stride = 4;
+  Mount3D depth_camera{0.1, 0.0, 1.0, 0.0, 0.15, 0.0};
+  std::string pose_message = "pose_stamped";
+  double control_hz = 20;
+  double costmap_hz = 2;
+  double local_size = 6.0;
+  double pose_timeout_s = 1.0;
+  double status_period_s = 1.0;
+  std::string frame_id = "map";
+  int pose_queue = 16;
+  int odom_queue = 64;
+  int scan_queue = 4;
+  int pose_history = 256;
+
+  template <class V>
+  void visit(V& v) {
+    v("navigator", navigator, "planning, the dynamic window, goal tolerances and recoveries");
+    v("map_file", map_file, "static map YAML (ROS map_server format); empty: the 'map' topic");
+    v("static_layer", static_layer, "how map occupancy becomes cost");
+    v("inflation", inflation, "inflation around obstacles (the robot's size)");
+    v("obstacles", obstacles, "the obstacle layer: ranges and the robot's height band");
+    v("use_scan", use_scan, "mark and clear obstacles with the laser ('scan')");
+    v("laser_height", laser_height, "[m] height of the laser's plane above the floor");
+    v("use_depth", use_depth, "mark and clear obstacles with a depth camera ('rgbd')");
+    v("depth_stride", depth_stride, "use every n-th depth pixel in both directions");
+    v("depth_camera", depth_camera, "the depth camera's mount on base_link (on the floor)");
+    v("pose_message", pose_message,
+      "message type on 'pose': pose_stamped (a localiser) | ground_truth | odometry");
+    v("control_hz", control_hz, "[Hz] control rate: dynamic window and cmd_vel");
+    v("costmap_hz", costmap_hz, "[Hz] rebuild rate of the inflated planning costmap");
+    v("local_size", local_size, "[m] side of the rolling window the dynamic window sees");
+    v("pose_timeout_s", pose_timeout_s, "[s] no pose for this long: stop the base");
+    v("status_period_s", status_period_s, "[s] nav_status period while a goal is active");
+    v("frame_id", frame_id, "the map frame");
+    v("pose_queue", pose_queue, "pose mailbox size (keep-latest)");
+    v("odom_queue", odom_queue, "odometry mailbox size (keep-latest)");
+    v("scan_queue", scan_queue, "scan mailbox size (keep-latest)");
+    v("pose_history", pose_history, "odometry poses remembered to place sensor data");
+  }
+};
+
+class NavigationActor final : public Actor {
+ public:
+  /// Throws ConfigError naming the option, or the map file that cannot be loaded.
+  explicit NavigationActor(NavigationActorOptions options);
+  ~NavigationActor() override;
+
+  void configure(ActorContext& ctx) override;
+  /// Goals by outcome, plans, recoveries, stale-localisation stops, control and costmap CPU
+  /// (ms per call, share of one core over the run's clock), bad input by kind.
+  void summarize(Summary& out) const override;
+
+  const Navigator& navigator() const { return navigator_; }
+  /// The current planning costmap (empty before a map).
+  const Costmap& costmap() const { return planning_; }
+
+ private:
+  void onPose(Nanos stamp, const Pose2& pose);
+  void onOdom(const Message<msg::Odometry>& m);
+  void onScan(const Message<msg::LaserScan>& m);
+  void onDepth(const Message<msg::RgbdFrame>& m);
+  void onGoal(const Message<msg::NavGoal>& m);
+  void onMap(const Message<msg::OccupancyGrid>& m);
+  void useMap(const grid::OccupancyMap& map);
+  void tick();
+  void rebuildCostmap();
+  void publishCommand(const Velocity& v);
+  void publishStatus(bool force);
+  void publishPath();
+  /// The map pose at `stamp` (the newest localisation moved by odometry), if known.
+  std::optional<Pose2> mapPoseAt(Nanos stamp) const;
+  void bad(const std::string& kind, const std::string& what);
+
+  NavigationActorOptions options_;
+  Navigator navigator_;
+  ActorContext* ctx_ = nullptr;
+  Publisher<msg::Twist> cmd_pub_;
+  Publisher<msg::NavStatus> status_pub_;
+  Publisher<msg::Path> path_pub_;
+
+  Costmap static_;    // the static layer's costs
+  Costmap combined_;  // static + obstacles, before inflation
+  Costmap planning_;  // combined, inflated: what the planner searches
+  std::optional<ObstacleLayer> obstacles_;
+  bool obstacles_dirty_ = true;
+  Nanos last_costmap_ = 0;
+  Eigen::Isometry3d camera_to_base_ = Eigen::Isometry3d::Identity();
+
+  // Localisation: the newest map pose and its stamp; odometry history for moving it on.
+  std::optional<std::pair<Nanos, Pose2>> pose_;
+  Nanos pose_received_ = 0;
+  PoseHistory odom_;
+  std::optional<std::pair<Nanos, Pose2>> odom_latest_;
+  Velocity velocity_;
+
+  // Goals.
+  struct PendingGoal {
+    std::uint64_t id = 0;
+    Pose2 pose;
+    double tolerance_xy = 0, tolerance_yaw = 0;
+  };
+  std::optional<PendingGoal> pending_;
+  std::uint64_t goal_id_ = 0;
+  NavState last_state_ = NavState::kIdle;
+  std::string last_reason_;
+  double distance_remaining_ = 0;
+  Nanos last_status_ = 0;
+  bool stale_ = false;
+  bool outcome_counted_ = true;  // the current goal's end is in the counts
+
+  // Figures for the summary.
+  std::uint64_t goals_ = 0, reached_ = 0, failed_ = 0, refused_ = 0, stale_stops_ = 0;
+  std::uint64_t ticks_ = 0, costmap_builds_ = 0, scans_ = 0, depth_frames_ = 0, maps_ = 0;
+  std::uint64_t nonfinite_commands_ = 0, paths_published_ = 0;
+  double control_cpu_ms_ = 0, control_cpu_max_ms_ = 0, costmap_cpu_ms_ = 0, sensor_cpu_ms_ = 0;
+  Nanos first_tick_ = -1, last_tick_ = 0;
+  std::map<std::string, std::uint64_t> bad_;
+};
+
+}  // namespace tessera::navigation

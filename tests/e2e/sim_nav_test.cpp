@@ -1,0 +1,53 @@
+// End to end: run apps/profiles/sim_nav.yaml (simulator driven by cmd_vel, MCL on the published
+// wall map, the navigator with laser and depth obstacles, the goal sequencer) with a few random
+// goals: every goal is reached, the body never touches a wall or a piece of furniture, and the
+// robot drives close to the shortest path. The 100-goal run is `tessera bench nav`.
+#include <tessera/evaluation/trajectory_metrics.hpp>
+#include <tessera/mapping/trajectory_io.hpp>
+
+#include "run_profile.hpp"
+
+#include <catch2/catch.hpp>
+
+#include <filesystem>
+#include <fstream>
+#include <iostream>
+#include <string>
+
+using namespace tessera;
+namespace fs = std::filesystem;
+
+TEST_CASE("sim_nav: random goals in the office are reached without a collision", "[e2e][nav]") {
+  const fs::path out = fs::temp_directory_path() / "tessera_e2e_sim_nav";
+  fs::remove_all(out);
+  fs::create_directories(out);
+  const RunReport report = test::runProfile("sim_nav", out, {"goals.random=3", "goals.seed=7"});
+  CHECK(report.stop_reason == "all inputs finished");
+  CHECK(test::summaryInt(report, "goals", "goals") == 3);
+  CHECK(test::summaryInt(report, "goals", "reached") == 3);
+  CHECK(test::summaryInt(report, "sim", "collisions") == 0);
+  CHECK(test::summaryInt(report, "sim", "watchdog_stops") == 0);
+  CHECK(test::summaryInt(report, "nav", "nonfinite_commands") == 0);
+  CHECK(test::summaryInt(report, "nav", "depth_frames") > 0);
+  const double ratio = std::get<double>(test::summaryOf(report, "goals").at("path_length_ratio"));
+  CHECK(ratio < 1.3);
+
+  // goals.csv: a header and one row per goal.
+  std::ifstream csv(out / "goals.csv");
+  std::string line;
+  int rows = 0;
+  while (std::getline(csv, line)) ++rows;
+  CHECK(rows == 4);
+
+  const auto estimate = mapping::readTum(out / "trajectory.tum");
+  const auto truth = mapping::readTum(out / "ground_truth.tum");
+  // MCL's error in the map frame (no alignment: the map is the world).
+  const auto pairs = evaluation::associateByTime(estimate, truth, {});
+  REQUIRE(pairs.size() > 100);
+  double sum = 0;
+  for (const auto& [e, r] : pairs) sum += (estimate[e].position - truth[r].position).norm();
+  const double mean = sum / static_cast<double>(pairs.size());
+  std::cout << "sim_nav: 3 goals, path length ratio " << ratio << ", MCL error mean " << mean
+            << " m\n";
+  CHECK(mean < 0.15);
+}
