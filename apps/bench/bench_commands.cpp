@@ -17,6 +17,7 @@ void addBenchCommands(CLI::App& app, int& result) {
   addBenchRgbdCommand(*bench, result);
   addBenchOctomapCommand(*bench, result);
   addBenchPlannerCommand(*bench, result);
+  addBenchNavCommand(*bench, result);
 }
 
 }  // namespace tessera::app

@@ -24,5 +24,6 @@ void addBenchRgbdCommand(CLI::App& bench, int& result);
 void addBenchOctomapCommand(CLI::App& bench, int& result);
 /// Adds `tessera bench planner` (global planners on a synthetic office costmap).
 void addBenchPlannerCommand(CLI::App& bench, int& result);
+void addBenchNavCommand(CLI::App& bench, int& result);
 
 }  // namespace tessera::app

@@ -6,6 +6,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <numbers>
 #include <stdexcept>
 #include <string>
@@ -46,12 +47,39 @@ LikelihoodField::LikelihoodField(const grid::OccupancyMap& map, double range_max
     return static_cast<float>(
         std::log(options_.z_hit * norm * std::exp(-0.5 * z * z) + options_.z_rand / range_max));
   };
-  log_p_.resize(distance_.size());
+  // Per cell, a signed distance to the nearest obstacle surface: in a free cell the distance from
+  // its centre to the nearest occupied cell's square (centre to centre less half a cell), in an
+  // occupied cell minus the distance to the nearest free cell's square. Interpolated between
+  // centres its magnitude is 0 on a wall's face, where a beam ends, and grows both in front of
+  // and behind it, so a pose that pushes endpoints into walls is penalised as much as one that
+  // leaves them short (with 0 inside walls the estimate creeps towards the walls ahead).
+  // Unknown cells are NaN: next to one (a SLAM map's wall seen from one side has unknown behind
+  // it) the endpoint's own cell decides: unknown is far, occupied is on the surface, free is its
+  // distance. See docs/algorithms.md#monte-carlo-localisation.
+  std::vector<std::uint8_t> free(map.cells.size());
+  for (std::size_t i = 0; i < free.size(); ++i)
+    free[i] = map.cells[i] >= 0 && map.cells[i] < options_.occupied_threshold;
+  const std::vector<float> to_free = grid::distanceTransform(free, map.width, map.height);
+  const double half = 0.5 * map.resolution;
+  edge_.resize(distance_.size());
   for (std::size_t i = 0; i < distance_.size(); ++i) {
     float& d = distance_[i];
     d = static_cast<float>(std::min<double>(d * map.resolution, options_.max_distance));
-    log_p_[i] = map.cells[i] < 0 ? logP(options_.max_distance) : logP(d);
+    if (map.cells[i] < 0)
+      edge_[i] = std::numeric_limits<float>::quiet_NaN();
+    else if (occupied[i])
+      edge_[i] = static_cast<float>(
+          options_.penalise_inside
+              ? -std::min<double>(to_free[i] * map.resolution - half, options_.max_distance)
+              : -half);
+    else
+      edge_[i] = static_cast<float>(std::min<double>(d - half, options_.max_distance));
   }
+  // log p by distance, tabulated every kTableStep metres up to max_distance.
+  const auto n = static_cast<std::size_t>(std::ceil(options_.max_distance / kTableStep)) + 2;
+  table_.resize(n);
+  for (std::size_t i = 0; i < n; ++i)
+    table_[i] = logP(std::min(static_cast<double>(i) * kTableStep, options_.max_distance));
   log_p_far_ = logP(options_.max_distance);
 }
 
@@ -61,14 +89,36 @@ double LikelihoodField::logLikelihood(const Pose2& pose,
   const Pose2 to_grid = between(map_.origin, pose);
   const double gc = std::cos(to_grid.theta), gs = std::sin(to_grid.theta);
   const double inv_res = 1.0 / map_.resolution;
+  const double inv_step = 1.0 / kTableStep;
+  const int w = map_.width, h = map_.height;
   double sum = 0;
   for (const Eigen::Vector2d& p : points) {
-    const double x = to_grid.x + gc * p.x() - gs * p.y();
-    const double y = to_grid.y + gs * p.x() + gc * p.y();
-    const int col = static_cast<int>(std::floor(x * inv_res));
-    const int row = static_cast<int>(std::floor(y * inv_res));
-    sum += map_.contains(col, row) ? log_p_[static_cast<std::size_t>(row) * map_.width + col]
-                                   : log_p_far_;
+    // In cell units relative to cell centres: (u, v) = (0, 0) at the centre of cell (0, 0).
+    const double u = (to_grid.x + gc * p.x() - gs * p.y()) * inv_res - 0.5;
+    const double v = (to_grid.y + gs * p.x() + gc * p.y()) * inv_res - 0.5;
+    const double fu = std::floor(u), fv = std::floor(v);
+    const int c0 = static_cast<int>(fu), r0 = static_cast<int>(fv);
+    if (c0 < 0 || r0 < 0 || c0 + 1 >= w || r0 + 1 >= h) {
+      sum += log_p_far_;  // off the map, or on its outermost half cell
+      continue;
+    }
+    const double a = u - fu, b = v - fv;
+    const float* row0 = edge_.data() + static_cast<std::size_t>(r0) * w + c0;
+    const float* row1 = row0 + w;
+    double d = (1 - b) * ((1 - a) * row0[0] + a * row0[1]) + b * ((1 - a) * row1[0] + a * row1[1]);
+    if (std::isnan(d)) {  // an unknown cell among the four: the endpoint's own cell decides
+      const float own = (b < 0.5 ? row0 : row1)[a < 0.5 ? 0 : 1];
+      if (std::isnan(own)) {
+        sum += log_p_far_;
+        continue;
+      }
+      d = std::max(own, 0.0f);
+    }
+    const double t = (options_.penalise_inside ? std::abs(d) : std::max(d, 0.0)) * inv_step;
+    const auto i = static_cast<std::size_t>(t);
+    sum += i + 1 < table_.size()
+               ? table_[i] + (t - static_cast<double>(i)) * (table_[i + 1] - table_[i])
+               : log_p_far_;
   }
   return sum;
 }

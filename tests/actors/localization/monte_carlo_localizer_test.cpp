@@ -188,3 +188,59 @@ TEST_CASE("a new map keeps the particles; a bad one changes nothing", "[localiza
   const Pose2 after = mcl.estimate().pose;
   CHECK(std::hypot(after.x - before.x, after.y - before.y) < 0.05);
 }
+
+TEST_CASE("endpoints on the faces of a corridor fit best at the true pose to the millimetre",
+          "[localization]") {
+  // A corridor between walls filling x < 1 m and x >= 3 m (5 cm cells); the robot in the middle
+  // sees both faces. Faces lie on cell boundaries, where a beam ends: a centre-to-centre field
+  // scores every pose up to a cell off alike, the interpolated face distance only the true one.
+  grid::OccupancyMap m;
+  m.resolution = 0.05;
+  m.width = 100;
+  m.height = 80;
+  m.cells.assign(static_cast<std::size_t>(m.width * m.height), 0);
+  for (int r = 0; r < m.height; ++r)
+    for (int c = 0; c < m.width; ++c)
+      if (c < 20 || c >= 60) m.at(c, r) = 100;
+  LikelihoodFieldOptions sharp;
+  sharp.penalise_inside = GENERATE(false, true);
+  const LikelihoodField field(m, 8.0, sharp);
+  std::vector<Eigen::Vector2d> points;
+  for (double a = -0.6; a <= 0.6; a += 0.05) {
+    points.emplace_back(1.0, std::tan(a));   // right face, x = 3
+    points.emplace_back(-1.0, std::tan(a));  // left face, x = 1
+  }
+  const Pose2 truth(2.0, 2.0, 0.0);
+  const double at_truth = field.logLikelihood(truth, points);
+  for (double shift : {-0.04, -0.02, -0.01, -0.003, 0.003, 0.01, 0.02, 0.04}) {
+    INFO("shifted by " << shift << " m");
+    CHECK(at_truth > field.logLikelihood(Pose2(2.0 + shift, 2.0, 0.0), points));
+  }
+  // Along the corridor the fit is flat: no pull that way.
+  CHECK(field.logLikelihood(Pose2(2.0, 2.03, 0.0), points) == Approx(at_truth).epsilon(1e-6));
+}
+
+TEST_CASE("on a sharp map, endpoints pushed into the walls ahead cost as much as short ones",
+          "[localization]") {
+  // A wall filling x >= 3 m; the robot at x = 1 sees only its face (a forward-looking laser).
+  grid::OccupancyMap m;
+  m.resolution = 0.05;
+  m.width = 100;
+  m.height = 80;
+  m.cells.assign(static_cast<std::size_t>(m.width * m.height), 0);
+  for (int r = 0; r < m.height; ++r)
+    for (int c = 60; c < m.width; ++c) m.at(c, r) = 100;
+  std::vector<Eigen::Vector2d> points;
+  for (double a = -0.6; a <= 0.6; a += 0.05) points.emplace_back(2.0, 2.0 * std::tan(a));
+  LikelihoodFieldOptions o;
+  o.penalise_inside = true;
+  const LikelihoodField sharp(m, 8.0, o);
+  const double truth = sharp.logLikelihood(Pose2(1.0, 2.0, 0.0), points);
+  CHECK(truth > sharp.logLikelihood(Pose2(1.05, 2.0, 0.0), points));
+  CHECK(sharp.logLikelihood(Pose2(1.05, 2.0, 0.0), points) ==
+        Approx(sharp.logLikelihood(Pose2(0.95, 2.0, 0.0), points)).epsilon(1e-4));
+  // Without the penalty, inside the wall is as good as on its face: the pull the option removes.
+  const LikelihoodField blurred(m, 8.0, {});
+  CHECK(blurred.logLikelihood(Pose2(1.05, 2.0, 0.0), points) ==
+        Approx(blurred.logLikelihood(Pose2(1.0, 2.0, 0.0), points)));
+}

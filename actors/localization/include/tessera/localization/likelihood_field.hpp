@@ -4,6 +4,12 @@
 // A beam endpoint at map distance d from the nearest occupied cell has probability
 //   p = z_hit · N(d; 0, sigma_hit) + z_rand / range_max
 // (d capped at max_distance; endpoints off the map or on unknown cells count as d = max_distance).
+// d is the distance to the nearest obstacle surface, interpolated bilinearly between cell
+// centres: 0 on a wall's face where a beam ends. Inside an obstacle it is 0, or with
+// penalise_inside the depth below the surface: on a sharp map (a simulator's, a floor plan) a
+// field that is 0 inside walls pulls the estimate several centimetres towards the walls ahead,
+// while on a SLAM map, whose walls are bands blurred over several cells, the depth penalty
+// punishes good endpoints (docs/algorithms.md#monte-carlo-localisation).
 // Beams at or beyond range_max carry no endpoint and are left out by the caller. The field of
 // log p is precomputed per cell from the map's distance transform. Points are robot-frame [m],
 // poses map-frame [m, rad]. Immutable after construction: safe to share between threads.
@@ -20,11 +26,12 @@
 namespace tessera::localization {
 
 struct LikelihoodFieldOptions {
-  double sigma_hit = 0.2;       ///< [m] endpoint noise
-  double z_hit = 0.95;          ///< weight of the hit component
-  double z_rand = 0.05;         ///< weight of the uniform component
-  double max_distance = 2.0;    ///< [m] distances are capped here
-  int occupied_threshold = 65;  ///< [%] cells at or above this are obstacles
+  double sigma_hit = 0.2;        ///< [m] endpoint noise
+  double z_hit = 0.95;           ///< weight of the hit component
+  double z_rand = 0.05;          ///< weight of the uniform component
+  double max_distance = 2.0;     ///< [m] distances are capped here
+  int occupied_threshold = 65;   ///< [%] cells at or above this are obstacles
+  bool penalise_inside = false;  ///< endpoints inside obstacles count their depth (sharp maps)
 
   template <class V>
   void visit(V& v) {
@@ -33,6 +40,8 @@ struct LikelihoodFieldOptions {
     v("z_rand", z_rand, "weight of the uniform random component");
     v("max_distance", max_distance, "[m] obstacle distances are capped at this");
     v("occupied_threshold", occupied_threshold, "[%] occupancy at which a cell is an obstacle");
+    v("penalise_inside", penalise_inside,
+      "endpoints inside obstacles count their depth below the surface (for sharp maps)");
   }
   void validate() const;  ///< throws std::invalid_argument naming the bad field
 };
@@ -57,8 +66,10 @@ class LikelihoodField {
   grid::OccupancyMap map_;
   LikelihoodFieldOptions options_;
   double range_max_;
-  std::vector<float> log_p_;     // per cell
-  std::vector<float> distance_;  // per cell [m], capped
+  static constexpr double kTableStep = 0.001;  // [m] of the log p table
+  std::vector<float> edge_;      // per cell [m]: signed distance to the nearest surface, capped
+  std::vector<float> distance_;  // per cell [m], centre to centre, capped
+  std::vector<float> table_;     // log p by distance, every kTableStep
   float log_p_far_;              // log p at max_distance (off-map endpoints)
 };
 
