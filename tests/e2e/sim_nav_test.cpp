@@ -51,3 +51,16 @@ TEST_CASE("sim_nav: random goals in the office are reached without a collision",
             << " m\n";
   CHECK(mean < 0.15);
 }
+
+TEST_CASE("sim_nav_slam: a goal is reached while the laser SLAM maps", "[e2e][nav]") {
+  const fs::path out = fs::temp_directory_path() / "tessera_e2e_sim_nav_slam";
+  fs::remove_all(out);
+  fs::create_directories(out);
+  const RunReport report = test::runProfile("sim_nav_slam", out, {"goals.random=1"});
+  CHECK(report.stop_reason == "all inputs finished");
+  CHECK(test::summaryInt(report, "goals", "reached") == 1);
+  CHECK(test::summaryInt(report, "sim", "collisions") == 0);
+  // The robot drove before any submap was finished: the navigator's costmap existed without a map.
+  CHECK(test::summaryInt(report, "nav", "control_ticks") > 100);
+  CHECK(fs::exists(out / "trajectory.tum"));
+}

@@ -32,6 +32,14 @@ void StaticLayerOptions::validate() const {
       .throwIfBad("static layer");
 }
 
+void paste(const Costmap& map, Costmap& frame) {
+  for (int r = 0; r < frame.height; ++r)
+    for (int c = 0; c < frame.width; ++c) {
+      const Eigen::Vector2i m = map.cellOf(frame.cellCenter(c, r));
+      frame.at(c, r) = map.contains(m) ? map.at(m) : cost::kUnknown;
+    }
+}
+
 Costmap fromOccupancy(const grid::OccupancyMap& map, const StaticLayerOptions& options) {
   options.validate();
   if (map.empty() || map.cells.size() != static_cast<std::size_t>(map.width) * map.height)

@@ -208,9 +208,12 @@ double pathLength(const Costmap& map, const std::vector<Eigen::Vector2i>& cells)
 }
 
 bool lineOfSight(const Costmap& map, const Eigen::Vector2i& a, const Eigen::Vector2i& b,
-                 std::uint8_t max_cost) {
+                 std::uint8_t max_cost, bool unknown_clear) {
   if (!map.contains(a) || !map.contains(b)) return false;
-  auto clear = [&](int col, int row) { return map.at(col, row) <= max_cost; };
+  auto clear = [&](int col, int row) {
+    const std::uint8_t c = map.at(col, row);
+    return c <= max_cost || (unknown_clear && c == cost::kUnknown);
+  };
   int col = a.x(), row = a.y();
   if (!clear(col, row)) return false;
   const int sx = b.x() > a.x() ? 1 : (b.x() < a.x() ? -1 : 0);

@@ -171,14 +171,14 @@ bool Navigator::plan(const Pose2& pose, const Costmap& costmap, std::string* why
   return true;
 }
 
-bool Navigator::pathBlocked(const Pose2& pose, const Costmap& costmap) const {
-  (void)pose;
+bool Navigator::pathBlocked(const Costmap& costmap) const {
   // Segments ahead of the one the robot is on must stay in line of sight; the robot's own
   // segment is not checked behind it, where it may brush an inflated cell.
   for (std::size_t k = progress_index_ + 1; k + 1 < path_.size(); ++k) {
     const Eigen::Vector2i a = costmap.cellOf(path_[k]), b = costmap.cellOf(path_[k + 1]);
     if (!costmap.contains(a) || !costmap.contains(b)) return true;
-    if (!lineOfSight(costmap, a, b, cost::kMaxTraversable)) return true;
+    if (!lineOfSight(costmap, a, b, cost::kMaxTraversable, options_.planner.allow_unknown))
+      return true;
   }
   if (progress_index_ + 1 < path_.size()) {
     const Eigen::Vector2i next = costmap.cellOf(path_[progress_index_ + 1]);
@@ -322,7 +322,7 @@ NavCommand Navigator::step(double now, const Pose2& pose, const Velocity& curren
   std::string why;
   const bool periodic =
       options_.replan_period > 0 && now - last_plan_time_ >= options_.replan_period;
-  const bool blocked = !need_plan_ && pathBlocked(pose, costmap);
+  const bool blocked = !need_plan_ && pathBlocked(costmap);
   if (need_plan_ || periodic || blocked) {
     last_plan_time_ = now;
     if (!plan(pose, costmap, &why)) return startRecovery(now, pose, obstacles, why);

@@ -188,3 +188,21 @@ TEST_CASE("Navigator ignores non-finite poses and rejects bad options", "[naviga
   o.recovery.rotate_rate = -1;
   CHECK_THROWS_WITH(nav::Navigator(o), Catch::Contains("rotate_rate"));
 }
+
+TEST_CASE("Navigator drives through unknown space it may plan across without replanning there",
+          "[navigation]") {
+  nav::NavigatorOptions o;
+  o.planner.allow_unknown = true;
+  o.replan_period = 0;  // replan only when the path is blocked
+  nav::Navigator navigator(o);
+  nav::Costmap map = room(8.0);  // the wall at x = 5 closes the room: only unknown space beyond
+  for (int r = 1; r < map.height - 1; ++r)
+    for (int c = 100; c < 102; ++c) map.at(c, r) = nav::cost::kFree;  // the wall is unknown...
+  for (int r = 1; r < map.height - 1; ++r)
+    for (int c = 90; c < 130; ++c) map.at(c, r) = nav::cost::kUnknown;  // ... and around it
+  REQUIRE(navigator.setGoal(Pose2(8, 4, 0), inflated(map)).empty());
+  const Drive d = run(navigator, map, Pose2(2, 4, 0), 60);
+  CHECK(d.last.state == nav::NavState::kReached);
+  // One plan: the unknown cells on the path do not count as blocking it.
+  CHECK(navigator.stats().plans == 1);
+}

@@ -133,6 +133,12 @@ GoalSequencerActor::GoalSequencerActor(GoalSequencerOptions options)
         std::pair{"tolerance_xy", o.tolerance_xy}})
     if (!(std::isfinite(value) && value >= 0)) fail(key, "must be finite and >= 0");
   if (o.frame_id.empty()) fail("frame_id", "must not be empty");
+  if (!o.map_origin.empty()) {
+    if (o.map_origin.size() != 3 ||
+        !Eigen::Vector3d(o.map_origin[0], o.map_origin[1], o.map_origin[2]).allFinite())
+      fail("map_origin", "must be [x, y, theta], finite");
+    map_origin_ = Pose2(o.map_origin[0], o.map_origin[1], o.map_origin[2]);
+  }
   if (!o.goals_file.empty()) {
     try {
       goals_ = readGoalsFile(o.goals_file);
@@ -236,7 +242,7 @@ void GoalSequencerActor::sendNext() {
   active_ = true;
   auto loan = goal_pub_.loan();
   setHeader(loan->initHeader(), sent_at_, options_.frame_id, goal_pub_.nextSeq());
-  writePose(loan->initPose(), g.pose);
+  writePose(loan->initPose(), map_origin_.inverse() * g.pose);
   loan->setId(r.id);
   loan->setToleranceXy(g.tolerance_xy);
   loan->setToleranceYaw(g.tolerance_yaw);

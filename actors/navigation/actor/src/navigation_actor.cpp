@@ -53,11 +53,18 @@ NavigationActorOptions checked(NavigationActorOptions o) {
   checkPositive("control_hz", o.control_hz);
   checkPositive("costmap_hz", o.costmap_hz);
   checkPositive("local_size", o.local_size);
+  checkPositive("bounds_resolution", o.bounds_resolution);
   checkPositive("pose_timeout_s", o.pose_timeout_s);
   checkPositive("status_period_s", o.status_period_s);
   if (!(std::isfinite(o.laser_height) && o.laser_height >= 0))
     fail("laser_height", "must be finite and >= 0");
   if (o.depth_stride < 1) fail("depth_stride", "must be at least 1");
+  if (!o.bounds.empty() &&
+      (o.bounds.size() != 4 ||
+       !Eigen::Vector4d(o.bounds[0], o.bounds[1], o.bounds[2], o.bounds[3]).allFinite() ||
+       !(o.bounds[2] > o.bounds[0] && o.bounds[3] > o.bounds[1]) ||
+       (o.bounds[2] - o.bounds[0]) * (o.bounds[3] - o.bounds[1]) > 1e6))
+    fail("bounds", "must be [x0, y0, x1, y1] with x0 < x1, y0 < y1, finite, at most 1 km²");
   if (!o.depth_camera.isFinite()) fail("depth_camera", "must be finite numbers");
   if (o.frame_id.empty()) fail("frame_id", "must not be empty");
   if (o.pose_queue < 1 || o.odom_queue < 1 || o.scan_queue < 1 || o.pose_history < 2)
@@ -65,6 +72,15 @@ NavigationActorOptions checked(NavigationActorOptions o) {
   // The navigator's dynamic window runs once per control period.
   o.navigator.dwa.period = 1.0 / o.control_hz;
   return o;
+}
+
+/// The fixed costmap of `bounds`, all unknown.
+Costmap boundsFrame(const NavigationActorOptions& o) {
+  const auto& b = o.bounds;
+  const double res = o.bounds_resolution;
+  return Costmap(static_cast<int>(std::ceil((b[2] - b[0]) / res)),
+                 static_cast<int>(std::ceil((b[3] - b[1]) / res)), res, Pose2(b[0], b[1], 0.0),
+                 cost::kUnknown);
 }
 
 msg::NavStatus::State messageState(NavState s) {
@@ -108,6 +124,10 @@ NavigationActor::NavigationActor(NavigationActorOptions options)
       odom_(static_cast<std::size_t>(options_.pose_history), 0.5) {
   parsePoseMessage(options_.pose_message, kName, "pose_message");
   camera_to_base_ = options_.depth_camera.opticalToBase();
+  if (!options_.bounds.empty()) {  // drive on the sensors until a map comes
+    static_ = boundsFrame(options_);
+    obstacles_.emplace(static_, options_.obstacles);
+  }
   if (options_.map_file.empty()) return;
   try {
     useMap(mapping::loadMap(options_.map_file));
@@ -154,6 +174,11 @@ void NavigationActor::bad(const std::string& kind, const std::string& what) {
 
 void NavigationActor::useMap(const grid::OccupancyMap& map) {
   Costmap costs = fromOccupancy(map, options_.static_layer);  // throws std::invalid_argument
+  if (!options_.bounds.empty()) {
+    Costmap frame = boundsFrame(options_);
+    paste(costs, frame);
+    costs = std::move(frame);
+  }
   const bool same = !static_.empty() && costs.width == static_.width &&
                     costs.height == static_.height && costs.resolution == static_.resolution &&
                     costs.origin.x == static_.origin.x && costs.origin.y == static_.origin.y &&

@@ -87,6 +87,11 @@ struct StaticLayerOptions {
 /// The static layer: costs of an occupancy map (same geometry).
 Costmap fromOccupancy(const grid::OccupancyMap& map, const StaticLayerOptions& options = {});
 
+/// `map`'s costs on the geometry of `frame` (its cells are overwritten): each cell takes the cost
+/// of `map` at its centre, kUnknown outside `map`. Lets a growing SLAM map fill a fixed costmap,
+/// so that what the robot saw before the map grew (the obstacle layer) stays in place.
+void paste(const Costmap& map, Costmap& frame);
+
 /// Inflation: cells within inscribed_radius of a lethal cell become kInscribed; beyond it, up to
 /// inflation_radius, cost 252 · exp(−cost_scaling · (d − inscribed_radius)) (d = distance between
 /// cell centres [m]). Inflation never lowers a cost; unknown cells stay unknown.

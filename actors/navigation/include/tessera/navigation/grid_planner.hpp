@@ -92,9 +92,10 @@ class GridPlanner {
 double pathLength(const Costmap& map, const std::vector<Eigen::Vector2i>& cells);
 
 /// Whether the straight segment between the centres of a and b crosses only cells of cost
-/// <= max_cost (every cell the segment touches, corners included).
+/// <= max_cost (every cell the segment touches, corners included); with unknown_clear, unknown
+/// cells count as clear too (a path planned through unknown space is not blocked by it).
 bool lineOfSight(const Costmap& map, const Eigen::Vector2i& a, const Eigen::Vector2i& b,
-                 std::uint8_t max_cost);
+                 std::uint8_t max_cost, bool unknown_clear = false);
 
 /// Line-of-sight shortening: from the first cell, jump to the last path cell visible from it,
 /// and repeat from there. Returns the kept cells (start and goal included); consecutive kept

@@ -143,7 +143,7 @@ class Navigator {
 
  private:
   bool plan(const Pose2& pose, const Costmap& costmap, std::string* why);
-  bool pathBlocked(const Pose2& pose, const Costmap& costmap) const;
+  bool pathBlocked(const Costmap& costmap) const;
   double remaining(const Pose2& pose) const;
   Eigen::Vector2d lookaheadPoint(const Pose2& pose);
   NavCommand startRecovery(double now, const Pose2& pose, const DistanceField& obstacles,

@@ -18,6 +18,8 @@
 //             only with random > 0).
 // Publishes:  goal (msg::NavGoal, id = 1, 2, … in order).
 // Output: goals_csv in the run's folder: one row per goal with its outcome and figures.
+// Goals, the map and the poses are in one frame; with map_origin the goals are sent in the
+// navigator's frame (map_origin⁻¹ ⊕ goal), e.g. a SLAM map anchored at the start pose.
 #pragma once
 
 #include <tessera/msg/navigation.capnp.h>
@@ -48,6 +50,7 @@ struct GoalSequencerOptions {
   std::string pose_message = "ground_truth";
   std::string goals_csv = "goals.csv";
   std::string frame_id = "map";
+  std::vector<double> map_origin;
 
   template <class V>
   void visit(V& v) {
@@ -64,6 +67,9 @@ struct GoalSequencerOptions {
       "message type on 'pose': ground_truth | pose_stamped | odometry");
     v("goals_csv", goals_csv, "per-goal results in the output folder; empty: none");
     v("frame_id", frame_id, "the map frame");
+    v("map_origin", map_origin,
+      "[x, y, theta]: the navigator's map frame in the frame of this actor's map and poses (a "
+      "SLAM map starts at the robot's start pose); goals are sent in that frame. Empty: the same");
   }
 };
 
@@ -122,6 +128,7 @@ class GoalSequencerActor final : public Actor {
   Costmap eroded_;
   std::mt19937_64 rng_;
   std::optional<Pose2> pose_;
+  Pose2 map_origin_;  // the navigator's frame in ours
   std::size_t next_ = 0;
   bool active_ = false, done_ = false;
   Nanos sent_at_ = 0, start_ = -1;

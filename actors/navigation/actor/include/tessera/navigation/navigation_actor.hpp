@@ -4,7 +4,10 @@
 //
 // Costmaps: the static layer is a map file (PGM+YAML, map_server format; a file that fails to load
 // is a ConfigError naming it) or, with map_file empty, the latest OccupancyGrid on `map` (a new
-// map replaces the static layer and empties the obstacle layer). The obstacle layer keeps what
+// map replaces the static layer and, unless it has another size, keeps the obstacle layer; with
+// `bounds` every map is pasted into one fixed costmap, for a SLAM map that grows; that costmap
+// is all unknown until the first map, so the robot can drive on what its sensors see). The obstacle
+// layer keeps what
 // the laser (scan, at laser_height) and, with use_depth, a depth camera (rgbd: 3D points within
 // the robot's height band, so a table top the laser passes under blocks the cells beneath it)
 // see now. The planning costmap (static + obstacles, inflated) is rebuilt at costmap_hz; the
@@ -59,6 +62,8 @@ namespace tessera::navigation {
 struct NavigationActorOptions {
   NavigatorOptions navigator;
   std::string map_file;
+  std::vector<double> bounds;
+  double bounds_resolution = 0.05;
   StaticLayerOptions static_layer;
   InflationOptions inflation;
   ObstacleLayerOptions obstacles;
@@ -83,6 +88,11 @@ struct NavigationActorOptions {
   void visit(V& v) {
     v("navigator", navigator, "planning, the dynamic window, goal tolerances and recoveries");
     v("map_file", map_file, "static map YAML (ROS map_server format); empty: the 'map' topic");
+    v("bounds", bounds,
+      "[x0, y0, x1, y1] metres: a fixed costmap the map is pasted into (a growing SLAM map; "
+      "outside it unknown); empty: the map's own extent");
+    v("bounds_resolution", bounds_resolution,
+      "[m/cell] of the fixed costmap with bounds; it exists (all unknown) before any map");
     v("static_layer", static_layer, "how map occupancy becomes cost");
     v("inflation", inflation, "inflation around obstacles (the robot's size)");
     v("obstacles", obstacles, "the obstacle layer: ranges and the robot's height band");
