@@ -20,6 +20,8 @@ void addActorsCommand(CLI::App& app, int& result);
 void addEvalCommand(CLI::App& app, int& result);
 /// Adds `tessera graph optimize` (pose-graph files through SGD / Ceres).
 void addGraphCommand(CLI::App& app, int& result);
+/// Adds `tessera map export` (a saved SLAM state to PGM + YAML).
+void addMapCommand(CLI::App& app, int& result);
 /// Adds `tessera vocab train|info` (bag-of-words vocabularies).
 void addVocabCommand(CLI::App& app, int& result);
 /// Adds `tessera bench` and its sub-commands; defined apart from the product commands, in the

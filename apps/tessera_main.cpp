@@ -16,6 +16,7 @@ int main(int argc, char** argv) {
   tessera::app::addReplayCommand(app, result);
   tessera::app::addEvalCommand(app, result);
   tessera::app::addGraphCommand(app, result);
+  tessera::app::addMapCommand(app, result);
   tessera::app::addVocabCommand(app, result);
   tessera::app::addBenchCommands(app, result);
   try {

@@ -59,6 +59,11 @@ tessera::Pose2 MapAssembler::pose(int id) const {
   return it == submaps_.end() ? tessera::Pose2{} : it->second.pose;
 }
 
+const tessera::grid::OccupancyMap* MapAssembler::grid(int id) const {
+  const auto it = submaps_.find(id);
+  return it == submaps_.end() || it->second.grid.empty() ? nullptr : &it->second.grid;
+}
+
 tessera::grid::OccupancyMap MapAssembler::assemble() const {
   double res = resolution_;
   Eigen::Vector2d lo(std::numeric_limits<double>::infinity(),

@@ -5,9 +5,12 @@
 #include <tessera/runtime/periodic.hpp>
 #include <tessera/runtime/registry.hpp>
 
+#include <Eigen/Cholesky>
+
 #include <algorithm>
 #include <cmath>
 #include <cstring>
+#include <filesystem>
 #include <iostream>
 #include <stdexcept>
 
@@ -28,9 +31,42 @@ MapAssembler checkedAssembler(const MapAssemblerOptions& o) {
 }  // namespace
 
 MapAssemblerActor::MapAssemblerActor(MapAssemblerOptions options)
-    : options_(std::move(options)), assembler_(checkedAssembler(options_)) {}
+    : options_(std::move(options)), assembler_(checkedAssembler(options_)) {
+  if (!options_.load_state.empty()) loadState();
+}
+
+void MapAssemblerActor::loadState() {
+  SlamState state;
+  try {
+    state = loadSlamState(options_.load_state);
+  } catch (const SlamStateError& e) {
+    throw ConfigError("map_assembler: load_state: " + std::string(e.what()));
+  }
+  if (state.submaps.empty())
+    throw ConfigError("map_assembler: load_state: " + options_.load_state +
+                      " holds no submaps, so no map to publish");
+  if (state.frame_id != options_.frame_id)
+    throw ConfigError("map_assembler: load_state: " + options_.load_state + " is in frame '" +
+                      state.frame_id + "', but frame_id is '" + options_.frame_id + "'");
+  for (SavedSubmap& s : state.submaps) {
+    // The saved origins are the optimised poses: they win over chaining, as the optimiser's do.
+    message_pose_[s.id] = s.origin;
+    optimized_[s.id] = s.origin;
+    finished_[s.id] = s.finished;
+    assembler_.setSubmap(s.id, std::move(s.grid));
+  }
+  for (const SavedConstraint& c : state.constraints) {
+    kept_keys_.emplace(c.from, c.to, c.relative.x, c.relative.y, c.relative.theta);
+    kept_.push_back(c);
+  }
+  placeChained();
+  loaded_ = true;
+}
 
 void MapAssemblerActor::configure(ActorContext& ctx) {
+  output_dir_ = ctx.outputDir();
+  map_pub_ = ctx.advertise<msg::OccupancyGrid>("map");
+  if (loaded_) return;  // serves the saved map: nothing to subscribe to
   ctx.subscribe<msg::Submap>("submaps", MailboxPolicy::reliable(),
                              [this](const Message<msg::Submap>& m) { onSubmap(m); });
   ctx.subscribe<msg::SubmapConstraint>(
@@ -40,7 +76,6 @@ void MapAssemblerActor::configure(ActorContext& ctx) {
     ctx.subscribe<msg::SubmapPoses>(
         "submap_poses", MailboxPolicy::keepLatest(1),
         [this](const Message<msg::SubmapPoses>& m) { onOptimizedPoses(m); });
-  map_pub_ = ctx.advertise<msg::OccupancyGrid>("map");
   addPeriodicTimer(ctx, options_.publish_period_s, [this] {
     if (dirty_) publishMap();
   });
@@ -69,6 +104,7 @@ void MapAssemblerActor::onSubmap(const Message<msg::Submap>& m) {
     return;
   }
   message_pose_[id] = global;
+  finished_[id] = m->getFinished();
   last_stamp_ = std::max(last_stamp_, m->getHeader().getStampNs());
   ++submaps_;
   placeChained();
@@ -77,8 +113,9 @@ void MapAssemblerActor::onSubmap(const Message<msg::Submap>& m) {
 
 void MapAssemblerActor::onConstraint(const Message<msg::SubmapConstraint>& m) {
   ++constraints_;
-  if (m->getKind() != msg::SubmapConstraint::Kind::HAND_OVER) return;
   const tessera::Pose2 relative = toPose2(m->getRelative());
+  keepConstraint(m, relative);
+  if (m->getKind() != msg::SubmapConstraint::Kind::HAND_OVER) return;
   if (!relative.isFinite()) {
     std::cerr << "[map_assembler] hand-over " << m->getFromId() << " -> " << m->getToId()
               << " has a non-finite pose; ignored\n";
@@ -88,6 +125,35 @@ void MapAssemblerActor::onConstraint(const Message<msg::SubmapConstraint>& m) {
   handover_[static_cast<int>(m->getToId())] = {static_cast<int>(m->getFromId()), relative};
   placeChained();
   dirty_ = true;
+}
+
+void MapAssemblerActor::keepConstraint(const Message<msg::SubmapConstraint>& m,
+                                       const tessera::Pose2& relative) {
+  // For the saved state: every distinct constraint as received (the optimiser fuses them; a
+  // later run can do the same). One without a usable covariance has no information to save.
+  SavedConstraint c;
+  c.from = static_cast<int>(m->getFromId());
+  c.to = static_cast<int>(m->getToId());
+  c.relative = relative;
+  c.revisit = m->getKind() == msg::SubmapConstraint::Kind::REVISIT;
+  Eigen::Matrix3d cov = Eigen::Matrix3d::Zero();
+  const bool read = relative.isFinite() && c.from != c.to &&
+                    readCovariance(m->getRelative(), cov) && cov.allFinite() &&
+                    (cov - cov.transpose()).cwiseAbs().maxCoeff() <=
+                        1e-9 * std::max(1.0, cov.cwiseAbs().maxCoeff());
+  const Eigen::LLT<Eigen::Matrix3d> llt(cov);  // fails on the zero matrix of an unread one
+  if (!read || llt.info() != Eigen::Success) {
+    ++constraints_unsaved_;
+    return;
+  }
+  const Eigen::Matrix3d inv = llt.solve(Eigen::Matrix3d::Identity());
+  c.information = 0.5 * (inv + inv.transpose());  // exactly symmetric
+  if (!c.information.allFinite()) {
+    ++constraints_unsaved_;
+    return;
+  }
+  if (!kept_keys_.emplace(c.from, c.to, relative.x, relative.y, relative.theta).second) return;
+  kept_.push_back(c);
 }
 
 void MapAssemblerActor::onOptimizedPoses(const Message<msg::SubmapPoses>& m) {
@@ -138,8 +204,46 @@ void MapAssemblerActor::publishMap() {
   ++maps_published_;
 }
 
+void MapAssemblerActor::start() {
+  if (loaded_) publishMap();
+}
+
 void MapAssemblerActor::stop() {
   publishMap();
+  if (!options_.state_dir.empty() && !output_dir_.empty()) writeState();
+}
+
+void MapAssemblerActor::writeState() {
+  SlamState state;
+  state.frame_id = options_.frame_id;
+  std::set<int> ids;
+  for (const auto& [id, finished] : finished_) {
+    const tessera::grid::OccupancyMap* grid = assembler_.grid(id);
+    if (grid == nullptr || !assembler_.hasPose(id)) continue;
+    state.submaps.push_back({id, assembler_.pose(id), *grid, finished});
+    ids.insert(id);
+  }
+  if (state.submaps.empty()) return;
+  for (const SavedConstraint& c : kept_) {
+    if (ids.count(c.from) && ids.count(c.to)) {
+      state.constraints.push_back(c);
+    } else {
+      std::cerr << "[map_assembler] constraint " << c.from << " -> " << c.to
+                << " names a submap that never arrived; not saved\n";
+      ++constraints_unsaved_;
+    }
+  }
+  // stop() must not throw: a failed write is logged and reported in the summary.
+  const std::filesystem::path dir = std::filesystem::path(output_dir_) / options_.state_dir;
+  try {
+    saveSlamState(state, dir);
+    state_path_ = dir.string();
+    state_submaps_ = state.submaps.size();
+    state_constraints_ = state.constraints.size();
+  } catch (const std::exception& e) {
+    state_error_ = e.what();
+    std::cerr << "[map_assembler] saving the SLAM state failed: " << state_error_ << "\n";
+  }
 }
 
 void MapAssemblerActor::summarize(Summary& out) const {
@@ -152,6 +256,14 @@ void MapAssemblerActor::summarize(Summary& out) const {
   if (submaps_rejected_ > 0) out["submaps_rejected"] = i64(submaps_rejected_);
   if (constraints_rejected_ > 0) out["constraints_rejected"] = i64(constraints_rejected_);
   if (options_.optimized_poses) out["optimized_pose_updates"] = i64(pose_updates_);
+  if (loaded_) out["state_loaded"] = options_.load_state;
+  if (!state_path_.empty()) {
+    out["state_path"] = state_path_;
+    out["state_submaps"] = i64(state_submaps_);
+    out["state_constraints"] = i64(state_constraints_);
+  }
+  if (constraints_unsaved_ > 0) out["state_constraints_unsaved"] = i64(constraints_unsaved_);
+  if (!state_error_.empty()) out["state_write_error"] = state_error_;
 }
 
 TESSERA_REGISTER_ACTOR("map_assembler", MapAssemblerActor, MapAssemblerOptions,

@@ -29,6 +29,8 @@ class MapAssembler {
   void setPose(int id, const tessera::Pose2& global_pose);
   bool hasPose(int id) const;
   tessera::Pose2 pose(int id) const;
+  /// Submap `id`'s cells, or nullptr when it has none. Valid until the next setSubmap().
+  const tessera::grid::OccupancyMap* grid(int id) const;
   std::size_t size() const { return submaps_.size(); }
 
   /// The global map covering every placed submap (empty when none).

@@ -11,16 +11,29 @@
 //                                       stop() (the final map)
 // A submap's global pose: the optimiser's when it has one, else chained from its hand-over
 // constraint when its predecessor is placed, otherwise the globalPose its message carries.
+//
+// Saved state (slam_state.hpp, docs/architecture.md#saved-slam-state):
+//   state_dir   at stop, with an output folder, writes what it holds there (relative to the
+//               output folder): every placed submap at the pose it was drawn with, and every
+//               distinct constraint received with a valid covariance (not fused), information
+//               = covariance⁻¹.
+//   load_state  a state directory read at construction (ConfigError naming the path and field
+//               on failure); the actor then serves that map: it subscribes to nothing, publishes
+//               the assembled map in start() and again in stop(), so a profile needs no SLAM.
 #pragma once
 
 #include <tessera/msg/submap.capnp.h>
 #include <tessera/laser_slam/map_assembler.hpp>
+#include <tessera/laser_slam/slam_state.hpp>
 #include <tessera/messages/types.hpp>
 #include <tessera/runtime/actor.hpp>
 
 #include <cstdint>
 #include <map>
+#include <set>
 #include <string>
+#include <tuple>
+#include <vector>
 
 namespace tessera::laser_slam {
 
@@ -29,6 +42,8 @@ struct MapAssemblerOptions {
   double publish_period_s = 0.0;
   std::string frame_id = "map";
   bool optimized_poses = false;
+  std::string state_dir = "slam_state";
+  std::string load_state;
 
   template <class V>
   void visit(V& v) {
@@ -38,6 +53,11 @@ struct MapAssemblerOptions {
     v("publish_period_s", publish_period_s,
       "publish the map this often [s of runtime time] when it changed; 0: only at stop");
     v("frame_id", frame_id, "frame of the published map");
+    v("state_dir", state_dir,
+      "at stop, save the SLAM state (submaps, poses, constraints) in this folder of the output "
+      "directory; empty: none");
+    v("load_state", load_state,
+      "serve the map of this saved SLAM state (no subscriptions; published at start and stop)");
   }
 };
 
@@ -46,6 +66,7 @@ class MapAssemblerActor final : public Actor {
   /// Throws ConfigError on invalid options.
   explicit MapAssemblerActor(MapAssemblerOptions options);
   void configure(ActorContext& ctx) override;
+  void start() override;
   void stop() override;
   void summarize(Summary& out) const override;
 
@@ -54,9 +75,12 @@ class MapAssemblerActor final : public Actor {
  private:
   void onSubmap(const Message<msg::Submap>& m);
   void onConstraint(const Message<msg::SubmapConstraint>& m);
+  void keepConstraint(const Message<msg::SubmapConstraint>& m, const tessera::Pose2& relative);
   void onOptimizedPoses(const Message<msg::SubmapPoses>& m);
   void placeChained();
   void publishMap();
+  void loadState();
+  void writeState();
 
   MapAssemblerOptions options_;
   MapAssembler assembler_;
@@ -64,6 +88,12 @@ class MapAssemblerActor final : public Actor {
   std::map<int, tessera::Pose2> message_pose_;  // globalPose carried by each submap message
   std::map<int, std::pair<int, tessera::Pose2>> handover_;  // to-id -> (from-id, relative)
   std::map<int, tessera::Pose2> optimized_;                 // from the graph optimiser
+  std::map<int, bool> finished_;                            // each submap's finished flag
+  std::vector<SavedConstraint> kept_;  // distinct constraints with a valid covariance, in order
+  std::set<std::tuple<int, int, double, double, double>> kept_keys_;
+  std::string output_dir_, state_path_, state_error_;
+  bool loaded_ = false;
+  std::uint64_t constraints_unsaved_ = 0, state_submaps_ = 0, state_constraints_ = 0;
   Nanos last_stamp_ = 0;
   bool dirty_ = false;
   std::uint64_t submaps_ = 0, constraints_ = 0, maps_published_ = 0, submaps_rejected_ = 0;

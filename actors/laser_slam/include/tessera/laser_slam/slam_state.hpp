@@ -1,0 +1,76 @@
+// SlamState: what the two-level laser SLAM built, kept on disk so that a later run reloads the
+// map without running SLAM again: the submaps (occupancy grids, each in its own frame, with the
+// submap frame's optimised pose in the map frame) and the submap pose graph's constraints.
+//
+// On disk (format "tessera-slam-state", version 1; docs/architecture.md#saved-slam-state): a
+// directory holding state.yaml (frame id, every submap's id, origin, grid geometry, file and
+// checksum; every constraint) and one raw cell file per submap (submap_<id>.cells: width*height
+// int8 ROS cell values, row-major from grid row 0), so a save -> load round trip is exact
+// (numbers are written in their shortest round-trip form).
+//
+// Frames and units: `origin` = pose of the submap frame in the map frame `frame_id`; the grid's
+// own `origin` = outer corner of cell (0,0) in the submap frame; a constraint from -> to = pose
+// of `to`'s frame in `from`'s frame with its information matrix over (x [m], y [m], θ [rad]) in
+// `from`'s frame. Metres, radians. Values own their data; plain C++, no runtime or messages.
+//
+// Errors: loadSlamState() and saveSlamState() throw SlamStateError naming the file (and line)
+// and the field or value at fault: a missing directory or file, a wrong `format`, a version
+// other than 1, malformed or non-finite fields, duplicate ids, cell files of the wrong size or
+// checksum.
+#pragma once
+
+#include <tessera/geometry/pose2.hpp>
+#include <tessera/grid/occupancy_map.hpp>
+
+#include <Eigen/Core>
+
+#include <filesystem>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+namespace tessera::laser_slam {
+
+class SlamStateError : public std::runtime_error {
+ public:
+  using std::runtime_error::runtime_error;
+};
+
+struct SavedSubmap {
+  int id = 0;                        ///< >= 0, unique in a state
+  tessera::Pose2 origin;             ///< submap frame in the map frame (the optimised pose)
+  tessera::grid::OccupancyMap grid;  ///< in the submap frame; cells -1 (unknown) or 0..100
+  bool finished = true;              ///< false: a snapshot of a submap still being built
+};
+
+struct SavedConstraint {
+  int from = 0;
+  int to = 0;
+  tessera::Pose2 relative;  ///< pose of `to`'s frame in `from`'s frame
+  Eigen::Matrix3d information = Eigen::Matrix3d::Identity();  ///< symmetric, finite
+  bool revisit = false;  ///< false: the hand-over from `from` to the new submap `to`
+};
+
+struct SlamState {
+  static constexpr int kFormatVersion = 1;
+  static constexpr const char* kFormatName = "tessera-slam-state";
+
+  int format_version = kFormatVersion;
+  std::string frame_id = "map";
+  std::vector<SavedSubmap> submaps;          ///< any order; written by increasing id
+  std::vector<SavedConstraint> constraints;  ///< each names two saved submaps
+};
+
+/// Writes `state` into directory `dir` (created if needed): the cell files first, state.yaml
+/// last, so an interrupted save leaves no state.yaml that names missing files. Checks the state
+/// as loadSlamState() would first. Throws SlamStateError.
+void saveSlamState(const SlamState& state, const std::filesystem::path& dir);
+
+/// Reads a state written by saveSlamState(); submaps by increasing id. Throws SlamStateError.
+SlamState loadSlamState(const std::filesystem::path& dir);
+
+/// The global map of a state: every submap drawn at its origin (MapAssembler, same rule as the
+/// map_assembler actor); resolution [m/cell], 0 = the finest submap's. Empty when no submaps.
+tessera::grid::OccupancyMap assembleSlamState(const SlamState& state, double resolution = 0.0);
+
+}  // namespace tessera::laser_slam
