@@ -3,6 +3,7 @@
 
 #include <yaml-cpp/yaml.h>
 
+#include <algorithm>
 #include <filesystem>
 #include <fstream>
 #include <set>
@@ -51,8 +52,8 @@ std::vector<std::string> split(const std::string& s, char sep) {
   return out;
 }
 
-const std::set<std::string> kTopKeys = {"name",           "description", "clock",  "sim_rate",
-                                        "max_duration_s", "actors",      "restart"};
+const std::set<std::string> kTopKeys = {"name",           "description", "clock",   "sim_rate",
+                                        "max_duration_s", "actors",      "restart", "external"};
 const std::set<std::string> kActorKeys = {"type", "process", "remap", "params"};
 
 void applyOverride(YAML::Node root, const std::string& text, const std::string& path) {
@@ -130,6 +131,52 @@ void applyOverride(YAML::Node root, const std::string& text, const std::string& 
   node[parts.back()] = value;
 }
 
+/// `external: {inputs: [topic, ...], outputs: [topic, ...]}`.
+void parseExternal(const std::string& path, const YAML::Node& external, Profile& p) {
+  if (!external.IsMap()) {
+    throw ConfigError(at(path, external) +
+                      ": external: expected a mapping with 'inputs' and/or 'outputs'");
+  }
+  for (const auto& kv : external) {
+    const std::string key = kv.first.as<std::string>();
+    if (key != "inputs" && key != "outputs") {
+      throw ConfigError(atKey(path, kv) + ": external: unknown key '" + key +
+                        "' (known: inputs, outputs)");
+    }
+    if (!kv.second.IsSequence()) {
+      throw ConfigError(at(path, kv.second) + ": external." + key +
+                        ": expected a list of topic names");
+    }
+    auto& out = key == "inputs" ? p.external_inputs : p.external_outputs;
+    for (const auto& t : kv.second) {
+      const std::string topic = scalar(path, t, "external." + key);
+      if (topic.empty())
+        throw ConfigError(at(path, t) + ": external." + key + ": empty topic name");
+      out.push_back(topic);
+    }
+  }
+}
+
+/// Each external input is subscribed and each external output published by some actor.
+void checkExternal(const Profile& profile, const Runtime& rt) {
+  const auto check = [&](const std::vector<std::string>& topics, bool inputs) {
+    for (const auto& topic : topics) {
+      bool used = false;
+      for (const auto& a : profile.actors) {
+        const auto list = inputs ? rt.subscriptionsOf(a.name) : rt.publicationsOf(a.name);
+        used = used || std::find(list.begin(), list.end(), topic) != list.end();
+      }
+      if (!used) {
+        throw ConfigError(profile.path + ": external." + (inputs ? "inputs" : "outputs") +
+                          ": no actor " + (inputs ? "subscribes to" : "publishes") + " topic '" +
+                          topic + "'");
+      }
+    }
+  };
+  check(profile.external_inputs, true);
+  check(profile.external_outputs, false);
+}
+
 }  // namespace
 
 Profile parseProfile(const std::string& yaml_text, const std::string& path,
@@ -153,7 +200,7 @@ Profile parseProfile(const std::string& yaml_text, const std::string& path,
     if (!kTopKeys.count(key)) {
       throw ConfigError(atKey(path, kv) + ": unknown key '" + key +
                         "' (known: name, description, clock, sim_rate, max_duration_s, actors, "
-                        "restart)");
+                        "restart, external)");
     }
   }
   if (root["name"]) p.name = scalar(path, root["name"], "name");
@@ -184,6 +231,7 @@ Profile parseProfile(const std::string& yaml_text, const std::string& path,
     }
     for (const auto& r : restart) p.restart.push_back(scalar(path, r, "restart"));
   }
+  if (const YAML::Node external = root["external"]) parseExternal(path, external, p);
   const YAML::Node actors = root["actors"];
   if (!actors || !actors.IsMap() || actors.size() == 0) {
     throw ConfigError(path +
@@ -249,6 +297,7 @@ std::unique_ptr<Runtime> build(const Profile& profile, RuntimeOptions options,
   options.clock = profile.clock;
   options.sim_rate = profile.sim_rate;
   options.max_sim_duration = secondsToNanos(profile.max_duration_s);
+  options.external_inputs = profile.external_inputs;
   auto runtime = std::make_unique<Runtime>(options);
   for (const auto& spec : profile.actors) {
     if (process != nullptr && spec.process != *process) continue;
@@ -269,6 +318,7 @@ std::unique_ptr<Runtime> build(const Profile& profile, RuntimeOptions options,
   } catch (const ConfigError& e) {
     throw ConfigError(profile.path + ": " + e.what());
   }
+  if (process == nullptr) checkExternal(profile, *runtime);
   return runtime;
 }
 }  // namespace

@@ -195,6 +195,8 @@ void Runtime::configure(bool allow_unpublished) {
   if (!allow_unpublished) {
     for (const auto& [name, t] : impl_->topics) {
       if (!t->publishers.empty() || t->subscribers.empty()) continue;
+      const auto& external = impl_->options.external_inputs;
+      if (std::find(external.begin(), external.end(), name) != external.end()) continue;
       std::string who;
       for (const auto& s : t->subscribers) {
         who += (who.empty() ? "" : ", ") + impl_->actors[s.actor]->name;

@@ -127,3 +127,33 @@ TEST_CASE("profile errors name the file, the line and the key", "[profile]") {
     CHECK_THROWS_WITH(resolveProfilePath("nope", {"/tmp"}), Catch::Contains("/tmp/nope.yaml"));
   }
 }
+
+TEST_CASE("topics listed under external: need no publisher inside and must be used by an actor",
+          "[profile]") {
+  RuntimeOptions o;
+  o.show_progress = false;
+  const std::string sink_only = "actors:\n  s:\n    type: test_sink\n";
+  // Published from outside: the sink's topic needs no publisher in the profile.
+  auto p = parseProfile("external: {inputs: [in]}\n" + sink_only, "p.yaml");
+  CHECK(p.external_inputs == std::vector<std::string>{"in"});
+  CHECK_NOTHROW(buildRuntime(p, o));
+  auto q = parseProfile("external: {outputs: [out]}\n" + std::string(kGood), "q.yaml");
+  CHECK(q.external_outputs == std::vector<std::string>{"out"});
+  CHECK_NOTHROW(buildRuntime(q, o));
+  // A listed topic nobody uses is a typo, not a wish.
+  auto r = parseProfile("external: {inputs: [in, goal]}\n" + sink_only, "r.yaml");
+  CHECK_THROWS_WITH(buildRuntime(r, o), Catch::Contains("r.yaml") &&
+                                            Catch::Contains("external.inputs") &&
+                                            Catch::Contains("no actor subscribes to topic 'goal'"));
+  auto s = parseProfile("external: {inputs: [in], outputs: [in]}\n" + sink_only, "s.yaml");
+  CHECK_THROWS_WITH(buildRuntime(s, o), Catch::Contains("external.outputs") &&
+                                            Catch::Contains("no actor publishes topic 'in'"));
+  CHECK_THROWS_WITH(parseProfile("external: [in]\n" + sink_only, "t.yaml"),
+                    Catch::Contains("t.yaml:1") && Catch::Contains("expected a mapping"));
+  CHECK_THROWS_WITH(parseProfile("external: {inputs: in}\n" + sink_only, "t.yaml"),
+                    Catch::Contains("external.inputs: expected a list of topic names"));
+  CHECK_THROWS_WITH(parseProfile("external: {input: [in]}\n" + sink_only, "t.yaml"),
+                    Catch::Contains("unknown key 'input'") && Catch::Contains("inputs, outputs"));
+  CHECK_THROWS_WITH(parseProfile("external: {inputs: ['']}\n" + sink_only, "t.yaml"),
+                    Catch::Contains("empty topic name"));
+}

@@ -120,10 +120,20 @@ DeploymentPlan planDeployment(const Profile& profile) {
     plan.stop_stages.back().actors.push_back(actor);
   }
 
+  const auto listed = [](const std::vector<std::string>& list, const std::string& topic) {
+    return std::find(list.begin(), list.end(), topic) != list.end();
+  };
   for (const auto& [name, w] : topics) {
     std::set<std::string> involved(w.publishers.begin(), w.publishers.end());
     for (const auto& [sub, policy] : w.subscribers) involved.insert(sub);
-    if (involved.size() < 2 || w.publishers.empty() || w.subscribers.empty()) continue;
+    // A program outside the deployment (profile `external:`) is one more party to the topic.
+    const bool outside_pub = listed(profile.external_inputs, name);
+    const bool outside_sub = listed(profile.external_outputs, name);
+    const std::size_t parties = involved.size() + (outside_pub ? 1 : 0) + (outside_sub ? 1 : 0);
+    if (parties < 2 || (w.publishers.empty() && !outside_pub) ||
+        (w.subscribers.empty() && !outside_sub)) {
+      continue;
+    }
     bool any_reliable = false, any_loop = false;
     std::uint32_t alive = 0;
     for (const auto& [sub, policy] : w.subscribers) {
@@ -132,6 +142,8 @@ DeploymentPlan planDeployment(const Profile& profile) {
       alive += static_cast<std::uint32_t>(std::min<std::size_t>(policy.capacity, 256)) + 2;
     }
     alive += 8 * static_cast<std::uint32_t>(w.publishers.size());
+    if (outside_pub) alive += 8;   // an outside publisher's loans
+    if (outside_sub) alive += 18;  // an outside reader's queue and what it holds
     plan.demands.push_back({messageBound(w.type) + kShmChunkOverhead, alive});
     for (const auto& process : involved) {
       ShmTopic t;
@@ -142,6 +154,7 @@ DeploymentPlan planDeployment(const Profile& profile) {
       t.imported = sub != w.subscribers.end();
       if (t.imported) t.import_policy = sub->second;
       t.importing_processes = static_cast<std::uint32_t>(w.subscribers.size());
+      t.publishing_processes = static_cast<std::uint32_t>(w.publishers.size());
       t.any_reliable = any_reliable || any_loop;
       plan.topics[process].push_back(t);
     }

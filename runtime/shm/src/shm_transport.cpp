@@ -516,29 +516,37 @@ void ShmTransport::attach(Runtime& runtime, const std::vector<ShmTopic>& topics)
   }
 }
 
+std::vector<std::string> ShmTransport::unconnected() const {
+  std::vector<std::string> out;
+  for (auto& i : impl_->imports) {
+    if (i->topic.publishing_processes == 0) continue;
+    std::lock_guard lock(i->mutex);
+    if (i->subscriber->getSubscriptionState() != iox::SubscribeState::SUBSCRIBED)
+      out.push_back("'" + i->topic.name + "' (no publisher)");
+  }
+  for (auto& e : impl_->exports) {
+    if (e->topic.importing_processes == 0) continue;
+    std::lock_guard lock(e->mutex);
+    if (!e->publisher->hasSubscribers()) out.push_back("'" + e->topic.name + "' (no subscriber)");
+  }
+  return out;
+}
+
 bool ShmTransport::waitForPublishers(std::chrono::milliseconds timeout,
                                      const std::function<bool()>& give_up) {
   const auto deadline = std::chrono::steady_clock::now() + timeout;
   for (;;) {
-    bool all = true;
-    for (auto& i : impl_->imports) {
-      all = all && i->subscriber->getSubscriptionState() == iox::SubscribeState::SUBSCRIBED;
-    }
-    bool peers = true;
-    for (auto& e : impl_->exports) {
-      std::lock_guard lock(e->mutex);
-      peers = peers && e->publisher->hasSubscribers();
-    }
-    if (all && peers) return true;
+    if (unconnected().empty()) return true;
     if (std::chrono::steady_clock::now() > deadline || (give_up && give_up())) return false;
     std::this_thread::sleep_for(std::chrono::milliseconds(2));
   }
 }
 
 namespace {
-/// In-flight accounting of `n` messages received (or known lost on the way).
+/// In-flight accounting of `n` messages received (or known lost on the way); wakes the
+/// process even for n = 0 (a message nobody counted).
 void countReceived(ShmTransport::Impl* impl, std::uint64_t n) {
-  if (impl->options.received != nullptr) impl->options.received->fetch_add(n);
+  if (impl->options.received != nullptr && n > 0) impl->options.received->fetch_add(n);
   if (impl->options.arrived) impl->options.arrived();
 }
 
@@ -567,18 +575,22 @@ std::size_t deliverArrived(ShmTransport::Impl* impl) {
       ++taken;
       const auto* header = iox::mepoo::ChunkHeader::fromUserPayload(payload);
       const std::size_t size = header->userPayloadSize();
+      Prefix prefix{};
+      if (size >= kShmChunkOverhead) std::memcpy(&prefix, payload, sizeof(prefix));
+      // A program outside the deployment counts nothing as sent: nor is it counted here.
+      const bool counted = !(prefix.magic == kChunkMagic && prefix.origin == kExternalProcess);
       // The sender counted every message once per importing process, including those a
       // full keep_latest queue here discarded before this thread could take them (the
       // newest always arrives): account for those too, or the deployment's clock would
       // wait for them for ever.
       const std::uint64_t accounted =
-          i->gaps.account(static_cast<std::uint64_t>(header->originId()), header->sequenceNumber());
+          counted ? i->gaps.account(static_cast<std::uint64_t>(header->originId()),
+                                    header->sequenceNumber())
+                  : 1;
       if (accounted > 1) {
         impl->drops += accounted - 1;
         countReceived(impl, accounted - 1);
       }
-      Prefix prefix{};
-      if (size >= kShmChunkOverhead) std::memcpy(&prefix, payload, sizeof(prefix));
       if (size < kShmChunkOverhead || prefix.magic != kChunkMagic) {
         std::fprintf(stderr, "warning: topic '%s': dropped a chunk that is not a Tessera message\n",
                      i->topic.name.c_str());
@@ -603,7 +615,7 @@ std::size_t deliverArrived(ShmTransport::Impl* impl) {
           i->subscriber->release(payload);
         }
         // Handled (dropped): the sender counted it, so must the in-flight accounting.
-        countReceived(impl, 1);
+        countReceived(impl, counted ? 1 : 0);
         continue;
       }
       const bool loopback = prefix.origin == impl->options.process_index && i->topic.loopback();
@@ -615,7 +627,7 @@ std::size_t deliverArrived(ShmTransport::Impl* impl) {
       deferred = delivery == ImportDelivery::kDefer ? deferred + 1 : 0;
       i->deliver(std::move(view), loopback, delivery);
       ++impl->received;
-      countReceived(impl, 1);
+      countReceived(impl, counted ? 1 : 0);  // 0: not counted, but still wakes the process
     }
     if (deferred > 0) i->deliver(nullptr, false, ImportDelivery::kRunHere);
   }

@@ -41,6 +41,31 @@ TEST_CASE("a deployment plan exports what crosses processes and stops publishers
   CHECK_FALSE(plan.demands.empty());
 }
 
+TEST_CASE("topics used from outside the deployment cross shared memory without a second party",
+          "[deployment]") {
+  const auto plan = planDeployment(
+      loadProfile(std::string(TESSERA_SOURCE_DIR) + "/apps/profiles/sim_nav_launch.yaml"));
+  REQUIRE(plan.processes == std::vector<std::string>{"robot", "nav"});
+  // goal: only `tessera goal` publishes it; the navigator's process does not wait for it.
+  const auto* goal = find(plan.topics.at("nav"), "goal");
+  REQUIRE(goal != nullptr);
+  CHECK(goal->imported);
+  CHECK_FALSE(goal->exported);
+  CHECK(goal->publishing_processes == 0);
+  CHECK(goal->import_policy.kind == MailboxPolicy::Kind::kReliable);
+  CHECK(find(plan.topics.at("robot"), "goal") == nullptr);
+  // nav_status: only read outside; nothing inside counts it in flight.
+  const auto* status = find(plan.topics.at("nav"), "nav_status");
+  REQUIRE(status != nullptr);
+  CHECK(status->exported);
+  CHECK_FALSE(status->imported);
+  CHECK(status->importing_processes == 0);
+  // Without external: the same topics would stay inside the process.
+  Profile p = loadProfile(std::string(TESSERA_SOURCE_DIR) + "/apps/profiles/sim_nav_launch.yaml");
+  p.external_outputs.clear();
+  CHECK(find(planDeployment(p).topics.at("nav"), "nav_status") == nullptr);
+}
+
 TEST_CASE("a profile run in one process has nothing to share", "[deployment]") {
   const auto plan = planDeployment(
       simMapping({"sim.process=main", "mapper.process=main", "map_writer.process=main",

@@ -338,3 +338,88 @@ TEST_CASE("when the launcher and its RouDi die the workers stop and the next lau
       std::string::npos);
   CHECK(shmClean());
 }
+
+TEST_CASE("tessera goal without a running deployment fails at once instead of waiting",
+          "[launch][goal]") {
+  const auto dir = freshDir("goal_no_deployment");
+  REQUIRE_FALSE(tessera::rouDiRunning());  // the shm tests run one at a time
+  const auto start = std::chrono::steady_clock::now();
+  const auto run = tessera::test::runCli("goal 1 2 0 --wait", dir);
+  const auto took = std::chrono::steady_clock::now() - start;
+  INFO(run.err);
+  CHECK(run.exit_code == 3);
+  CHECK(run.err.find("no deployment runs on this machine") != std::string::npos);
+  CHECK(took < 10s);  // not iceoryx's minute-long wait for a RouDi
+  CHECK(shmClean());
+}
+
+namespace {
+/// The robot (simulator following cmd_vel, true map) and the navigator (ground-truth poses) in two
+/// processes; goals only from outside. Simulated time at twice real time.
+const char* kGoalProfile = R"(name: goal_nav
+clock: sim
+sim_rate: 2
+external: {inputs: [goal], outputs: [nav_status]}
+actors:
+  sim:
+    type: simulator
+    process: robot
+    params: {world: builtin:office, drive: commands, command_timeout_s: 0.5, scan_hz: 10,
+             odom_hz: 50, seed: 3}
+  world:
+    type: world_writer
+    process: robot
+    params: {world: builtin:office, walls_file: "", publish_map: true, map_period_s: 3600}
+  nav:
+    type: navigator
+    process: nav
+    remap: {pose: ground_truth}
+    params: {pose_message: ground_truth}
+)";
+}  // namespace
+
+TEST_CASE("tessera goal reaches a launched navigator and --wait ends with the goal's final state",
+          "[launch][goal]") {
+  const auto dir = freshDir("goal_launch");
+  std::ofstream(dir / "goal_nav.yaml") << kGoalProfile;
+  Launch launch({(dir / "goal_nav.yaml").string(), "--out", (dir / "out").string()}, dir);
+  REQUIRE(!launch.waitFor(R"(started 'nav')").empty());
+
+  // A reachable goal 1.5 m ahead of the start (7.5, 7.5): planning, driving, reached.
+  const auto reached = tessera::test::runCli("goal 9 7.5 0 --id 7 --wait --timeout 30", dir);
+  INFO(reached.out + reached.err);
+  CHECK(reached.exit_code == 0);
+  CHECK(reached.out.find("goal 7 sent on 'goal'") != std::string::npos);
+  CHECK(reached.out.find("goal 7: driving") != std::string::npos);
+  CHECK(reached.out.find("goal 7: reached") != std::string::npos);
+
+  // Off the map (negative coordinates are numbers, not options): refused, with the reason.
+  const auto refused = tessera::test::runCli("goal -50 -50 0 --id 8 --wait --timeout 30", dir);
+  INFO(refused.out + refused.err);
+  CHECK(refused.exit_code == 1);
+  CHECK(refused.out.find("goal 8: refused: ") != std::string::npos);
+
+  // In another frame: the navigator refuses it too.
+  const auto frame = tessera::test::runCli("goal 9 7.5 0 --id 9 --frame odom --wait", dir);
+  INFO(frame.out + frame.err);
+  CHECK(frame.exit_code == 1);
+  CHECK(frame.out.find("goal 9: refused: goal in frame 'odom'") != std::string::npos);
+
+  // A topic nobody in the deployment reads: a clear error after the connect wait, not a hang.
+  const auto nowhere = tessera::test::runCli("goal 9 7.5 0 --topic nowhere", dir);
+  INFO(nowhere.err);
+  CHECK(nowhere.exit_code == 3);
+  CHECK(nowhere.err.find("'nowhere' (no subscriber)") != std::string::npos);
+
+  // Without finite inputs the deployment runs until stopped: SIGTERM stops it cleanly.
+  ::kill(launch.pid(), SIGTERM);
+  const int rc = launch.wait(60s);
+  INFO(launch.output());
+  CHECK(rc == 130);
+  const auto summary = nlohmann::json::parse(readFile(dir / "out" / "summary.json"));
+  CHECK(summary["actors"]["nav"]["goals"] == 3);
+  CHECK(summary["actors"]["nav"]["reached"] == 1);
+  CHECK(summary["actors"]["nav"]["refused"] == 2);
+  CHECK(Launch::reapAll(10s));
+  CHECK(shmClean());
+}

@@ -6,6 +6,10 @@
 //   sim_rate: 0           # sim clock: 0 = as fast as possible, 1 = real time
 //   max_duration_s: 0     # stop after this much data time (0 = until the inputs end)
 //   restart: [mapper]     # `tessera launch`: processes restarted when they die (wall clock)
+//   external:             # topics programs outside the profile use while it runs
+//     inputs: [goal]      #   published from outside (`tessera goal`): a subscriber needs no
+//                         #   publisher in the profile
+//     outputs: [nav_status]   # read from outside: crosses shared memory under `tessera launch`
 //   actors:
 //     sim:                # instance name
 //       type: simulator   # registered actor type (tessera actors lists them)
@@ -48,6 +52,9 @@ struct Profile {
   double max_duration_s = 0.0;
   std::vector<ActorSpec> actors;
   std::vector<std::string> restart;  // process names `tessera launch` restarts when they die
+  /// Topics a program outside the deployment publishes (e.g. `tessera goal`), and topics it
+  /// reads. Each input must be subscribed and each output published by an actor of the profile.
+  std::vector<std::string> external_inputs, external_outputs;
 };
 
 /// Parses and validates a profile file, applying --set overrides in order. Throws ConfigError.

@@ -45,6 +45,9 @@ struct RuntimeOptions {
   /// Part of a multi-process deployment: time and the end of the run are decided together
   /// (see transport.hpp). Not owned; must outlive run().
   RunCoordinator* coordinator = nullptr;
+  /// Topics published from outside (a program joining a deployment, profile `external.inputs`):
+  /// configure() does not require a publisher for them.
+  std::vector<std::string> external_inputs;
 };
 
 /// Per-actor figures printed at exit and stored in summary.json.
@@ -93,7 +96,8 @@ class Runtime {
   ImportFn importTopic(const std::string& topic, MessageType type);
 
   /// Configures every actor and checks the wiring: one message type per topic, and every
-  /// subscribed topic has a publisher (unless allow_unpublished). Throws ConfigError.
+  /// subscribed topic has a publisher (unless allow_unpublished, or the topic is one of
+  /// RuntimeOptions::external_inputs). Throws ConfigError.
   void configure(bool allow_unpublished = false);
 
   /// Starts, runs until every finite source finished (or stop was requested, or the simulated

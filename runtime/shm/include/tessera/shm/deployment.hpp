@@ -3,7 +3,9 @@
 // planDeployment() reads the profile's wiring once (every actor configured in a throw-away
 // runtime) and decides, per process, which topics leave it (exports), which arrive (imports),
 // the order actors stop in (publishers before subscribers, like actors in one process) and
-// how much shared memory the topics need.
+// how much shared memory the topics need. A topic the profile lists under `external:` counts a
+// program outside the deployment (`tessera goal`) as one more party, so it crosses shared memory
+// even when only one process of the deployment uses it.
 //
 // The launcher and its worker processes share a small control block (POSIX shared memory,
 // mode 0600): each worker reports whether it is idle, its next timer, its inputs and how many

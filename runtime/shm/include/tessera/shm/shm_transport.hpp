@@ -38,13 +38,21 @@ struct ShmTopic {
   MessageType type;
   bool exported = false;  // published in this process and read in some process
   bool imported = false;  // read in this process and published in some process
-  /// Processes that import the topic (each receives every message; for in-flight counting).
+  /// Processes of the deployment that import the topic (each receives every message; for
+  /// in-flight counting). 0 for a topic only programs outside the deployment read.
   std::uint32_t importing_processes = 0;
+  /// Processes of the deployment that publish it. 0 for a topic only programs outside the
+  /// deployment publish (profile `external.inputs`): start-up does not wait for a publisher.
+  std::uint32_t publishing_processes = 1;
   bool any_reliable = false;    // some subscriber anywhere is reliable: publishers wait
   MailboxPolicy import_policy;  // this process's strongest subscription to it
   /// Sent and received by this process: its own messages come back through the import.
   bool loopback() const { return exported && imported; }
 };
+
+/// ShmTransportOptions::process_index of a program outside the deployment (`tessera goal`):
+/// what it sends is delivered but not counted in flight, since no process counted it as sent.
+constexpr std::uint32_t kExternalProcess = 0xffffffffu;
 
 struct ShmTransportOptions {
   std::string runtime_name;         // unique per process incarnation (iceoryx runtime name)
@@ -79,9 +87,13 @@ class ShmTransport {
   void attach(Runtime& runtime, const std::vector<ShmTopic>& topics);
   /// Waits until every import is connected to a publisher (a message sent before that would
   /// not reach this process) and every export has a subscriber; returns false on timeout, or
-  /// as soon as `give_up` (when given) returns true.
+  /// as soon as `give_up` (when given) returns true. Topics whose peers are all outside the
+  /// deployment (publishing_processes or importing_processes 0) are not waited for.
   bool waitForPublishers(std::chrono::milliseconds timeout,
                          const std::function<bool()>& give_up = {});
+  /// The topics waitForPublishers() still waits for: imports without a publisher ("'name'
+  /// (no publisher)") and exports without a subscriber ("'name' (no subscriber)").
+  std::vector<std::string> unconnected() const;
   /// Starts / stops the thread that takes arriving chunks and delivers them.
   void startReceiving();
   void stopReceiving();
