@@ -17,7 +17,8 @@
 using namespace tessera;
 namespace fs = std::filesystem;
 
-TEST_CASE("sim_nav: random goals in the office are reached without a collision", "[e2e][nav]") {
+TEST_CASE("sim_nav: random goals in the office are reached without a collision",
+          "[e2e][nav][slow]") {
   const fs::path out = fs::temp_directory_path() / "tessera_e2e_sim_nav";
   fs::remove_all(out);
   fs::create_directories(out);
@@ -52,7 +53,7 @@ TEST_CASE("sim_nav: random goals in the office are reached without a collision",
   CHECK(mean < 0.15);
 }
 
-TEST_CASE("sim_nav_slam: a goal is reached while the laser SLAM maps", "[e2e][nav]") {
+TEST_CASE("sim_nav_slam: a goal is reached while the laser SLAM maps", "[e2e][nav][slow]") {
   const fs::path out = fs::temp_directory_path() / "tessera_e2e_sim_nav_slam";
   fs::remove_all(out);
   fs::create_directories(out);

@@ -5,6 +5,7 @@
 #include <tessera/msg/navigation.capnp.h>
 #include <tessera/messages/types.hpp>
 #include <tessera/messages/views.hpp>
+#include <tessera/navigation/base_controller_actor.hpp>
 #include <tessera/navigation/goal_sequencer_actor.hpp>
 #include <tessera/navigation/navigation_actor.hpp>
 #include <tessera/runtime/harness.hpp>
@@ -355,4 +356,64 @@ TEST_CASE("goal_sequencer sends goals in order and counts their ends", "[goal_se
   CHECK(summaryValue<std::int64_t>(h.actor(), "timed_out") == 1);
   CHECK(summaryValue<double>(h.actor(), "path_length_ratio") > 0.9);
   fs::remove(file);
+}
+
+TEST_CASE("base_controller ramps to commands, brakes when they stop and never passes NaN",
+          "[base_controller]") {
+  navigation::BaseControllerOptions o;
+  o.limits.max_speed = 0.5;
+  o.limits.acceleration = 1.0;
+  o.limits.max_turn_rate = 1.0;
+  o.limits.turn_acceleration = 2.0;
+  o.rate_hz = 50;
+  o.timeout_s = 0.3;
+  ActorHarness h(std::make_unique<navigation::BaseControllerActor>(o));
+  auto command = [&](double v, double w) {
+    h.push<msg::Twist>("cmd_vel", [&](auto& b) {
+      setHeader(b.initHeader(), h.now(), "base_link", 0);
+      b.initTwist().setVx(v);
+      b.getTwist().setOmega(w);
+    });
+    h.runUntilIdle();
+  };
+  auto last = [&] {
+    const auto out = h.published<msg::Twist>("base_cmd");
+    REQUIRE(!out.empty());
+    return std::pair{out.back()->getTwist().getVx(), out.back()->getTwist().getOmega()};
+  };
+  const Nanos tick = 20'000'000;
+  // Asked for 2 m/s: clamped to 0.5, reached at 1 m/s² after 0.5 s, not before.
+  for (int k = 0; k < 10; ++k) {
+    command(2.0, 3.0);
+    h.advance(tick);
+  }
+  CHECK(last().first == Approx(0.2).margin(0.021));
+  CHECK(last().second == Approx(0.4).margin(0.041));
+  for (int k = 0; k < 20; ++k) {
+    command(2.0, 3.0);
+    h.advance(tick);
+  }
+  CHECK(last().first == Approx(0.5));
+  CHECK(last().second == Approx(1.0));
+  // Commands stop: after the timeout it brakes within the limit and stands still.
+  for (int k = 0; k < 15; ++k) h.advance(tick);  // 0.3 s
+  CHECK(last().first > 0.2);
+  for (int k = 0; k < 50; ++k) h.advance(tick);
+  CHECK(last().first == 0.0);
+  CHECK(last().second == 0.0);
+  // A NaN command is a stop request; every output stays finite.
+  command(0.3, 0.0);
+  h.advance(tick);
+  command(std::numeric_limits<double>::quiet_NaN(), 0.2);
+  for (int k = 0; k < 10; ++k) h.advance(tick);
+  for (const auto& m : h.published<msg::Twist>("base_cmd")) {
+    REQUIRE(std::isfinite(m->getTwist().getVx()));
+    REQUIRE(std::isfinite(m->getTwist().getOmega()));
+  }
+  CHECK(last().first == 0.0);
+  CHECK(summaryValue<std::int64_t>(h.actor(), "nonfinite_commands") == 1);
+  CHECK(summaryValue<std::int64_t>(h.actor(), "clamped_commands") == 30);
+  CHECK(summaryValue<std::int64_t>(h.actor(), "timeouts") == 1);
+  o.timeout_s = 0;
+  CHECK_THROWS_WITH(navigation::BaseControllerActor(o), Catch::Contains("timeout_s"));
 }
