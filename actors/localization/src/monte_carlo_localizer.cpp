@@ -24,6 +24,9 @@ void MonteCarloOptions::validate() const {
       .require(max_particles >= min_particles, "max_particles", "must be >= min_particles",
                max_particles)
       .positive("kld_error", kld_error)
+      .require(global_particles >= 0 && global_particles <= 1000000, "global_particles",
+               "must be in [0, 1e6]", global_particles)
+      .require(min_ess >= 0 && min_ess < 1, "min_ess", "must be in [0, 1)", min_ess)
       .nonNegative("kld_z", kld_z)
       .positive("bin_xy", bin_xy)
       .positive("bin_theta", bin_theta)
@@ -102,10 +105,11 @@ void MonteCarloLocalizer::initialise(const Pose2& mean, const Eigen::Matrix3d& c
 void MonteCarloLocalizer::initialiseGlobal() {
   if (free_cells_.empty())
     throw std::invalid_argument("monte carlo localisation: the map has no free cell");
-  particles_.assign(static_cast<std::size_t>(options_.max_particles), {});
+  const int n = options_.global_particles > 0 ? options_.global_particles : options_.max_particles;
+  particles_.assign(static_cast<std::size_t>(n), {});
   for (Particle& p : particles_) {
     p.pose = randomFreePose();
-    p.weight = 1.0 / options_.max_particles;
+    p.weight = 1.0 / n;
   }
   last_odom_.reset();
   w_slow_ = w_fast_ = 0;
@@ -170,10 +174,34 @@ bool MonteCarloLocalizer::update(const Pose2& odom, std::span<const Eigen::Vecto
   w_slow_ += options_.recovery_alpha_slow * (fit - w_slow_);
   w_fast_ += options_.recovery_alpha_fast * (fit - w_fast_);
 
-  double total = 0;
-  for (std::size_t i = 0; i < particles_.size(); ++i)
-    total += particles_[i].weight *= std::exp(log_l[i] - best);
-  for (Particle& p : particles_) p.weight /= total;
+  // Tempering (min_ess > 0): the largest β in (0, 1] whose weights w_i · L_i^β keep an
+  // effective sample size of at least min_ess · N, found by bisection (the ESS falls as β grows).
+  const auto weightsFor = [&](double beta, std::vector<double>& w) {
+    double total = 0, squares = 0;
+    for (std::size_t i = 0; i < particles_.size(); ++i)
+      total += w[i] = particles_[i].weight * std::exp(beta * (log_l[i] - best));
+    for (double& x : w) {
+      x /= total;
+      squares += x * x;
+    }
+    return 1.0 / squares;  // ESS
+  };
+  std::vector<double> w(particles_.size());
+  beta_ = 1.0;
+  const double target = options_.min_ess * static_cast<double>(particles_.size());
+  // Only while the set is larger than max_particles, i.e. still a global start's spread set:
+  // a tracking set is not tempered (it would follow the scans more loosely).
+  const bool spread = static_cast<int>(particles_.size()) > options_.max_particles;
+  if (options_.min_ess > 0 && spread && weightsFor(1.0, w) < target) {
+    double lo = 0.0, hi = 1.0;
+    for (int k = 0; k < 30; ++k) {
+      const double mid = 0.5 * (lo + hi);
+      (weightsFor(mid, w) >= target ? lo : hi) = mid;
+    }
+    beta_ = std::max(lo, 1e-6);
+  }
+  weightsFor(beta_, w);
+  for (std::size_t i = 0; i < particles_.size(); ++i) particles_[i].weight = w[i];
   resample();
   ++updates_;
   return true;
@@ -200,11 +228,15 @@ void MonteCarloLocalizer::resample() {
   for (std::size_t i = 0; i < particles_.size(); ++i) cumulative[i] = acc += particles_[i].weight;
   std::uniform_real_distribution<double> unit(0.0, 1.0);
   std::vector<Particle> next;
-  next.reserve(static_cast<std::size_t>(options_.max_particles));
+  // While tempered, the set may stay as large as it is (a global start shrinks as it converges).
+  const int cap = beta_ < 1.0
+                      ? std::max(options_.max_particles, static_cast<int>(particles_.size()))
+                      : options_.max_particles;
+  next.reserve(static_cast<std::size_t>(cap));
   std::unordered_set<std::int64_t> bins;
   int needed = options_.min_particles;
   while (static_cast<int>(next.size()) < std::max(needed, options_.min_particles) &&
-         static_cast<int>(next.size()) < options_.max_particles) {
+         static_cast<int>(next.size()) < cap) {
     Pose2 pose;
     if (share > 0 && !free_cells_.empty() && unit(rng_) < share) {
       pose = randomFreePose();

@@ -244,3 +244,35 @@ TEST_CASE("on a sharp map, endpoints pushed into the walls ahead cost as much as
   CHECK(blurred.logLikelihood(Pose2(1.05, 2.0, 0.0), points) ==
         Approx(blurred.logLikelihood(Pose2(1.0, 2.0, 0.0), points)));
 }
+
+TEST_CASE("a tempered global start keeps its spread set until it converges, then tracks plainly",
+          "[localization]") {
+  const grid::OccupancyMap m = toyRoom();
+  const auto truth = toyRoute();
+  std::mt19937_64 rng(3);
+  MonteCarloOptions o;
+  o.max_particles = 1000;
+  o.global_particles = 8000;
+  auto firstUpdateSize = [&](double min_ess) {
+    o.min_ess = min_ess;
+    MonteCarloLocalizer mcl(m, 8.0, o);
+    mcl.initialiseGlobal();
+    REQUIRE(mcl.particles().size() == 8000);
+    mcl.update(Pose2(), toyScan(m, truth[0], 180, 8.0, rng), /*force=*/true);
+    return mcl.particles().size();
+  };
+  // Plain Bayes cuts the uniform set to max_particles at the first resampling; tempered, the
+  // set keeps its size while it is spread.
+  CHECK(firstUpdateSize(0.0) <= 1000);
+  CHECK(firstUpdateSize(0.3) > 1000);
+  o.min_ess = 0.3;
+  MonteCarloLocalizer mcl(m, 8.0, o);
+  mcl.initialiseGlobal();
+  const Run run = drive(mcl, truth);
+  INFO("converged after " << run.converged_at << " steps of 0.1 m; final error "
+                          << run.final_error);
+  REQUIRE(run.converged_at >= 0);
+  CHECK(run.converged_at * 0.1 < 5.0);
+  CHECK(mcl.particles().size() <= 1000);  // shrunk by the KLD bound once converged
+  CHECK(run.final_error < 0.1);
+}

@@ -57,6 +57,15 @@ struct MonteCarloOptions {
   int max_beams = 60;                  ///< beams used per update, evenly spread
   double recovery_alpha_slow = 0.001;  ///< long-term fit average rate (0 disables recovery)
   double recovery_alpha_fast = 0.1;    ///< short-term fit average rate
+  /// Particles of a uniform (global) start; 0: max_particles. Resampling keeps at most
+  /// max(max_particles, what tempering needs), see min_ess.
+  int global_particles = 0;
+  /// Adaptive tempering of a global start: while the set is larger than max_particles and the
+  /// scan's likelihoods would leave fewer than min_ess × N effective particles, they are raised
+  /// to the power β < 1 that leaves that many, so the set keeps its plausible hypotheses instead
+  /// of collapsing onto the first lucky particle; the KLD bound then shrinks it as it converges.
+  /// 0: off (plain Bayes).
+  double min_ess = 0;
   MotionNoise motion;
   LikelihoodFieldOptions field;
   std::uint64_t seed = 1;
@@ -74,6 +83,10 @@ struct MonteCarloOptions {
     v("max_beams", max_beams, "beams used per update");
     v("recovery_alpha_slow", recovery_alpha_slow, "long-term fit average rate (0: no recovery)");
     v("recovery_alpha_fast", recovery_alpha_fast, "short-term fit average rate");
+    v("global_particles", global_particles,
+      "particles of a uniform (global) start; 0: max_particles");
+    v("min_ess", min_ess,
+      "temper the scan likelihood so at least this share of particles stays effective; 0: off");
     v("motion", motion, "odometry motion model noise");
     v("field", field, "likelihood-field sensor model");
     v("seed", seed, "random seed");
@@ -107,7 +120,7 @@ class MonteCarloLocalizer {
 
   /// Particles from a Gaussian around `mean` (covariance over x, y, theta).
   void initialise(const Pose2& mean, const Eigen::Matrix3d& covariance);
-  /// Particles uniformly over the map's free cells, max_particles of them.
+  /// Particles uniformly over the map's free cells, global_particles (or max_particles) of them.
   void initialiseGlobal();
   bool initialised() const { return !particles_.empty(); }
   /// Swaps in a new map (e.g. a SLAM map that grew), same frame: the likelihood field and the
@@ -128,6 +141,7 @@ class MonteCarloLocalizer {
   int updates() const { return updates_; }
 
  private:
+  double beta_ = 1.0;  // tempering exponent of the last update
   static std::vector<Eigen::Vector2i> freeCells(const LikelihoodField& field);
   Pose2 randomFreePose();
   void resample();
