@@ -37,6 +37,10 @@ void MonteCarloOptions::validate() const {
                "must be in [0, 1]", recovery_alpha_slow)
       .require(recovery_alpha_fast >= recovery_alpha_slow && recovery_alpha_fast <= 1,
                "recovery_alpha_fast", "must be in [recovery_alpha_slow, 1]", recovery_alpha_fast)
+      .require(lost_inlier_fraction >= 0 && lost_inlier_fraction <= 1, "lost_inlier_fraction",
+               "must be in [0, 1]", lost_inlier_fraction)
+      .positive("inlier_distance", inlier_distance)
+      .require(lost_updates >= 1, "lost_updates", "must be >= 1", lost_updates)
       .nonNegative("motion.alpha1", motion.alpha1)
       .nonNegative("motion.alpha2", motion.alpha2)
       .nonNegative("motion.alpha3", motion.alpha3)
@@ -168,8 +172,33 @@ bool MonteCarloLocalizer::update(const Pose2& odom, std::span<const Eigen::Vecto
   // The fit: how well the best particle explains the scan, as its per-beam geometric mean
   // likelihood (independent of the beam count). The set's average would fall with every random
   // particle injected and so call for more of them.
-  const double best = *std::max_element(log_l.begin(), log_l.end());
+  const auto best_it = std::max_element(log_l.begin(), log_l.end());
+  const double best = *best_it;
   const double fit = std::exp(best / static_cast<double>(beams.size()));
+  {
+    const Pose2& b = particles_[static_cast<std::size_t>(best_it - log_l.begin())].pose;
+    const double c = std::cos(b.theta), s = std::sin(b.theta);
+    std::size_t inliers = 0;
+    for (const Eigen::Vector2d& e : beams) {
+      const Eigen::Vector2d p(b.x + c * e.x() - s * e.y(), b.y + s * e.x() + c * e.y());
+      if (field_.distance(p) <= options_.inlier_distance) ++inliers;
+    }
+    inlier_fraction_ = static_cast<double>(inliers) / static_cast<double>(beams.size());
+  }
+  // Lost: re-spread, unless the set is still a spread one converging (it fits nowhere yet).
+  const bool spread_set = static_cast<int>(particles_.size()) > options_.max_particles;
+  lost_streak_ = options_.lost_inlier_fraction > 0 &&
+                         inlier_fraction_ < options_.lost_inlier_fraction && !spread_set
+                     ? lost_streak_ + 1
+                     : 0;
+  if (lost_streak_ >= options_.lost_updates && !free_cells_.empty()) {
+    initialiseGlobal();
+    last_odom_ = odom;  // the next update moves the new set by the motion from here
+    lost_streak_ = 0;
+    ++relocalisations_;
+    ++updates_;
+    return true;
+  }
   if (w_slow_ == 0 && w_fast_ == 0) w_slow_ = w_fast_ = fit;
   w_slow_ += options_.recovery_alpha_slow * (fit - w_slow_);
   w_fast_ += options_.recovery_alpha_fast * (fit - w_fast_);
@@ -191,8 +220,7 @@ bool MonteCarloLocalizer::update(const Pose2& odom, std::span<const Eigen::Vecto
   const double target = options_.min_ess * static_cast<double>(particles_.size());
   // Only while the set is larger than max_particles, i.e. still a global start's spread set:
   // a tracking set is not tempered (it would follow the scans more loosely).
-  const bool spread = static_cast<int>(particles_.size()) > options_.max_particles;
-  if (options_.min_ess > 0 && spread && weightsFor(1.0, w) < target) {
+  if (options_.min_ess > 0 && spread_set && weightsFor(1.0, w) < target) {
     double lo = 0.0, hi = 1.0;
     for (int k = 0; k < 30; ++k) {
       const double mid = 0.5 * (lo + hi);

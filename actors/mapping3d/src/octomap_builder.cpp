@@ -3,7 +3,12 @@
 #include <tessera/mapping3d/octomap_builder.hpp>
 
 #include <octomap/OcTree.h>
+#include <tbb/enumerable_thread_specific.h>
+#include <tbb/parallel_pipeline.h>
+#include <tbb/task_arena.h>
 
+#include <algorithm>
+#include <atomic>
 #include <cmath>
 #include <condition_variable>
 #include <mutex>
@@ -37,6 +42,7 @@ void OctoMapOptions::validate() const {
     throw std::invalid_argument("log_odds_occupied must lie between log_odds_min and log_odds_max");
   if (downsample_leaf < 0) throw std::invalid_argument("downsample_leaf must be >= 0");
   if (prune_period < 1) throw std::invalid_argument("prune_period must be >= 1");
+  if (rebuild_threads < 0) throw std::invalid_argument("rebuild_threads must be >= 0");
 }
 
 namespace {
@@ -89,8 +95,16 @@ void finalize(octomap::OcTree& tree) {
   tree.prune();
 }
 
+// Counts a cloud into a tree with lazy evaluation: the tree is finalized every prune_period clouds.
+void countCloud(octomap::OcTree& tree, const OctoMapOptions& o, int* unfinalized) {
+  if (o.lazy_eval && ++*unfinalized >= o.prune_period) {
+    finalize(tree);
+    *unfinalized = 0;
+  }
+}
+
 // Inserts a scan; with lazy evaluation `*unfinalized` counts the clouds since the tree was last
-// finalized, which happens every prune_period clouds.
+// finalized.
 void insertScan(octomap::OcTree& tree, const Scan& scan, const OctoMapOptions& o,
                 int* unfinalized) {
   const double range = o.max_range > 0 ? o.max_range : -1.0;
@@ -105,10 +119,35 @@ void insertScan(octomap::OcTree& tree, const Scan& scan, const OctoMapOptions& o
       tree.insertPointCloudRays(scan.points, scan.origin, range, o.lazy_eval);
       break;
   }
-  if (o.lazy_eval && ++*unfinalized >= o.prune_period) {
-    finalize(tree);
-    *unfinalized = 0;
-  }
+  countCloud(tree, o, unfinalized);
+}
+
+// The voxels one cloud updates, computed apart from the tree they go into (ray casting is most
+// of an insertion's time, and this part is independent per cloud).
+struct CloudUpdate {
+  std::size_t index = 0;  // of the keyframe
+  Scan scan;              // kept for the rays method, which updates per ray and cannot be split
+  octomap::KeySet free, occupied;
+};
+
+// Fills `u.free` / `u.occupied` exactly as insertPointCloud does before it updates the tree.
+// `scratch` is any tree of the same resolution: octomap's ray buffers live in the tree, so each
+// thread has its own.
+void computeUpdate(octomap::OcTree& scratch, CloudUpdate& u, const OctoMapOptions& o) {
+  const double range = o.max_range > 0 ? o.max_range : -1.0;
+  if (o.method == InsertMethod::kPointCloud)
+    scratch.computeUpdate(u.scan.points, u.scan.origin, u.free, u.occupied, range);
+  else if (o.method == InsertMethod::kDiscretized)
+    scratch.computeDiscreteUpdate(u.scan.points, u.scan.origin, u.free, u.occupied, range);
+}
+
+// The second half of insertPointCloud: free voxels, then occupied ones, each once.
+void applyUpdate(octomap::OcTree& tree, const CloudUpdate& u, const OctoMapOptions& o,
+                 int* unfinalized) {
+  if (o.method == InsertMethod::kRays) return insertScan(tree, u.scan, o, unfinalized);
+  for (const auto& key : u.free) tree.updateNode(key, false, o.lazy_eval);
+  for (const auto& key : u.occupied) tree.updateNode(key, true, o.lazy_eval);
+  countCloud(tree, o, unfinalized);
 }
 
 }  // namespace
@@ -128,17 +167,73 @@ struct OctoMapBuilder::State {
     }
   }
 
-  // Rebuild: the latest request not yet taken by the worker, whether the worker is building, and
-  // the scans inserted since the request being built was made (applied to its tree before the
-  // swap). `generation` tells the worker its request was superseded.
+  // Rebuild: the latest request not yet taken by the worker (a newer one replaces it), whether
+  // the worker is building, and the scans inserted since the request being built and since the
+  // pending one were made (applied to the fresh tree before the swap). While a waitForRebuild
+  // waits (`finishing` > 0) the worker abandons a build that a pending request has made stale.
   std::optional<std::vector<PlacedCloud>> request;
   bool building = false, stop = false;
-  std::uint64_t generation = 0;
-  std::vector<Scan> since_request;
+  int finishing = 0;
+  std::vector<Scan> since_building, since_pending;
+  std::size_t abandoned = 0;
   std::thread worker;
 
   void work(const OctoMapOptions& o);
+  // Builds a fresh tree of `keyframes` (a pipeline: clouds transformed and ray-cast in parallel,
+  // applied to the tree in order, so the tree is the one sequential insertion gives). Returns
+  // null when abandoned (stop, or finishing with a newer request pending).
+  std::shared_ptr<octomap::OcTree> build(const std::vector<PlacedCloud>& keyframes,
+                                         const OctoMapOptions& o, std::size_t* points,
+                                         int* unfinalized);
+  bool abandon() {
+    std::lock_guard check(mutex);
+    return stop || (finishing > 0 && request.has_value());
+  }
 };
+
+std::shared_ptr<octomap::OcTree> OctoMapBuilder::State::build(
+    const std::vector<PlacedCloud>& keyframes, const OctoMapOptions& o, std::size_t* points,
+    int* unfinalized) {
+  auto fresh = makeTree(o);
+  const int threads =
+      o.rebuild_threads > 0 ? o.rebuild_threads : tbb::this_task_arena::max_concurrency();
+  tbb::task_arena arena(threads);
+  tbb::enumerable_thread_specific<std::shared_ptr<octomap::OcTree>> scratch(
+      [&] { return makeTree(o); });
+  std::size_t next = 0;
+  std::atomic<bool> abandoned{false};
+  arena.execute([&] {
+    tbb::parallel_pipeline(
+        static_cast<std::size_t>(2 * threads),
+        tbb::make_filter<void, std::shared_ptr<CloudUpdate>>(
+            tbb::filter_mode::serial_in_order,
+            [&](tbb::flow_control& fc) -> std::shared_ptr<CloudUpdate> {
+              if (next == keyframes.size() || abandon()) {
+                if (next != keyframes.size()) abandoned = true;
+                fc.stop();
+                return nullptr;
+              }
+              auto u = std::make_shared<CloudUpdate>();
+              u->index = next++;
+              return u;
+            }) &
+            tbb::make_filter<std::shared_ptr<CloudUpdate>, std::shared_ptr<CloudUpdate>>(
+                tbb::filter_mode::parallel,
+                [&](std::shared_ptr<CloudUpdate> u) {
+                  const auto& k = keyframes[u->index];
+                  u->scan = toScan(*k.cloud, k.camera_to_world, o);
+                  computeUpdate(*scratch.local(), *u, o);
+                  return u;
+                }) &
+            tbb::make_filter<std::shared_ptr<CloudUpdate>, void>(
+                tbb::filter_mode::serial_in_order, [&](std::shared_ptr<CloudUpdate> u) {
+                  applyUpdate(*fresh, *u, o, unfinalized);
+                  *points += u->scan.points.size();
+                }));
+  });
+  if (abandoned) return nullptr;
+  return fresh;
+}
 
 void OctoMapBuilder::State::work(const OctoMapOptions& o) {
   std::unique_lock lock(mutex);
@@ -147,39 +242,31 @@ void OctoMapBuilder::State::work(const OctoMapOptions& o) {
     if (stop) return;
     std::vector<PlacedCloud> keyframes = std::move(*request);
     request.reset();
+    since_building = std::move(since_pending);
+    since_pending.clear();
     building = true;
-    const std::uint64_t mine = generation;
     lock.unlock();
 
-    auto fresh = makeTree(o);
     std::size_t fresh_points = 0;
     int fresh_unfinalized = 0;
-    bool superseded = false;
-    for (const auto& k : keyframes) {
-      {
-        std::lock_guard check(mutex);
-        superseded = stop || generation != mine;
-      }
-      if (superseded) break;
-      const Scan scan = toScan(*k.cloud, k.camera_to_world, o);
-      insertScan(*fresh, scan, o, &fresh_unfinalized);
-      fresh_points += scan.points.size();
-    }
+    auto fresh = build(keyframes, o, &fresh_points, &fresh_unfinalized);
 
     lock.lock();
-    if (!superseded && !stop && generation == mine) {
+    if (fresh && !stop) {
       // Clouds inserted into the old tree while this one was built: the swap must not lose them.
-      for (const auto& scan : since_request) {
+      for (const auto& scan : since_building) {
         insertScan(*fresh, scan, o, &fresh_unfinalized);
         fresh_points += scan.points.size();
       }
       unfinalized = fresh_unfinalized;
-      clouds = keyframes.size() + since_request.size();
+      clouds = keyframes.size() + since_building.size();
       points = fresh_points;
-      since_request.clear();
       tree = std::move(fresh);
       ++rebuilds;
+    } else if (!stop) {
+      ++abandoned;
     }
+    since_building.clear();
     building = false;
     changed.notify_all();
   }
@@ -207,7 +294,8 @@ void OctoMapBuilder::insert(const PointCloud& cloud, const Eigen::Isometry3d& ca
   insertScan(*state_->tree, scan, options_, &state_->unfinalized);
   ++state_->clouds;
   state_->points += scan.points.size();
-  if (state_->request || state_->building) state_->since_request.push_back(std::move(scan));
+  if (state_->request) state_->since_pending.push_back(scan);
+  if (state_->building) state_->since_building.push_back(std::move(scan));
 }
 
 void OctoMapBuilder::rebuild(std::vector<PlacedCloud> keyframes) {
@@ -217,10 +305,10 @@ void OctoMapBuilder::rebuild(std::vector<PlacedCloud> keyframes) {
   }
   {
     std::lock_guard lock(state_->mutex);
+    // Replaces a pending request; a running build goes on (the map follows at the pace of
+    // rebuilds) unless waitForRebuild abandons it. This snapshot holds every cloud so far.
     state_->request = std::move(keyframes);
-    ++state_->generation;
-    // The new request's snapshot holds every cloud inserted so far.
-    state_->since_request.clear();
+    state_->since_pending.clear();
     if (!state_->worker.joinable())
       state_->worker = std::thread([this] { state_->work(options_); });
   }
@@ -234,7 +322,9 @@ bool OctoMapBuilder::rebuilding() const {
 
 void OctoMapBuilder::waitForRebuild() {
   std::unique_lock lock(state_->mutex);
+  ++state_->finishing;  // a build made stale by a pending request is abandoned
   state_->changed.wait(lock, [&] { return !state_->request && !state_->building; });
+  --state_->finishing;
 }
 
 std::optional<double> OctoMapBuilder::logOdds(const Eigen::Vector3d& point) const {
@@ -266,6 +356,7 @@ OctoMapStats OctoMapBuilder::stats() const {
   s.clouds_inserted = state_->clouds;
   s.points_inserted = state_->points;
   s.rebuilds_completed = state_->rebuilds;
+  s.rebuilds_abandoned = state_->abandoned;
   return s;
 }
 

@@ -59,6 +59,20 @@ Run drive(MonteCarloLocalizer& mcl, const std::vector<Pose2>& truth, int first =
   return run;
 }
 
+/// From a known start, the toy route's first 4 m, then the robot is carried 6 m along it without
+/// the odometry seeing it (step 40), and drives on. `relocalisations` gets the filter's count.
+Run kidnappedRun(const MonteCarloOptions& o, int* relocalisations = nullptr) {
+  const auto truth = toyRoute();
+  MonteCarloLocalizer mcl(toyRoom(), 8.0, o);
+  mcl.initialise(truth.front(),
+                 Eigen::Vector3d(0.05 * 0.05, 0.05 * 0.05, 0.02 * 0.02).asDiagonal());
+  std::vector<Pose2> route(truth.begin(), truth.begin() + 40);
+  route.insert(route.end(), truth.begin() + 100, truth.end());
+  const Run run = drive(mcl, route, 0, 40);
+  if (relocalisations) *relocalisations = mcl.relocalisations();
+  return run;
+}
+
 }  // namespace
 
 TEST_CASE("the KLD sample count follows the chi-square bound", "[localization]") {
@@ -113,21 +127,58 @@ TEST_CASE("global localisation converges from a uniform start", "[localization]"
 }
 
 TEST_CASE("a kidnapped robot is found again through random particles", "[localization]") {
-  const grid::OccupancyMap m = toyRoom();
-  auto truth = toyRoute();
   MonteCarloOptions o;
   o.max_particles = 5000;
-  MonteCarloLocalizer mcl(m, 8.0, o);
-  mcl.initialise(truth.front(),
-                 Eigen::Vector3d(0.05 * 0.05, 0.05 * 0.05, 0.02 * 0.02).asDiagonal());
-  // Tracks the first 4 m, then is carried 6 m along the route without odometry seeing it.
-  std::vector<Pose2> kidnapped(truth.begin(), truth.begin() + 40);
-  kidnapped.insert(kidnapped.end(), truth.begin() + 100, truth.end());
-  const Run run = drive(mcl, kidnapped, 0, 40);
+  const Run run = kidnappedRun(o);
   INFO("recovered after " << run.converged_at << " steps; final error " << run.final_error);
   REQUIRE(run.converged_at >= 0);
   CHECK(run.converged_at - 40 < 100);  // found within 10 m of travel (5.7 m when written)
   CHECK(run.final_error < 0.3);
+}
+
+TEST_CASE("a kidnapped robot is found lost and relocalised without random particles",
+          "[localization]") {
+  const grid::OccupancyMap m = toyRoom();
+  MonteCarloOptions o;
+  o.recovery_alpha_slow = o.recovery_alpha_fast = 0;  // no augmented MCL: only the re-spread
+  o.lost_inlier_fraction = 0.5;
+  o.global_particles = 5000;
+  o.min_ess = 0.3;
+  SECTION("tracking alone never counts as lost") {
+    const auto truth = toyRoute();
+    MonteCarloLocalizer mcl(m, 8.0, o);
+    mcl.initialise(truth.front(), Eigen::Vector3d(0.0025, 0.0025, 0.0004).asDiagonal());
+    const Run run = drive(mcl, truth);
+    CHECK(run.converged_at == 0);
+    CHECK(mcl.relocalisations() == 0);
+    CHECK(mcl.inlierFraction() > 0.8);
+  }
+  SECTION("carried 6 m off, it is found again") {
+    int relocalisations = 0;
+    const Run run = kidnappedRun(o, &relocalisations);
+    INFO("recovered after " << run.converged_at << " steps; final error " << run.final_error);
+    CHECK(relocalisations >= 1);
+    REQUIRE(run.converged_at >= 0);
+    CHECK(run.converged_at - 40 < 100);
+    CHECK(run.final_error < 0.3);
+  }
+  SECTION("without the re-spread the same kidnapping is never recovered") {
+    MonteCarloOptions off = o;
+    off.lost_inlier_fraction = 0;
+    int relocalisations = -1;
+    const Run run = kidnappedRun(off, &relocalisations);
+    CHECK(relocalisations == 0);
+    CHECK(run.final_error > 0.3);
+  }
+  MonteCarloOptions bad = o;
+  bad.lost_inlier_fraction = 1.5;
+  CHECK_THROWS_WITH(MonteCarloLocalizer(m, 8.0, bad), Catch::Contains("lost_inlier_fraction"));
+  bad = o;
+  bad.lost_updates = 0;
+  CHECK_THROWS_WITH(MonteCarloLocalizer(m, 8.0, bad), Catch::Contains("lost_updates"));
+  bad = o;
+  bad.inlier_distance = std::nan("");
+  CHECK_THROWS_WITH(MonteCarloLocalizer(m, 8.0, bad), Catch::Contains("inlier_distance"));
 }
 
 TEST_CASE("bad input never corrupts the filter", "[localization]") {

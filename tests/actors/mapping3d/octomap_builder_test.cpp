@@ -5,8 +5,12 @@
 
 #include <catch2/catch.hpp>
 
+#include <chrono>
 #include <fstream>
 #include <memory>
+#include <thread>
+#include <utility>
+#include <vector>
 
 #include "../../shared_data.hpp"
 #include "mapping3d_fixtures.hpp"
@@ -43,6 +47,22 @@ std::unique_ptr<OctoMapBuilder> wallMap(const OctoMapOptions& options) {
   auto map = std::make_unique<OctoMapBuilder>(options);
   map->insert(wallCloud(2.02), Eigen::Isometry3d::Identity());
   return map;
+}
+
+// Every voxel's log-odds of two maps agree over the box the test clouds reach.
+void requireSameLeaves(const OctoMapBuilder& a, const OctoMapBuilder& b) {
+  for (double x = -1.0; x <= 1.5; x += 0.05)
+    for (double y = -0.3; y <= 0.6; y += 0.05)
+      for (double z = -0.5; z <= 3.5; z += 0.05) {
+        const Eigen::Vector3d p(x + 0.025, y + 0.025, z + 0.025);
+        const auto la = a.logOdds(p), lb = b.logOdds(p);
+        REQUIRE(la.has_value() == lb.has_value());
+        if (la) REQUIRE(*la == Approx(*lb).margin(1e-6));
+      }
+  const OctoMapStats sa = a.stats(), sb = b.stats();
+  CHECK(sa.leaves == sb.leaves);
+  CHECK(sa.occupied_leaves == sb.occupied_leaves);
+  CHECK(sa.points_inserted == sb.points_inserted);
 }
 
 }  // namespace
@@ -138,17 +158,8 @@ TEST_CASE("octomap prune_period changes neither the leaves nor their log-odds",
     a.insert(wall, pose);
     b.insert(wall, pose);
   }
-  for (double x = -0.5; x <= 0.8; x += 0.05)
-    for (double z = 0.1; z <= 2.5; z += 0.1) {
-      const Eigen::Vector3d p(x + 0.025, 0.025, z + 0.025);
-      const auto la = a.logOdds(p), lb = b.logOdds(p);
-      REQUIRE(la.has_value() == lb.has_value());
-      if (la) CHECK(*la == Approx(*lb).margin(1e-6));
-    }
-  const OctoMapStats sa = a.stats(), sb = b.stats();
-  CHECK(sa.leaves == sb.leaves);
-  CHECK(sa.occupied_leaves == sb.occupied_leaves);
-  CHECK(sa.memory_bytes == sb.memory_bytes);
+  requireSameLeaves(a, b);
+  CHECK(a.stats().memory_bytes == b.stats().memory_bytes);
   OctoMapOptions bad;
   bad.prune_period = 0;
   CHECK_THROWS_WITH(OctoMapBuilder(bad), Contains("prune_period"));
@@ -174,7 +185,7 @@ TEST_CASE("octomap rebuild re-inserts moved keyframes and keeps newer clouds",
   CHECK(s.rebuilds_completed == 1);
   CHECK(s.clouds_inserted == 2);
 
-  SECTION("a newer rebuild supersedes a running one") {
+  SECTION("waitForRebuild serves the newest request") {
     map.rebuild({PlacedCloud{wall, at(0, 0, 0.5)}, PlacedCloud{wall, at(0, 0, 0.5)}});
     map.rebuild({PlacedCloud{wall, at(0, 0, 1.0)}});
     map.waitForRebuild();
@@ -182,6 +193,52 @@ TEST_CASE("octomap rebuild re-inserts moved keyframes and keeps newer clouds",
     CHECK(map.occupancy({0.025, 0.025, 2.525}) == Occupancy::kFree);
     CHECK(map.stats().clouds_inserted == 1);
   }
+}
+
+TEST_CASE("octomap rebuild gives the tree that inserting its clouds one by one gives",
+          "[mapping3d][octomap]") {
+  // Overlapping views so that clouds update the same voxels (order and clamping matter).
+  const auto wall = std::make_shared<const PointCloud>(wallCloud(2.02));
+  std::vector<PlacedCloud> keyframes;
+  for (int i = 0; i < 13; ++i) keyframes.push_back({wall, at(0.04 * i, 0.02 * (i % 3), -0.03 * i)});
+  const auto [method, threads] =
+      GENERATE(std::pair{InsertMethod::kDiscretized, 0}, std::pair{InsertMethod::kDiscretized, 1},
+               std::pair{InsertMethod::kPointCloud, 2}, std::pair{InsertMethod::kRays, 2});
+  CAPTURE(methodName(method), threads);
+  OctoMapOptions options;
+  options.method = method;
+  options.rebuild_threads = threads;
+  options.prune_period = 4;
+  OctoMapBuilder inserted(options), rebuilt(options);
+  for (const auto& k : keyframes) inserted.insert(*k.cloud, k.camera_to_world);
+  rebuilt.insert(*wall, at(0, 0, 1));  // replaced by the rebuild
+  rebuilt.rebuild(keyframes);
+  rebuilt.waitForRebuild();
+  REQUIRE(rebuilt.stats().rebuilds_completed == 1);
+  requireSameLeaves(inserted, rebuilt);
+}
+
+TEST_CASE("octomap rebuild requested while one runs waits for it and keeps every cloud",
+          "[mapping3d][octomap]") {
+  const auto wall = std::make_shared<const PointCloud>(wallCloud(2.02));
+  std::vector<PlacedCloud> long_request(60, PlacedCloud{wall, at(0, 0, 0.5)});
+  OctoMapBuilder map;
+  map.rebuild(long_request);
+  map.insert(*wall, at(0, 0, 0.25));  // while the first rebuild runs: in no later snapshot
+  map.rebuild({PlacedCloud{wall, at(0, 0, 1.0)}, PlacedCloud{wall, at(0, 0, 0.25)}});
+  map.insert(onePoint(0, 0, 1), at(1.025, 1.025, 0.025));  // after both requests
+  // No waitForRebuild: the first rebuild must run to its end, then the second one.
+  for (int i = 0; i < 60000 && map.rebuilding(); ++i)
+    std::this_thread::sleep_for(std::chrono::milliseconds(1));
+  REQUIRE_FALSE(map.rebuilding());
+  const OctoMapStats s = map.stats();
+  CHECK(s.rebuilds_abandoned == 0);
+  CHECK(s.rebuilds_completed >= 1);
+  CHECK(s.clouds_inserted == 3);
+  CHECK(map.occupancy({0.025, 0.025, 3.025}) == Occupancy::kOccupied);
+  CHECK(map.occupancy({0.025, 0.025, 2.275}) == Occupancy::kOccupied);
+  CHECK(map.occupancy({0.025, 0.025, 2.525}) == Occupancy::kFree);
+  CHECK(map.occupancy({1.025, 1.025, 1.025}) == Occupancy::kOccupied);
 }
 
 TEST_CASE("octomap .bt files round-trip and bad input is named", "[mapping3d][octomap]") {

@@ -334,8 +334,8 @@ TEST_CASE("SimulatorActor: options from YAML and the registry", "[sim][actor][op
   REQUIRE(entry != nullptr);
   const auto rows = entry->options();
   // 32 + base (2) + gyro (6) + encoders (9) + start_pause_s + drive, command_timeout_s,
-  // start_pose and footprint (2).
-  CHECK(rows.size() == 55);
+  // start_pose and footprint (2), kidnap_at_s and kidnap_pose.
+  CHECK(rows.size() == 57);
   for (const auto& row : rows) CHECK_FALSE(row[2].empty());  // every key documented
   auto actor = ActorRegistry::instance().create(
       "simulator", Params(YAML::Load("{route: [[7.5, 7.5], [12, 7.5]]}"), "test"));
@@ -607,6 +607,28 @@ TEST_CASE("SimulatorActor commands: a constant cmd_vel drives along the heading 
   CHECK(h.publishedCount("odom") == 101);
 }
 
+TEST_CASE("SimulatorActor commands: a kidnapping moves the true robot but not its odometry",
+          "[sim][actor][commands]") {
+  SimulatorOptions o = commandsAt(1.0, 1.0, 0.0);
+  o.kidnap_at_s = 1.0;
+  o.kidnap_pose = {4.5, 3.0, 3.0};
+  ActorHarness h(inRoom(o));
+  keepCommanding(h, 0.2, 0.0, 0.9);
+  CHECK(lastTruth(h).x == Approx(1.0 + 0.2 * 0.9).margin(1e-9));
+  CHECK(summaryInt(h, "kidnapped") == 0);
+  keepCommanding(h, 0.2, 0.0, 1.1);
+  // Carried at 1.0 s and stopped there; it then drives on at its new heading for 1.0 s less
+  // the acceleration-free step it lost.
+  const tessera::Pose2 p = lastTruth(h);
+  CHECK(p.theta == Approx(3.0).margin(1e-9));
+  CHECK(std::hypot(p.x - 4.5, p.y - 3.0) == Approx(0.2).margin(0.01));
+  CHECK(summaryInt(h, "kidnapped") == 1);
+  // The odometry went straight on along x as if nothing had happened.
+  const auto odom = toPose2(h.published<msg::Odometry>("odom").back()->getPose());
+  CHECK(odom.theta == Approx(0.0).margin(1e-9));
+  CHECK(odom.x == Approx(1.0 + 0.2 * 2.0).margin(0.01));
+}
+
 TEST_CASE("SimulatorActor commands: the watchdog stops the base when commands stop coming",
           "[sim][actor][commands]") {
   SimulatorOptions o = commandsAt(1.0, 1.0, 0.0);
@@ -830,6 +852,26 @@ TEST_CASE("SimulatorActor commands: options from YAML; bad ones are ConfigErrors
              c.drive = "route";  // a route starts on its first waypoint
            }),
            "option 'start_pose': is only used with drive: commands");
+  const std::string kidnap_wall = with([](auto& c) {
+    c.kidnap_at_s = 5;
+    c.kidnap_pose = {15, 8.5, 0};
+  });
+  contains(kidnap_wall, "option 'kidnap_pose'");
+  contains(kidnap_wall, "in a wall");
+  contains(with([](auto& c) { c.kidnap_at_s = 5; }), "option 'kidnap_pose': must be 3 numbers");
+  contains(with([](auto& c) { c.kidnap_at_s = std::numeric_limits<double>::quiet_NaN(); }),
+           "option 'kidnap_at_s'");
+  contains(with([](auto& c) {
+             c.kidnap_pose = {7.5, 7.5, 0};
+           }),
+           "option 'kidnap_pose': is only used with kidnap_at_s > 0");
+  contains(with([](auto& c) {
+             c.drive = "route";
+             c.start_pose.clear();
+             c.kidnap_at_s = 5;
+             c.kidnap_pose = {7.5, 7.5, 0};
+           }),
+           "option 'kidnap_at_s': is only used with drive: commands");
   contains(with([](auto& c) { c.command_timeout_s = 0; }), "option 'command_timeout_s'");
   contains(with([](auto& c) { c.command_timeout_s = std::numeric_limits<double>::quiet_NaN(); }),
            "option 'command_timeout_s'");

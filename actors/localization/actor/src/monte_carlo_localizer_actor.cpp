@@ -221,6 +221,7 @@ bool MonteCarloLocalizerActor::tryScan(const Message<msg::LaserScan>& scan) {
     const double share = mcl_->randomShare();
     random_share_sum_ += share;
     random_share_max_ = std::max(random_share_max_, share);
+    inlier_fraction_sum_ += mcl_->inlierFraction();
   }
   publish(stamp, updated, odom);
   return true;
@@ -281,6 +282,9 @@ void MonteCarloLocalizerActor::summarize(Summary& out) const {
   out["particles_max"] = static_cast<std::int64_t>(particles_max_);
   out["random_share_mean"] = random_share_sum_ / n;
   out["random_share_max"] = random_share_max_;
+  // Share of the best particle's beams near an obstacle, and the global re-spreads it caused.
+  out["inlier_fraction_mean"] = inlier_fraction_sum_ / n;
+  out["relocalisations"] = static_cast<std::int64_t>(mcl_->relocalisations());
   // Wall time of the filter step (motion, TBB-parallel weighting, resampling); with one executor
   // thread (tessera run --threads 1) it is the CPU time per update.
   std::vector<double> ms = update_ms_;

@@ -327,7 +327,8 @@ void RgbdMapperActor::summarize(Summary& out) const {
   out["keyframes_moved"] = i64(keyframes_moved_);
   out["rebuilds"] = i64(rebuilds_);
   out["rebuilds_completed"] = i64(s.rebuilds_completed);
-  out["stop_rebuild_wait_ms"] = stop_wait_ms_;  // stop() waiting for the last rebuild
+  out["rebuilds_abandoned"] = i64(s.rebuilds_abandoned);  // at stop, for newer poses
+  out["stop_rebuild_wait_ms"] = stop_wait_ms_;            // stop() waiting for the last rebuild
   // Per mapped keyframe: the cloud (back-projection, voxel filter) and the OctoMap
   // insertion; max is of both together.
   const double n = mapped_ > 0 ? static_cast<double>(mapped_) : 1.0;

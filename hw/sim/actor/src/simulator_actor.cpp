@@ -80,27 +80,37 @@ SimulatorActor::SimulatorActor(SimulatorOptions options, World world)
   command_timeout_ = secondsToNanos(o.command_timeout_s);
   kErrors.check(o.footprint.check(), "footprint");
 
-  if (!o.start_pose.empty()) {
+  // A pose option [x, y, theta] in free space (else a ConfigError naming it).
+  const auto poseOption = [&](const char* key, const std::vector<double>& v) {
     std::string value = "[";
-    for (std::size_t i = 0; i < o.start_pose.size(); ++i)
-      value += (i ? ", " : "") + str(o.start_pose[i]);
+    for (std::size_t i = 0; i < v.size(); ++i) value += (i ? ", " : "") + str(v[i]);
     value += "]";
+    if (v.size() != 3) kErrors.fail(key, "must be 3 numbers [x, y, theta], got " + value);
+    if (!std::all_of(v.begin(), v.end(), [](double x) { return std::isfinite(x); }))
+      kErrors.fail(key, "must be finite, got " + value);
+    if (world_.blocked(Eigen::Vector2d(v[0], v[1])))
+      kErrors.fail(key, value + " is in a wall or outside world '" + world_.name() + "' (" +
+                            str(world_.widthMeters()) + " m x " + str(world_.heightMeters()) +
+                            " m)");
+    return Pose2{v[0], v[1], normalizeAngle(v[2])};
+  };
+  if (!(std::isfinite(o.kidnap_at_s) && o.kidnap_at_s >= 0))
+    kErrors.fail("kidnap_at_s", "must be finite and >= 0 s, got " + str(o.kidnap_at_s));
+  if (o.kidnap_at_s > 0) {
+    if (!commands_) kErrors.fail("kidnap_at_s", "is only used with drive: commands");
+    kidnap_pose_ = poseOption("kidnap_pose", o.kidnap_pose);
+    kidnap_step_ = std::max<std::uint64_t>(
+        1, static_cast<std::uint64_t>(std::llround(o.kidnap_at_s * o.step_hz)));
+  } else if (!o.kidnap_pose.empty()) {
+    kErrors.fail("kidnap_pose", "is only used with kidnap_at_s > 0");
+  }
+
+  if (!o.start_pose.empty()) {
     if (!commands_)
       kErrors.fail("start_pose",
                    "is only used with drive: commands (a route starts on its first "
-                   "waypoint), got " +
-                       value);
-    if (o.start_pose.size() != 3)
-      kErrors.fail("start_pose", "must be 3 numbers [x, y, theta], got " + value);
-    if (!std::all_of(o.start_pose.begin(), o.start_pose.end(),
-                     [](double v) { return std::isfinite(v); }))
-      kErrors.fail("start_pose", "must be finite, got " + value);
-    const Eigen::Vector2d p(o.start_pose[0], o.start_pose[1]);
-    if (world_.blocked(p))
-      kErrors.fail("start_pose", value + " is in a wall or outside world '" + world_.name() +
-                                     "' (" + str(world_.widthMeters()) + " m x " +
-                                     str(world_.heightMeters()) + " m)");
-    start_ = Pose2{p.x(), p.y(), normalizeAngle(o.start_pose[2])};
+                   "waypoint)");
+    start_ = poseOption("start_pose", o.start_pose);
   } else {
     // Route: given, or the world's own (in commands mode only for its start pose).
     route_ = kErrors.routeOrDefault(world_, o.route);
@@ -185,6 +195,12 @@ void SimulatorActor::tick() {
     if (step_ > pause_steps_)
       cmd = commands_ ? currentCommand() : follower_->command(robot_->truePose(), dt_);
     robot_->step(cmd, dt_);
+    if (step_ == kidnap_step_) {
+      robot_->teleport(kidnap_pose_);
+      kidnapped_ = true;
+      std::cerr << "[simulator] kidnapped: the robot is carried to (" << kidnap_pose_.x << ", "
+                << kidnap_pose_.y << ", " << kidnap_pose_.theta << ")\n";
+    }
     const Twist& vel = robot_->velocity();  // the command under the base's limits
     const Eigen::Vector2d inc = robot_->lastOdometryIncrement();
     const Eigen::Vector2d sd = robot_->odometry().incrementStd(vel.v * dt_, vel.omega * dt_);
@@ -323,6 +339,7 @@ void SimulatorActor::summarize(Summary& out) const {
     out["bad_commands"] = bad_commands_;
     out["clamped_commands"] = clamped_commands_;
     out["watchdog_stops"] = watchdog_stops_;
+    if (kidnap_step_ > 0) out["kidnapped"] = kidnapped_ ? 1 : 0;
   }
   out["sim_time_s"] = step_ > 0 ? static_cast<double>(step_ - 1) * dt_ : 0.0;
   out["scans_published"] = scans_published_;

@@ -10,7 +10,9 @@
 // or turned update_min_a (or when forced). When the short-term average fit (of the best particle)
 // drops below the long-term one (w_fast < w_slow), a fraction 1 − w_fast / w_slow of the resampled
 // particles is drawn uniformly over free space instead (augmented MCL): that recovers a kidnapped
-// robot. The estimate is the weighted mean and covariance of the heaviest cluster of adjacent bins.
+// robot. Separately, when the best particle leaves most beams away from any obstacle for several
+// updates (lost_inlier_fraction), the particles are spread over the map again. The estimate is
+// the weighted mean and covariance of the heaviest cluster of adjacent bins.
 //
 // Owns its particles and a copy of the likelihood field's map; one thread calls it.
 #pragma once
@@ -66,6 +68,15 @@ struct MonteCarloOptions {
   /// of collapsing onto the first lucky particle; the KLD bound then shrinks it as it converges.
   /// 0: off (plain Bayes).
   double min_ess = 0;
+  /// Relocalisation (0: off): when fewer than this share of the best particle's beams end within
+  /// inlier_distance of an obstacle for lost_updates filter updates in a row, the robot is taken
+  /// to be lost (kidnapped, or the track slipped) and the particles are spread over the free
+  /// space again as a global start (global_particles, tempered by min_ess). Unlike the
+  /// random-particle recovery it does not react to a passing person or clutter: those leave
+  /// most beams on the walls.
+  double lost_inlier_fraction = 0;
+  double inlier_distance = 0.2;  ///< [m]
+  int lost_updates = 5;
   MotionNoise motion;
   LikelihoodFieldOptions field;
   std::uint64_t seed = 1;
@@ -87,6 +98,11 @@ struct MonteCarloOptions {
       "particles of a uniform (global) start; 0: max_particles");
     v("min_ess", min_ess,
       "temper the scan likelihood so at least this share of particles stays effective; 0: off");
+    v("lost_inlier_fraction", lost_inlier_fraction,
+      "relocalise globally when fewer beams than this share end near an obstacle; 0: off");
+    v("inlier_distance", inlier_distance, "[m] a beam ending this close to an obstacle fits");
+    v("lost_updates", lost_updates,
+      "updates in a row below lost_inlier_fraction before relocalising");
     v("motion", motion, "odometry motion model noise");
     v("field", field, "likelihood-field sensor model");
     v("seed", seed, "random seed");
@@ -139,6 +155,11 @@ class MonteCarloLocalizer {
   double randomShare() const;
   const LikelihoodField& field() const { return field_; }
   int updates() const { return updates_; }
+  /// Share of the best particle's beams within inlier_distance of an obstacle at the last
+  /// weighted update (1 before any).
+  double inlierFraction() const { return inlier_fraction_; }
+  /// Global re-spreads after the robot was found lost (lost_inlier_fraction).
+  int relocalisations() const { return relocalisations_; }
 
  private:
   double beta_ = 1.0;  // tempering exponent of the last update
@@ -153,6 +174,8 @@ class MonteCarloLocalizer {
   std::optional<Pose2> last_odom_;
   double w_slow_ = 0, w_fast_ = 0;
   int updates_ = 0;
+  double inlier_fraction_ = 1.0;
+  int lost_streak_ = 0, relocalisations_ = 0;
   std::mt19937_64 rng_;
 };
 

@@ -4,9 +4,13 @@
 // crosses (docs/algorithms.md#rgb-d-maps). Each voxel is updated at most once per inserted cloud.
 //
 // Rebuild: after a loop closure moves keyframes, rebuild(snapshot) re-inserts every keyframe at
-// its new pose into a fresh tree on a background thread; until it is done every query and write
-// sees the old tree (it keeps receiving insert()s), then the new tree replaces it in one swap, the
-// clouds inserted meanwhile applied to it first. A rebuild requested while one runs supersedes it.
+// its new pose into a fresh tree in the background; until it is done every query and write sees
+// the old tree (it keeps receiving insert()s), then the new tree replaces it in one swap, the
+// clouds inserted meanwhile applied to it first. A request made while a rebuild runs waits for it
+// and replaces any request still waiting, so during a run of frequent loop closures the map
+// follows one rebuild behind; waitForRebuild() abandons a running rebuild that a waiting request
+// has made stale. The rebuild ray-casts clouds on rebuild_threads threads and applies them to the
+// tree in keyframe order: the tree is the one inserting them one by one gives.
 //
 // Thread-safe: insert/queries/writes from one or more threads, the rebuild on its own thread.
 // octomap types stay in the .cpp: the tree is reached through this class only.
@@ -63,6 +67,9 @@ struct OctoMapOptions {
   /// write. Both walk the whole tree, so doing them after every cloud made a long run quadratic
   /// (docs/algorithms.md#rgb-d-maps); leaf queries are exact in between.
   int prune_period = 20;
+  /// Threads that ray-cast clouds in a rebuild (0 = every core). The tree itself is updated by
+  /// one thread, in keyframe order.
+  int rebuild_threads = 0;
 
   template <class V>
   void visit(V& v) {
@@ -78,6 +85,7 @@ struct OctoMapOptions {
     v("lazy_eval", lazy_eval, "update inner nodes once per prune_period clouds, not per voxel");
     v("prune_period", prune_period,
       "with lazy_eval: clouds between updates of the inner nodes and pruning (1 = every cloud)");
+    v("rebuild_threads", rebuild_threads, "threads ray-casting clouds in a rebuild; 0 = all");
   }
   /// Throws std::invalid_argument naming the first bad option (l_min < l_occupied < l_max,
   /// l_miss < 0 < l_hit, resolution > 0, all finite).
@@ -92,6 +100,7 @@ struct OctoMapStats {
   std::size_t clouds_inserted = 0;  ///< into the tree being served
   std::size_t points_inserted = 0;  ///< points given to octomap (after any downsampling)
   std::size_t rebuilds_completed = 0;
+  std::size_t rebuilds_abandoned = 0;  ///< by waitForRebuild, for a newer request
 };
 
 class OctoMapBuilder {
@@ -111,7 +120,8 @@ class OctoMapBuilder {
   /// the file comment). Throws std::invalid_argument naming "pose" for a bad pose.
   void rebuild(std::vector<PlacedCloud> keyframes);
   bool rebuilding() const;
-  /// Blocks until no rebuild runs.
+  /// Blocks until the served tree holds the latest request (a running rebuild that a waiting
+  /// request has made stale is abandoned) and no rebuild runs.
   void waitForRebuild();
 
   /// Occupancy / log-odds of the leaf voxel holding `point` [m, world frame]; log-odds empty when

@@ -185,6 +185,11 @@ class DiffDriveRobot {
   /// Commands (v, omega) for dt seconds: the base's velocity follows it under its acceleration
   /// limits and is held over the step; updates the true pose and the odometry.
   void step(const Twist& cmd, double dt);
+  /// Carries the true robot to `pose` and stops it; the odometry does not see it (a kidnapping).
+  void teleport(const Pose2& pose) {
+    true_pose_ = pose;
+    velocity_ = {};
+  }
 
   /// The velocity the base moved with in the last step (the command when unlimited).
   const Twist& velocity() const { return velocity_; }

@@ -141,7 +141,7 @@ class MonteCarloLocalizerActor final : public Actor {
   std::vector<double> update_ms_;
   std::uint64_t particles_sum_ = 0;
   std::size_t particles_min_ = 0, particles_max_ = 0;
-  double random_share_sum_ = 0, random_share_max_ = 0;
+  double random_share_sum_ = 0, random_share_max_ = 0, inlier_fraction_sum_ = 0;
   std::string map_source_;
 };
 

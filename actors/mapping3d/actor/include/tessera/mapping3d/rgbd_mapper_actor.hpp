@@ -9,11 +9,12 @@
 //   keyframe_poses   msg::KeyframePoses  reliable: optimised poses; when one moves a keyframe by
 //                                        more than move_threshold_m / move_threshold_rad, every
 //                                        pose of the message is applied (the clouds move) and the
-//                                        OctoMap is rebuilt on a background thread
+//                                        OctoMap is rebuilt in the background
 //                                        (OctoMapBuilder::rebuild: the mailbox is not blocked;
-//                                        the old tree is served until the new one swaps in)
-// Writes (with an output directory, in stop(), after any running rebuild): cloud.pcd and
-// cloud.ply (the assembled cloud, pcl_viewer / CloudCompare) and map.bt (octovis); also every
+//                                        the old tree is served until the new one swaps in; a
+//                                        request made meanwhile follows it)
+// Writes (with an output directory, in stop(), once the OctoMap holds the latest poses): cloud.pcd
+// and cloud.ply (the assembled cloud, pcl_viewer / CloudCompare) and map.bt (octovis); also every
 // save_period_s when that is > 0.
 // Threads: clouds are built and stored, and inserted into the OctoMap, on a thread the actor owns
 // (the handler waits for it; see the .cpp for why); the OctoMap rebuild runs on its own thread.

@@ -35,6 +35,9 @@
 // bias at stops; commands are not followed before then). The base follows the route follower's
 // or cmd_vel's commands under `base` acceleration limits (none by default).
 //
+// Kidnapping (commands mode, kidnap_at_s > 0): at that simulated time the true robot is carried
+// to kidnap_pose and stopped; odometry does not see it (a localiser has to notice on its own).
+//
 // Collisions (both modes): every step the body (`footprint`, a vertical cylinder) is checked
 // against the true 3D world with footprintClearance() (collision.hpp): walls, the map border and
 // furniture below the body's top. The robot is not stopped by a contact (it is counted, and each
@@ -83,6 +86,8 @@ struct SimulatorOptions {
   double command_timeout_s = 0.5;
   std::vector<double> start_pose;
   FootprintOptions footprint;
+  double kidnap_at_s = 0;
+  std::vector<double> kidnap_pose;
 
   template <class V>
   void visit(V& v) {
@@ -117,6 +122,10 @@ struct SimulatorOptions {
       "route's start (its first waypoint, facing the second)");
     v("footprint", footprint,
       "the robot's body for collision checks: a vertical cylinder on the floor");
+    v("kidnap_at_s", kidnap_at_s,
+      "commands mode: carry the robot to kidnap_pose at this simulated time, unseen by its "
+      "odometry [s]; 0 = never");
+    v("kidnap_pose", kidnap_pose, "where the kidnapping puts the robot: [x, y, theta] [m, m, rad]");
   }
 
   /// The flat keys of earlier versions, now inside the follower, odometry and laser groups
@@ -159,7 +168,8 @@ class SimulatorActor final : public Actor {
   /// collision_steps, min_clearance_m (smallest clearance minus radius, negative = overlap).
   /// route_length_m and route_completed in route mode only; in commands mode
   /// commands_received, bad_commands (non-finite, ignored), clamped_commands and
-  /// watchdog_stops (times the watchdog stopped a commanded base).
+  /// watchdog_stops (times the watchdog stopped a commanded base); kidnapped (0/1) with
+  /// kidnap_at_s.
   void summarize(Summary& out) const override;
 
   const World& world() const { return world_; }
@@ -224,6 +234,10 @@ class SimulatorActor final : public Actor {
   bool have_command_ = false, following_command_ = false;
   std::int64_t commands_received_ = 0, bad_commands_ = 0, clamped_commands_ = 0;
   std::int64_t watchdog_stops_ = 0;
+
+  std::uint64_t kidnap_step_ = 0;  // 0 = none
+  Pose2 kidnap_pose_;
+  bool kidnapped_ = false;
 
   bool in_contact_ = false;
   std::int64_t collisions_ = 0, collision_steps_ = 0;
