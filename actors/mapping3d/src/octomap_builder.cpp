@@ -195,8 +195,15 @@ std::shared_ptr<octomap::OcTree> OctoMapBuilder::State::build(
     const std::vector<PlacedCloud>& keyframes, const OctoMapOptions& o, std::size_t* points,
     int* unfinalized) {
   auto fresh = makeTree(o);
-  const int threads =
-      o.rebuild_threads > 0 ? o.rebuild_threads : tbb::this_task_arena::max_concurrency();
+  // In the background a rebuild shares the machine with the run; one that a caller waits for
+  // (waitForRebuild) has it to itself.
+  const int all = tbb::this_task_arena::max_concurrency();
+  bool waited_for = false;
+  {
+    std::lock_guard check(mutex);
+    waited_for = finishing > 0;
+  }
+  const int threads = waited_for || o.rebuild_threads <= 0 ? all : std::min(o.rebuild_threads, all);
   tbb::task_arena arena(threads);
   tbb::enumerable_thread_specific<std::shared_ptr<octomap::OcTree>> scratch(
       [&] { return makeTree(o); });

@@ -247,10 +247,10 @@ void NavigationActor::onScan(const Message<msg::LaserScan>& m) {
                                    " ns: non-finite angles, range limits or mount, or no beams");
   const Pose2 sensor = *base * mount;
   const double clear = options_.obstacles.clear_range;
-  std::vector<Eigen::Vector2d> ends;
-  std::vector<std::uint8_t> no_return;
-  ends.reserve(ranges.size());
-  no_return.reserve(ranges.size());
+  std::vector<Eigen::Vector2d>& ends = scan_ends_;  // members: no allocation per scan
+  std::vector<std::uint8_t>& no_return = scan_no_return_;
+  ends.clear();
+  no_return.clear();
   for (std::size_t i = 0; i < ranges.size(); ++i) {
     const double r = ranges[i];
     if (std::isnan(r) || r < rmin) continue;
@@ -296,9 +296,9 @@ void NavigationActor::onDepth(const Message<msg::RgbdFrame>& m) {
   world_base.rotate(Eigen::AngleAxisd(base->theta, Eigen::Vector3d::UnitZ()));
   const Eigen::Isometry3d camera = world_base * camera_to_base_;
   const double max_range = std::max(options_.obstacles.clear_range, options_.obstacles.mark_range);
-  std::vector<Eigen::Vector3d> points;
+  std::vector<Eigen::Vector3d>& points = depth_points_;  // a member: no allocation per frame
+  points.clear();
   const auto stride = static_cast<std::uint32_t>(options_.depth_stride);
-  points.reserve(static_cast<std::size_t>(w / stride + 1) * (h / stride + 1));
   for (std::uint32_t v = stride / 2; v < h; v += stride) {
     const auto* row = data.begin() + static_cast<std::size_t>(v) * step;
     for (std::uint32_t u = stride / 2; u < w; u += stride) {

@@ -9,8 +9,9 @@
 // clouds inserted meanwhile applied to it first. A request made while a rebuild runs waits for it
 // and replaces any request still waiting, so during a run of frequent loop closures the map
 // follows one rebuild behind; waitForRebuild() abandons a running rebuild that a waiting request
-// has made stale. The rebuild ray-casts clouds on rebuild_threads threads and applies them to the
-// tree in keyframe order: the tree is the one inserting them one by one gives.
+// has made stale. The rebuild ray-casts clouds on rebuild_threads threads (every core for one that
+// waitForRebuild waits for) and applies them to the tree in keyframe order: the tree is the one
+// inserting them one by one gives.
 //
 // Thread-safe: insert/queries/writes from one or more threads, the rebuild on its own thread.
 // octomap types stay in the .cpp: the tree is reached through this class only.
@@ -67,9 +68,10 @@ struct OctoMapOptions {
   /// write. Both walk the whole tree, so doing them after every cloud made a long run quadratic
   /// (docs/algorithms.md#rgb-d-maps); leaf queries are exact in between.
   int prune_period = 20;
-  /// Threads that ray-cast clouds in a rebuild (0 = every core). The tree itself is updated by
-  /// one thread, in keyframe order.
-  int rebuild_threads = 0;
+  /// Threads that ray-cast clouds in a background rebuild (0 = every core); the default leaves
+  /// the other cores to tracking. A rebuild started while waitForRebuild waits uses every core.
+  /// The tree itself is updated by one thread, in keyframe order.
+  int rebuild_threads = 1;
 
   template <class V>
   void visit(V& v) {
@@ -85,7 +87,8 @@ struct OctoMapOptions {
     v("lazy_eval", lazy_eval, "update inner nodes once per prune_period clouds, not per voxel");
     v("prune_period", prune_period,
       "with lazy_eval: clouds between updates of the inner nodes and pruning (1 = every cloud)");
-    v("rebuild_threads", rebuild_threads, "threads ray-casting clouds in a rebuild; 0 = all");
+    v("rebuild_threads", rebuild_threads,
+      "threads ray-casting clouds in a background rebuild (one waited for uses all); 0 = all");
   }
   /// Throws std::invalid_argument naming the first bad option (l_min < l_occupied < l_max,
   /// l_miss < 0 < l_hit, resolution > 0, all finite).

@@ -192,6 +192,11 @@ class NavigationActor final : public Actor {
   double control_cpu_ms_ = 0, control_cpu_max_ms_ = 0, costmap_cpu_ms_ = 0, sensor_cpu_ms_ = 0;
   Nanos first_tick_ = -1, last_tick_ = 0;
   std::map<std::string, std::uint64_t> bad_;
+
+  // Sensor buffers kept between messages.
+  std::vector<Eigen::Vector2d> scan_ends_;
+  std::vector<std::uint8_t> scan_no_return_;
+  std::vector<Eigen::Vector3d> depth_points_;
 };
 
 }  // namespace tessera::navigation
