@@ -177,12 +177,9 @@ bool MonteCarloLocalizer::update(const Pose2& odom, std::span<const Eigen::Vecto
   const double fit = std::exp(best / static_cast<double>(beams.size()));
   {
     const Pose2& b = particles_[static_cast<std::size_t>(best_it - log_l.begin())].pose;
-    const double c = std::cos(b.theta), s = std::sin(b.theta);
     std::size_t inliers = 0;
-    for (const Eigen::Vector2d& e : beams) {
-      const Eigen::Vector2d p(b.x + c * e.x() - s * e.y(), b.y + s * e.x() + c * e.y());
-      if (field_.distance(p) <= options_.inlier_distance) ++inliers;
-    }
+    for (const Eigen::Vector2d& e : beams)
+      if (field_.distance(b * e) <= options_.inlier_distance) ++inliers;
     inlier_fraction_ = static_cast<double>(inliers) / static_cast<double>(beams.size());
   }
   // Lost: re-spread, unless the set is still a spread one converging (it fits nowhere yet).

@@ -8,7 +8,6 @@
 #include <tbb/task_arena.h>
 
 #include <algorithm>
-#include <atomic>
 #include <cmath>
 #include <condition_variable>
 #include <mutex>
@@ -207,8 +206,7 @@ std::shared_ptr<octomap::OcTree> OctoMapBuilder::State::build(
   tbb::task_arena arena(threads);
   tbb::enumerable_thread_specific<std::shared_ptr<octomap::OcTree>> scratch(
       [&] { return makeTree(o); });
-  std::size_t next = 0;
-  std::atomic<bool> abandoned{false};
+  std::size_t next = 0;  // the input stage stops early only when the build is abandoned
   arena.execute([&] {
     tbb::parallel_pipeline(
         static_cast<std::size_t>(2 * threads),
@@ -216,7 +214,6 @@ std::shared_ptr<octomap::OcTree> OctoMapBuilder::State::build(
             tbb::filter_mode::serial_in_order,
             [&](tbb::flow_control& fc) -> std::shared_ptr<CloudUpdate> {
               if (next == keyframes.size() || abandon()) {
-                if (next != keyframes.size()) abandoned = true;
                 fc.stop();
                 return nullptr;
               }
@@ -238,8 +235,7 @@ std::shared_ptr<octomap::OcTree> OctoMapBuilder::State::build(
                   *points += u->scan.points.size();
                 }));
   });
-  if (abandoned) return nullptr;
-  return fresh;
+  return next == keyframes.size() ? fresh : nullptr;
 }
 
 void OctoMapBuilder::State::work(const OctoMapOptions& o) {
