@@ -163,6 +163,9 @@ TEST_CASE("octomap prune_period changes neither the leaves nor their log-odds",
   OctoMapOptions bad;
   bad.prune_period = 0;
   CHECK_THROWS_WITH(OctoMapBuilder(bad), Contains("prune_period"));
+  bad = {};
+  bad.rebuild_threads = -1;
+  CHECK_THROWS_WITH(OctoMapBuilder(bad), Contains("rebuild_threads"));
 }
 
 TEST_CASE("octomap rebuild re-inserts moved keyframes and keeps newer clouds",
