@@ -107,3 +107,12 @@ function(tessera_check_dependency_rule)
   list(LENGTH actors n_actors)
   message(STATUS "Dependency rule: ${n_cores} core and ${n_actors} actor libraries checked")
 endfunction()
+
+# Unity builds (CMAKE_UNITY_BUILD=ON, as scripts/build.sh and scripts/sanitize.sh configure a
+# fresh tree: a cold build parses the heavy headers once per batch instead of once per file).
+# Files whose file-local helpers (anonymous namespace) share a name with another file's of the same
+# target, or that hold file-local types in a class's members, are compiled on their own:
+#   tessera_own_translation_units(file...)   paths relative to the calling CMakeLists.txt
+function(tessera_own_translation_units)
+  set_source_files_properties(${ARGN} PROPERTIES SKIP_UNITY_BUILD_INCLUSION ON)
+endfunction()
