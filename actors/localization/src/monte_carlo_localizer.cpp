@@ -41,6 +41,8 @@ void MonteCarloOptions::validate() const {
                "must be in [0, 1]", lost_inlier_fraction)
       .positive("inlier_distance", inlier_distance)
       .require(lost_updates >= 1, "lost_updates", "must be >= 1", lost_updates)
+      .nonNegative("refine_step", refine_step)
+      .positive("refine_max_shift", refine_max_shift)
       .nonNegative("motion.alpha1", motion.alpha1)
       .nonNegative("motion.alpha2", motion.alpha2)
       .nonNegative("motion.alpha3", motion.alpha3)
@@ -103,6 +105,7 @@ void MonteCarloLocalizer::initialise(const Pose2& mean, const Eigen::Matrix3d& c
     p.weight = 1.0 / options_.max_particles;
   }
   last_odom_.reset();
+  refined_.reset();
   w_slow_ = w_fast_ = 0;
 }
 
@@ -116,6 +119,7 @@ void MonteCarloLocalizer::initialiseGlobal() {
     p.weight = 1.0 / n;
   }
   last_odom_.reset();
+  refined_.reset();
   w_slow_ = w_fast_ = 0;
 }
 
@@ -161,6 +165,7 @@ bool MonteCarloLocalizer::update(const Pose2& odom, std::span<const Eigen::Vecto
     p.pose = Pose2(p.pose.x + t * std::cos(th), p.pose.y + t * std::sin(th), th + h2);
   }
   last_odom_ = odom;
+  refined_.reset();                // the particles moved: an earlier refinement no longer applies
   if (beams.empty()) return true;  // moved, nothing to weigh with
 
   std::vector<double> log_l(particles_.size());
@@ -228,8 +233,62 @@ bool MonteCarloLocalizer::update(const Pose2& odom, std::span<const Eigen::Vecto
   weightsFor(beta_, w);
   for (std::size_t i = 0; i < particles_.size(); ++i) particles_[i].weight = w[i];
   resample();
+  if (options_.refine_step > 0 && !spread_set) refine(points);
   ++updates_;
   return true;
+}
+
+void MonteCarloLocalizer::refine(std::span<const Eigen::Vector2d> points) {
+  std::vector<Eigen::Vector2d> beams;
+  beams.reserve(points.size());
+  for (const Eigen::Vector2d& p : points)
+    if (p.allFinite()) beams.push_back(p);
+  if (beams.empty()) return;
+  const Pose2 mean = clusterEstimate().pose;
+  Pose2 best = mean;
+  double best_ll = field_.logLikelihood(best, beams);
+  double step = options_.refine_step;
+  // Heading steps of step/2 rad per metre: a 0.05 m step turns by 0.025 rad, which moves a beam
+  // endpoint 5 m away by about as much as the translation step.
+  for (int level = 0; level < 5; ++level, step *= 0.5) {
+    const double moves[6][3] = {{step, 0, 0},  {-step, 0, 0},      {0, step, 0},
+                                {0, -step, 0}, {0, 0, step * 0.5}, {0, 0, -step * 0.5}};
+    for (int iteration = 0; iteration < 20; ++iteration) {
+      int chosen = -1;
+      double chosen_ll = best_ll;
+      for (int m = 0; m < 6; ++m) {
+        const Pose2 candidate(best.x + moves[m][0], best.y + moves[m][1], best.theta + moves[m][2]);
+        const double ll = field_.logLikelihood(candidate, beams);
+        if (ll > chosen_ll) {
+          chosen_ll = ll;
+          chosen = m;
+        }
+      }
+      if (chosen < 0) break;
+      best = Pose2(best.x + moves[chosen][0], best.y + moves[chosen][1],
+                   best.theta + moves[chosen][2]);
+      best_ll = chosen_ll;
+    }
+  }
+  const double dx = best.x - mean.x, dy = best.y - mean.y;
+  const double shift = std::hypot(dx, dy);
+  if (shift > options_.refine_max_shift) {
+    ++refinements_refused_;
+    return;
+  }
+  ++refinements_;
+  last_refinement_shift_ = shift;
+  if (options_.refine_particles) {
+    // The whole cloud moves with its mean: rotated about it by the heading correction, then
+    // shifted, so its spread (the filter's uncertainty) stays what it was.
+    const double dth = angleDiff(best.theta, mean.theta);
+    const double c = std::cos(dth), s = std::sin(dth);
+    for (Particle& p : particles_) {
+      const double rx = p.pose.x - mean.x, ry = p.pose.y - mean.y;
+      p.pose = Pose2(best.x + c * rx - s * ry, best.y + s * rx + c * ry, p.pose.theta + dth);
+    }
+  }
+  refined_ = best;
 }
 
 namespace {
@@ -281,6 +340,12 @@ void MonteCarloLocalizer::resample() {
 }
 
 PoseEstimate MonteCarloLocalizer::estimate() const {
+  PoseEstimate out = clusterEstimate();
+  if (refined_) out.pose = *refined_;
+  return out;
+}
+
+PoseEstimate MonteCarloLocalizer::clusterEstimate() const {
   PoseEstimate out;
   if (particles_.empty()) return out;
   const double bxy = options_.bin_xy, bth = options_.bin_theta;

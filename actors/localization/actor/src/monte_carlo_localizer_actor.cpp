@@ -285,6 +285,9 @@ void MonteCarloLocalizerActor::summarize(Summary& out) const {
   // Share of the best particle's beams near an obstacle, and the global re-spreads it caused.
   out["inlier_fraction_mean"] = inlier_fraction_sum_ / n;
   out["relocalisations"] = static_cast<std::int64_t>(mcl_->relocalisations());
+  // Scan-matched refinements of the estimate (mcl.refine_step > 0), and those refused as too far.
+  out["refinements"] = static_cast<std::int64_t>(mcl_->refinements());
+  out["refinements_refused"] = static_cast<std::int64_t>(mcl_->refinementsRefused());
   // Wall time of the filter step (motion, TBB-parallel weighting, resampling); with one executor
   // thread (tessera run --threads 1) it is the CPU time per update.
   std::vector<double> ms = update_ms_;

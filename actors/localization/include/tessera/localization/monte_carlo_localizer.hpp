@@ -77,6 +77,16 @@ struct MonteCarloOptions {
   double lost_inlier_fraction = 0;
   double inlier_distance = 0.2;  ///< [m]
   int lost_updates = 5;
+  /// Scan-matched estimate (refine_step 0: off). After each weighted update the estimate (the
+  /// heaviest cluster's mean) is moved to the nearby pose where every finite beam of the scan
+  /// fits the likelihood field best: hill climbing in x, y (refine_step) and heading
+  /// (refine_step / 2 rad per metre of step), halving the steps four times. A move further than
+  /// refine_max_shift from the mean is not taken (the mean stays the estimate). The particles
+  /// follow the estimate by the same shift (refine_particles), so odometry slip the motion noise
+  /// did not cover is corrected where the scan pins the pose down; the cloud's spread is kept.
+  double refine_step = 0;         ///< [m] first hill-climbing step; 0: off
+  double refine_max_shift = 0.3;  ///< [m] larger corrections are refused
+  bool refine_particles = true;
   MotionNoise motion;
   LikelihoodFieldOptions field;
   std::uint64_t seed = 1;
@@ -103,6 +113,10 @@ struct MonteCarloOptions {
     v("inlier_distance", inlier_distance, "[m] a beam ending this close to an obstacle fits");
     v("lost_updates", lost_updates,
       "updates in a row below lost_inlier_fraction before relocalising");
+    v("refine_step", refine_step,
+      "[m] first step of the scan-matched refinement of the estimate; 0: off");
+    v("refine_max_shift", refine_max_shift, "[m] larger refinements are refused");
+    v("refine_particles", refine_particles, "shift the particles by the refinement too");
     v("motion", motion, "odometry motion model noise");
     v("field", field, "likelihood-field sensor model");
     v("seed", seed, "random seed");
@@ -160,12 +174,19 @@ class MonteCarloLocalizer {
   double inlierFraction() const { return inlier_fraction_; }
   /// Global re-spreads after the robot was found lost (lost_inlier_fraction).
   int relocalisations() const { return relocalisations_; }
+  /// Refinements taken, and refused (further than refine_max_shift), so far.
+  int refinements() const { return refinements_; }
+  int refinementsRefused() const { return refinements_refused_; }
+  /// [m] length of the last refinement taken (0 before any).
+  double lastRefinementShift() const { return last_refinement_shift_; }
 
  private:
   double beta_ = 1.0;  // tempering exponent of the last update
   static std::vector<Eigen::Vector2i> freeCells(const LikelihoodField& field);
   Pose2 randomFreePose();
   void resample();
+  PoseEstimate clusterEstimate() const;
+  void refine(std::span<const Eigen::Vector2d> points);
 
   MonteCarloOptions options_;
   LikelihoodField field_;
@@ -176,6 +197,9 @@ class MonteCarloLocalizer {
   int updates_ = 0;
   double inlier_fraction_ = 1.0;
   int lost_streak_ = 0, relocalisations_ = 0;
+  std::optional<Pose2> refined_;  // the refined estimate of the current particle set
+  int refinements_ = 0, refinements_refused_ = 0;
+  double last_refinement_shift_ = 0;
   std::mt19937_64 rng_;
 };
 
