@@ -270,24 +270,17 @@ void MonteCarloLocalizer::refine(std::span<const Eigen::Vector2d> points) {
       best_ll = chosen_ll;
     }
   }
-  const double dx = best.x - mean.x, dy = best.y - mean.y;
-  const double shift = std::hypot(dx, dy);
+  const double shift = std::hypot(best.x - mean.x, best.y - mean.y);
   if (shift > options_.refine_max_shift) {
     ++refinements_refused_;
     return;
   }
   ++refinements_;
   last_refinement_shift_ = shift;
-  if (options_.refine_particles) {
-    // The whole cloud moves with its mean: rotated about it by the heading correction, then
-    // shifted, so its spread (the filter's uncertainty) stays what it was.
-    const double dth = angleDiff(best.theta, mean.theta);
-    const double c = std::cos(dth), s = std::sin(dth);
-    for (Particle& p : particles_) {
-      const double rx = p.pose.x - mean.x, ry = p.pose.y - mean.y;
-      p.pose = Pose2(best.x + c * rx - s * ry, best.y + s * rx + c * ry, p.pose.theta + dth);
-    }
-  }
+  // The whole cloud moves rigidly with its mean (each particle keeps its pose relative to the
+  // mean), so its spread, the filter's uncertainty, stays what it was.
+  if (options_.refine_particles)
+    for (Particle& p : particles_) p.pose = best * between(mean, p.pose);
   refined_ = best;
 }
 
