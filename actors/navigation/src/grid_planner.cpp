@@ -56,9 +56,8 @@ double GridPlanner::stepFactor(std::uint8_t c) const {
 
 namespace {
 
-constexpr int kGBits = 42;
-constexpr std::uint64_t kGMask = (std::uint64_t{1} << kGBits) - 1;
-constexpr std::uint64_t kMaxGeneration = (std::uint64_t{1} << (64 - kGBits - 1)) - 1;
+// Marks are 2 · generation (open) and 2 · generation + 1 (closed) in a byte.
+constexpr std::uint8_t kMaxGeneration = 127;
 
 // Moves 0-3 straight (+x, -x, +y, -y), 4-7 diagonal; a diagonal move needs both straight moves
 // beside it open (no squeezing between two blocked cells): kSideX / kSideY name them.
@@ -81,16 +80,18 @@ GridPath GridPlanner::plan(const Costmap& map, const Eigen::Vector2i& start,
   if (n > static_cast<std::size_t>(std::numeric_limits<std::int32_t>::max()))
     throw std::invalid_argument("grid planner: a map of " + std::to_string(n) +
                                 " cells is too large (cells are indexed by int32)");
-  if (state_.size() != n) {
-    state_.assign(n, 0);
+  if (mark_.size() != n) {
+    mark_.assign(n, 0);
+    g_.assign(n, 0);
     generation_ = 0;
   }
   if (generation_ == kMaxGeneration) {
-    std::fill(state_.begin(), state_.end(), 0);  // marks would wrap: start over
+    std::fill(mark_.begin(), mark_.end(), 0);  // marks would wrap: start over
     generation_ = 0;
   }
   ++generation_;
-  const std::uint64_t open_mark = 2 * generation_, closed_mark = open_mark + 1;
+  const auto open_mark = static_cast<std::uint8_t>(2 * generation_);
+  const auto closed_mark = static_cast<std::uint8_t>(open_mark + 1);
 
   // Integer step costs per cell cost (0 = impassable). The octile heuristic below is built
   // from the same units at factor 1, so it never exceeds a step's cost: consistent, exactly.
@@ -115,11 +116,13 @@ GridPath GridPlanner::plan(const Costmap& map, const Eigen::Vector2i& start,
   // A push's f exceeds the last popped one by at most a step plus the heuristic's drop.
   open_.reset(max_step + (astar ? kDiagonalUnits : 0));
 
-  std::uint64_t* state = state_.data();
+  std::uint8_t* mark = mark_.data();
+  std::uint32_t* gs = g_.data();
   const std::uint8_t* cells = map.cells.data();
   const auto s = static_cast<std::int32_t>(map.index(start.x(), start.y()));
   const auto t = static_cast<std::int32_t>(map.index(goal.x(), goal.y()));
-  state[s] = open_mark << kGBits;
+  mark[s] = open_mark;
+  gs[s] = 0;
   open_.push(heuristic(start.x(), start.y()), s);
   std::int32_t offset[8];
   for (int k = 0; k < 8; ++k) offset[k] = kDy[k] * w + kDx[k];
@@ -129,12 +132,11 @@ GridPath GridPlanner::plan(const Costmap& map, const Eigen::Vector2i& start,
   // entry of a cell already closed is stale (a cheaper entry of it came first): skipped.
   while (!open_.empty()) {
     const std::int32_t ui = open_.pop().value;
-    std::uint64_t& u = state[ui];
-    if ((u >> kGBits) == closed_mark) continue;
-    u = (closed_mark << kGBits) | (u & kGMask);
+    if (mark[ui] == closed_mark) continue;
+    mark[ui] = closed_mark;
     ++out.expanded;
     if (ui == t) break;
-    const auto g0 = static_cast<std::int64_t>(u & kGMask);
+    const std::int64_t g0 = gs[ui];
     const int col = ui % w, row = ui / w;
     // Away from the border every neighbour exists: no bounds checks there.
     const bool interior = col > 0 && row > 0 && col + 1 < w && row + 1 < h;
@@ -150,31 +152,28 @@ GridPath GridPlanner::plan(const Costmap& map, const Eigen::Vector2i& start,
       const std::int64_t step = (k < 4 ? straight : diagonal)[cells[vi]];
       if (k < 4) open_side[k] = step != 0;
       if (step == 0) continue;
-      const std::uint64_t v = state[vi];
-      const std::uint64_t mark = v >> kGBits;
-      if (mark == closed_mark) continue;
+      const std::uint8_t m = mark[vi];
+      if (m == closed_mark) continue;
       const std::int64_t g = g0 + step;
-      if (mark == open_mark && static_cast<std::uint64_t>(g) >= (v & kGMask)) continue;
-      if (static_cast<std::uint64_t>(g) > kGMask)
+      if (m == open_mark && g >= gs[vi]) continue;
+      if (g > std::numeric_limits<std::uint32_t>::max())
         throw std::overflow_error("grid planner: path cost exceeds the search's range");
-      state[vi] = (open_mark << kGBits) | static_cast<std::uint64_t>(g);
+      mark[vi] = open_mark;
+      gs[vi] = static_cast<std::uint32_t>(g);
       open_.push(g + heuristic(nc, nr), vi);
     }
   }
   open_.clear();
-  if ((state[t] >> kGBits) != closed_mark) return out.status = PlanStatus::kNoPath, out;
+  if (mark[t] != closed_mark) return out.status = PlanStatus::kNoPath, out;
 
   // Back from the goal: a neighbour reached in this plan whose g plus the step equals the
   // cell's g is a predecessor on a cheapest path (the cell's g was set exactly so from one).
-  auto reached = [&](std::int32_t i) {
-    const std::uint64_t mark = state[i] >> kGBits;
-    return mark == open_mark || mark == closed_mark;
-  };
+  auto reached = [&](std::int32_t i) { return mark[i] == open_mark || mark[i] == closed_mark; };
   std::int32_t ci = t;
   out.cells.emplace_back(goal);
   while (ci != s) {
     const int col = ci % w, row = ci / w;
-    const auto g = static_cast<std::int64_t>(state[ci] & kGMask);
+    const std::int64_t g = gs[ci];
     bool open_side[4] = {false, false, false, false};
     for (int k = 0; k < 4; ++k) {
       const int nc = col + kDx[k], nr = row + kDy[k];
@@ -186,7 +185,7 @@ GridPath GridPlanner::plan(const Costmap& map, const Eigen::Vector2i& start,
       if (k < 4 ? !open_side[k] : (!open_side[kSideX[k]] || !open_side[kSideY[k]])) continue;
       const std::int32_t pi = ci + offset[k];
       const std::int64_t step = (k < 4 ? straight : diagonal)[cells[ci]];
-      if (reached(pi) && static_cast<std::int64_t>(state[pi] & kGMask) + step == g) previous = pi;
+      if (reached(pi) && std::int64_t{gs[pi]} + step == g) previous = pi;
     }
     if (previous < 0) throw std::logic_error("grid planner: no predecessor while reading back");
     ci = previous;
@@ -194,8 +193,7 @@ GridPath GridPlanner::plan(const Costmap& map, const Eigen::Vector2i& start,
   }
   std::reverse(out.cells.begin(), out.cells.end());
   out.status = PlanStatus::kOk;
-  out.cost =
-      static_cast<double>(state[t] & kGMask) / static_cast<double>(kStraightUnits) * map.resolution;
+  out.cost = static_cast<double>(gs[t]) / static_cast<double>(kStraightUnits) * map.resolution;
   out.length = pathLength(map, out.cells);
   return out;
 }

@@ -7,13 +7,14 @@
 // never entered (kUnknown only with allow_unknown, at unknown_cost). A*'s heuristic is the octile
 // distance, a lower bound of that cost, so A* returns a path as cheap as Dijkstra's. The search
 // adds integer step costs (kStraightUnits per cell side and kDiagonalUnits per diagonal, their
-// ratio √2 within 4e-7, each times the cell's factor, rounded): equal costs compare equal, A*'s
+// ratio √2 within 1e-5, each times the cell's factor, rounded): equal costs compare equal, A*'s
 // and Dijkstra's costs agree exactly, and the open list is a bucket queue
 // (docs/algorithms.md#global-planning). GridPath::cost converts back to metres.
 //
 // The planner keeps its search buffers between calls (one per map size): one planner per thread.
 #pragma once
 
+#include <tessera/memory/large_page_allocator.hpp>
 #include <tessera/navigation/bucket_queue.hpp>
 #include <tessera/navigation/costmap.hpp>
 
@@ -62,9 +63,10 @@ struct GridPath {
   bool ok() const { return status == PlanStatus::kOk; }
 };
 
-/// Integer cost units of a straight and a diagonal step at factor 1 (1393 / 985 = √2 − 3.6e-7).
-inline constexpr std::int64_t kStraightUnits = 985;
-inline constexpr std::int64_t kDiagonalUnits = 1393;
+/// Integer cost units of a straight and a diagonal step at factor 1 (239 / 169 = √2 − 1.2e-5);
+/// a factor is rounded to 1/169 of a step (docs/algorithms.md#global-planning says why so coarse).
+inline constexpr std::int64_t kStraightUnits = 169;
+inline constexpr std::int64_t kDiagonalUnits = 239;
 
 class GridPlanner {
  public:
@@ -79,12 +81,14 @@ class GridPlanner {
   double stepFactor(std::uint8_t c) const;
 
   GridPlannerOptions options_;
-  /// Search state per cell, row-major, reused between plans: (mark << 42) | g, g the cost from
-  /// the start [units], mark 2 · generation while open, 2 · generation + 1 once closed. A plan
+  /// Search state per cell, row-major, reused between plans. mark_: 2 · generation while open,
+  /// 2 · generation + 1 once closed (one byte per cell, so the marks of the searched region stay
+  /// in cache); g_: the cost from the start [units], valid where marked in this plan. A plan
   /// bumps the generation instead of resetting the cells the last one touched; the path is read
   /// back from the g values, so no parent is stored.
-  std::vector<std::uint64_t> state_;
-  std::uint64_t generation_ = 0;
+  memory::LargePageVector<std::uint8_t> mark_;
+  memory::LargePageVector<std::uint32_t> g_;
+  std::uint8_t generation_ = 0;
   MonotoneBucketQueue open_;
 };
 
