@@ -58,6 +58,7 @@ namespace {
 
 // Marks are 2 · generation (open) and 2 · generation + 1 (closed) in a byte.
 constexpr std::uint8_t kMaxGeneration = 127;
+constexpr std::int64_t kMaxG = std::numeric_limits<std::uint32_t>::max();
 
 // Moves 0-3 straight (+x, -x, +y, -y), 4-7 diagonal; a diagonal move needs both straight moves
 // beside it open (no squeezing between two blocked cells): kSideX / kSideY name them.
@@ -137,14 +138,48 @@ GridPath GridPlanner::plan(const Costmap& map, const Eigen::Vector2i& start,
     ++out.expanded;
     if (ui == t) break;
     const std::int64_t g0 = gs[ui];
+    if (g0 > kMaxG - max_step)
+      throw std::overflow_error("grid planner: path cost exceeds the search's range");
     const int col = ui % w, row = ui / w;
-    // Away from the border every neighbour exists: no bounds checks there.
-    const bool interior = col > 0 && row > 0 && col + 1 < w && row + 1 < h;
+    if (col > 0 && row > 0 && col + 1 < w && row + 1 < h) {
+      // Away from the border every neighbour exists. Whether a neighbour improves is decided
+      // without branches (a closed one, or an open one at no lower cost, is dropped by not
+      // advancing the candidate count): these outcomes are close to random on a map, and the
+      // branch-free form took Dijkstra's time to ~0.8x (A*'s stayed within the noise).
+      std::int32_t candidate[8];
+      std::int64_t candidate_g[8];
+      int move[8];
+      int count = 0;
+      bool open_side[4];
+      for (int k = 0; k < 8; ++k) {
+        const std::int32_t vi = ui + offset[k];
+        std::int64_t step = (k < 4 ? straight : diagonal)[cells[vi]];
+        if (k < 4)
+          open_side[k] = step != 0;
+        else
+          step = open_side[kSideX[k]] && open_side[kSideY[k]] ? step : 0;
+        const std::uint8_t m = mark[vi];
+        const std::int64_t g = g0 + step;
+        const bool better =
+            (step != 0) & (m != closed_mark) & ((m != open_mark) | (g < std::int64_t{gs[vi]}));
+        candidate[count] = vi;
+        candidate_g[count] = g;
+        move[count] = k;
+        count += better ? 1 : 0;
+      }
+      for (int i = 0; i < count; ++i) {
+        const std::int32_t vi = candidate[i];
+        mark[vi] = open_mark;
+        gs[vi] = static_cast<std::uint32_t>(candidate_g[i]);
+        open_.push(candidate_g[i] + heuristic(col + kDx[move[i]], row + kDy[move[i]]), vi);
+      }
+      continue;
+    }
     bool open_side[4] = {false, false, false, false};
     for (int k = 0; k < 8; ++k) {
       const int nc = col + kDx[k], nr = row + kDy[k];
       if (k < 4) {
-        if (!interior && (nc < 0 || nr < 0 || nc >= w || nr >= h)) continue;
+        if (nc < 0 || nr < 0 || nc >= w || nr >= h) continue;
       } else if (!open_side[kSideX[k]] || !open_side[kSideY[k]]) {
         continue;  // (with both sides inside the map, so is the diagonal cell)
       }
@@ -156,8 +191,6 @@ GridPath GridPlanner::plan(const Costmap& map, const Eigen::Vector2i& start,
       if (m == closed_mark) continue;
       const std::int64_t g = g0 + step;
       if (m == open_mark && g >= gs[vi]) continue;
-      if (g > std::numeric_limits<std::uint32_t>::max())
-        throw std::overflow_error("grid planner: path cost exceeds the search's range");
       mark[vi] = open_mark;
       gs[vi] = static_cast<std::uint32_t>(g);
       open_.push(g + heuristic(nc, nr), vi);

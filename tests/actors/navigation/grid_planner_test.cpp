@@ -110,6 +110,25 @@ TEST_CASE("a planner reused over more plans than its marks have generations plan
   }
 }
 
+TEST_CASE("a path too costly for the search's 32-bit costs is an error, not a wrong path",
+          "[navigation]") {
+  // A serpentine of 450 lanes, 600 cells each, every cell at the highest traversable cost and
+  // cost_weight 100: ~270 000 steps of 101 x 169 units, beyond 2^32.
+  Costmap map(600, 900, 0.05, {}, 252);
+  for (int r = 1; r < map.height; r += 2)
+    for (int c = 0; c < map.width; ++c)
+      if (c != ((r / 2) % 2 == 0 ? map.width - 1 : 0)) map.at(c, r) = cost::kLethal;
+  GridPlannerOptions o;
+  o.cost_weight = 100;
+  GridPlanner planner(o);
+  CHECK_THROWS_AS(planner.plan(map, {0, 0}, {0, map.height - 1}), std::overflow_error);
+  // A short path on the same map still plans, and the long one at the default weight.
+  CHECK(planner.plan(map, {0, 0}, {50, 0}).ok());
+  const GridPath snake = GridPlanner().plan(map, {0, 0}, {0, map.height - 1});
+  REQUIRE(snake.ok());
+  CHECK(snake.cells.size() > 260000);
+}
+
 TEST_CASE("costs make the planner detour around inflated cells when it is cheap", "[navigation]") {
   Costmap map(30, 11, 0.1);
   for (int c = 10; c < 20; ++c) map.at(c, 5) = 200;  // an expensive band across the straight line
