@@ -116,6 +116,12 @@ void addBenchNavCommand(CLI::App& bench, int& result) {
     const Summary& sim = summaryOf(goals, "sim");
     const Summary& nav = summaryOf(goals, "nav");
     const Track mcl = track(out / "goals" / "trajectory.tum", out / "goals" / "ground_truth.tum");
+    // The localizer's handler time per simulated second (10 Hz scans, TBB-parallel weighting
+    // inside the handler, so CPU may be up to the worker count times this).
+    double mcl_core_fraction = std::nan("");
+    for (const auto& a : goals.actors)
+      if (a.name == "mcl" && goals.sim_duration_s > 0)
+        mcl_core_fraction = a.handler_total_s / goals.sim_duration_s;
     double mcl_mean = 0;
     for (double e : mcl.error) mcl_mean += e;
     if (!mcl.error.empty()) mcl_mean /= static_cast<double>(mcl.error.size());
@@ -178,6 +184,12 @@ void addBenchNavCommand(CLI::App& bench, int& result) {
               << " of a core (plans + dynamic window), costmaps "
               << number(nav, "costmap_core_fraction") << ", sensors "
               << number(nav, "sensor_core_fraction") << "\n"
+              << "MCL                  " << mcl_core_fraction
+              << " of a core (handler time per simulated second; 10 Hz scans); with the "
+                 "costmaps and sensor marking "
+              << mcl_core_fraction + number(nav, "costmap_core_fraction") +
+                     number(nav, "sensor_core_fraction")
+              << "\n"
               << "outputs              " << out.string() << "/goals, " << out.string()
               << "/global\n";
     result = 0;
