@@ -31,6 +31,8 @@ void addBenchCommands(CLI::App& app, int& result);
 /// Adds `tessera launch` (a profile as several processes over shared memory) and the internal
 /// `tessera worker` it starts for each process.
 void addLaunchCommand(CLI::App& app, int& result);
+/// Adds `tessera doctor` (checks /dev/shm, leftovers, CPU governor, huge pages, datasets).
+void addDoctorCommand(CLI::App& app, int& result);
 /// Adds `tessera goal` (a navigation goal into a launched deployment; --wait follows it).
 void addGoalCommand(CLI::App& app, int& result);
 

@@ -59,6 +59,38 @@ bool rouDiRunning() {
   return held;
 }
 
+std::vector<std::string> findStaleShm(const std::filesystem::path& shm_dir,
+                                      const std::filesystem::path& tmp_dir) {
+  namespace fs = std::filesystem;
+  std::vector<std::string> found;
+  std::error_code ec;
+  const bool roudi = rouDiRunning();
+  if (!roudi) {
+    for (const auto& path :
+         {shm_dir / iox::roudi::SHM_NAME, shm_dir / groupName(), tmp_dir / "roudi"}) {
+      if (fs::exists(fs::symlink_status(path, ec))) found.push_back(path.string());
+    }
+  }
+  // Control blocks of launchers that no longer run (named /tessera_sync_<pid>).
+  for (const auto& entry : fs::directory_iterator(shm_dir, ec)) {
+    const auto name = entry.path().filename().string();
+    if (name.rfind("tessera_sync_", 0) != 0) continue;
+    const long pid = std::strtol(name.c_str() + 13, nullptr, 10);
+    if (pid > 0 && ::kill(static_cast<pid_t>(pid), 0) != 0 && errno == ESRCH)
+      found.push_back(entry.path().string());
+  }
+  // Sockets of Tessera processes of a dead run (a running deployment has a RouDi).
+  if (!roudi) {
+    for (const auto& entry : fs::directory_iterator(tmp_dir, ec)) {
+      const auto name = entry.path().filename().string();
+      if (name.rfind("tessera_", 0) == 0 && entry.is_socket(ec))
+        found.push_back(entry.path().string());
+    }
+  }
+  std::sort(found.begin(), found.end());
+  return found;
+}
+
 std::vector<std::string> removeStaleShm() {
   if (rouDiRunning()) {
     throw std::runtime_error(
@@ -66,32 +98,10 @@ std::vector<std::string> removeStaleShm() {
         " is locked): another deployment, benchmark or iox-roudi; iceoryx 2.0 allows one per "
         "machine, stop it first");
   }
-  namespace fs = std::filesystem;
   std::vector<std::string> removed;
   std::error_code ec;
-  for (const auto& path : {fs::path("/dev/shm") / iox::roudi::SHM_NAME,
-                           fs::path("/dev/shm") / groupName(), fs::path("/tmp/roudi")}) {
-    if (fs::exists(fs::symlink_status(path, ec)) && fs::remove(path, ec)) {
-      removed.push_back(path.string());
-    }
-  }
-  // Control blocks of launchers that no longer run (named /tessera_sync_<pid>).
-  for (const auto& entry : fs::directory_iterator("/dev/shm", ec)) {
-    const auto name = entry.path().filename().string();
-    if (name.rfind("tessera_sync_", 0) != 0) continue;
-    const long pid = std::strtol(name.c_str() + 13, nullptr, 10);
-    if (pid > 0 && ::kill(static_cast<pid_t>(pid), 0) != 0 && errno == ESRCH &&
-        fs::remove(entry.path(), ec)) {
-      removed.push_back(entry.path().string());
-    }
-  }
-  // Sockets of Tessera processes of the dead run.
-  for (const auto& entry : fs::directory_iterator("/tmp", ec)) {
-    const auto name = entry.path().filename().string();
-    if (name.rfind("tessera_", 0) == 0 && entry.is_socket(ec) && fs::remove(entry.path(), ec)) {
-      removed.push_back(entry.path().string());
-    }
-  }
+  for (const auto& path : findStaleShm())
+    if (std::filesystem::remove(path, ec)) removed.push_back(path);
   return removed;
 }
 

@@ -14,6 +14,7 @@
 
 #include <cstddef>
 #include <cstdint>
+#include <filesystem>
 #include <memory>
 #include <string>
 #include <vector>
@@ -70,8 +71,13 @@ class RouDiHost {
 
 /// True when some RouDi runs on this machine (it holds iceoryx's lock file).
 bool rouDiRunning();
-/// Removes iceoryx shared memory and sockets left by a RouDi that is no longer running and
-/// returns their paths. Throws std::runtime_error when a RouDi is running.
+/// What a crashed run left behind, without touching it: iceoryx's segments, /tmp/roudi and
+/// Tessera's sockets (tmp_dir/tessera_*) while no RouDi runs, and launcher control blocks
+/// (shm_dir/tessera_sync_<pid>) whose process is gone. Paths as found.
+std::vector<std::string> findStaleShm(const std::filesystem::path& shm_dir = "/dev/shm",
+                                      const std::filesystem::path& tmp_dir = "/tmp");
+/// Removes what findStaleShm() lists and returns the paths removed. Throws std::runtime_error
+/// when a RouDi is running.
 std::vector<std::string> removeStaleShm();
 /// Sets iceoryx's log level in this process ("off", "error", "warn", "info", "debug").
 void setIceoryxLogLevel(const std::string& level);
