@@ -18,7 +18,6 @@ using tessera::grid::RangeScan;
 using tessera::grid::ScanInsertOptions;
 
 namespace {
-constexpr double kPi = std::numbers::pi;
 constexpr float kInf = std::numeric_limits<float>::infinity();
 constexpr float kNaN = std::numeric_limits<float>::quiet_NaN();
 
@@ -39,16 +38,17 @@ RangeScan oneBeam(const std::vector<float>& r, double angle = 0.0) {
 TEST_CASE("normalizeAngle maps angles into the half-open interval from -pi to pi", "[pose2]") {
   using tessera::normalizeAngle;
   CHECK(normalizeAngle(0.0) == 0.0);
-  CHECK(normalizeAngle(kPi) == Approx(kPi));
-  CHECK(normalizeAngle(-kPi) == Approx(kPi));  // -pi belongs to the other end
-  CHECK(normalizeAngle(3 * kPi) == Approx(kPi));
-  CHECK(normalizeAngle(-3 * kPi) == Approx(kPi));
-  CHECK(normalizeAngle(2 * kPi + 0.25) == Approx(0.25));
-  CHECK(normalizeAngle(-2 * kPi - 0.25) == Approx(-0.25));
-  CHECK(normalizeAngle(1e6) > -kPi);
-  CHECK(normalizeAngle(1e6) <= kPi);
+  CHECK(normalizeAngle(std::numbers::pi) == Approx(std::numbers::pi));
+  CHECK(normalizeAngle(-std::numbers::pi) ==
+        Approx(std::numbers::pi));  // -pi belongs to the other end
+  CHECK(normalizeAngle(3 * std::numbers::pi) == Approx(std::numbers::pi));
+  CHECK(normalizeAngle(-3 * std::numbers::pi) == Approx(std::numbers::pi));
+  CHECK(normalizeAngle(2 * std::numbers::pi + 0.25) == Approx(0.25));
+  CHECK(normalizeAngle(-2 * std::numbers::pi - 0.25) == Approx(-0.25));
+  CHECK(normalizeAngle(1e6) > -std::numbers::pi);
+  CHECK(normalizeAngle(1e6) <= std::numbers::pi);
   CHECK(std::isnan(normalizeAngle(std::nan(""))));
-  CHECK(tessera::angleDiff(-3.0, 3.0) == Approx(2 * kPi - 6.0));
+  CHECK(tessera::angleDiff(-3.0, 3.0) == Approx(2 * std::numbers::pi - 6.0));
 }
 
 TEST_CASE("Pose2 compose, inverse, between and point transform agree", "[pose2]") {
@@ -59,8 +59,8 @@ TEST_CASE("Pose2 compose, inverse, between and point transform agree", "[pose2]"
   CHECK(ab.x == Approx(ab_m.x));
   CHECK(ab.y == Approx(ab_m.y));
   CHECK(ab.theta == Approx(ab_m.theta));
-  CHECK(ab.theta <= kPi);  // 0.5 + 2.9 > pi wraps
-  CHECK(ab.theta == Approx(0.5 + 2.9 - 2 * kPi));
+  CHECK(ab.theta <= std::numbers::pi);  // 0.5 + 2.9 > pi wraps
+  CHECK(ab.theta == Approx(0.5 + 2.9 - 2 * std::numbers::pi));
 
   const Pose2 id = a * a.inverse();
   CHECK(id.x == Approx(0.0).margin(1e-12));
@@ -82,7 +82,7 @@ TEST_CASE("Pose2 compose, inverse, between and point transform agree", "[pose2]"
   CHECK(back.y() == Approx(p.y()));
 
   // 90 degrees: x axis of the child is y axis of the parent.
-  const Eigen::Vector2d e = tessera::transformPoint(Pose2(1, 0, kPi / 2), {1, 0});
+  const Eigen::Vector2d e = tessera::transformPoint(Pose2(1, 0, std::numbers::pi / 2), {1, 0});
   CHECK(e.x() == Approx(1.0));
   CHECK(e.y() == Approx(1.0));
 }
@@ -92,7 +92,7 @@ TEST_CASE("Pose2 interpolation takes the short way round", "[pose2]") {
   const Pose2 m = tessera::interpolate(a, b, 0.5);
   CHECK(m.x == Approx(1.0));
   CHECK(m.y == Approx(-1.0));
-  CHECK(std::abs(m.theta) == Approx(kPi));  // through pi, not through 0
+  CHECK(std::abs(m.theta) == Approx(std::numbers::pi));  // through pi, not through 0
   const Pose2 end = tessera::interpolate(a, b, 1.0);
   CHECK(end.theta == Approx(-3.0));
 }
@@ -137,7 +137,7 @@ TEST_CASE("diagonal and negative-direction rays reach their endpoint cell", "[oc
   const Pose2 sensor(0.51, -0.22, 2.4);
   std::vector<float> ranges;
   for (int k = 0; k < 36; ++k) ranges.push_back(1.0f + 0.1f * k);
-  const RangeScan scan{ranges, -kPi, 2 * kPi / 36, 0.05, 20.0};
+  const RangeScan scan{ranges, -std::numbers::pi, 2 * std::numbers::pi / 36, 0.05, 20.0};
   const auto r = grid.insertScan(scan, sensor);
   CHECK(r.hits == 36);
   for (int k = 0; k < 36; ++k) {
@@ -181,7 +181,7 @@ TEST_CASE("no-return beams clear free space but mark nothing", "[occupancy_grid]
   OccupancyGrid grid(gridOptions(0.1));
   const ScanInsertOptions opts{.max_range = 30.0, .max_free_range = 2.0};
   const std::vector<float> r{kInf, 25.0f};  // range_max is 20: both are no-return
-  const RangeScan scan{r, 0.0, kPi / 2, 0.1, 20.0};
+  const RangeScan scan{r, 0.0, std::numbers::pi / 2, 0.1, 20.0};
   const auto res = grid.insertScan(scan, Pose2(0.05, 0.05, 0.0), opts);
   CHECK(res.no_return == 2);
   CHECK(res.hits == 0);
@@ -279,7 +279,7 @@ TEST_CASE("max_side_cells caps growth and counts clipped updates", "[occupancy_g
 TEST_CASE("export to ROS int8 over the known box", "[occupancy_grid]") {
   OccupancyGrid grid(gridOptions(0.1));
   const std::vector<float> r{1.0f, 0.5f};
-  grid.insertScan(RangeScan{r, 0.0, kPi / 2, 0.1, 20.0}, Pose2(0.05, 0.05, 0.0));
+  grid.insertScan(RangeScan{r, 0.0, std::numbers::pi / 2, 0.1, 20.0}, Pose2(0.05, 0.05, 0.0));
   const OccupancyMap map = grid.toOccupancyMap();
   REQUIRE(map.width == 11);
   REQUIRE(map.height == 6);

@@ -28,7 +28,6 @@ using tessera::grid::ScanInsertResult;
 using tessera::grid::TiledGrid;
 
 namespace {
-constexpr double kPi = std::numbers::pi;
 constexpr float kInf = std::numeric_limits<float>::infinity();
 constexpr float kNaN = std::numeric_limits<float>::quiet_NaN();
 constexpr int kBeams = 181;
@@ -37,13 +36,16 @@ constexpr int kBeams = 181;
 struct OwnedScan {
   std::vector<float> ranges;
   Pose2 pose;
-  RangeScan view() const { return RangeScan{ranges, -kPi / 2, kPi / (kBeams - 1), 0.1, 8.0}; }
+  RangeScan view() const {
+    return RangeScan{ranges, -std::numbers::pi / 2, std::numbers::pi / (kBeams - 1), 0.1, 8.0};
+  }
 };
 
 /// Random ranges (some no-return, some NaN, some past max_range) from a random pose in a
 /// box around `centre`, so scans overlap and reach negative cell indices.
 OwnedScan randomScan(std::mt19937& rng, const Eigen::Vector2d& centre, double spread) {
-  std::uniform_real_distribution<double> pos(-spread, spread), angle(-kPi, kPi);
+  std::uniform_real_distribution<double> pos(-spread, spread),
+      angle(-std::numbers::pi, std::numbers::pi);
   std::uniform_real_distribution<float> range(0.3f, 7.5f), pick(0.0f, 1.0f);
   OwnedScan s;
   s.pose = Pose2(centre.x() + pos(rng), centre.y() + pos(rng), angle(rng));
@@ -214,7 +216,7 @@ TEST_CASE("copying a TiledGrid shares its tiles and a write clones only the tile
   TiledGrid snapshot(original.options());
   insertAll(snapshot, base);
   std::vector<float> ranges(kBeams, 1.2f);
-  const RangeScan scan{ranges, -kPi / 2, kPi / (kBeams - 1), 0.1, 8.0};
+  const RangeScan scan{ranges, -std::numbers::pi / 2, std::numbers::pi / (kBeams - 1), 0.1, 8.0};
   const Pose2 pose(0.7, -0.4, 0.3);
   before = TiledGrid::counters();
   copy.insertScan(scan, pose, kInsert);
@@ -288,7 +290,7 @@ TEST_CASE("copies of a TiledGrid cost about one map of memory, not one per copy"
   // Each particle integrates one short scan of its own: it pays only for the tiles it wrote.
   const auto before = TiledGrid::counters();
   std::vector<float> ranges(kBeams, 1.0f);
-  const RangeScan scan{ranges, -kPi / 2, kPi / (kBeams - 1), 0.1, 8.0};
+  const RangeScan scan{ranges, -std::numbers::pi / 2, std::numbers::pi / (kBeams - 1), 0.1, 8.0};
   std::size_t unique = 0;
   for (int k = 0; k < kCopies; ++k) {
     particles[k].insertScan(scan, Pose2(0.02 * k, -0.01 * k, 0.1 * k), kInsert);
@@ -357,8 +359,9 @@ TEST_CASE("TiledGrid grows in negative directions without moving or cloning tile
   reference.insertScan(beam, start);
   const float hit = grid.logOdds({10, 0});
   CHECK(hit == Approx(grid.options().log_odds.hit).margin(1e-3));
-  for (const Pose2& p : {Pose2(-30.0, 0.0, kPi), Pose2(0.0, -40.0, -kPi / 2),
-                         Pose2(-25.0, -25.0, -3 * kPi / 4), Pose2(20.0, 15.0, 0.0)}) {
+  for (const Pose2& p :
+       {Pose2(-30.0, 0.0, std::numbers::pi), Pose2(0.0, -40.0, -std::numbers::pi / 2),
+        Pose2(-25.0, -25.0, -3 * std::numbers::pi / 4), Pose2(20.0, 15.0, 0.0)}) {
     grid.insertScan(beam, p);
     reference.insertScan(beam, p);
     CHECK(grid.isKnown(grid.worldToCell(p.translation())));
@@ -473,7 +476,7 @@ struct ConvexRoom {
   static ConvexRoom square(const Eigen::Vector2d& centre, double half, double angle) {
     ConvexRoom room;
     for (int k = 0; k < 4; ++k) {
-      const double a = angle + k * kPi / 2;
+      const double a = angle + k * std::numbers::pi / 2;
       const Eigen::Vector2d n(std::cos(a), std::sin(a));
       room.walls.push_back({n, n.dot(centre) + half});
     }
@@ -503,7 +506,7 @@ OwnedScan roomScan(const ConvexRoom& room, const Pose2& pose) {
 std::vector<OwnedScan> roomScans(unsigned seed, int n) {
   const ConvexRoom room = ConvexRoom::square({0.41, -0.27}, 2.6, 0.3);
   std::mt19937 rng(seed);
-  std::uniform_real_distribution<double> pos(-1.5, 1.5), angle(-kPi, kPi);
+  std::uniform_real_distribution<double> pos(-1.5, 1.5), angle(-std::numbers::pi, std::numbers::pi);
   std::vector<OwnedScan> scans;
   for (int i = 0; i < n; ++i)
     scans.push_back(roomScan(room, Pose2(0.41 + pos(rng), -0.27 + pos(rng), angle(rng))));
@@ -749,7 +752,8 @@ TEST_CASE("TiledGrid occupancy rows follow the cells through updates and copies"
     const Eigen::Vector2i target(2 * TiledGrid::kTileSide, -3 * TiledGrid::kTileSide + 5);
     const Eigen::Vector2d at = grid.cellCenter(target);
     const std::vector<float> range{0.3f};
-    const Pose2 sensor(at.x() + 0.3, at.y(), kPi);  // looks along −x onto the border cell
+    const Pose2 sensor(at.x() + 0.3, at.y(),
+                       std::numbers::pi);  // looks along −x onto the border cell
     const RangeScan one{range, 0.0, 0.0, 0.1, 8.0};
     for (int k = 0; k < 5; ++k) grid.insertScan(one, sensor, kInsert);
     REQUIRE(grid.logOdds(target) > 0.0f);

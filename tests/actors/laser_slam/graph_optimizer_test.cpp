@@ -31,8 +31,6 @@ using Outcome = SubmapGraph::Outcome;
 
 namespace {
 
-constexpr double kPi = std::numbers::pi;
-
 // Submap origins on a 10 m square, one per corner and edge midpoint, heading along the route.
 std::vector<Pose2> squareRoute() {
   // Drives 5 m per submap around a 10 m square, turning 90 degrees after every second one.
@@ -40,7 +38,7 @@ std::vector<Pose2> squareRoute() {
   Pose2 at;
   for (int i = 0; i < 8; ++i) {
     p.push_back(at);
-    at = at * Pose2(5.0, 0.0, i % 2 == 1 ? kPi / 2 : 0.0);
+    at = at * Pose2(5.0, 0.0, i % 2 == 1 ? std::numbers::pi / 2 : 0.0);
   }
   return p;
 }
@@ -66,12 +64,13 @@ TEST_CASE("hand-overs place each new submap by composition without optimising",
           "[graph_optimizer]") {
   SubmapGraph g;
   g.addSubmap(0, Pose2());
-  CHECK(g.addConstraint(constraint(0, 1, Pose2(5, 0, kPi / 2), false)) == Outcome::kAdded);
+  CHECK(g.addConstraint(constraint(0, 1, Pose2(5, 0, std::numbers::pi / 2), false)) ==
+        Outcome::kAdded);
   CHECK(g.addConstraint(constraint(1, 2, Pose2(5, 0, 0), false)) == Outcome::kAdded);
   CHECK_FALSE(g.needsOptimization());
   CHECK(g.pose(2).x == Approx(5.0));
   CHECK(g.pose(2).y == Approx(5.0));
-  CHECK(g.pose(2).theta == Approx(kPi / 2));
+  CHECK(g.pose(2).theta == Approx(std::numbers::pi / 2));
 }
 
 TEST_CASE("a revisit closing a drifted loop pulls the submaps back to the truth",
@@ -82,7 +81,7 @@ TEST_CASE("a revisit closing a drifted loop pulls the submaps back to the truth"
   // Hand-overs with a heading bias of 2 degrees each: the chain drifts by metres.
   for (std::size_t i = 0; i + 1 < truth.size(); ++i) {
     Pose2 rel = truth[i].inverse() * truth[i + 1];
-    rel = rel * Pose2(0, 0, 2.0 * kPi / 180);
+    rel = rel * Pose2(0, 0, 2.0 * std::numbers::pi / 180);
     g.addConstraint(constraint(static_cast<int>(i), static_cast<int>(i + 1), rel, false));
   }
   const int last = static_cast<int>(truth.size()) - 1;
@@ -186,7 +185,7 @@ TEST_CASE("graph_optimizer actor publishes optimised submap poses from out-of-or
   // Submap 0 anchors the map frame; the others' carried guesses are wrong and must not matter.
   for (int i = 0; i <= last; ++i) pushSubmap(h, i, i == 0 ? truth[0] : truth[i] * Pose2(1, 1, 0));
   for (int i = 0; i < last; ++i) {
-    Pose2 rel = (truth[i].inverse() * truth[i + 1]) * Pose2(0, 0, 2.0 * kPi / 180);
+    Pose2 rel = (truth[i].inverse() * truth[i + 1]) * Pose2(0, 0, 2.0 * std::numbers::pi / 180);
     pushConstraint(h, constraint(i, i + 1, rel, false));
   }
   pushConstraint(h, constraint(0, 1, truth[0].inverse() * truth[1], false), false);  // no cov

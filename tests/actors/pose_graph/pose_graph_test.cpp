@@ -17,8 +17,6 @@ using Catch::Matchers::WithinRel;
 
 namespace {
 
-constexpr double kPi = std::numbers::pi;
-
 /// A robot driving `laps` times around a circle of `n` poses; odometry edges i -> i+1 and a
 /// loop closure from every pose of a later lap to the same pose on the first lap. Measurements
 /// are exact (plus optional noise); the returned graph starts at `truth` perturbed by
@@ -34,9 +32,9 @@ CircleWorld circleWorld(int n, int laps, double meas_noise, double init_noise, u
   CircleWorld w;
   const double radius = 10.0;
   for (int k = 0; k < n * laps; ++k) {
-    const double a = 2.0 * kPi * (k % n) / n;
-    w.truth.push_back({radius * std::cos(a), radius * std::sin(a), a + kPi / 2});
-    w.truth.back().z() = std::remainder(w.truth.back().z(), 2 * kPi);
+    const double a = 2.0 * std::numbers::pi * (k % n) / n;
+    w.truth.push_back({radius * std::cos(a), radius * std::sin(a), a + std::numbers::pi / 2});
+    w.truth.back().z() = std::remainder(w.truth.back().z(), 2 * std::numbers::pi);
   }
   auto measure = [&](int a, int b) {
     Eigen::Vector3d z = pg::between(w.truth[a], w.truth[b]);
@@ -75,8 +73,8 @@ pg::OptimizerOptions with(pg::Solver solver) {
 
 TEST_CASE("chi2 of one SE2 edge matches a hand computation", "[pose_graph]") {
   pg::Graph2D g;
-  g.addNode(0, {1.0, 2.0, kPi / 2});
-  g.addNode(1, {1.0, 4.0, kPi / 2 + 0.1});
+  g.addNode(0, {1.0, 2.0, std::numbers::pi / 2});
+  g.addNode(1, {1.0, 4.0, std::numbers::pi / 2 + 0.1});
   // b seen from a: 2 m ahead, rotated by 0.1. The measurement says 1.5 m ahead, 0.5 m left, 0.
   Eigen::Matrix3d info;
   info << 2, 0.5, 0, 0.5, 3, 0, 0, 0, 10;
@@ -89,7 +87,7 @@ TEST_CASE("chi2 of one SE2 edge matches a hand computation", "[pose_graph]") {
 
 TEST_CASE("SE2 error angle is wrapped across pi", "[pose_graph]") {
   const Eigen::Vector3d e = pg::edgeError({0, 0, 3.1}, {0, 0, -3.1}, {0, 0, 0});
-  CHECK_THAT(e.z(), WithinAbs(2 * kPi - 6.2, 1e-12));
+  CHECK_THAT(e.z(), WithinAbs(2 * std::numbers::pi - 6.2, 1e-12));
 }
 
 TEST_CASE("SE3 error uses the quaternion vector with a non-negative w as g2o does",
@@ -110,14 +108,17 @@ TEST_CASE("SE3 error uses the quaternion vector with a non-negative w as g2o doe
 }
 
 TEST_CASE("fusing two constraints gives the information-weighted mean", "[pose_graph]") {
-  pg::Measurement2D m1{{1.0, 0.0, kPi - 0.05}, Eigen::Vector3d(1, 4, 10).asDiagonal()};
-  pg::Measurement2D m2{{2.0, 1.0, -kPi + 0.05}, Eigen::Vector3d(3, 4, 30).asDiagonal()};
+  pg::Measurement2D m1{{1.0, 0.0, std::numbers::pi - 0.05}, Eigen::Vector3d(1, 4, 10).asDiagonal()};
+  pg::Measurement2D m2{{2.0, 1.0, -std::numbers::pi + 0.05},
+                       Eigen::Vector3d(3, 4, 30).asDiagonal()};
   const auto f = pg::fuse(m1, m2);
   CHECK((f.information - Eigen::Matrix3d(Eigen::Vector3d(4, 8, 40).asDiagonal())).norm() < 1e-12);
   CHECK_THAT(f.mean.x(), WithinAbs((1 * 1.0 + 3 * 2.0) / 4, 1e-12));
   CHECK_THAT(f.mean.y(), WithinAbs((4 * 0.0 + 4 * 1.0) / 8, 1e-12));
   // The angles straddle ±π: the mean is 3/4 of the way from m1 to m2 across π, not near 0.
-  CHECK_THAT(f.mean.z(), WithinAbs(std::remainder(kPi - 0.05 + 0.75 * 0.1, 2 * kPi), 1e-12));
+  CHECK_THAT(
+      f.mean.z(),
+      WithinAbs(std::remainder(std::numbers::pi - 0.05 + 0.75 * 0.1, 2 * std::numbers::pi), 1e-12));
 }
 
 TEST_CASE("a constraint read from the other end fuses into the same edge", "[pose_graph]") {
@@ -181,11 +182,11 @@ TEST_CASE("solver names: the CLI parses and prints the option files' table", "[p
 TEST_CASE("odometry initialisation chains edges and refuses a disconnected node", "[pose_graph]") {
   pg::Graph2D g;
   for (int i = 0; i < 4; ++i) g.addNode(i, {0, 0, 0});
-  g.edges.push_back({0, 1, {1, 0, kPi / 2}, Eigen::Matrix3d::Identity()});
-  g.edges.push_back({2, 1, pg::inverse({1, 0, kPi / 2}), Eigen::Matrix3d::Identity()});
+  g.edges.push_back({0, 1, {1, 0, std::numbers::pi / 2}, Eigen::Matrix3d::Identity()});
+  g.edges.push_back({2, 1, pg::inverse({1, 0, std::numbers::pi / 2}), Eigen::Matrix3d::Identity()});
   g.edges.push_back({0, 3, {-1, 0, 0}, Eigen::Matrix3d::Identity()});
   pg::initializeFromOdometry(g);
-  CHECK((g.poses[2] - Eigen::Vector3d(1, 1, kPi)).norm() < 1e-12);
+  CHECK((g.poses[2] - Eigen::Vector3d(1, 1, std::numbers::pi)).norm() < 1e-12);
   CHECK((g.poses[3] - Eigen::Vector3d(-1, 0, 0)).norm() < 1e-12);
   g.addNode(10, {0, 0, 0});
   CHECK_THROWS_WITH(pg::initializeFromOdometry(g), Catch::Contains("node 10 is not connected"));
@@ -278,7 +279,7 @@ TEST_CASE("Ceres and SGD then Ceres recover an exact SE3 ring", "[pose_graph]") 
     std::normal_distribution<double> gauss(0.0, 1.0);
     const int n = 36;
     for (int i = 0; i < 2 * n; ++i) {
-      const double a = 2 * kPi * (i % n) / n;
+      const double a = 2 * std::numbers::pi * (i % n) / n;
       tessera::Pose3 p;
       p.t = {5 * std::cos(a), 5 * std::sin(a), 0.5 * std::sin(2 * a)};
       p.q = Eigen::AngleAxisd(a, Eigen::Vector3d::UnitZ()) *

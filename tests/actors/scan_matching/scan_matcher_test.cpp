@@ -35,8 +35,7 @@ using tessera::scan_matching::ScanMatcherOptions;
 using tessera::scan_matching::ScanPoints;
 
 namespace {
-constexpr double kPi = std::numbers::pi;
-constexpr double kDeg = kPi / 180.0;
+constexpr double kDeg = std::numbers::pi / 180.0;
 constexpr float kInf = std::numeric_limits<float>::infinity();
 constexpr float kNaN = std::numeric_limits<float>::quiet_NaN();
 
@@ -207,8 +206,8 @@ TEST_CASE("prepare keeps valid beams as base-frame endpoints", "[scan_matcher]")
   const ScanMatcher matcher(o);
   // Beams at -90, 0, 90, 180 deg ... then invalid ones.
   const std::vector<float> ranges = {2.0f, 1.0f, 3.0f, 4.0f, kNaN, 0.05f, kInf, 10.0f, 6.0f, 0.0f};
-  const RangeScan scan{ranges, -kPi / 2, kPi / 2, 0.1, 8.0};
-  const Pose2 mount(0.2, -0.1, kPi / 2);
+  const RangeScan scan{ranges, -std::numbers::pi / 2, std::numbers::pi / 2, 0.1, 8.0};
+  const Pose2 mount(0.2, -0.1, std::numbers::pi / 2);
   const ScanPoints p = matcher.prepare(scan, mount);
   CHECK(p.beams_total == ranges.size());
   CHECK(p.origin.isApprox(Eigen::Vector2f(0.2f, -0.1f)));
@@ -544,8 +543,9 @@ TEST_CASE("fitProposal balances the scan likelihood against the motion prior", "
         for (int k = -1; k <= 1; ++k) {
           const Pose2 x(mode.x + 0.02 * i, mode.y + 0.02 * j, mode.theta + 0.01 * k);
           const Eigen::Vector3d d(x.x - prior.x, x.y - prior.y, angleDiff(x.theta, prior.theta));
-          const double prior_density = std::exp(-0.5 * d.dot(info * d)) /
-                                       std::sqrt(std::pow(2 * kPi, 3) * cov.determinant());
+          const double prior_density =
+              std::exp(-0.5 * d.dot(info * d)) /
+              std::sqrt(std::pow(2 * std::numbers::pi, 3) * cov.determinant());
           // Scale the likelihood by a constant to stay in double range; log_eta shifts by it.
           sum += std::exp(matcher.logLikelihood(grid, p, x) - m.log_likelihood) * prior_density;
         }
@@ -553,8 +553,8 @@ TEST_CASE("fitProposal balances the scan likelihood against the motion prior", "
   }
 
   SECTION("angles wrap across pi") {
-    const Pose2 near_pi(mode.x, mode.y, kPi - 0.004);
-    const Pose2 prior(mode.x, mode.y, -kPi + 0.004);  // 0.008 rad away across the cut
+    const Pose2 near_pi(mode.x, mode.y, std::numbers::pi - 0.004);
+    const Pose2 prior(mode.x, mode.y, -std::numbers::pi + 0.004);  // 0.008 rad away across the cut
     const Eigen::Matrix3d tight = Eigen::Vector3d(1e-4, 1e-4, 1e-6).asDiagonal();
     const ProposalFit f = matcher.fitProposal(grid, p, near_pi, prior, tight);
     CHECK(std::abs(angleDiff(f.mean.theta, prior.theta)) < 0.006);
@@ -900,7 +900,7 @@ TEST_CASE("a wall in the neighbouring tile is seen from a tile whose bits are ca
   const std::vector<float> range{0.3f};
   const RangeScan beam{range, 0.0, 0.0, 0.05, 8.0};
   for (int k = 0; k < 3; ++k)
-    grid.insertScan(beam, Pose2(wall_centre.x() + 0.3, wall_centre.y(), kPi));
+    grid.insertScan(beam, Pose2(wall_centre.x() + 0.3, wall_centre.y(), std::numbers::pi));
   REQUIRE(grid.logOdds(wall) > 0.0f);
   const double expected = m.score(CellByCell(grid), p, Pose2());
   CHECK(expected > 0.0);  // one cell away: within the radius-1 window
@@ -912,7 +912,8 @@ TEST_CASE("endpoint cells of several poses equal the scalar floor arithmetic", "
   // cell and offset must still be what floor(q + 1/2) gives, including negative cells and
   // endpoints exactly on a rounding boundary.
   std::mt19937_64 rng(23);
-  std::uniform_real_distribution<double> xy(-60.0, 60.0), th(-kPi, kPi), e(-30.0, 30.0);
+  std::uniform_real_distribution<double> xy(-60.0, 60.0), th(-std::numbers::pi, std::numbers::pi),
+      e(-30.0, 30.0);
   std::uniform_int_distribution<int> boundary(-1000, 1000);
   const double res = 0.05;
   const Eigen::Vector2d centre0(0.5 * res, 0.5 * res);

@@ -17,8 +17,6 @@ using Outcome = KeyframeGraph::Outcome;
 
 namespace {
 
-constexpr double kPi = std::numbers::pi;
-
 // A turn about the optical y axis (down): a yaw of a camera carried level.
 Pose3 yaw(double angle) {
   return {Eigen::Vector3d::Zero(),
@@ -35,7 +33,7 @@ std::vector<Pose3> square() {
   Pose3 at;
   for (int i = 0; i < 16; ++i) {
     p.push_back(at);
-    at = at * forward(0.5) * (i % 4 == 3 ? yaw(kPi / 2) : Pose3{});
+    at = at * forward(0.5) * (i % 4 == 3 ? yaw(std::numbers::pi / 2) : Pose3{});
   }
   return p;
 }
@@ -46,7 +44,7 @@ std::vector<Pose3> drifted(const std::vector<Pose3>& truth) {
   for (std::size_t i = 1; i < truth.size(); ++i) {
     Pose3 step = truth[i - 1].inverse() * truth[i];
     step.t *= 1.02;
-    p.push_back(p.back() * step * yaw(1.5 * kPi / 180));
+    p.push_back(p.back() * step * yaw(1.5 * std::numbers::pi / 180));
   }
   return p;
 }

@@ -14,7 +14,6 @@ using tessera::sim::RayCaster;
 using tessera::sim::World;
 
 namespace {
-constexpr double kPi = std::numbers::pi;
 
 // Distance from o along angle a to the boundary of the open rectangle [x0,x1] x [y0,y1] that
 // contains o: the free inside of a box world, whose walls start exactly at those lines.
@@ -35,11 +34,12 @@ TEST_CASE("RayCaster: axis and diagonal rays in a box room", "[sim][raycaster]")
   const RayCaster rc(box);
   const Eigen::Vector2d c(5.0, 4.0);
   CHECK(rc.cast(c, 0.0, 30) == Approx(4.9).margin(1e-9));
-  CHECK(rc.cast(c, kPi, 30) == Approx(4.9).margin(1e-9));
-  CHECK(rc.cast(c, kPi / 2, 30) == Approx(3.9).margin(1e-9));
-  CHECK(rc.cast(c, -kPi / 2, 30) == Approx(3.9).margin(1e-9));
+  CHECK(rc.cast(c, std::numbers::pi, 30) == Approx(4.9).margin(1e-9));
+  CHECK(rc.cast(c, std::numbers::pi / 2, 30) == Approx(3.9).margin(1e-9));
+  CHECK(rc.cast(c, -std::numbers::pi / 2, 30) == Approx(3.9).margin(1e-9));
   // Diagonals reach the long walls first (3.9 m away across y).
-  for (double a : {kPi / 4, 3 * kPi / 4, -kPi / 4, -3 * kPi / 4})
+  for (double a : {std::numbers::pi / 4, 3 * std::numbers::pi / 4, -std::numbers::pi / 4,
+                   -3 * std::numbers::pi / 4})
     CHECK(rc.cast(c, a, 30) == Approx(3.9 * std::sqrt(2.0)).margin(1e-9));
   // Off-centre, off-axis: exactly the distance to the cell boundary.
   CHECK(rc.cast({2.0, 3.0}, std::atan2(1.0, 2.0), 30) ==
@@ -50,7 +50,8 @@ TEST_CASE("RayCaster: matches analytic distances for random rays", "[sim][raycas
   const World box = World::box(10.0, 8.0, 0.1);
   const RayCaster rc(box);
   std::mt19937_64 rng(7);
-  std::uniform_real_distribution<double> ux(0.2, 9.8), uy(0.2, 7.8), ua(-kPi, kPi);
+  std::uniform_real_distribution<double> ux(0.2, 9.8), uy(0.2, 7.8),
+      ua(-std::numbers::pi, std::numbers::pi);
   for (int i = 0; i < 5000; ++i) {
     const Eigen::Vector2d o(ux(rng), uy(rng));
     const double a = ua(rng);
@@ -68,7 +69,7 @@ TEST_CASE("RayCaster: never skips a one-cell wall", "[sim][raycaster]") {
   const RayCaster rc(w);
   const Eigen::Vector2d o(1.0, 2.5);
   for (int i = -80; i <= 80; ++i) {
-    const double a = i * kPi / 180.0;  // -80 deg .. 80 deg, steep ones graze the wall
+    const double a = i * std::numbers::pi / 180.0;  // -80 deg .. 80 deg, steep ones graze the wall
     const double expected = (3.0 - o.x()) / std::cos(a);
     const double y_hit = o.y() + expected * std::sin(a);
     const double got = rc.cast(o, a, 100);
@@ -92,20 +93,21 @@ TEST_CASE("RayCaster: range limit, open space, start in a wall or outside", "[si
 
   // From outside the map, a ray that enters it finds the far wall; one that misses finds nothing.
   CHECK(rc.cast({-2.0, 4.0}, 0.0, 30) == Approx(2.0).margin(1e-9));  // enters the left wall
-  CHECK(std::isinf(rc.cast({-2.0, 4.0}, kPi, 30)));
+  CHECK(std::isinf(rc.cast({-2.0, 4.0}, std::numbers::pi, 30)));
   CHECK(std::isinf(rc.cast({-2.0, 4.0}, 0.0, 1.5)));
 }
 
 TEST_CASE("LaserConfig: field of view and validation", "[sim][laser]") {
   const LaserConfig c;  // 180 deg, 181 beams
   CHECK(c.beams == 181);
-  CHECK(c.angleMin() == -kPi / 2);
-  CHECK(c.angleIncrement() == Approx(kPi / 180));
+  CHECK(c.angleMin() == -std::numbers::pi / 2);
+  CHECK(c.angleIncrement() == Approx(std::numbers::pi / 180));
   LaserConfig full;
-  full.fov = 2 * kPi;
+  full.fov = 2 * std::numbers::pi;
   full.beams = 360;
-  CHECK(full.angleMin() == -kPi);
-  CHECK(full.angleIncrement() == Approx(kPi / 180));  // last beam does not repeat the first
+  CHECK(full.angleMin() == -std::numbers::pi);
+  CHECK(full.angleIncrement() ==
+        Approx(std::numbers::pi / 180));  // last beam does not repeat the first
   LaserConfig one;
   one.beams = 1;
   CHECK(one.angleMin() == 0);
@@ -146,7 +148,7 @@ TEST_CASE("LaserModel: noiseless scan equals ray casts from the laser pose", "[s
   const auto ranges = laser.scan(base, rng);
   REQUIRE(ranges.size() == 181);
   for (int i = 0; i < 181; ++i) {
-    const double a = lp.theta - kPi / 2 + i * kPi / 180;
+    const double a = lp.theta - std::numbers::pi / 2 + i * std::numbers::pi / 180;
     CHECK(ranges[i] == Approx(rectExit(lp.translation(), a, 0.1, 0.1, 9.9, 7.9)).epsilon(1e-6));
   }
 }
@@ -196,7 +198,7 @@ TEST_CASE("LaserModel: range noise, range limits and dropouts", "[sim][laser]") 
     cfg.range_noise = 0;
     const LaserModel laser(box, cfg);
     std::mt19937_64 rng(3);
-    const auto r = laser.scan({0.4, 4.0, kPi}, rng);  // facing the wall 0.3 m away
+    const auto r = laser.scan({0.4, 4.0, std::numbers::pi}, rng);  // facing the wall 0.3 m away
     CHECK(std::isnan(r[90]));
     CHECK(r[0] == Approx(3.9f));
   }

@@ -11,24 +11,23 @@
 using namespace tessera;
 using namespace tessera::sim;
 
-namespace {
-constexpr double kPi = std::numbers::pi;
-}
+namespace {}
 
 TEST_CASE("Pose2 math: wrap, compose, moveBy", "[sim][robot]") {
   CHECK(normalizeAngle(0.5) == Approx(0.5));
-  CHECK(normalizeAngle(3 * kPi / 2) == Approx(-kPi / 2));
-  CHECK(normalizeAngle(-3 * kPi / 2) == Approx(kPi / 2));
-  CHECK(normalizeAngle(kPi) == Approx(kPi));  // (-pi, pi], as every pose in the tree
-  CHECK(normalizeAngle(7 * 2 * kPi + 0.25) == Approx(0.25));
+  CHECK(normalizeAngle(3 * std::numbers::pi / 2) == Approx(-std::numbers::pi / 2));
+  CHECK(normalizeAngle(-3 * std::numbers::pi / 2) == Approx(std::numbers::pi / 2));
+  CHECK(normalizeAngle(std::numbers::pi) ==
+        Approx(std::numbers::pi));  // (-pi, pi], as every pose in the tree
+  CHECK(normalizeAngle(7 * 2 * std::numbers::pi + 0.25) == Approx(0.25));
 
-  const Pose2 a{1.0, 2.0, kPi / 2};
-  const Pose2 c = compose(a, {1.0, 0.0, kPi / 4});
+  const Pose2 a{1.0, 2.0, std::numbers::pi / 2};
+  const Pose2 c = compose(a, {1.0, 0.0, std::numbers::pi / 4});
   CHECK(c.x == Approx(1.0).margin(1e-12));
   CHECK(c.y == Approx(3.0));
-  CHECK(c.theta == Approx(3 * kPi / 4));
+  CHECK(c.theta == Approx(3 * std::numbers::pi / 4));
 
-  const Pose2 straight = moveBy({0, 0, kPi / 2}, 2.0, 0.0);
+  const Pose2 straight = moveBy({0, 0, std::numbers::pi / 2}, 2.0, 0.0);
   CHECK(straight.x == Approx(0.0).margin(1e-12));
   CHECK(straight.y == Approx(2.0));
   const Pose2 turn = moveBy({1, 1, 0}, 0.0, 0.3);
@@ -39,7 +38,7 @@ TEST_CASE("Pose2 math: wrap, compose, moveBy", "[sim][robot]") {
   // Many small steps along a circle of radius 1 stay on it (mid-step heading integration).
   Pose2 p{0, 0, 0};
   const int n = 1000;
-  for (int i = 0; i < n; ++i) p = moveBy(p, 2 * kPi / n, 2 * kPi / n);
+  for (int i = 0; i < n; ++i) p = moveBy(p, 2 * std::numbers::pi / n, 2 * std::numbers::pi / n);
   CHECK(p.x == Approx(0.0).margin(1e-5));
   CHECK(p.y == Approx(0.0).margin(1e-5));
   CHECK(std::abs(normalizeAngle(p.theta)) < 1e-9);
