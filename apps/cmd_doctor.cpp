@@ -8,10 +8,9 @@
 // shared memory cannot run here as it is.
 #include "commands.hpp"
 
+#include <tessera/shm/deployment.hpp>
 #include <tessera/shm/roudi_host.hpp>
 
-#include <fcntl.h>
-#include <sys/mman.h>
 #include <sys/stat.h>
 #include <sys/statfs.h>
 #include <sys/statvfs.h>
@@ -47,6 +46,12 @@ std::string gib(double bytes) {
   std::ostringstream s;
   s << std::fixed << std::setprecision(1) << bytes / double(1u << 30) << " GiB";
   return s.str();
+}
+
+std::string joined(const std::vector<std::string>& items) {
+  std::string out;
+  for (const auto& item : items) out += (out.empty() ? "" : ", ") + item;
+  return out;
 }
 
 std::string readFirstLine(const fs::path& path) {
@@ -94,32 +99,16 @@ void checkShmSpace(const fs::path& shm_dir, std::vector<Finding>& out) {
   }
 }
 
-/// Creates, maps, writes and removes a small segment, as a deployment's control block does.
+/// Creates, maps and removes a segment through the deployments' own control-block code.
 void checkShmAccess(std::vector<Finding>& out) {
-  const std::string name = "/tessera_doctor_" + std::to_string(::getpid());
-  const int fd = ::shm_open(name.c_str(), O_CREAT | O_EXCL | O_RDWR, 0600);
-  if (fd < 0) {
-    out.push_back({Level::kFail, "creating shared memory " + name + ": " + std::strerror(errno),
-                   "check that /dev/shm is a writable tmpfs (mode 1777) and not full"});
-    return;
-  }
-  std::string error;
-  if (::ftruncate(fd, 4096) != 0) {
-    error = std::string("sizing it: ") + std::strerror(errno);
-  } else if (void* p = ::mmap(nullptr, 4096, PROT_READ | PROT_WRITE, MAP_SHARED, fd, 0);
-             p == MAP_FAILED) {
-    error = std::string("mapping it: ") + std::strerror(errno);
-  } else {
-    static_cast<volatile char*>(p)[0] = 1;
-    ::munmap(p, 4096);
-  }
-  ::close(fd);
-  ::shm_unlink(name.c_str());
-  if (error.empty())
+  try {
+    SyncMemory probe("/tessera_doctor_" + std::to_string(::getpid()), true);
     out.push_back({Level::kOk, "shared memory: a segment was created, mapped and removed", ""});
-  else
-    out.push_back({Level::kFail, "shared memory " + name + ": " + error,
-                   "check the memory limits of this user and of /dev/shm"});
+  } catch (const std::exception& e) {
+    out.push_back({Level::kFail, std::string("creating ") + e.what(),
+                   "check that /dev/shm is a writable tmpfs (mode 1777), not full, and within "
+                   "this user's memory limits"});
+  }
 }
 
 void checkLeftovers(bool fix, std::vector<Finding>& out) {
@@ -134,18 +123,15 @@ void checkLeftovers(bool fix, std::vector<Finding>& out) {
     out.push_back({Level::kOk, "no shared memory or sockets left by a crashed run", ""});
     return;
   }
-  std::string list;
-  for (const auto& p : stale) list += (list.empty() ? "" : ", ") + p;
   if (!fix) {
-    out.push_back({Level::kWarn, "left by a crashed run: " + list,
+    out.push_back({Level::kWarn, "left by a crashed run: " + joined(stale),
                    "tessera doctor --fix removes them (the next tessera launch does as well)"});
     return;
   }
   try {
     const std::vector<std::string> removed = removeStaleShm();
-    std::string done;
-    for (const auto& p : removed) done += (done.empty() ? "" : ", ") + p;
-    out.push_back({Level::kFixed, "removed " + (done.empty() ? std::string("nothing") : done), ""});
+    out.push_back({Level::kFixed,
+                   "removed " + (removed.empty() ? std::string("nothing") : joined(removed)), ""});
   } catch (const std::exception& e) {
     out.push_back({Level::kFail, std::string("could not remove leftovers: ") + e.what(), ""});
   }
@@ -169,11 +155,11 @@ void checkCpu(std::vector<Finding>& out) {
   } else if (governors.size() == 1 && *governors.begin() == "performance") {
     out.push_back({Level::kOk, cores + "; CPU frequency governor: performance", ""});
   } else {
-    std::string list;
-    for (const auto& g : governors) list += (list.empty() ? "" : ", ") + g;
-    out.push_back({Level::kWarn, cores + "; CPU frequency governor: " + list,
-                   "benchmark figures vary with frequency scaling: sudo cpupower frequency-set "
-                   "-g performance"});
+    out.push_back(
+        {Level::kWarn,
+         cores + "; CPU frequency governor: " + joined({governors.begin(), governors.end()}),
+         "benchmark figures vary with frequency scaling: sudo cpupower frequency-set "
+         "-g performance"});
   }
   const std::string thp = readFirstLine("/sys/kernel/mm/transparent_hugepage/enabled");
   if (thp.empty()) {

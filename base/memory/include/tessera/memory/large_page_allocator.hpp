@@ -1,5 +1,5 @@
 // LargePageAllocator: a standard allocator for big arrays read at scattered places (a planner's
-// per-cell search state, costmaps). Blocks of 2 MiB and more are 2 MiB-aligned and advised for
+// per-cell search state). Blocks of 2 MiB and more are 2 MiB-aligned and advised for
 // transparent huge pages, so a search sweeping a wide region of a map takes far fewer TLB misses
 // (docs/algorithms.md#global-planning). Smaller blocks come from operator new. Where the kernel
 // has no transparent huge pages the advice is ignored and the memory is ordinary.
