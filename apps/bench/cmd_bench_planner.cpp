@@ -30,6 +30,9 @@ void addBenchPlannerCommand(CLI::App& bench, int& result) {
   cmd->add_option("--pairs", o->bench.pairs, "start/goal pairs")->capture_default_str();
   cmd->add_option("--distance", o->bench.pair_distance, "[m] start to goal, straight line")
       ->capture_default_str();
+  cmd->add_option("--landmarks", o->bench.landmarks,
+                  "landmark bounds for A* (astar_landmarks, and under LOS / ant colony); 0: none")
+      ->capture_default_str();
   cmd->add_option("--repeat", o->bench.repeat, "timed runs per pair and planner")
       ->capture_default_str();
   cmd->add_flag("--json", o->json, "print exactly one JSON object on stdout");
@@ -58,6 +61,8 @@ void addBenchPlannerCommand(CLI::App& bench, int& result) {
                                   {"seed", o->bench.seed},
                                   {"repeat", o->bench.repeat},
                                   {"map_ms", r.map_ms},
+                                  {"landmarks", o->bench.landmarks},
+                                  {"landmarks_ms", r.landmarks_ms},
                                   {"pairs", pairs},
                                   {"results", results}}
                        .dump(2)
@@ -68,7 +73,8 @@ void addBenchPlannerCommand(CLI::App& bench, int& result) {
     std::cout << "machine: " << machineDescription() << "\n"
               << "office costmap " << r.width << " x " << r.height << " cells at " << r.resolution
               << " m (seed " << o->bench.seed << ", built and inflated in " << std::fixed
-              << std::setprecision(0) << r.map_ms << " ms); " << r.pairs.size()
+              << std::setprecision(0) << r.map_ms << " ms; " << o->bench.landmarks
+              << " landmarks in " << r.landmarks_ms << " ms); " << r.pairs.size()
               << " start/goal pairs " << std::setprecision(1) << o->bench.pair_distance
               << " m apart, " << o->bench.repeat << " timed runs each\n\n"
               << std::left << std::setw(16) << "planner" << std::right << std::setw(11)

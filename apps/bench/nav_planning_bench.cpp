@@ -25,6 +25,7 @@ void PlanningBenchOptions::validate() const {
       .require(pairs >= 1, "pairs", "must be >= 1", pairs)
       .require(repeat >= 1, "repeat", "must be >= 1", repeat)
       .positive("pair_distance", pair_distance)
+      .require(landmarks >= 0 && landmarks <= 16, "landmarks", "must be in [0, 16]", landmarks)
       .require(pair_distance < cells * resolution, "pair_distance",
                "must be shorter than the map side", pair_distance)
       .throwIfBad("planning bench");
@@ -197,7 +198,15 @@ PlanningBenchResult runPlanningBench(const PlanningBenchOptions& options) {
   nav::GridPlannerOptions astar_options = options.planner, dijkstra_options = options.planner;
   astar_options.algorithm = nav::SearchAlgorithm::kAStar;
   dijkstra_options.algorithm = nav::SearchAlgorithm::kDijkstra;
-  nav::GridPlanner astar(astar_options), dijkstra(dijkstra_options);
+  nav::GridPlanner astar(astar_options), dijkstra(dijkstra_options), astar_lm(astar_options);
+  if (options.landmarks > 0) {
+    const auto t0 = std::chrono::steady_clock::now();
+    astar_lm.setLandmarks(
+        std::make_shared<const nav::LandmarkBounds>(map, astar_options, options.landmarks));
+    out.landmarks_ms =
+        std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+  }
+  nav::GridPlanner& refined = options.landmarks > 0 ? astar_lm : astar;
   const nav::AntColonyRefiner colony(options.ant_colony_options);
   const auto los_cost = static_cast<std::uint8_t>(options.ant_colony_options.max_cost);
 
@@ -208,16 +217,18 @@ PlanningBenchResult runPlanningBench(const PlanningBenchOptions& options) {
   std::vector<std::pair<std::string, std::function<Run(const PlanningPair&)>>> planners{
       {"dijkstra", [&](const PlanningPair& p) { return search(dijkstra, map, p); }},
       {"astar", [&](const PlanningPair& p) { return search(astar, map, p); }},
-      {"astar_los",
-       [&](const PlanningPair& p) {
-         Run r = search(astar, map, p);
-         if (r.ok) r.path = nav::shortenPath(map, r.path, los_cost);
-         return r;
-       }},
   };
+  if (options.landmarks > 0)
+    planners.emplace_back("astar_landmarks",
+                          [&](const PlanningPair& p) { return search(astar_lm, map, p); });
+  planners.emplace_back("astar_los", [&](const PlanningPair& p) {
+    Run r = search(refined, map, p);
+    if (r.ok) r.path = nav::shortenPath(map, r.path, los_cost);
+    return r;
+  });
   if (options.ant_colony)
     planners.emplace_back("astar_los_aco", [&](const PlanningPair& p) {
-      Run r = search(astar, map, p);
+      Run r = search(refined, map, p);
       if (r.ok) r.path = colony.refine(map, r.path);
       return r;
     });
@@ -245,7 +256,9 @@ PlanningBenchResult runPlanningBench(const PlanningBenchOptions& options) {
         if (!run.ok) continue;
         ++f.solved;
         f.length_m += nav::pathLength(map, run.path);
-        f.cost += k < 2 ? run.cost : polylineCost(map, run.path, options.planner);
+        f.cost += !f.planner.starts_with("astar_los")
+                      ? run.cost
+                      : polylineCost(map, run.path, options.planner);
         f.expanded += static_cast<double>(run.expanded);
       }
   for (std::size_t k = 0; k < planners.size(); ++k) {

@@ -9,15 +9,17 @@
 // `pair_distance` apart (straight line) through the map centre at evenly spread bearings, each
 // snapped to the nearest free (cost 0) cell.
 //
-// Planners, each timed as a whole call on warm search buffers: "dijkstra", "astar" (GridPlanner),
-// "astar_los" (A* then shortenPath), "astar_los_aco" (A* then AntColonyRefiner::refine, which
-// shortens by line of sight first). Repetitions interleave the planners so that machine load
-// hits them alike.
+// Planners, each timed as a whole call on warm search buffers: "dijkstra", "astar" (GridPlanner,
+// octile heuristic), "astar_landmarks" (with `landmarks` landmark bounds built on the map first,
+// their build time reported apart), "astar_los" (that A* then shortenPath), "astar_los_aco" (then
+// AntColonyRefiner::refine, which shortens by line of sight first). Repetitions interleave the
+// planners so that machine load hits them alike.
 #pragma once
 
 #include <tessera/navigation/ant_colony.hpp>
 #include <tessera/navigation/costmap.hpp>
 #include <tessera/navigation/grid_planner.hpp>
+#include <tessera/navigation/landmark_bounds.hpp>
 
 #include <Eigen/Core>
 
@@ -28,15 +30,17 @@
 namespace tessera::app {
 
 struct PlanningBenchOptions {
-  int cells = 2000;                        ///< map side [cells]
-  double resolution = 0.05;                ///< [m/cell]
-  std::uint64_t seed = 7;                  ///< office layout
-  int pairs = 4;                           ///< start/goal pairs
-  double pair_distance = 75;               ///< [m] straight line between start and goal
-  int repeat = 5;                          ///< timed runs per pair and planner
-  bool ant_colony = true;                  ///< also time "astar_los_aco" (the slowest)
-  navigation::InflationOptions inflation;  ///< defaults: 0.20 m inscribed, 0.55 m
-  navigation::GridPlannerOptions planner;  ///< algorithm is set per planner
+  int cells = 2000;                               ///< map side [cells]
+  double resolution = 0.05;                       ///< [m/cell]
+  std::uint64_t seed = 7;                         ///< office layout
+  int pairs = 4;                                  ///< start/goal pairs
+  double pair_distance = 75;                      ///< [m] straight line between start and goal
+  int repeat = 5;                                 ///< timed runs per pair and planner
+  bool ant_colony = true;                         ///< also time "astar_los_aco" (the slowest)
+  int landmarks = navigation::kDefaultLandmarks;  ///< landmark bounds for "astar_landmarks" and the
+                                                  ///< LOS/ACO rows; 0: none
+  navigation::InflationOptions inflation;         ///< defaults: 0.20 m inscribed, 0.55 m
+  navigation::GridPlannerOptions planner;         ///< algorithm is set per planner
   navigation::AntColonyOptions ant_colony_options;
 
   void validate() const;  ///< throws std::invalid_argument naming the bad field
@@ -63,6 +67,7 @@ struct PlanningBenchResult {
   int width = 0, height = 0;  ///< [cells]
   double resolution = 0;      ///< [m/cell]
   double map_ms = 0;          ///< building and inflating the costmap
+  double landmarks_ms = 0;    ///< building the landmark bounds (0 without)
   std::vector<PlanningPair> pairs;
   std::vector<PlannerFigures> results;
   /// The figures of `planner`, or nullptr when it was not run.

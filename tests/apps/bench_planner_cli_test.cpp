@@ -16,7 +16,8 @@ TEST_CASE("bench planner reports every planner on a small office", "[bench_plann
       runCli("bench planner --json --cells 400 --distance 14 --pairs 2 --repeat 1 --seed 3", dir);
   REQUIRE(run.exit_code == 0);
   const auto j = nlohmann::json::parse(run.out);
-  for (const char* key : {"machine", "map_cells", "resolution_m", "pairs", "results"})
+  for (const char* key :
+       {"machine", "map_cells", "resolution_m", "pairs", "results", "landmarks", "landmarks_ms"})
     CHECK(j.contains(key));
   CHECK(j["map_cells"] == nlohmann::json::array({400, 400}));
   CHECK(j["resolution_m"].get<double>() == Approx(0.05));
@@ -29,13 +30,19 @@ TEST_CASE("bench planner reports every planner on a small office", "[bench_plann
     CHECK(r["solved"] == 2);
     by_name[r["planner"].get<std::string>()] = r;
   }
-  REQUIRE(by_name.size() == 4);
-  const auto &dijkstra = by_name["dijkstra"], &astar = by_name["astar"];
+  REQUIRE(by_name.size() == 5);
+  const auto &dijkstra = by_name["dijkstra"], &astar = by_name["astar"],
+             &landmarks = by_name["astar_landmarks"];
   CHECK(astar["cost"].get<double>() == Approx(dijkstra["cost"].get<double>()).epsilon(1e-12));
   CHECK(astar["expanded"].get<double>() < dijkstra["expanded"].get<double>());
   CHECK(astar["length_m"].get<double>() >= 14 - 0.5);
+  // Landmark bounds: the same cost with fewer cells expanded; LOS and ACO start from that path.
+  CHECK(j["landmarks"] == 8);
+  CHECK(j["landmarks_ms"].get<double>() > 0);
+  CHECK(landmarks["cost"].get<double>() == Approx(dijkstra["cost"].get<double>()).epsilon(1e-12));
+  CHECK(landmarks["expanded"].get<double>() < astar["expanded"].get<double>());
   const double los = by_name["astar_los"]["length_m"].get<double>();
-  CHECK(los <= astar["length_m"].get<double>() + 1e-9);
+  CHECK(los <= landmarks["length_m"].get<double>() + 1e-9);
   CHECK(by_name["astar_los_aco"]["length_m"].get<double>() <= los + 1e-9);
 }
 
@@ -47,4 +54,7 @@ TEST_CASE("bench planner names a bad option", "[bench_planner]") {
   const auto far = runCli("bench planner --cells 200 --distance 20", dir);
   CHECK(far.exit_code != 0);
   CHECK(far.err.find("pair_distance") != std::string::npos);
+  const auto many = runCli("bench planner --landmarks 17", dir);
+  CHECK(many.exit_code != 0);
+  CHECK(many.err.find("landmarks") != std::string::npos);
 }

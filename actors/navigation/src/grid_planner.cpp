@@ -3,6 +3,7 @@
 #include <tessera/navigation/grid_planner.hpp>
 
 #include <tessera/config/config_check.hpp>
+#include <tessera/navigation/landmark_bounds.hpp>
 
 #include <algorithm>
 #include <array>
@@ -42,17 +43,26 @@ std::string_view statusName(PlanStatus status) {
   return "?";
 }
 
-GridPlanner::GridPlanner(const GridPlannerOptions& options) : options_(options) {
-  options_.validate();
+StepCosts stepCosts(const GridPlannerOptions& options) {
+  StepCosts out;
+  for (int c = 0; c < 256; ++c) {
+    const auto b = static_cast<std::uint8_t>(c);
+    const bool unknown = b == cost::kUnknown;
+    if (!(b <= cost::kMaxTraversable || (unknown && options.allow_unknown))) continue;
+    const double counted = unknown ? options.unknown_cost : b;
+    const double factor = 1.0 + options.cost_weight * counted / cost::kMaxTraversable;
+    out.straight[static_cast<std::size_t>(c)] = std::llround(kStraightUnits * factor);
+    out.diagonal[static_cast<std::size_t>(c)] = std::llround(kDiagonalUnits * factor);
+  }
+  out.max_step = *std::max_element(out.diagonal.begin(), out.diagonal.end());
+  return out;
 }
 
-bool GridPlanner::passable(std::uint8_t c) const {
-  return c <= cost::kMaxTraversable || (c == cost::kUnknown && options_.allow_unknown);
-}
+GridPlanner::GridPlanner(const GridPlannerOptions& options)
+    : options_(options), steps_((options.validate(), stepCosts(options))) {}
 
-double GridPlanner::stepFactor(std::uint8_t c) const {
-  const double counted = c == cost::kUnknown ? options_.unknown_cost : c;
-  return 1.0 + options_.cost_weight * counted / cost::kMaxTraversable;
+void GridPlanner::setLandmarks(std::shared_ptr<const LandmarkBounds> landmarks) {
+  landmarks_ = std::move(landmarks);
 }
 
 namespace {
@@ -75,8 +85,11 @@ GridPath GridPlanner::plan(const Costmap& map, const Eigen::Vector2i& start,
   GridPath out;
   if (!map.contains(start)) return out.status = PlanStatus::kStartOutside, out;
   if (!map.contains(goal)) return out.status = PlanStatus::kGoalOutside, out;
-  if (!passable(map.at(start))) return out.status = PlanStatus::kStartBlocked, out;
-  if (!passable(map.at(goal))) return out.status = PlanStatus::kGoalBlocked, out;
+  const auto& straight = steps_.straight;
+  const auto& diagonal = steps_.diagonal;
+  const std::int64_t max_step = steps_.max_step;
+  if (straight[map.at(start)] == 0) return out.status = PlanStatus::kStartBlocked, out;
+  if (straight[map.at(goal)] == 0) return out.status = PlanStatus::kGoalBlocked, out;
 
   const std::size_t n = map.cells.size();
   if (n > static_cast<std::size_t>(std::numeric_limits<std::int32_t>::max()))
@@ -95,37 +108,70 @@ GridPath GridPlanner::plan(const Costmap& map, const Eigen::Vector2i& start,
   const auto open_mark = static_cast<std::uint8_t>(2 * generation_);
   const auto closed_mark = static_cast<std::uint8_t>(open_mark + 1);
 
-  // Integer step costs per cell cost (0 = impassable). The octile heuristic below is built
-  // from the same units at factor 1, so it never exceeds a step's cost: consistent, exactly.
-  std::array<std::int64_t, 256> straight{}, diagonal{};
-  for (int c = 0; c < 256; ++c) {
-    const auto b = static_cast<std::uint8_t>(c);
-    if (!passable(b)) continue;
-    straight[static_cast<std::size_t>(c)] = std::llround(kStraightUnits * stepFactor(b));
-    diagonal[static_cast<std::size_t>(c)] = std::llround(kDiagonalUnits * stepFactor(b));
-  }
-  const std::int64_t max_step = *std::max_element(diagonal.begin(), diagonal.end());
-
   const int w = map.width, h = map.height;
   const bool astar = options_.algorithm == SearchAlgorithm::kAStar;
   const int goal_col = goal.x(), goal_row = goal.y();
-  auto heuristic = [&](int col, int row) -> std::int64_t {
+  const auto t = static_cast<std::int32_t>(map.index(goal.x(), goal.y()));
+
+  // Landmark bounds, where they hold for this map.
+  const LandmarkBounds* lm =
+      astar && landmarks_ && landmarks_->holdsFor(map, options_) ? landmarks_.get() : nullptr;
+  // Per landmark L the goal reaches: d(L, goal) − d(L, x) and d(x, L) − d(goal, L), i.e.
+  // sign · (base − the cell's value in `column`). A cell that cannot reach such a landmark
+  // cannot reach the goal either (the reference passes wherever this map does): never pushed.
+  std::array<int, 32> column{};
+  std::array<std::int64_t, 32> base{}, sign{};
+  int terms = 0;
+  int prune_column = -1;
+  if (lm) {
+    const int k = lm->count();
+    const std::uint32_t* at_goal = lm->row(static_cast<std::size_t>(t));
+    for (int j = 0; j < k; ++j) {
+      if (at_goal[k + j] == LandmarkBounds::kUnreachable) continue;  // landmark elsewhere
+      if (prune_column < 0) prune_column = k + j;
+      for (const int c : {j, k + j}) {
+        const auto u = static_cast<std::size_t>(terms++);
+        column[u] = c;
+        sign[u] = c < k ? 1 : -1;
+        base[u] = at_goal[c];
+      }
+    }
+    out.landmarks_used = terms > 0;
+  }
+  constexpr std::int64_t kPrune = -1;
+  // The octile distance (and the landmark bounds) in the step units at factor 1 never exceed a
+  // step's cost: consistent, exactly.
+  auto heuristic = [&](std::int32_t vi, int col, int row) -> std::int64_t {
     if (!astar) return 0;
     const std::int64_t dx = std::abs(col - goal_col), dy = std::abs(row - goal_row);
     const std::int64_t lo = std::min(dx, dy), hi = std::max(dx, dy);
-    return kStraightUnits * (hi - lo) + kDiagonalUnits * lo;
+    std::int64_t best = kStraightUnits * (hi - lo) + kDiagonalUnits * lo;
+    if (prune_column < 0) return best;
+    const std::uint32_t* bound = lm->row(static_cast<std::size_t>(vi));
+    if (bound[prune_column] == LandmarkBounds::kUnreachable) return kPrune;
+    for (int i = 0; i < terms; ++i) {
+      const auto u = static_cast<std::size_t>(i);
+      best = std::max(best, sign[u] * (base[u] - std::int64_t{bound[column[u]]}));
+    }
+    return best;
   };
-  // A push's f exceeds the last popped one by at most a step plus the heuristic's drop.
-  open_.reset(max_step + (astar ? kDiagonalUnits : 0));
+  // A push's f exceeds the last popped one by at most a step plus the heuristic's rise, which
+  // is at most a diagonal step at factor 1 for the octile distance, and at most a step for a
+  // landmark bound (the triangle inequality once more).
+  open_.reset(max_step + (lm ? max_step : (astar ? kDiagonalUnits : 0)));
 
   std::uint8_t* mark = mark_.data();
   std::uint32_t* gs = g_.data();
   const std::uint8_t* cells = map.cells.data();
   const auto s = static_cast<std::int32_t>(map.index(start.x(), start.y()));
-  const auto t = static_cast<std::int32_t>(map.index(goal.x(), goal.y()));
   mark[s] = open_mark;
   gs[s] = 0;
-  open_.push(heuristic(start.x(), start.y()), s);
+  const std::int64_t h0 = heuristic(s, start.x(), start.y());
+  if (h0 == kPrune) {
+    open_.clear();
+    return out.status = PlanStatus::kNoPath, out;
+  }
+  open_.push(h0, s);
   std::int32_t offset[8];
   for (int k = 0; k < 8; ++k) offset[k] = kDy[k] * w + kDx[k];
 
@@ -173,9 +219,11 @@ GridPath GridPlanner::plan(const Costmap& map, const Eigen::Vector2i& start,
       }
       for (int i = 0; i < count; ++i) {
         const std::int32_t vi = candidate[i];
+        const std::int64_t hv = heuristic(vi, col + kDx[move[i]], row + kDy[move[i]]);
+        if (hv == kPrune) continue;
         mark[vi] = open_mark;
         gs[vi] = static_cast<std::uint32_t>(candidate_g[i]);
-        open_.push(candidate_g[i] + heuristic(col + kDx[move[i]], row + kDy[move[i]]), vi);
+        open_.push(candidate_g[i] + hv, vi);
       }
     };
     if (col > 0 && row > 0 && col + 1 < w && row + 1 < h)

@@ -149,6 +149,7 @@ bool Navigator::plan(const Pose2& pose, const Costmap& costmap, std::string* why
   }
   const GridPath found = planner_.plan(costmap, start, costmap.cellOf(goal_->translation()));
   ++stats_.plans;
+  if (found.landmarks_used) ++stats_.landmark_plans;
   const double ms =
       std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
   stats_.plan_ms_total += ms;

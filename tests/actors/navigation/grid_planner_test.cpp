@@ -3,6 +3,8 @@
 
 #include <catch2/catch.hpp>
 
+#include "planning_test_maps.hpp"
+
 #include <cmath>
 #include <random>
 
@@ -17,20 +19,12 @@ Costmap clutter(std::uint64_t seed) {
   std::mt19937_64 rng(seed);
   std::bernoulli_distribution obstacle(0.06);
   for (auto& c : map.cells) c = obstacle(rng) ? cost::kLethal : cost::kFree;
-  InflationOptions o;
-  o.inscribed_radius = 0.0;
-  o.inflation_radius = 0.25;
-  o.cost_scaling = 4;
-  inflate(map, o);
+  planning_test::inflateGently(map);
   return map;
 }
 
 Eigen::Vector2i freeCell(const Costmap& map, std::mt19937_64& rng) {
-  std::uniform_int_distribution<int> col(0, map.width - 1), row(0, map.height - 1);
-  while (true) {
-    const Eigen::Vector2i c(col(rng), row(rng));
-    if (map.at(c) <= cost::kMaxTraversable) return c;
-  }
+  return planning_test::randomTraversableCell(map, rng);
 }
 
 }  // namespace

@@ -145,6 +145,12 @@ TEST_CASE("navigator drives a kinematic robot to its goal on a map topic", "[nav
   CHECK(h.published<msg::NavStatus>("nav_status").back()->getGoalId() == 7);
   CHECK(h.publishedCount("path") >= 1);
   CHECK(summaryValue<std::int64_t>(h.actor(), "reached") == 1);
+  // The map got landmark bounds (on by default) and the plans used them: the obstacle layer
+  // only ever adds cost.
+  CHECK(summaryValue<std::int64_t>(h.actor(), "plans") >= 1);
+  CHECK(summaryValue<std::int64_t>(h.actor(), "landmark_plans") ==
+        summaryValue<std::int64_t>(h.actor(), "plans"));
+  CHECK(summaryValue<double>(h.actor(), "landmarks_ms") > 0);
   // Every command was finite and within the dynamic window's limits.
   for (const auto& c : h.published<msg::Twist>("cmd_vel")) {
     REQUIRE(std::isfinite(c->getTwist().getVx()));
@@ -264,6 +270,9 @@ TEST_CASE("navigator rejects bad options and unreadable map files", "[navigator]
   o = roomOptions();
   o.inflation.inflation_radius = std::numeric_limits<double>::quiet_NaN();
   CHECK_THROWS_WITH(NavigationActor(o), Catch::Contains("inflation"));
+  o = roomOptions();
+  o.landmarks = 17;
+  CHECK_THROWS_WITH(NavigationActor(o), Catch::Contains("landmarks"));
 }
 
 TEST_CASE("goals files parse, and malformed ones name the line", "[goal_sequencer]") {

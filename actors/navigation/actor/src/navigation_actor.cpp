@@ -54,6 +54,8 @@ NavigationActorOptions checked(NavigationActorOptions o) {
   checkPositive("costmap_hz", o.costmap_hz);
   checkPositive("local_size", o.local_size);
   checkPositive("bounds_resolution", o.bounds_resolution);
+  if (o.landmarks < 0 || o.landmarks > 16)
+    fail("landmarks", "must be in [0, 16], got " + std::to_string(o.landmarks));
   checkPositive("pose_timeout_s", o.pose_timeout_s);
   checkPositive("status_period_s", o.status_period_s);
   if (!(std::isfinite(o.laser_height) && o.laser_height >= 0))
@@ -185,8 +187,29 @@ void NavigationActor::useMap(const grid::OccupancyMap& map) {
                     costs.origin.theta == static_.origin.theta;
   static_ = std::move(costs);
   if (!same) obstacles_.emplace(static_, options_.obstacles);
+  buildLandmarks();
   obstacles_dirty_ = true;
   ++maps_;
+}
+
+void NavigationActor::buildLandmarks() {
+  navigator_.setLandmarks(nullptr);
+  if (options_.landmarks == 0) return;
+  // The reference must cost no more than any planning costmap to come: the obstacle layer adds
+  // lethal cells and turns unknown cells it sees into free ones, so unknown counts free here.
+  Costmap reference = static_;
+  std::replace(reference.cells.begin(), reference.cells.end(), cost::kUnknown, cost::kFree);
+  inflate(reference, options_.inflation);
+  const double t0 = threadCpuMs();
+  try {
+    navigator_.setLandmarks(std::make_shared<const LandmarkBounds>(
+        reference, options_.navigator.planner, options_.landmarks));
+  } catch (const std::exception& e) {  // a map without a passable cell: plan without them
+    std::cerr << "[" << (ctx_ ? ctx_->name() : std::string(kName))
+              << "] no landmark bounds: " << e.what() << "\n";
+    return;
+  }
+  landmarks_ms_ = threadCpuMs() - t0;
 }
 
 void NavigationActor::onMap(const Message<msg::OccupancyGrid>& m) {
@@ -482,10 +505,12 @@ void NavigationActor::summarize(Summary& out) const {
   out["reached"] = static_cast<std::int64_t>(reached_);
   out["failed"] = static_cast<std::int64_t>(failed_);
   out["refused"] = static_cast<std::int64_t>(refused_);
-  out["plans"] = s.plans;
+  out["plans"] = static_cast<std::int64_t>(s.plans);
   out["plan_failures"] = s.plan_failures;
   out["plan_ms_mean"] = s.plans > 0 ? s.plan_ms_total / s.plans : 0.0;
   out["plan_ms_max"] = s.plan_ms_max;
+  out["landmark_plans"] = static_cast<std::int64_t>(s.landmark_plans);
+  out["landmarks_ms"] = landmarks_ms_;  // building the last map's landmark bounds (CPU)
   out["recoveries"] = s.recoveries;
   out["dwa_failures"] = s.dwa_failures;
   out["stale_stops"] = static_cast<std::int64_t>(stale_stops_);

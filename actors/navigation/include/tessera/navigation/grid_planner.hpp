@@ -23,6 +23,7 @@
 #include <array>
 #include <cstddef>
 #include <cstdint>
+#include <memory>
 #include <string_view>
 #include <utility>
 #include <vector>
@@ -60,6 +61,7 @@ struct GridPath {
   double cost = 0;                     ///< the search's cost of the path [m, cost-weighted]
   double length = 0;                   ///< [m] geometric length
   std::size_t expanded = 0;            ///< cells taken from the open list
+  bool landmarks_used = false;         ///< A* had landmark bounds for this map
   bool ok() const { return status == PlanStatus::kOk; }
 };
 
@@ -68,19 +70,33 @@ struct GridPath {
 inline constexpr std::int64_t kStraightUnits = 169;
 inline constexpr std::int64_t kDiagonalUnits = 239;
 
+/// Integer step costs into a cell, per cell cost, under a planner's options (0: never entered).
+struct StepCosts {
+  std::array<std::int64_t, 256> straight{}, diagonal{};
+  std::int64_t max_step = 0;  ///< the largest diagonal step
+  bool operator==(const StepCosts&) const = default;
+};
+StepCosts stepCosts(const GridPlannerOptions& options);
+
+class LandmarkBounds;
+
 class GridPlanner {
  public:
   explicit GridPlanner(const GridPlannerOptions& options = {});
 
   GridPath plan(const Costmap& map, const Eigen::Vector2i& start, const Eigen::Vector2i& goal);
 
+  /// A* also takes the landmark bounds (landmark_bounds.hpp) as its heuristic, on every map they
+  /// hold for (checked per plan; elsewhere the octile distance alone). nullptr: none.
+  void setLandmarks(std::shared_ptr<const LandmarkBounds> landmarks);
+  const std::shared_ptr<const LandmarkBounds>& landmarks() const { return landmarks_; }
+
   const GridPlannerOptions& options() const { return options_; }
 
  private:
-  bool passable(std::uint8_t c) const;
-  double stepFactor(std::uint8_t c) const;
-
   GridPlannerOptions options_;
+  StepCosts steps_;
+  std::shared_ptr<const LandmarkBounds> landmarks_;
   /// Search state per cell, row-major, reused between plans. mark_: 2 · generation while open,
   /// 2 · generation + 1 once closed (one byte per cell, so the marks of the searched region stay
   /// in cache); g_: the cost from the start [units], valid where marked in this plan. A plan

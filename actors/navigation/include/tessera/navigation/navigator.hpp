@@ -20,6 +20,7 @@
 #include <Eigen/Core>
 
 #include <array>
+#include <memory>
 #include <optional>
 #include <string>
 #include <string_view>
@@ -114,6 +115,7 @@ struct NavCommand {
 
 struct NavigatorStats {
   int plans = 0, plan_failures = 0, recoveries = 0, dwa_failures = 0;
+  int landmark_plans = 0;  ///< plans whose A* had landmark bounds
   double plan_ms_total = 0, plan_ms_max = 0;
 };
 
@@ -127,6 +129,11 @@ class Navigator {
   /// Tolerances <= 0 or NaN take the defaults; an infinite yaw tolerance ignores the heading.
   std::string setGoal(const Pose2& goal, const Costmap& costmap, double tolerance_xy = 0,
                       double tolerance_yaw = 0);
+  /// Landmark bounds for A* (GridPlanner::setLandmarks); nullptr: none.
+  void setLandmarks(std::shared_ptr<const LandmarkBounds> landmarks) {
+    planner_.setLandmarks(std::move(landmarks));
+  }
+
   /// Drops the goal: idle, zero velocity.
   void cancel();
 

@@ -12,7 +12,10 @@
 // the robot's height band, so a table top the laser passes under blocks the cells beneath it)
 // see now. The planning costmap (static + obstacles, inflated) is rebuilt at costmap_hz; the
 // dynamic window's obstacle distances come from a rolling window of local_size around the robot,
-// rebuilt every control period.
+// rebuilt every control period. With `landmarks` > 0 each static map also gets landmark bounds
+// for A* (landmark_bounds.hpp), built from the static layer (unknown counted free, inflated), so
+// they hold while obstacles only add cost; a growing SLAM map should leave them off (0), since
+// each new map rebuilds them (a few whole-map searches).
 //
 // Poses: the robot's map pose is the newest `pose` (message type pose_message: a localiser's
 // PoseStamped, or the simulator's ground truth) moved on by the odometry since its stamp, so
@@ -44,6 +47,7 @@
 #include <tessera/geometry/pose_history.hpp>
 #include <tessera/messages/types.hpp>
 #include <tessera/navigation/costmap.hpp>
+#include <tessera/navigation/landmark_bounds.hpp>
 #include <tessera/navigation/navigator.hpp>
 #include <tessera/navigation/obstacle_layer.hpp>
 #include <tessera/runtime/actor.hpp>
@@ -64,6 +68,8 @@ struct NavigationActorOptions {
   std::string map_file;
   std::vector<double> bounds;
   double bounds_resolution = 0.05;
+  int landmarks = kDefaultLandmarks;  ///< A* landmark bounds per static map (8 · landmarks bytes
+                                      ///< per cell); 0: off
   StaticLayerOptions static_layer;
   InflationOptions inflation;
   ObstacleLayerOptions obstacles;
@@ -93,6 +99,9 @@ struct NavigationActorOptions {
       "outside it unknown); empty: the map's own extent");
     v("bounds_resolution", bounds_resolution,
       "[m/cell] of the fixed costmap with bounds; it exists (all unknown) before any map");
+    v("landmarks", landmarks,
+      "landmark bounds for A* built on each static map (0-16; 8 bytes per cell each); 0: off, "
+      "for a map that keeps growing");
     v("static_layer", static_layer, "how map occupancy becomes cost");
     v("inflation", inflation, "inflation around obstacles (the robot's size)");
     v("obstacles", obstacles, "the obstacle layer: ranges and the robot's height band");
@@ -139,6 +148,7 @@ class NavigationActor final : public Actor {
   void onGoal(const Message<msg::NavGoal>& m);
   void onMap(const Message<msg::OccupancyGrid>& m);
   void useMap(const grid::OccupancyMap& map);
+  void buildLandmarks();  ///< for the current static layer, when options_.landmarks > 0
   void tick();
   void rebuildCostmap();
   void publishCommand(const Velocity& v);
@@ -190,6 +200,7 @@ class NavigationActor final : public Actor {
   std::uint64_t ticks_ = 0, costmap_builds_ = 0, scans_ = 0, depth_frames_ = 0, maps_ = 0;
   std::uint64_t nonfinite_commands_ = 0, paths_published_ = 0;
   double control_cpu_ms_ = 0, control_cpu_max_ms_ = 0, costmap_cpu_ms_ = 0, sensor_cpu_ms_ = 0;
+  double landmarks_ms_ = 0;
   Nanos first_tick_ = -1, last_tick_ = 0;
   std::map<std::string, std::uint64_t> bad_;
 
