@@ -1,9 +1,12 @@
 // tessera record / tessera replay: a profile run with a recorder actor added, and a recording
-// published again into a profile (or checked with --info). Format: docs/recording_format.md.
+// published again into a profile (or checked with --info, or exported to MCAP with --export).
+// Format: docs/recording_format.md.
 #include "cli_inputs.hpp"
 #include "commands.hpp"
 
 #include <tessera/runtime/recording.hpp>
+#include <tessera/viewer/foxglove_json.hpp>
+#include <tessera/viewer/mcap_writer.hpp>
 
 #include <yaml-cpp/yaml.h>
 
@@ -11,6 +14,7 @@
 #include <filesystem>
 #include <iomanip>
 #include <iostream>
+#include <map>
 #include <set>
 #include <sstream>
 
@@ -214,6 +218,75 @@ void addRecordCommand(CLI::App& app, int& result) {
   });
 }
 
+// `replay --export OUT.mcap`: every intact message of the selected topics into an MCAP file,
+// in Foxglove's well-known schemas where one fits (docs/viewer.md#mcap).
+int exportMcap(const std::string& file, const std::vector<std::string>& topics,
+               const std::string& out, bool compress) {
+  RecordingReaderOptions options;
+  options.topics = topics;
+  RecordingReader reader(file, options);
+  viewer::McapWriterOptions mo;
+  mo.compression = compress ? viewer::McapWriterOptions::Compression::kZstd
+                            : viewer::McapWriterOptions::Compression::kNone;
+  viewer::McapWriter writer(out, mo);
+  // A channel per recorded topic (schemas shared between topics of one type); a type this
+  // build does not define cannot be converted: its topic is named and its messages counted.
+  std::map<std::uint64_t, std::uint16_t> schema_of_type;
+  std::vector<std::uint16_t> channel(reader.topics().size(), 0);
+  for (std::size_t i = 0; i < reader.topics().size(); ++i) {
+    const RecordingTopic& t = reader.topics()[i];
+    if (!topics.empty() && !std::count(topics.begin(), topics.end(), t.name)) continue;
+    if (!viewer::knownMessageType(t.type_id)) {
+      std::cerr << "export: topic '" << t.name << "' has type " << t.type_name
+                << ", unknown to this build: its messages are not exported\n";
+      continue;
+    }
+    const viewer::FoxgloveSchema schema = viewer::foxgloveSchemaFor(t.type_id);
+    std::uint16_t schema_id = 0;
+    if (!schema.name.empty()) {
+      auto [it, fresh] = schema_of_type.emplace(t.type_id, 0);
+      if (fresh) it->second = writer.addSchema(schema.name, schema.encoding, schema.data);
+      schema_id = it->second;
+    }
+    channel[i] = writer.addChannel(schema_id, t.name, "json", {{"tessera_type", t.type_name}});
+  }
+  RecordedMessage m;
+  std::uint64_t skipped = 0, malformed = 0;
+  while (reader.next(m)) {
+    const std::uint16_t c = channel[m.topic];
+    if (c == 0) {
+      ++skipped;
+      continue;
+    }
+    std::string json;
+    try {
+      json = viewer::foxgloveJson(reader.topics()[m.topic].type_id, *m.message);
+    } catch (const MessageError& e) {
+      if (++malformed <= 5) std::cerr << "export: " << e.what() << "; skipped\n";
+      continue;
+    }
+    const auto t = static_cast<std::uint64_t>(std::max<Nanos>(m.stamp, 0));
+    writer.write(c, t, json);
+  }
+  writer.close();
+  std::cerr << "exported " << writer.stats().messages << " messages on "
+            << std::count_if(channel.begin(), channel.end(), [](auto c) { return c != 0; })
+            << " topics in " << writer.stats().chunks << " chunks to " << out << " (" << std::fixed
+            << std::setprecision(2) << static_cast<double>(writer.stats().file_bytes) / 1e6
+            << " MB)";
+  if (skipped > 0) std::cerr << "; " << skipped << " messages of unknown types not exported";
+  if (malformed > 0) std::cerr << "; " << malformed << " unreadable messages skipped";
+  std::cerr << "\n";
+  const auto& losses = reader.losses();
+  if (!losses.empty()) {
+    std::cerr << "DAMAGED recording: " << losses.size()
+              << " damaged region(s); every intact message was exported:\n";
+    for (const auto& l : losses) std::cerr << "  " << l.describe() << "\n";
+    return kDamagedExit;
+  }
+  return 0;
+}
+
 void addReplayCommand(CLI::App& app, int& result) {
   auto* cmd = app.add_subcommand(
       "replay",
@@ -223,8 +296,9 @@ void addReplayCommand(CLI::App& app, int& result) {
     std::string file, profile;
     std::vector<std::string> topics;
     double rate = 0;
-    bool max_speed = false, info = false;
+    bool max_speed = false, info = false, uncompressed = false;
     double start = 0;
+    std::string export_file;
     RunSettings run;
   };
   auto args = std::make_shared<Args>();
@@ -241,11 +315,22 @@ void addReplayCommand(CLI::App& app, int& result) {
   cmd->add_option("--start", args->start, "skip the first S seconds of the recording");
   cmd->add_option("--out", args->run.out, "output folder of the run");
   cmd->add_flag("--info", args->info, "print topics, counts, duration and damage; run nothing");
+  auto* export_opt = cmd->add_option(
+      "--export", args->export_file,
+      "write the recording to an MCAP file (Foxglove schemas: scans, grids, poses, paths; other "
+      "types as JSON) instead of replaying it");
+  cmd->add_flag("--uncompressed", args->uncompressed,
+                "with --export: chunks without zstd compression")
+      ->needs(export_opt);
   addRunOptions(*cmd, args->run);
   cmd->callback([args, &result] {
     const auto topics = splitTopics(args->topics);
     if (args->info) {
       result = printInfo(args->file, topics);
+      return;
+    }
+    if (!args->export_file.empty()) {
+      result = exportMcap(args->file, topics, args->export_file, !args->uncompressed);
       return;
     }
     RecordingReaderOptions ro;

@@ -1,0 +1,39 @@
+// Tessera messages in Foxglove's terms (docs/viewer.md#foxglove-schemas): which well-known
+// Foxglove schema a message type maps to, its JSON Schema, and each message as JSON, so MCAP
+// exports (and the Foxglove bridge) open in Foxglove with its 3D, map and plot panels.
+//
+//   LaserScan        -> foxglove.LaserScan  (pose: the laser's mount on base_link; no-return
+//                                            beams, +inf or NaN, become 0: JSON has no inf)
+//   OccupancyGrid    -> foxglove.Grid       (one int8 field "occupancy": -1 unknown, 0-100 %)
+//   PoseStamped, GroundTruthPose, Odometry -> foxglove.PoseInFrame
+//   Path             -> foxglove.PosesInFrame
+// Every other message type is written as its own JSON (Cap'n Proto's JSON mapping, Data fields
+// as base64) on a channel without a schema, which Foxglove shows in its raw message panel.
+// Times: Header.stampNs as {sec, nsec}. Planar poses get z = 0 and a yaw-only quaternion.
+#pragma once
+
+#include <tessera/messages/message.hpp>
+
+#include <cstdint>
+#include <string>
+
+namespace tessera::viewer {
+
+struct FoxgloveSchema {
+  std::string name;      ///< e.g. "foxglove.Grid"; empty: schemaless JSON
+  std::string encoding;  ///< "jsonschema", or empty without a schema
+  std::string data;      ///< the JSON Schema text
+};
+
+/// The schema messages of `type_id` are written with (schemaless for types without a
+/// well-known one). Throws MessageError for a type id Tessera does not define.
+FoxgloveSchema foxgloveSchemaFor(std::uint64_t type_id);
+
+/// One message of `type_id` as JSON text in the form foxgloveSchemaFor() describes. Throws
+/// MessageError when the message cannot be read as that type.
+std::string foxgloveJson(std::uint64_t type_id, const MessageStorage& message);
+
+/// Whether Tessera defines `type_id` (every type a recording may hold).
+bool knownMessageType(std::uint64_t type_id);
+
+}  // namespace tessera::viewer
