@@ -176,11 +176,14 @@ void addRecordCommand(CLI::App& app, int& result) {
   cmd->add_option("--topics", args->topics, "topics to record: a,b,c (global names)")
       ->required()
       ->allow_extra_args(false);
-  cmd->add_option("--out", args->file, "recording file to write (e.g. run.trec)")->required();
+  cmd->add_option("--out", args->file,
+                  "recording file to write (e.g. run.trec; run.mcap writes MCAP for Foxglove)")
+      ->required();
   cmd->add_option("--dir", args->run.out, "output folder for the profile's other outputs");
   cmd->add_option("--compression", args->compression, "none | zstd")
       ->check(CLI::IsMember({"none", "zstd"}));
-  cmd->add_option("--block-kib", args->block_kib, "uncompressed block size [KiB]");
+  cmd->add_option("--block-kib", args->block_kib,
+                  "uncompressed block size [KiB] (MCAP: chunk size)");
   cmd->add_option("--zstd-level", args->zstd_level, "zstd level 1..19");
   cmd->add_option("--rate", args->rate, "simulated clock pace: 0 as fast as possible, 1 real time");
   addRunOptions(*cmd, args->run);
@@ -189,14 +192,16 @@ void addRecordCommand(CLI::App& app, int& result) {
     Profile profile = loadProfile(path, args->run.sets);
     if (args->rate >= 0) profile.sim_rate = args->rate;
     const auto topics = splitTopics(args->topics);
+    // A .mcap file gets the MCAP recorder (Foxglove's schemas), anything else a recording.
+    const bool mcap = fs::path(args->file).extension() == ".mcap";
     YAML::Node params;
     params["path"] = fs::absolute(args->file).lexically_normal().string();
     for (const auto& t : topics) params["topics"].push_back(t);
     params["compression"] = args->compression;
-    params["block_kib"] = args->block_kib;
-    params["zstd_level"] = args->zstd_level;
-    const std::string name = uniqueActorName(profile, "recorder");
-    profile.actors.push_back(actorSpec(name, "recorder", params));
+    params[mcap ? "chunk_kib" : "block_kib"] = args->block_kib;
+    if (!mcap) params["zstd_level"] = args->zstd_level;
+    const std::string name = uniqueActorName(profile, mcap ? "mcap_recorder" : "recorder");
+    profile.actors.push_back(actorSpec(name, mcap ? "mcap_recorder" : "recorder", params));
     RunReport report;
     result = runProfile(profile, "record", args->run, &report);
     if (const Summary* s = summaryOf(report, name)) {
@@ -204,6 +209,14 @@ void addRecordCommand(CLI::App& app, int& result) {
       if (!error.empty()) {
         std::cerr << "error: recorder: " << error << "\n";
         result = 1;
+      }
+      if (mcap) {
+        std::cerr << std::fixed << std::setprecision(2) << "recorded "
+                  << summaryValue<std::int64_t>(*s, "messages") << " messages in "
+                  << summaryValue<std::int64_t>(*s, "chunks") << " chunks to "
+                  << summaryValue<std::string>(*s, "path") << " (MCAP, "
+                  << summaryValue<double>(*s, "file_mb") << " MB)\n";
+        return;
       }
       std::cerr << std::fixed << std::setprecision(2) << "recorded "
                 << summaryValue<std::int64_t>(*s, "messages") << " messages in "
@@ -241,14 +254,7 @@ int exportMcap(const std::string& file, const std::vector<std::string>& topics,
                 << ", unknown to this build: its messages are not exported\n";
       continue;
     }
-    const viewer::FoxgloveSchema schema = viewer::foxgloveSchemaFor(t.type_id);
-    std::uint16_t schema_id = 0;
-    if (!schema.name.empty()) {
-      auto [it, fresh] = schema_of_type.emplace(t.type_id, 0);
-      if (fresh) it->second = writer.addSchema(schema.name, schema.encoding, schema.data);
-      schema_id = it->second;
-    }
-    channel[i] = writer.addChannel(schema_id, t.name, "json", {{"tessera_type", t.type_name}});
+    channel[i] = viewer::addFoxgloveChannel(writer, schema_of_type, t.name, t.type_id, t.type_name);
   }
   RecordedMessage m;
   std::uint64_t skipped = 0, malformed = 0;

@@ -182,3 +182,45 @@ TEST_CASE("replay --export names what it cannot do", "[export]") {
   CHECK(lone.exit_code != 0);
   CHECK_THAT(lone.err, Catch::Contains("--export"));
 }
+
+TEST_CASE("record --out F.mcap records a run straight into MCAP", "[export][e2e]") {
+  const fs::path dir = fs::temp_directory_path() / "tessera_record_mcap";
+  fs::remove_all(dir);
+  fs::create_directories(dir);
+  const fs::path mcap = dir / "run.mcap";
+  const auto run = runCli("record sim_mapping --topics scan,map,ground_truth --out " +
+                              mcap.string() + " --dir " + (dir / "out").string() +
+                              " --set max_duration_s=20 --quiet --block-kib 64",
+                          dir);
+  INFO(run.err);
+  REQUIRE(run.exit_code == 0);
+  CHECK_THAT(run.err, Catch::Contains("chunks to " + mcap.string() + " (MCAP"));
+  std::string why;
+  const auto j = readWithMcapCore(mcap, dir, &why);
+  if (!j) return skipOrFail(why);
+  const auto& t = (*j)["topics"];
+  CHECK((*j)["ok"] == true);
+  CHECK((*j)["chunk_count"].get<int>() > 1);
+  CHECK(t["scan"]["schema"] == "foxglove.LaserScan");
+  CHECK(t["map"]["schema"] == "foxglove.Grid");
+  CHECK(t["ground_truth"]["schema"] == "foxglove.PoseInFrame");
+  // 20 s of the simulator: 10 Hz scans, 50 Hz ground truth (both from t = 0).
+  CHECK(t["scan"]["indexed"] == 201);
+  CHECK(t["ground_truth"]["indexed"] == 1001);
+  CHECK(t["map"]["first"]["frame_id"] == "map");
+}
+
+TEST_CASE("mcap_recorder names a bad option", "[export]") {
+  const fs::path dir = fs::temp_directory_path() / "tessera_record_mcap_bad";
+  fs::remove_all(dir);
+  fs::create_directories(dir);
+  const auto none = runCli("record sim_mapping --topics scan --out " + (dir / "x.mcap").string() +
+                               " --block-kib 0 --quiet",
+                           dir);
+  CHECK(none.exit_code != 0);
+  CHECK_THAT(none.err, Catch::Contains("chunk_kib"));
+  const auto unwritable =
+      runCli("record sim_mapping --topics scan --out /nonexistent/x.mcap --quiet", dir);
+  CHECK(unwritable.exit_code != 0);
+  CHECK_THAT(unwritable.err, Catch::Contains("/nonexistent/x.mcap"));
+}

@@ -149,6 +149,20 @@ bool knownMessageType(std::uint64_t type_id) {
   return types().count(type_id) > 0;
 }
 
+std::uint16_t addFoxgloveChannel(McapWriter& writer,
+                                 std::map<std::uint64_t, std::uint16_t>& schemas,
+                                 const std::string& topic, std::uint64_t type_id,
+                                 const std::string& type_name) {
+  const FoxgloveSchema schema = foxgloveSchemaFor(type_id);
+  std::uint16_t schema_id = 0;
+  if (!schema.name.empty()) {
+    auto [it, fresh] = schemas.emplace(type_id, 0);
+    if (fresh) it->second = writer.addSchema(schema.name, schema.encoding, schema.data);
+    schema_id = it->second;
+  }
+  return writer.addChannel(schema_id, topic, "json", {{"tessera_type", type_name}});
+}
+
 FoxgloveSchema foxgloveSchemaFor(std::uint64_t type_id) {
   switch (entry(type_id).kind) {
     case Kind::kLaserScan:
