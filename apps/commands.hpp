@@ -33,6 +33,8 @@ void addBenchCommands(CLI::App& app, int& result);
 void addLaunchCommand(CLI::App& app, int& result);
 /// Adds `tessera doctor` (checks /dev/shm, leftovers, CPU governor, huge pages, datasets).
 void addDoctorCommand(CLI::App& app, int& result);
+/// Adds `tessera completion bash` (a completion script from the whole command tree: call last).
+void addCompletionCommand(CLI::App& app, int& result);
 /// Adds `tessera goal` (a navigation goal into a launched deployment; --wait follows it).
 void addGoalCommand(CLI::App& app, int& result);
 

@@ -21,6 +21,7 @@ int main(int argc, char** argv) {
   tessera::app::addVocabCommand(app, result);
   tessera::app::addDoctorCommand(app, result);
   tessera::app::addBenchCommands(app, result);
+  tessera::app::addCompletionCommand(app, result);
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
