@@ -4,10 +4,13 @@
 
 #include <unistd.h>
 
+#include <algorithm>
+#include <cmath>
 #include <csignal>
 #include <cstdio>
 #include <iomanip>
 #include <sstream>
+#include <string>
 
 namespace tessera {
 
@@ -26,6 +29,35 @@ extern "C" void onStopSignal(int) {
 
 namespace detail {
 
+std::string formatProgress(double fraction, bool finite, double data_s, double wall_s,
+                           bool simulated) {
+  std::ostringstream s;
+  s << std::fixed << std::setprecision(1);
+  if (finite) {
+    fraction = std::clamp(std::isfinite(fraction) ? fraction : 0.0, 0.0, 1.0);
+    constexpr int kBar = 20;
+    const int full = static_cast<int>(fraction * kBar + 1e-9);
+    s << "[progress] [" << std::string(static_cast<std::size_t>(full), '#')
+      << std::string(static_cast<std::size_t>(kBar - full), '.') << "] " << std::setw(5)
+      << 100.0 * fraction << "% | ";
+  } else {
+    s << "[running] ";
+  }
+  s << "data " << data_s << " s | wall " << wall_s << " s";
+  if (simulated && wall_s > 0) s << " | " << data_s / wall_s << "x real time";
+  if (finite && fraction >= 0.01 && fraction < 1 && wall_s > 0) {
+    const double left = wall_s * (1 - fraction) / fraction;
+    s << " | ETA ";
+    if (left >= 3600)
+      s << static_cast<int>(left / 3600) << " h " << static_cast<int>(left / 60) % 60 << " min";
+    else if (left >= 60)
+      s << static_cast<int>(left / 60) << " min " << static_cast<int>(left) % 60 << " s";
+    else
+      s << static_cast<int>(std::ceil(left)) << " s";
+  }
+  return s.str();
+}
+
 void printProgress(const Runtime::Impl& rt, bool final_line) {
   double fraction = 0;
   int finite = 0;
@@ -34,19 +66,12 @@ void printProgress(const Runtime::Impl& rt, bool final_line) {
     fraction += c->progress.load();
     ++finite;
   }
-  const double wall = nanosToSeconds(steadyNow() - rt.start_wall);
-  const double sim = nanosToSeconds(rt.clock.now() - rt.start_sim);
-  std::ostringstream s;
-  s << std::fixed << std::setprecision(1);
-  if (finite > 0)
-    s << "[progress] " << std::setw(5) << 100.0 * fraction / finite << "% | ";
-  else
-    s << "[running] ";
-  s << "data " << sim << " s | wall " << wall << " s";
-  if (rt.clock.kind() == ClockKind::kSimulated && wall > 0)
-    s << " | " << sim / wall << "x real time";
+  const std::string line = formatProgress(finite > 0 ? fraction / finite : 0.0, finite > 0,
+                                          nanosToSeconds(rt.clock.now() - rt.start_sim),
+                                          nanosToSeconds(steadyNow() - rt.start_wall),
+                                          rt.clock.kind() == ClockKind::kSimulated);
   const bool tty = isatty(2);
-  std::fprintf(stderr, tty ? "\r%s\033[K%s" : "%s%s", s.str().c_str(),
+  std::fprintf(stderr, tty ? "\r%s\033[K%s" : "%s%s", line.c_str(),
                (final_line || !tty) ? "\n" : "");
   std::fflush(stderr);
 }

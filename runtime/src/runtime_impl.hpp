@@ -240,6 +240,11 @@ class ActorSlotContext final : public ActorContext {
 // ---- console (console.cpp)
 /// One progress line on stderr (rewritten in place on a terminal; `final_line` ends it).
 void printProgress(const Runtime::Impl& rt, bool final_line);
+/// The progress line's text: with finite sources (fraction: their mean progress, 0-1) a bar,
+/// the percentage and, once 1 % is done, the time left at the rate so far; then data and wall
+/// seconds and, on a simulated clock, the speed against real time.
+std::string formatProgress(double fraction, bool finite, double data_s, double wall_s,
+                           bool simulated);
 /// The signal handlers of installSignalHandlers() no longer reach any runtime.
 void forgetSignalTarget();
 
