@@ -6,6 +6,7 @@
 
 #include <tessera/runtime/recording.hpp>
 #include <tessera/viewer/foxglove_json.hpp>
+#include <tessera/viewer/foxglove_mcap.hpp>
 #include <tessera/viewer/mcap_writer.hpp>
 
 #include <yaml-cpp/yaml.h>
@@ -15,6 +16,7 @@
 #include <iomanip>
 #include <iostream>
 #include <map>
+#include <optional>
 #include <set>
 #include <sstream>
 
@@ -242,10 +244,11 @@ int exportMcap(const std::string& file, const std::vector<std::string>& topics,
   mo.compression = compress ? viewer::McapWriterOptions::Compression::kZstd
                             : viewer::McapWriterOptions::Compression::kNone;
   viewer::McapWriter writer(out, mo);
-  // A channel per recorded topic (schemas shared between topics of one type); a type this
-  // build does not define cannot be converted: its topic is named and its messages counted.
-  std::map<std::uint64_t, std::uint16_t> schema_of_type;
-  std::vector<std::uint16_t> channel(reader.topics().size(), 0);
+  // A channel per recorded topic (FoxgloveMcap: schemas per type, a "tf" channel for the frames
+  // odometry, scans and map_to_odom imply); a type this build does not define cannot be
+  // converted: its topic is named and its messages counted.
+  viewer::FoxgloveMcap foxglove(writer);
+  std::vector<std::optional<std::size_t>> channel(reader.topics().size());
   for (std::size_t i = 0; i < reader.topics().size(); ++i) {
     const RecordingTopic& t = reader.topics()[i];
     if (!topics.empty() && !std::count(topics.begin(), topics.end(), t.name)) continue;
@@ -254,30 +257,28 @@ int exportMcap(const std::string& file, const std::vector<std::string>& topics,
                 << ", unknown to this build: its messages are not exported\n";
       continue;
     }
-    channel[i] = viewer::addFoxgloveChannel(writer, schema_of_type, t.name, t.type_id, t.type_name);
+    channel[i] = foxglove.addTopic(t.name, t.type_id, t.type_name);
   }
   RecordedMessage m;
   std::uint64_t skipped = 0, malformed = 0;
   while (reader.next(m)) {
-    const std::uint16_t c = channel[m.topic];
-    if (c == 0) {
+    if (!channel[m.topic]) {
       ++skipped;
       continue;
     }
-    std::string json;
     try {
-      json = viewer::foxgloveJson(reader.topics()[m.topic].type_id, *m.message);
+      foxglove.write(*channel[m.topic], static_cast<std::uint64_t>(std::max<Nanos>(m.stamp, 0)),
+                     *m.message);
     } catch (const MessageError& e) {
       if (++malformed <= 5) std::cerr << "export: " << e.what() << "; skipped\n";
-      continue;
     }
-    const auto t = static_cast<std::uint64_t>(std::max<Nanos>(m.stamp, 0));
-    writer.write(c, t, json);
   }
   writer.close();
-  std::cerr << "exported " << writer.stats().messages << " messages on "
-            << std::count_if(channel.begin(), channel.end(), [](auto c) { return c != 0; })
-            << " topics in " << writer.stats().chunks << " chunks to " << out << " (" << std::fixed
+  std::cerr << "exported " << writer.stats().messages - foxglove.transforms() << " messages on "
+            << std::count_if(channel.begin(), channel.end(),
+                             [](const auto& c) { return c.has_value(); })
+            << " topics (and " << foxglove.transforms() << " frame transforms on 'tf') in "
+            << writer.stats().chunks << " chunks to " << out << " (" << std::fixed
             << std::setprecision(2) << static_cast<double>(writer.stats().file_bytes) / 1e6
             << " MB)";
   if (skipped > 0) std::cerr << "; " << skipped << " messages of unknown types not exported";

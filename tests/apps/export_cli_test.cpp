@@ -112,7 +112,8 @@ TEST_CASE("replay --export writes an MCAP file Foxglove's reader opens", "[expor
   INFO(run.err);
   REQUIRE(run.exit_code == 0);
   CHECK_THAT(run.err, Catch::Contains("exported " + std::to_string(2 * kScans + 8) +
-                                      " messages on 4 topics"));
+                                      " messages on 4 topics (and " + std::to_string(2 * kScans) +
+                                      " frame transforms on 'tf')"));
   CHECK_THAT(run.err, Catch::Contains("'mystery'") && Catch::Contains("FromTheFuture") &&
                           Catch::Contains("4 messages of unknown types not exported"));
 
@@ -122,10 +123,16 @@ TEST_CASE("replay --export writes an MCAP file Foxglove's reader opens", "[expor
   INFO(j->dump(2).substr(0, 2000));
   CHECK((*j)["ok"] == true);
   CHECK((*j)["ordered"] == true);
-  CHECK((*j)["message_count"] == 2 * kScans + 8);
+  // The recorded messages, plus a frame transform per scan (base_link -> laser) and per
+  // odometry message (odom -> base_link) on "tf".
+  CHECK((*j)["message_count"] == 2 * kScans + 8 + 2 * kScans);
   CHECK((*j)["library"] == "tessera");
   const auto& t = (*j)["topics"];
-  CHECK(t.size() == 4);
+  CHECK(t.size() == 5);
+  CHECK(t["tf"]["schema"] == "foxglove.FrameTransform");
+  CHECK(t["tf"]["indexed"] == 2 * kScans);
+  CHECK(t["tf"]["first"]["parent_frame_id"] == "base_link");
+  CHECK(t["tf"]["first"]["child_frame_id"] == "laser");
   CHECK(t["scan"]["schema"] == "foxglove.LaserScan");
   CHECK(t["scan"]["schema_encoding"] == "jsonschema");
   CHECK(t["scan"]["message_encoding"] == "json");
@@ -204,6 +211,7 @@ TEST_CASE("record --out F.mcap records a run straight into MCAP", "[export][e2e]
   CHECK(t["scan"]["schema"] == "foxglove.LaserScan");
   CHECK(t["map"]["schema"] == "foxglove.Grid");
   CHECK(t["ground_truth"]["schema"] == "foxglove.PoseInFrame");
+  CHECK(t["tf"]["indexed"] == 201);  // the laser's mount, with every scan
   // 20 s of the simulator: 10 Hz scans, 50 Hz ground truth (both from t = 0).
   CHECK(t["scan"]["indexed"] == 201);
   CHECK(t["ground_truth"]["indexed"] == 1001);

@@ -1,6 +1,7 @@
 // Tests for the Foxglove forms of Tessera messages: scans, grids, poses and paths in the
-// well-known schemas, other types as their JSON, and bad input.
+// well-known schemas, other types as their JSON, the frame transforms they imply, bad input.
 #include <tessera/viewer/foxglove_json.hpp>
+#include <tessera/viewer/foxglove_mcap.hpp>
 
 #include <tessera/msg/navigation.capnp.h>
 #include <tessera/messages/types.hpp>
@@ -10,6 +11,7 @@
 #include <nlohmann/json.hpp>
 
 #include <cmath>
+#include <filesystem>
 #include <limits>
 
 using namespace tessera;
@@ -49,9 +51,9 @@ TEST_CASE("a laser scan becomes foxglove.LaserScan with no-return beams at 0", "
   CHECK(j["start_angle"].get<double>() == Approx(-1.0));
   CHECK(j["end_angle"].get<double>() == Approx(1.0));
   CHECK(j["ranges"] == json::array({1.0, 0.0, 2.5, 0.0, 4.0}));
-  CHECK(j["pose"]["position"]["x"].get<double>() == Approx(0.2));
-  CHECK(j["pose"]["orientation"]["z"].get<double>() == Approx(std::sqrt(0.5)));
-  CHECK(j["pose"]["orientation"]["w"].get<double>() == Approx(std::sqrt(0.5)));
+  // In its own frame: the mount is a transform (foxglove_mcap.hpp), not the scan's pose.
+  CHECK(j["pose"]["position"]["x"].get<double>() == 0);
+  CHECK(j["pose"]["orientation"]["w"].get<double>() == 1);
 }
 
 TEST_CASE("an occupancy grid becomes foxglove.Grid with its cells in base64", "[viewer]") {
@@ -136,4 +138,38 @@ TEST_CASE("an unknown message type is named as such", "[viewer]") {
   CHECK_FALSE(knownMessageType(0x1234));
   CHECK_THROWS_WITH(foxgloveSchemaFor(0x1234), Catch::Contains("0x0000000000001234"));
   CHECK(knownMessageType(messageTypeOf<msg::LaserScan>().id));
+}
+
+TEST_CASE("odometry, scan mounts and map_to_odom give frame transforms; bad ones are skipped",
+          "[viewer]") {
+  const auto path = std::filesystem::temp_directory_path() / "tessera_foxglove_mcap_test.mcap";
+  McapWriter writer(path.string());
+  FoxgloveMcap foxglove(writer);
+  const auto odom = foxglove.addTopic("odom", messageTypeOf<msg::Odometry>().id, "Odometry");
+  const auto correction =
+      foxglove.addTopic("map_to_odom", messageTypeOf<msg::PoseStamped>().id, "PoseStamped");
+  const auto pose =
+      foxglove.addTopic("localized_pose", messageTypeOf<msg::PoseStamped>().id, "PoseStamped");
+  CHECK_THROWS_AS(foxglove.addTopic("mystery", 0x1234, "FromTheFuture"), MessageError);
+  const auto odometry = [](double x) {
+    return build<msg::Odometry>([x](auto b) {
+      setHeader(b.initHeader(), 1, "odom", 0);
+      b.setChildFrameId("base_link");
+      b.initPose().setX(x);
+    });
+  };
+  const auto stamped = build<msg::PoseStamped>([](auto b) {
+    setHeader(b.initHeader(), 1, "map", 0);
+    b.initPose().setY(2.0);
+  });
+  foxglove.write(odom, 1, *odometry(1.0));
+  CHECK(foxglove.transforms() == 1);
+  foxglove.write(odom, 2, *odometry(std::numeric_limits<double>::quiet_NaN()));
+  CHECK(foxglove.transforms() == 1);  // the message is written, its transform is not
+  foxglove.write(correction, 3, *stamped);
+  CHECK(foxglove.transforms() == 2);
+  foxglove.write(pose, 4, *stamped);
+  CHECK(foxglove.transforms() == 2);
+  writer.close();
+  CHECK(writer.stats().messages == 4 + 2);
 }

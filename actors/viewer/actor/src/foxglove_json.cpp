@@ -213,7 +213,8 @@ std::string foxgloveJson(std::uint64_t type_id, const MessageStorage& message) {
         const double n = r.size() > 0 ? static_cast<double>(r.size() - 1) : 0.0;
         return json{{"timestamp", stamp(m.getHeader().getStampNs())},
                     {"frame_id", m.getHeader().getFrameId().cStr()},
-                    {"pose", planarPose(m.getMountX(), m.getMountY(), m.getMountTheta())},
+                    // The scan's own frame: its mount on base_link is a transform (tf).
+                    {"pose", planarPose(0, 0, 0)},
                     {"start_angle", m.getAngleMin()},
                     {"end_angle", m.getAngleMin() + m.getAngleIncrement() * n},
                     {"ranges", std::move(ranges)},

@@ -3,6 +3,7 @@
 #include <tessera/runtime/options.hpp>
 #include <tessera/runtime/registry.hpp>
 #include <tessera/viewer/foxglove_json.hpp>
+#include <tessera/viewer/foxglove_mcap.hpp>
 
 #include <algorithm>
 #include <filesystem>
@@ -58,12 +59,13 @@ void McapRecorderActor::start() {
   o.chunk_bytes = static_cast<std::size_t>(options_.chunk_kib) * 1024;
   try {
     writer_ = std::make_unique<McapWriter>(path_, o);
-    std::map<std::uint64_t, std::uint16_t> schemas;
+    foxglove_ = std::make_unique<FoxgloveMcap>(*writer_);
     for (std::size_t i = 0; i < options_.topics.size(); ++i)
-      channels_.push_back(addFoxgloveChannel(*writer_, schemas, options_.topics[i], types_[i],
-                                             ctx_->topicType(options_.topics[i]).name));
+      channels_.push_back(foxglove_->addTopic(options_.topics[i], types_[i],
+                                              ctx_->topicType(options_.topics[i]).name));
   } catch (const McapError& e) {
     error_ = e.what();
+    foxglove_.reset();
     writer_.reset();
     ctx_->requestStop(std::string("mcap_recorder: ") + e.what());
   }
@@ -71,19 +73,15 @@ void McapRecorderActor::start() {
 
 void McapRecorderActor::record(std::size_t topic, const MessageStorage& message) {
   if (!writer_) return;
-  std::string json;
   try {
-    json = foxgloveJson(types_[topic], message);
+    foxglove_->write(channels_[topic], static_cast<std::uint64_t>(std::max<Nanos>(ctx_->now(), 0)),
+                     message);
   } catch (const MessageError& e) {
     if (++unreadable_ <= 5) std::cerr << "[" << ctx_->name() << "] " << e.what() << "; skipped\n";
-    return;
-  }
-  try {
-    writer_->write(channels_[topic], static_cast<std::uint64_t>(std::max<Nanos>(ctx_->now(), 0)),
-                   json);
   } catch (const McapError& e) {
     error_ = e.what();
     final_stats_ = writer_->stats();
+    foxglove_.reset();
     writer_.reset();
     ctx_->requestStop(std::string("mcap_recorder: ") + e.what());
   }
@@ -97,6 +95,7 @@ void McapRecorderActor::stop() {
     error_ = e.what();
   }
   final_stats_ = writer_->stats();
+  foxglove_.reset();
   writer_.reset();
 }
 

@@ -2,8 +2,9 @@
 // Foxglove schema a message type maps to, its JSON Schema, and each message as JSON, so MCAP
 // exports (and the Foxglove bridge) open in Foxglove with its 3D, map and plot panels.
 //
-//   LaserScan        -> foxglove.LaserScan  (pose: the laser's mount on base_link; no-return
-//                                            beams, +inf or NaN, become 0: JSON has no inf)
+//   LaserScan        -> foxglove.LaserScan  (in its own frame, identity pose: the mount is a
+//                                            transform, foxglove_mcap.hpp; no-return beams,
+//                                            +inf or NaN, become 0: JSON has no inf)
 //   OccupancyGrid    -> foxglove.Grid       (one int8 field "occupancy": -1 unknown, 0-100 %)
 //   PoseStamped, GroundTruthPose, Odometry -> foxglove.PoseInFrame
 //   Path             -> foxglove.PosesInFrame

@@ -11,6 +11,7 @@
 #pragma once
 
 #include <tessera/runtime/actor.hpp>
+#include <tessera/viewer/foxglove_mcap.hpp>
 #include <tessera/viewer/mcap_writer.hpp>
 
 #include <cstdint>
@@ -53,7 +54,8 @@ class McapRecorderActor final : public Actor {
   ActorContext* ctx_ = nullptr;
   std::string path_;
   std::unique_ptr<McapWriter> writer_;
-  std::vector<std::uint16_t> channels_;
+  std::unique_ptr<FoxgloveMcap> foxglove_;  ///< borrows *writer_
+  std::vector<std::size_t> channels_;
   std::vector<std::uint64_t> types_;
   McapWriter::Stats final_stats_;
   std::uint64_t unreadable_ = 0;
