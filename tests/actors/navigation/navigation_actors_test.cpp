@@ -151,11 +151,29 @@ TEST_CASE("navigator drives a kinematic robot to its goal on a map topic", "[nav
   CHECK(summaryValue<std::int64_t>(h.actor(), "landmark_plans") ==
         summaryValue<std::int64_t>(h.actor(), "plans"));
   CHECK(summaryValue<double>(h.actor(), "landmarks_ms") > 0);
+  CHECK(summaryValue<std::int64_t>(h.actor(), "landmark_builds") == 1);
   // Every command was finite and within the dynamic window's limits.
   for (const auto& c : h.published<msg::Twist>("cmd_vel")) {
     REQUIRE(std::isfinite(c->getTwist().getVx()));
     CHECK(std::abs(c->getTwist().getVx()) <= 0.5 + 1e-9);
   }
+}
+
+TEST_CASE("navigator keeps its landmark bounds when the same map comes again", "[navigator]") {
+  ActorHarness h(std::make_unique<NavigationActor>(roomOptions()));
+  pushRoom(h);
+  h.runUntilIdle();
+  CHECK(summaryValue<std::int64_t>(h.actor(), "landmark_builds") == 1);
+  pushRoom(h);  // a map server publishing the same map again
+  h.runUntilIdle();
+  CHECK(summaryValue<std::int64_t>(h.actor(), "maps") == 2);
+  CHECK(summaryValue<std::int64_t>(h.actor(), "landmark_builds") == 1);
+  auto off = roomOptions();
+  off.landmarks = 0;
+  ActorHarness none(std::make_unique<NavigationActor>(off));
+  pushRoom(none);
+  none.runUntilIdle();
+  CHECK(summaryValue<std::int64_t>(none.actor(), "landmark_builds") == 0);
 }
 
 TEST_CASE("navigator stops the base when localisation goes stale", "[navigator]") {

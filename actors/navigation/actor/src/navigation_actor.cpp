@@ -193,13 +193,20 @@ void NavigationActor::useMap(const grid::OccupancyMap& map) {
 }
 
 void NavigationActor::buildLandmarks() {
-  navigator_.setLandmarks(nullptr);
   if (options_.landmarks == 0) return;
   // The reference must cost no more than any planning costmap to come: the obstacle layer adds
   // lethal cells and turns unknown cells it sees into free ones, so unknown counts free here.
   Costmap reference = static_;
   std::replace(reference.cells.begin(), reference.cells.end(), cost::kUnknown, cost::kFree);
   inflate(reference, options_.inflation);
+  // A map server that publishes the same map again costs nothing: the bounds are kept.
+  const Costmap& last = landmark_reference_;
+  if (navigator_.landmarks() && reference.width == last.width && reference.height == last.height &&
+      reference.resolution == last.resolution && reference.origin.x == last.origin.x &&
+      reference.origin.y == last.origin.y && reference.origin.theta == last.origin.theta &&
+      reference.cells == last.cells)
+    return;
+  navigator_.setLandmarks(nullptr);
   const double t0 = threadCpuMs();
   try {
     navigator_.setLandmarks(std::make_shared<const LandmarkBounds>(
@@ -210,6 +217,8 @@ void NavigationActor::buildLandmarks() {
     return;
   }
   landmarks_ms_ = threadCpuMs() - t0;
+  ++landmark_builds_;
+  landmark_reference_ = std::move(reference);
 }
 
 void NavigationActor::onMap(const Message<msg::OccupancyGrid>& m) {
@@ -510,7 +519,9 @@ void NavigationActor::summarize(Summary& out) const {
   out["plan_ms_mean"] = s.plans > 0 ? s.plan_ms_total / s.plans : 0.0;
   out["plan_ms_max"] = s.plan_ms_max;
   out["landmark_plans"] = static_cast<std::int64_t>(s.landmark_plans);
-  out["landmarks_ms"] = landmarks_ms_;  // building the last map's landmark bounds (CPU)
+  out["landmarks_ms"] = landmarks_ms_;
+  out["landmark_builds"] =
+      static_cast<std::int64_t>(landmark_builds_);  // building the last map's landmark bounds (CPU)
   out["recoveries"] = s.recoveries;
   out["dwa_failures"] = s.dwa_failures;
   out["stale_stops"] = static_cast<std::int64_t>(stale_stops_);

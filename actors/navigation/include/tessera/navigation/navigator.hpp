@@ -133,6 +133,7 @@ class Navigator {
   void setLandmarks(std::shared_ptr<const LandmarkBounds> landmarks) {
     planner_.setLandmarks(std::move(landmarks));
   }
+  const std::shared_ptr<const LandmarkBounds>& landmarks() const { return planner_.landmarks(); }
 
   /// Drops the goal: idle, zero velocity.
   void cancel();
