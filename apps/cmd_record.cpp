@@ -15,7 +15,6 @@
 #include <filesystem>
 #include <iomanip>
 #include <iostream>
-#include <map>
 #include <optional>
 #include <set>
 #include <sstream>

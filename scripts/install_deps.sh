@@ -16,11 +16,6 @@ PACKAGES=(
   libsuitesparse-dev  # CHOLMOD for the Gauss-Newton pose-graph stage (Ceres pulls it in too)
 )
 
-# Node.js and npm for the tests that read outputs with the ecosystem's JavaScript readers
-# (scripts/js_deps.sh); a machine with its own Node.js (e.g. NodeSource's, which bundles npm)
-# keeps it.
-command -v npm > /dev/null || PACKAGES+=(nodejs npm)
-
 missing=()
 for p in "${PACKAGES[@]}"; do
   dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")

@@ -1,16 +1,24 @@
 #!/usr/bin/env bash
 # Installs the npm packages tests read Tessera's outputs with (tests/js: @mcap/core and fzstd,
-# exactly as package-lock.json pins them). Without npm the checks that need them are skipped,
+# exactly as package-lock.json pins them), and Debian's nodejs + npm first when the machine has
+# no npm (a machine with its own Node.js, e.g. NodeSource's, keeps it). Only the tests need
+# them: the demo never runs this. When npm cannot be had, the checks that need it are skipped,
 # except under CI=true, where that is a failure.
 set -euo pipefail
 cd "$(dirname "$0")/../tests/js"
 if ! command -v npm > /dev/null; then
-  if [ "${CI:-}" = true ]; then
-    echo "[js] npm is missing (scripts/install_deps.sh installs it)" >&2
-    exit 1
+  SUDO=""
+  if [ "$(id -u)" -ne 0 ]; then SUDO="sudo"; fi
+  echo "[js] installing Debian's nodejs and npm"
+  if ! { DEBIAN_FRONTEND=noninteractive $SUDO apt-get install -y -qq --no-install-recommends \
+           nodejs npm > /dev/null; } || ! command -v npm > /dev/null; then
+    if [ "${CI:-}" = true ]; then
+      echo "[js] npm is missing and could not be installed" >&2
+      exit 1
+    fi
+    echo "[js] no npm: the tests that read MCAP files with @mcap/core will be skipped"
+    exit 0
   fi
-  echo "[js] no npm: the tests that read MCAP files with @mcap/core will be skipped"
-  exit 0
 fi
 if [ -f node_modules/.package-lock.json ] && [ node_modules/.package-lock.json -nt package-lock.json ]; then
   echo "[js] packages present"

@@ -232,3 +232,20 @@ TEST_CASE("mcap_recorder names a bad option", "[export]") {
   CHECK(unwritable.exit_code != 0);
   CHECK_THAT(unwritable.err, Catch::Contains("/nonexistent/x.mcap"));
 }
+
+TEST_CASE("replay --export refuses an empty or malformed recording, naming it", "[export]") {
+  const fs::path dir = fs::temp_directory_path() / "tessera_export_cli_malformed";
+  fs::remove_all(dir);
+  fs::create_directories(dir);
+  const fs::path empty = dir / "empty.trec", garbage = dir / "garbage.trec";
+  std::ofstream(empty).close();
+  std::ofstream(garbage) << "this is not a recording, just some text\n";
+  for (const fs::path& bad : {empty, garbage}) {
+    const fs::path out = dir / (bad.stem().string() + ".mcap");
+    const auto run = runCli("replay " + bad.string() + " --export " + out.string(), dir);
+    INFO(run.err);
+    CHECK(run.exit_code != 0);
+    CHECK_THAT(run.err, Catch::Contains(bad.string()));
+    CHECK_FALSE(fs::exists(out));  // nothing half-written
+  }
+}

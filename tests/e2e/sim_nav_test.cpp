@@ -31,6 +31,12 @@ TEST_CASE("sim_nav: random goals in the office are reached without a collision",
   CHECK(test::summaryInt(report, "sim", "watchdog_stops") == 0);
   CHECK(test::summaryInt(report, "nav", "nonfinite_commands") == 0);
   CHECK(test::summaryInt(report, "nav", "depth_frames") > 0);
+  // A* planned with landmark bounds all along: the laser's and the depth camera's obstacles
+  // only ever add cost to the map they were built on.
+  CHECK(test::summaryInt(report, "nav", "landmark_builds") == 1);
+  CHECK(test::summaryInt(report, "nav", "plans") > 0);
+  CHECK(test::summaryInt(report, "nav", "landmark_plans") ==
+        test::summaryInt(report, "nav", "plans"));
   const double ratio = std::get<double>(test::summaryOf(report, "goals").at("path_length_ratio"));
   CHECK(ratio < 1.3);
 

@@ -3,23 +3,14 @@
 #include <tessera/navigation/bucket_queue.hpp>
 #include <tessera/navigation/landmark_bounds.hpp>
 
+#include "grid_moves.hpp"
+
 #include <algorithm>
 #include <cstddef>
 #include <stdexcept>
 #include <string>
 
 namespace tessera::navigation {
-
-namespace {
-
-// The planner's moves (grid_planner.cpp): 0-3 straight, 4-7 diagonal, a diagonal one needing the
-// two straight moves beside it open.
-constexpr int kMoveX[8] = {1, -1, 0, 0, 1, 1, -1, -1};
-constexpr int kMoveY[8] = {0, 0, 1, -1, 1, -1, 1, -1};
-constexpr int kBesideX[8] = {0, 0, 0, 0, 0, 0, 1, 1};
-constexpr int kBesideY[8] = {0, 0, 0, 0, 2, 3, 2, 3};
-
-}  // namespace
 
 std::vector<std::uint32_t> costsFrom(const Costmap& map, const StepCosts& steps,
                                      const Eigen::Vector2i& source, bool reverse) {
@@ -39,12 +30,13 @@ std::vector<std::uint32_t> costsFrom(const Costmap& map, const StepCosts& steps,
     const int col = ui % w, row = ui / w;
     bool open_side[4] = {false, false, false, false};
     for (int k = 0; k < 8; ++k) {
-      const int nc = col + kMoveX[k], nr = row + kMoveY[k];
+      const int nc = col + moves::kDx[k], nr = row + moves::kDy[k];
       if (!map.contains(nc, nr)) continue;
       const std::size_t v = map.index(nc, nr);
       const bool passable = steps.straight[cells[v]] != 0;
       if (k < 4) open_side[k] = passable;
-      if (!passable || (k >= 4 && !(open_side[kBesideX[k]] && open_side[kBesideY[k]]))) continue;
+      if (!passable || (k >= 4 && !(open_side[moves::kSideX[k]] && open_side[moves::kSideY[k]])))
+        continue;
       // Forward the step u → v costs by v's cell; reversed, the step v → u costs by u's.
       const auto& table = k < 4 ? steps.straight : steps.diagonal;
       const std::int64_t g = key + table[cells[reverse ? u : v]];
@@ -116,22 +108,27 @@ LandmarkBounds::LandmarkBounds(const Costmap& reference, const GridPlannerOption
     dist_.resize(n * stride());
   }
   reference_ = reference.cells;
-}
-
-bool LandmarkBounds::holdsFor(const Costmap& map, const GridPlannerOptions& options) const {
-  if (map.width != width_ || map.height != height_ || map.cells.size() != reference_.size())
-    return false;
-  if (stepCosts(options) != steps_) return false;
-  // Each cell's cost as the step model counts it: monotone in the byte up to 252, then never
+  // Each cell cost as the step model counts it: monotone in the byte up to 252, then never
   // entered (unknown: its unknown_cost when allowed).
-  std::array<std::uint16_t, 256> rank{};
   for (int c = 0; c < 256; ++c) {
     const auto b = static_cast<std::uint8_t>(c);
-    rank[static_cast<std::size_t>(c)] =
+    rank_[static_cast<std::size_t>(c)] =
         steps_.straight[b] == 0
             ? std::uint16_t{0xFFFF}
             : static_cast<std::uint16_t>(b == cost::kUnknown ? options.unknown_cost : b);
   }
+}
+
+bool LandmarkBounds::holdsFor(const Costmap& map, const GridPlannerOptions& options) const {
+  return holdsFor(map, stepCosts(options));
+}
+
+bool LandmarkBounds::holdsFor(const Costmap& map, const StepCosts& steps) const {
+  if (map.width != width_ || map.height != height_ || map.cells.size() != reference_.size())
+    return false;
+  if (steps != steps_) return false;
+  const auto& rank = rank_;
+  const bool allow_unknown = steps_.straight[cost::kUnknown] != 0;
   const std::uint8_t* q = map.cells.data();
   const std::uint8_t* r = reference_.data();
   const std::size_t n = reference_.size();
@@ -140,7 +137,7 @@ bool LandmarkBounds::holdsFor(const Costmap& map, const GridPlannerOptions& opti
   constexpr std::size_t kBlock = 4096;
   for (std::size_t begin = 0; begin < n; begin += kBlock) {
     const std::size_t end = std::min(n, begin + kBlock);
-    if (!options.allow_unknown) {
+    if (!allow_unknown) {
       unsigned fell = 0;
       for (std::size_t i = begin; i < end; ++i) fell |= q[i] < r[i] ? 1U : 0U;
       if (fell == 0) continue;

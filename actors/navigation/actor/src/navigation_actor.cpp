@@ -181,10 +181,7 @@ void NavigationActor::useMap(const grid::OccupancyMap& map) {
     paste(costs, frame);
     costs = std::move(frame);
   }
-  const bool same = !static_.empty() && costs.width == static_.width &&
-                    costs.height == static_.height && costs.resolution == static_.resolution &&
-                    costs.origin.x == static_.origin.x && costs.origin.y == static_.origin.y &&
-                    costs.origin.theta == static_.origin.theta;
+  const bool same = !static_.empty() && sameGeometry(costs, static_);
   static_ = std::move(costs);
   if (!same) obstacles_.emplace(static_, options_.obstacles);
   buildLandmarks();
@@ -200,11 +197,8 @@ void NavigationActor::buildLandmarks() {
   std::replace(reference.cells.begin(), reference.cells.end(), cost::kUnknown, cost::kFree);
   inflate(reference, options_.inflation);
   // A map server that publishes the same map again costs nothing: the bounds are kept.
-  const Costmap& last = landmark_reference_;
-  if (navigator_.landmarks() && reference.width == last.width && reference.height == last.height &&
-      reference.resolution == last.resolution && reference.origin.x == last.origin.x &&
-      reference.origin.y == last.origin.y && reference.origin.theta == last.origin.theta &&
-      reference.cells == last.cells)
+  if (navigator_.landmarks() && sameGeometry(reference, landmark_reference_) &&
+      reference.cells == landmark_reference_.cells)
     return;
   navigator_.setLandmarks(nullptr);
   const double t0 = threadCpuMs();
@@ -519,9 +513,8 @@ void NavigationActor::summarize(Summary& out) const {
   out["plan_ms_mean"] = s.plans > 0 ? s.plan_ms_total / s.plans : 0.0;
   out["plan_ms_max"] = s.plan_ms_max;
   out["landmark_plans"] = static_cast<std::int64_t>(s.landmark_plans);
-  out["landmarks_ms"] = landmarks_ms_;
-  out["landmark_builds"] =
-      static_cast<std::int64_t>(landmark_builds_);  // building the last map's landmark bounds (CPU)
+  out["landmarks_ms"] = landmarks_ms_;  // building the last map's landmark bounds (CPU)
+  out["landmark_builds"] = static_cast<std::int64_t>(landmark_builds_);
   out["recoveries"] = s.recoveries;
   out["dwa_failures"] = s.dwa_failures;
   out["stale_stops"] = static_cast<std::int64_t>(stale_stops_);

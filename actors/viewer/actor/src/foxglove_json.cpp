@@ -149,18 +149,26 @@ bool knownMessageType(std::uint64_t type_id) {
   return types().count(type_id) > 0;
 }
 
-std::uint16_t addFoxgloveChannel(McapWriter& writer,
-                                 std::map<std::uint64_t, std::uint16_t>& schemas,
-                                 const std::string& topic, std::uint64_t type_id,
-                                 const std::string& type_name) {
-  const FoxgloveSchema schema = foxgloveSchemaFor(type_id);
-  std::uint16_t schema_id = 0;
-  if (!schema.name.empty()) {
-    auto [it, fresh] = schemas.emplace(type_id, 0);
-    if (fresh) it->second = writer.addSchema(schema.name, schema.encoding, schema.data);
-    schema_id = it->second;
-  }
-  return writer.addChannel(schema_id, topic, "json", {{"tessera_type", type_name}});
+FoxgloveSchema frameTransformSchema() {
+  return {
+      "foxglove.FrameTransform", "jsonschema",
+      objectSchema(
+          "foxglove.FrameTransform",
+          std::string(R"("timestamp":)") + kTime +
+              R"(,"parent_frame_id":{"type":"string"},"child_frame_id":{"type":"string"},)"
+              R"("translation":{"type":"object","properties":{"x":{"type":"number"},"y":{"type":"number"},"z":{"type":"number"}}},)"
+              R"("rotation":{"type":"object","properties":{"x":{"type":"number"},"y":{"type":"number"},"z":{"type":"number"},"w":{"type":"number"}}})")};
+}
+
+std::string frameTransformJson(std::int64_t stamp_ns, const std::string& parent,
+                               const std::string& child, double x, double y, double theta) {
+  const json pose = planarPose(x, y, theta);
+  return json{{"timestamp", stamp(stamp_ns)},
+              {"parent_frame_id", parent},
+              {"child_frame_id", child},
+              {"translation", pose["position"]},
+              {"rotation", pose["orientation"]}}
+      .dump();
 }
 
 FoxgloveSchema foxgloveSchemaFor(std::uint64_t type_id) {

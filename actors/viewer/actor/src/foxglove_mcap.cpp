@@ -7,7 +7,6 @@
 #include <tessera/msg/sensor.capnp.h>
 
 #include <kj/exception.h>
-#include <nlohmann/json.hpp>
 
 #include <cmath>
 #include <optional>
@@ -16,31 +15,11 @@ namespace tessera::viewer {
 
 namespace {
 
-constexpr const char* kFrameTransformSchema =
-    R"({"title":"foxglove.FrameTransform","type":"object","properties":{)"
-    R"("timestamp":{"type":"object","properties":{"sec":{"type":"integer"},"nsec":{"type":"integer"}}},)"
-    R"("parent_frame_id":{"type":"string"},"child_frame_id":{"type":"string"},)"
-    R"("translation":{"type":"object","properties":{"x":{"type":"number"},"y":{"type":"number"},"z":{"type":"number"}}},)"
-    R"("rotation":{"type":"object","properties":{"x":{"type":"number"},"y":{"type":"number"},"z":{"type":"number"},"w":{"type":"number"}}}}})";
-
 struct Transform {
   std::int64_t stamp_ns = 0;
   std::string parent, child;
   double x = 0, y = 0, theta = 0;
 };
-
-std::string frameTransformJson(const Transform& t) {
-  const std::int64_t sec =
-      t.stamp_ns >= 0 ? t.stamp_ns / 1'000'000'000 : -((-t.stamp_ns + 999'999'999) / 1'000'000'000);
-  return nlohmann::json{
-      {"timestamp", {{"sec", sec}, {"nsec", t.stamp_ns - sec * 1'000'000'000}}},
-      {"parent_frame_id", t.parent},
-      {"child_frame_id", t.child},
-      {"translation", {{"x", t.x}, {"y", t.y}, {"z", 0.0}}},
-      {"rotation",
-       {{"x", 0.0}, {"y", 0.0}, {"z", std::sin(t.theta / 2)}, {"w", std::cos(t.theta / 2)}}}}
-      .dump();
-}
 
 }  // namespace
 
@@ -56,15 +35,25 @@ std::size_t FoxgloveMcap::addTopic(const std::string& topic, std::uint64_t type_
   if (type_id == messageTypeOf<msg::PoseStamped>().id && topic.size() >= suffix.size() &&
       topic.compare(topic.size() - suffix.size(), suffix.size(), suffix) == 0)
     frames = Frames::kMapToOdom;
-  topics_.push_back(
-      {type_id, addFoxgloveChannel(writer_, schemas_, topic, type_id, type_name), frames});
+  // A schema per message type, added with its first topic.
+  const FoxgloveSchema schema = foxgloveSchemaFor(type_id);
+  std::uint16_t schema_id = 0;
+  if (!schema.name.empty()) {
+    auto [it, fresh] = schemas_.emplace(type_id, 0);
+    if (fresh) it->second = writer_.addSchema(schema.name, schema.encoding, schema.data);
+    schema_id = it->second;
+  }
+  topics_.push_back({type_id,
+                     writer_.addChannel(schema_id, topic, "json", {{"tessera_type", type_name}}),
+                     frames});
   return topics_.size() - 1;
 }
 
 std::uint16_t FoxgloveMcap::tfChannel() {
   if (tf_channel_ == 0) {
+    const FoxgloveSchema transform = frameTransformSchema();
     const std::uint16_t schema =
-        writer_.addSchema("foxglove.FrameTransform", "jsonschema", kFrameTransformSchema);
+        writer_.addSchema(transform.name, transform.encoding, transform.data);
     tf_channel_ = writer_.addChannel(schema, "tf", "json", {{"tessera_type", "(frames)"}});
   }
   return tf_channel_;
@@ -119,7 +108,8 @@ void FoxgloveMcap::write(std::size_t topic, std::uint64_t time_ns, const Message
   if (!tf || tf->parent.empty() || tf->child.empty() || tf->parent == tf->child ||
       !std::isfinite(tf->x) || !std::isfinite(tf->y) || !std::isfinite(tf->theta))
     return;
-  writer_.write(tfChannel(), time_ns, frameTransformJson(*tf));
+  writer_.write(tfChannel(), time_ns,
+                frameTransformJson(tf->stamp_ns, tf->parent, tf->child, tf->x, tf->y, tf->theta));
   ++transforms_;
 }
 

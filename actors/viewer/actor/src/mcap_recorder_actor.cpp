@@ -8,7 +8,6 @@
 #include <algorithm>
 #include <filesystem>
 #include <iostream>
-#include <map>
 
 namespace tessera::viewer {
 
@@ -46,12 +45,12 @@ void McapRecorderActor::configure(ActorContext& ctx) {
 
 void McapRecorderActor::start() {
   // Types are known once every actor is configured: check them before creating the file.
+  std::vector<MessageType> types;
   for (const auto& t : options_.topics) {
-    const MessageType type = ctx_->topicType(t);
-    if (!knownMessageType(type.id))
-      throw ConfigError("mcap_recorder: topic '" + t + "' has type " + type.name +
+    types.push_back(ctx_->topicType(t));
+    if (!knownMessageType(types.back().id))
+      throw ConfigError("mcap_recorder: topic '" + t + "' has type " + types.back().name +
                         ", which has no Foxglove form in this build");
-    types_.push_back(type.id);
   }
   McapWriterOptions o;
   o.compression = options_.compression == "zstd" ? McapWriterOptions::Compression::kZstd
@@ -61,8 +60,7 @@ void McapRecorderActor::start() {
     writer_ = std::make_unique<McapWriter>(path_, o);
     foxglove_ = std::make_unique<FoxgloveMcap>(*writer_);
     for (std::size_t i = 0; i < options_.topics.size(); ++i)
-      channels_.push_back(foxglove_->addTopic(options_.topics[i], types_[i],
-                                              ctx_->topicType(options_.topics[i]).name));
+      channels_.push_back(foxglove_->addTopic(options_.topics[i], types[i].id, types[i].name));
   } catch (const McapError& e) {
     error_ = e.what();
     foxglove_.reset();

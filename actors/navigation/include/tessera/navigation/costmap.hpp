@@ -66,6 +66,12 @@ struct Costmap {
   }
 };
 
+/// Whether two costmaps lie on the same cells: size, resolution and origin equal.
+inline bool sameGeometry(const Costmap& a, const Costmap& b) {
+  return a.width == b.width && a.height == b.height && a.resolution == b.resolution &&
+         a.origin.x == b.origin.x && a.origin.y == b.origin.y && a.origin.theta == b.origin.theta;
+}
+
 /// How an occupancy map (percent, -1 unknown) becomes costs: >= occupied_threshold lethal,
 /// <= free_threshold free, between them and unknown cells `unknown` (free when
 /// unknown_is_free, e.g. to plan through unexplored space while mapping).

@@ -21,6 +21,7 @@
 
 #include <Eigen/Core>
 
+#include <array>
 #include <cstddef>
 #include <cstdint>
 #include <limits>
@@ -46,6 +47,8 @@ class LandmarkBounds {
   /// no step in `map` cheaper than in the reference (a cell cleared below its reference cost,
   /// or unknown allowed where the reference had none, breaks them).
   bool holdsFor(const Costmap& map, const GridPlannerOptions& options) const;
+  /// The same for a planner's step costs (GridPlanner checks every plan with its own).
+  bool holdsFor(const Costmap& map, const StepCosts& steps) const;
 
   int count() const { return count_; }
   const std::vector<Eigen::Vector2i>& landmarks() const { return landmarks_; }
@@ -70,6 +73,7 @@ class LandmarkBounds {
   int width_ = 0, height_ = 0;
   StepCosts steps_;
   std::vector<std::uint8_t> reference_;
+  std::array<std::uint16_t, 256> rank_{};  ///< a cell cost as the step model orders it
   std::vector<Eigen::Vector2i> landmarks_;
   memory::LargePageVector<std::uint32_t> dist_;
 };

@@ -14,10 +14,8 @@
 #pragma once
 
 #include <tessera/messages/message.hpp>
-#include <tessera/viewer/mcap_writer.hpp>
 
 #include <cstdint>
-#include <map>
 #include <string>
 
 namespace tessera::viewer {
@@ -36,15 +34,13 @@ FoxgloveSchema foxgloveSchemaFor(std::uint64_t type_id);
 /// MessageError when the message cannot be read as that type.
 std::string foxgloveJson(std::uint64_t type_id, const MessageStorage& message);
 
+/// foxglove.FrameTransform (Tessera has no message of its own for it): its schema, and
+/// `child` placed in `parent` by a planar pose [m, rad] at stamp_ns, as JSON.
+FoxgloveSchema frameTransformSchema();
+std::string frameTransformJson(std::int64_t stamp_ns, const std::string& parent,
+                               const std::string& child, double x, double y, double theta);
+
 /// Whether Tessera defines `type_id` (every type a recording may hold).
 bool knownMessageType(std::uint64_t type_id);
-
-/// Adds to `writer` the channel of `topic`, whose messages have type `type_id` (named
-/// `type_name` in the channel's metadata), with the type's Foxglove schema; a schema is added
-/// once per type, `schemas` remembering which (type id -> schema id). Returns the channel id.
-std::uint16_t addFoxgloveChannel(McapWriter& writer,
-                                 std::map<std::uint64_t, std::uint16_t>& schemas,
-                                 const std::string& topic, std::uint64_t type_id,
-                                 const std::string& type_name);
 
 }  // namespace tessera::viewer

@@ -56,7 +56,6 @@ class McapRecorderActor final : public Actor {
   std::unique_ptr<McapWriter> writer_;
   std::unique_ptr<FoxgloveMcap> foxglove_;  ///< borrows *writer_
   std::vector<std::size_t> channels_;
-  std::vector<std::uint64_t> types_;
   McapWriter::Stats final_stats_;
   std::uint64_t unreadable_ = 0;
   std::string error_;
