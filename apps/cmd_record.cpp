@@ -44,24 +44,6 @@ std::vector<std::string> splitTopics(const std::vector<std::string>& args) {
   return out;
 }
 
-std::string uniqueActorName(const Profile& profile, const std::string& base) {
-  std::string name = base;
-  for (int i = 2;; ++i) {
-    const bool taken = std::any_of(profile.actors.begin(), profile.actors.end(),
-                                   [&](const ActorSpec& a) { return a.name == name; });
-    if (!taken) return name;
-    name = base + "_" + std::to_string(i);
-  }
-}
-
-ActorSpec actorSpec(const std::string& name, const std::string& type, const YAML::Node& params) {
-  ActorSpec spec;
-  spec.name = name;
-  spec.type = type;
-  spec.params = Params(params, "tessera " + type + " (command line)");
-  return spec;
-}
-
 const Summary* summaryOf(const RunReport& report, const std::string& actor) {
   for (const auto& a : report.actors)
     if (a.name == actor) return &a.summary;
@@ -192,6 +174,7 @@ void addRecordCommand(CLI::App& app, int& result) {
     const std::string path = resolveProfilePath(args->profile, profileSearchDirs());
     Profile profile = loadProfile(path, args->run.sets);
     if (args->rate >= 0) profile.sim_rate = args->rate;
+    applyViewOptions(profile, args->run, args->rate >= 0);
     const auto topics = splitTopics(args->topics);
     // A .mcap file gets the MCAP recorder (Foxglove's schemas), anything else a recording.
     const bool mcap = fs::path(args->file).extension() == ".mcap";

@@ -5,6 +5,7 @@
 #include <tessera/runtime/profile.hpp>
 #include <tessera/runtime/registry.hpp>
 
+#include <yaml-cpp/yaml.h>
 #include <nlohmann/json.hpp>
 
 #include <algorithm>
@@ -65,6 +66,60 @@ void addRunOptions(CLI::App& cmd, RunSettings& s) {
   cmd.add_option("--set", s.sets, "override: ACTOR.KEY=VALUE, KEY=VALUE (repeatable)");
   cmd.add_option("--threads", s.threads, "executor threads (0: all cores)");
   cmd.add_flag("--quiet", s.quiet, "no progress line and no metrics table");
+  cmd.add_option("--view", s.view_port,
+                 "serve the live viewer on PORT: the page at http://127.0.0.1:PORT/, Foxglove "
+                 "Studio at ws://127.0.0.1:PORT (simulated clocks then run at real time)")
+      ->check(CLI::Range(0, 65535));
+  cmd.add_option("--view-address", s.view_address,
+                 "interface the viewer listens on (0.0.0.0: every one; set --view-token)");
+  cmd.add_option("--view-token", s.view_token, "token every viewer request must carry");
+}
+
+std::string uniqueActorName(const Profile& profile, const std::string& base) {
+  std::string name = base;
+  for (int i = 2;; ++i) {
+    const bool taken = std::any_of(profile.actors.begin(), profile.actors.end(),
+                                   [&](const ActorSpec& a) { return a.name == name; });
+    if (!taken) return name;
+    name = base + "_" + std::to_string(i);
+  }
+}
+
+ActorSpec actorSpec(const std::string& name, const std::string& type, const YAML::Node& params) {
+  ActorSpec spec;
+  spec.name = name;
+  spec.type = type;
+  spec.params = Params(params, "tessera " + type + " (command line)");
+  return spec;
+}
+
+void applyViewOptions(Profile& profile, const RunSettings& s, bool rate_given) {
+  if (s.view_port < 0) return;
+  YAML::Node params;
+  params["port"] = s.view_port;
+  params["address"] = s.view_address;
+  if (!s.view_token.empty()) params["token"] = s.view_token;
+  // Initial poses only where a localiser may listen. Goals are always offered: without a
+  // navigator they are only recorded, which is what a goal sequence for a later run needs.
+  bool localises = false;
+  for (const auto& a : profile.actors) localises = localises || a.type == "monte_carlo_localizer";
+  // A map assembler that publishes only at the end (publish_period_s 0, sim_slam_global's
+  // default for batch runs) would show nothing until then: once a second instead.
+  for (auto& a : profile.actors) {
+    if (a.type != "map_assembler") continue;
+    YAML::Node p = YAML::Clone(a.params.node());
+    if (!p || p.IsNull()) p = YAML::Node(YAML::NodeType::Map);
+    if (p["publish_period_s"] && p["publish_period_s"].as<double>(0) > 0) continue;
+    p["publish_period_s"] = 1.0;
+    a.params = Params(p, a.params.where());
+  }
+  if (!localises) params["initial_pose_topic"] = "";
+  profile.actors.push_back(actorSpec(uniqueActorName(profile, "viewer"), "viewer", params));
+  if (!rate_given && profile.clock == ClockKind::kSimulated && profile.sim_rate == 0) {
+    profile.sim_rate = 1;
+    std::cerr << "note: --view runs the simulated clock at real time (--rate 0: as fast as "
+                 "possible)\n";
+  }
 }
 
 int runProfile(const Profile& profile, const std::string& verb, const RunSettings& s,
@@ -145,6 +200,7 @@ void addRunCommand(CLI::App& app, int& result) {
     const std::string path = resolveProfilePath(args->profile, profileSearchDirs());
     Profile profile = loadProfile(path, args->run.sets);
     if (args->rate >= 0) profile.sim_rate = args->rate;
+    applyViewOptions(profile, args->run, args->rate >= 0);
     result = runProfile(profile, "run", args->run);
   });
 }

@@ -51,9 +51,19 @@ struct RunSettings {
   std::string out;                // output folder ("" writes nothing)
   int threads = 0;
   bool quiet = false;
+  int view_port = -1;  // --view PORT: add the live viewer (viewer actor); -1: none
+  std::string view_address = "127.0.0.1";
+  std::string view_token;
 };
-/// Adds --set, --threads and --quiet to a command.
+/// Adds --set, --threads, --quiet and the --view options to a command.
 void addRunOptions(CLI::App& cmd, RunSettings& settings);
+/// With --view: adds a viewer actor to `profile` (docs/viewer.md#live) and, unless the pace was
+/// given (`rate_given`), runs a simulated clock at real time so there is something to watch.
+void applyViewOptions(Profile& profile, const RunSettings& settings, bool rate_given);
+/// `base`, or base_2, base_3 ... when the profile already has an actor of that name.
+std::string uniqueActorName(const Profile& profile, const std::string& base);
+/// An actor added from the command line (its options' errors name the command line).
+ActorSpec actorSpec(const std::string& name, const std::string& type, const YAML::Node& params);
 /// Runs a loaded profile in this process as `tessera run` does (prints the wiring, progress and
 /// metrics, writes summary.json into settings.out) and returns the exit code: 0, 1 when an actor
 /// stopped the run with an error, 130 when interrupted. `verb` names the command in messages.

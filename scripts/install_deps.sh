@@ -13,6 +13,7 @@ PACKAGES=(
   capnproto libcapnp-dev catch2
   # support libraries
   libyaml-cpp-dev nlohmann-json3-dev libcli11-dev libspdlog-dev libfmt-dev libzstd-dev zlib1g-dev libpng-dev libjpeg-dev
+  libwebsocketpp-dev libasio-dev  # the live viewer's HTTP + WebSocket server (header-only)
   libsuitesparse-dev  # CHOLMOD for the Gauss-Newton pose-graph stage (Ceres pulls it in too)
 )
 

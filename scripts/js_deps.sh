@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
-# Installs the npm packages tests read Tessera's outputs with (tests/js: @mcap/core and fzstd,
-# exactly as package-lock.json pins them), and Debian's nodejs + npm first when the machine has
+# Installs the npm packages tests read Tessera's outputs with (tests/js: @mcap/core, fzstd and
+# playwright-core, exactly as package-lock.json pins them), and Debian's nodejs + npm first when the machine has
 # no npm (a machine with its own Node.js, e.g. NodeSource's, keeps it). Only the tests need
 # them: the demo never runs this. When npm cannot be had, the checks that need it are skipped,
 # except under CI=true, where that is a failure.
@@ -19,6 +19,16 @@ if ! command -v npm > /dev/null; then
     echo "[js] no npm: the tests that read MCAP files with @mcap/core will be skipped"
     exit 0
   fi
+fi
+# Debian's Chromium for the live viewer's browser test (tests/js/viewer_e2e.mjs, playwright-core
+# drives it headless); installed under CI or when this script may use apt-get as root.
+if [ ! -x /usr/bin/chromium ] && { [ "${CI:-}" = true ] || [ "$(id -u)" -eq 0 ]; }; then
+  SUDO=""
+  if [ "$(id -u)" -ne 0 ]; then SUDO="sudo"; fi
+  echo "[js] installing Debian's chromium (headless browser for the viewer test)"
+  DEBIAN_FRONTEND=noninteractive $SUDO apt-get install -y -qq --no-install-recommends \
+    -o Dpkg::Options::=--force-unsafe-io chromium > /dev/null ||
+    { [ "${CI:-}" = true ] && { echo "[js] chromium could not be installed" >&2; exit 1; }; } || true
 fi
 if [ -f node_modules/.package-lock.json ] && [ node_modules/.package-lock.json -nt package-lock.json ]; then
   echo "[js] packages present"

@@ -195,6 +195,10 @@ void Runtime::configure(bool allow_unpublished) {
   if (!allow_unpublished) {
     for (const auto& [name, t] : impl_->topics) {
       if (!t->publishers.empty() || t->subscribers.empty()) continue;
+      if (std::all_of(t->subscribers.begin(), t->subscribers.end(), [&](const auto& s) {
+            return impl_->actors[s.actor]->subscriptions[s.subscription].policy.optional;
+          }))
+        continue;  // only observers wait for it
       const auto& external = impl_->options.external_inputs;
       if (std::find(external.begin(), external.end(), name) != external.end()) continue;
       std::string who;

@@ -165,6 +165,16 @@ TEST_CASE("wiring errors are reported at configure time", "[runtime]") {
     CHECK_THROWS_WITH(rt.configure(),
                       Catch::Contains("'in'") && Catch::Contains("no actor publishes"));
   }
+  SECTION("an observer's optional subscription needs no publisher, a plain one beside it does") {
+    Runtime rt(manualOptions());
+    rt.add("viewer", std::make_unique<Recorder>(MailboxPolicy::keepLatest(1).asOptional()));
+    CHECK_NOTHROW(rt.configure());
+    Runtime rt2(manualOptions());
+    rt2.add("viewer", std::make_unique<Recorder>(MailboxPolicy::keepLatest(1).asOptional()));
+    rt2.add("rec", std::make_unique<Recorder>(MailboxPolicy::keepLatest(1)));
+    CHECK_THROWS_WITH(rt2.configure(),
+                      Catch::Contains("no actor publishes") && Catch::Contains("rec"));
+  }
   SECTION("two message types on one topic") {
     Runtime rt(manualOptions());
     rt.externalPublisher<msg::LaserScan>("in");

@@ -15,6 +15,7 @@
 
 #include <capnp/compat/json.h>
 #include <kj/encoding.h>
+#include <kj/exception.h>
 #include <nlohmann/json.hpp>
 
 #include <cmath>
@@ -276,6 +277,61 @@ std::string foxgloveJson(std::uint64_t type_id, const MessageStorage& message) {
                        e.schema.getShortDisplayName().cStr() + ": " + ex.getDescription().cStr());
   }
   return {};
+}
+
+FrameSource frameSourceFor(const std::string& topic, std::uint64_t type_id) {
+  if (type_id == messageTypeOf<msg::Odometry>().id) return FrameSource::kOdometry;
+  if (type_id == messageTypeOf<msg::LaserScan>().id) return FrameSource::kScanMount;
+  const std::string suffix = "map_to_odom";
+  if (type_id == messageTypeOf<msg::PoseStamped>().id && topic.size() >= suffix.size() &&
+      topic.compare(topic.size() - suffix.size(), suffix.size(), suffix) == 0)
+    return FrameSource::kMapToOdom;
+  return FrameSource::kNone;
+}
+
+std::optional<std::string> frameTransformFor(FrameSource source, const MessageStorage& message) {
+  std::int64_t stamp = 0;
+  std::string parent, child;
+  double x = 0, y = 0, theta = 0;
+  try {
+    const capnp::AnyPointer::Reader root = message.root();
+    switch (source) {
+      case FrameSource::kOdometry: {
+        const auto m = root.getAs<msg::Odometry>();
+        stamp = m.getHeader().getStampNs();
+        parent = m.getHeader().getFrameId().cStr();
+        child = m.getChildFrameId().cStr();
+        if (child.empty()) child = "base_link";
+        x = m.getPose().getX(), y = m.getPose().getY(), theta = m.getPose().getTheta();
+        break;
+      }
+      case FrameSource::kScanMount: {
+        const auto m = root.getAs<msg::LaserScan>();
+        stamp = m.getHeader().getStampNs();
+        parent = "base_link";
+        child = m.getHeader().getFrameId().cStr();
+        x = m.getMountX(), y = m.getMountY(), theta = m.getMountTheta();
+        break;
+      }
+      case FrameSource::kMapToOdom: {
+        const auto m = root.getAs<msg::PoseStamped>();
+        stamp = m.getHeader().getStampNs();
+        parent = m.getHeader().getFrameId().cStr();
+        child = "odom";
+        x = m.getPose().getX(), y = m.getPose().getY(), theta = m.getPose().getTheta();
+        break;
+      }
+      case FrameSource::kNone:
+        return std::nullopt;
+    }
+  } catch (const kj::Exception& e) {
+    throw MessageError(std::string("foxglove: frames: ") + e.getDescription().cStr());
+  }
+  // A transform needs two distinct named frames and a finite pose.
+  if (parent.empty() || child.empty() || parent == child || !std::isfinite(x) ||
+      !std::isfinite(y) || !std::isfinite(theta))
+    return std::nullopt;
+  return frameTransformJson(stamp, parent, child, x, y, theta);
 }
 
 }  // namespace tessera::viewer

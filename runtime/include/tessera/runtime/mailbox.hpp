@@ -15,9 +15,16 @@ struct MailboxPolicy {
   enum class Kind { kKeepLatest, kReliable };
   Kind kind = Kind::kKeepLatest;
   std::size_t capacity = 1;
+  /// An observer's subscription (viewer, monitor): the topic need not have a publisher.
+  bool optional = false;
 
   static MailboxPolicy keepLatest(std::size_t n) { return {Kind::kKeepLatest, n < 1 ? 1 : n}; }
   static MailboxPolicy reliable(std::size_t n = 64) { return {Kind::kReliable, n < 1 ? 1 : n}; }
+  MailboxPolicy asOptional() const {
+    MailboxPolicy p = *this;
+    p.optional = true;
+    return p;
+  }
   std::string describe() const;
 };
 

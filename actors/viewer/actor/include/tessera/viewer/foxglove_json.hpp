@@ -16,6 +16,7 @@
 #include <tessera/messages/message.hpp>
 
 #include <cstdint>
+#include <optional>
 #include <string>
 
 namespace tessera::viewer {
@@ -39,6 +40,15 @@ std::string foxgloveJson(std::uint64_t type_id, const MessageStorage& message);
 FoxgloveSchema frameTransformSchema();
 std::string frameTransformJson(std::int64_t stamp_ns, const std::string& parent,
                                const std::string& child, double x, double y, double theta);
+
+/// Frames a topic's messages place (docs/viewer.md#frames): Odometry gives header frame (odom)
+/// -> child frame (base_link), LaserScan gives base_link -> its header frame (the laser's
+/// mount), and a PoseStamped topic named *map_to_odom gives its header frame (map) -> odom.
+enum class FrameSource { kNone, kOdometry, kScanMount, kMapToOdom };
+FrameSource frameSourceFor(const std::string& topic, std::uint64_t type_id);
+/// The foxglove.FrameTransform JSON a message implies, or nothing (kNone, unnamed or equal
+/// frames, a non-finite pose). Throws MessageError when it cannot be read.
+std::optional<std::string> frameTransformFor(FrameSource source, const MessageStorage& message);
 
 /// Whether Tessera defines `type_id` (every type a recording may hold).
 bool knownMessageType(std::uint64_t type_id);

@@ -9,6 +9,7 @@
 #pragma once
 
 #include <tessera/messages/message.hpp>
+#include <tessera/viewer/foxglove_json.hpp>
 #include <tessera/viewer/mcap_writer.hpp>
 
 #include <cstddef>
@@ -35,11 +36,10 @@ class FoxgloveMcap {
   std::uint64_t transforms() const { return transforms_; }  ///< FrameTransforms written
 
  private:
-  enum class Frames { kNone, kOdometry, kScanMount, kMapToOdom };
   struct Topic {
     std::uint64_t type_id;
     std::uint16_t channel;
-    Frames frames;
+    FrameSource frames;
   };
   std::uint16_t tfChannel();
 

@@ -1,0 +1,232 @@
+// End-to-end check of Tessera's built-in web viewer in headless Chromium (playwright-core, the
+// system's Chromium): opens the page a running `tessera ... --view PORT` serves, waits until it
+// is connected and draws a map, a robot and a trajectory, optionally places a navigation goal
+// through the UI, takes a screenshot and writes what the page saw (its window.tessera hooks)
+// as JSON. Any console error or uncaught page error fails the check.
+//
+//   node viewer_e2e.mjs --url http://127.0.0.1:8765/ --screenshot OUT.png --out RESULT.json
+//                       [--goal X,Y] [--timeout-s 60]
+//
+// Exit 0 on success; 1 with a message on stderr on failure or timeout (RESULT.json is still
+// written, with "failure" set); 2 on bad arguments. CHROMIUM overrides /usr/bin/chromium.
+import { chromium } from "playwright-core";
+import { writeFileSync } from "node:fs";
+
+const USAGE =
+  "usage: node viewer_e2e.mjs --url URL --screenshot OUT.png --out RESULT.json [--goal X,Y] [--timeout-s 60]";
+const REQUIRED_LAYERS = ["map", "scan", "robot", "trajectory"];
+const STATUS_QUIET_MS = 1000; // after a goal, this long without an error status
+
+function parseArgs(argv) {
+  const opts = { url: null, screenshot: null, out: null, goal: null, timeoutS: 60 };
+  for (let i = 0; i < argv.length; i++) {
+    const key = argv[i];
+    const value = argv[i + 1];
+    const need = () => {
+      if (value === undefined) usage(`${key} needs a value`);
+      i++;
+      return value;
+    };
+    switch (key) {
+      case "--url": opts.url = need(); break;
+      case "--screenshot": opts.screenshot = need(); break;
+      case "--out": opts.out = need(); break;
+      case "--goal": {
+        const parts = need().split(",").map(Number);
+        if (parts.length !== 2 || !parts.every(Number.isFinite)) usage(`--goal wants X,Y in metres, got '${value}'`);
+        opts.goal = { x: parts[0], y: parts[1] };
+        break;
+      }
+      case "--timeout-s":
+        opts.timeoutS = Number(need());
+        if (!(opts.timeoutS > 0)) usage(`--timeout-s wants a positive number, got '${value}'`);
+        break;
+      case "-h":
+      case "--help":
+        console.log(USAGE);
+        process.exit(0);
+        break;
+      default: usage(`unknown argument '${key}'`);
+    }
+  }
+  if (!opts.url || !opts.screenshot || !opts.out) usage("--url, --screenshot and --out are required");
+  return opts;
+}
+
+function usage(message) {
+  console.error(`viewer_e2e: ${message}\n${USAGE}`);
+  process.exit(2);
+}
+
+class Failure extends Error {}
+
+const opts = parseArgs(process.argv.slice(2));
+const deadline = Date.now() + opts.timeoutS * 1000;
+const remainingMs = () => Math.max(1, deadline - Date.now());
+
+// A last resort if the browser itself hangs: never outlive the timeout by much.
+const watchdog = setTimeout(() => {
+  console.error(`viewer_e2e: FAILED: still running ${opts.timeoutS + 30} s after start`);
+  process.exit(1);
+}, (opts.timeoutS + 30) * 1000);
+watchdog.unref();
+
+const errors = []; // console errors and page errors, in order
+const result = {
+  ok: false,
+  failure: null,
+  url: opts.url,
+  connected: false,
+  tiles: 0,
+  robot: null,
+  robotWallMs: null,
+  trajectoryPoints: 0,
+  latenciesMs: [],
+  messages: {},
+  topics: [],
+  goalSent: null,
+  lastStatus: null,
+  errors,
+};
+
+// The page's hooks as plain data (the functions dropped), with the page's clock at reading.
+async function readState(page) {
+  return page.evaluate(() => {
+    const t = window.tessera;
+    if (!t) return null;
+    const { worldToScreen, screenToWorld, ...plain } = t;
+    return { ...JSON.parse(JSON.stringify(plain)), nowMs: Date.now() };
+  });
+}
+
+function copyState(state) {
+  if (!state) return;
+  for (const key of ["connected", "tiles", "robot", "trajectoryPoints", "latenciesMs", "messages",
+    "topics", "lastStatus"]) {
+    result[key] = state[key];
+  }
+}
+
+// What the page still lacks, for a timeout's message.
+function missing(state) {
+  if (!state) return "window.tessera is not defined (viewer.js did not run?)";
+  const lacks = [];
+  if (!state.connected) lacks.push("not connected");
+  if (!(state.tiles > 0)) lacks.push("no map tiles");
+  if (!state.robot) lacks.push("no robot pose");
+  if (!(state.trajectoryPoints > 5)) lacks.push(`${state.trajectoryPoints} trajectory points (want > 5)`);
+  return lacks.join(", ") || "nothing";
+}
+
+async function placeGoal(page, goal) {
+  await page.click("#goal-button");
+  // In placement mode the view stops following the robot, so the point stays put.
+  const where = async () => page.evaluate(({ x, y }) => {
+    const canvas = document.getElementById("map-canvas");
+    const r = canvas.getBoundingClientRect();
+    const p = window.tessera.worldToScreen(x, y);
+    return { px: r.left + p.x, py: r.top + p.y, inside: p.x >= 1 && p.y >= 1 && p.x < r.width - 1 && p.y < r.height - 1 };
+  }, goal);
+  let at = await where();
+  if (!at.inside) {
+    // Off screen at this zoom: show the whole map (which leaves placement mode), then again.
+    await page.keyboard.press("Escape");
+    await page.click("#fit-button");
+    await page.click("#goal-button");
+    at = await where();
+    if (!at.inside) throw new Failure(`goal ${goal.x},${goal.y} is outside the map view even when fitted`);
+  }
+  const clickedAtMs = await page.evaluate(() => Date.now());
+  await page.mouse.move(at.px, at.py);
+  await page.mouse.down();
+  await page.mouse.up();
+  try {
+    await page.waitForFunction(() => window.tessera.goalsSent >= 1, null, { timeout: Math.min(remainingMs(), 10000), polling: 50 });
+  } catch {
+    throw new Failure("the goal click did not send a goal (window.tessera.goalsSent stayed 0)");
+  }
+  await page.waitForTimeout(STATUS_QUIET_MS);
+  const state = await readState(page);
+  const refusals = (state.statuses || []).filter((s) => s.level >= 2 && s.t >= clickedAtMs);
+  if (refusals.length) throw new Failure(`the server answered the goal with an error: ${refusals.map((s) => s.message).join("; ")}`);
+  const sent = state.lastGoal;
+  // The click lands on a whole pixel: allow a few pixels' worth of metres.
+  const tolerance = 3 / state.view.scale + 1e-6;
+  if (!sent || Math.hypot(sent.x - goal.x, sent.y - goal.y) > tolerance) {
+    throw new Failure(`goal sent at ${JSON.stringify(sent)}, wanted ${goal.x},${goal.y} (±${tolerance.toFixed(3)} m)`);
+  }
+  result.goalSent = { x: sent.x, y: sent.y, theta: sent.theta };
+  return state;
+}
+
+let browser = null;
+let page = null;
+try {
+  browser = await chromium.launch({
+    executablePath: process.env.CHROMIUM || "/usr/bin/chromium",
+    args: ["--headless=new", "--no-sandbox", "--disable-gpu", "--disable-dev-shm-usage",
+      "--disable-background-networking"],
+    timeout: remainingMs(),
+  });
+  page = await browser.newPage({ viewport: { width: 1280, height: 800 } });
+  page.on("console", (msg) => {
+    if (msg.type() === "error") {
+      const loc = msg.location();
+      errors.push(`console error: ${msg.text()}${loc && loc.url ? ` (${loc.url}:${loc.lineNumber})` : ""}`);
+    }
+  });
+  page.on("pageerror", (err) => errors.push(`page error: ${err.message}`));
+
+  const response = await page.goto(opts.url, { waitUntil: "load", timeout: remainingMs() });
+  if (!response || !response.ok()) {
+    throw new Failure(`GET ${opts.url} answered ${response ? `HTTP ${response.status()}` : "nothing"}`);
+  }
+
+  try {
+    await page.waitForFunction(() => {
+      const t = window.tessera;
+      return !!t && t.connected && t.tiles > 0 && t.robot !== null && t.trajectoryPoints > 5;
+    }, null, { timeout: remainingMs(), polling: 100 });
+  } catch {
+    const state = await readState(page).catch(() => null);
+    copyState(state);
+    throw new Failure(`timed out after ${opts.timeoutS} s waiting for the viewer: ${missing(state)}`);
+  }
+
+  for (const layer of REQUIRED_LAYERS) {
+    const n = await page.locator(`input[type="checkbox"][data-layer="${layer}"]`).count();
+    if (n !== 1) throw new Failure(`layer checkbox data-layer="${layer}": found ${n}, want 1`);
+  }
+
+  let state = await readState(page);
+  copyState(state);
+  result.robotWallMs = state.nowMs;
+
+  if (opts.goal) {
+    state = await placeGoal(page, opts.goal);
+    result.lastStatus = state.lastStatus;
+    result.messages = state.messages;
+  }
+
+  await page.screenshot({ path: opts.screenshot, fullPage: true });
+  if (errors.length) throw new Failure(`the page reported ${errors.length} error(s): ${errors[0]}`);
+  result.ok = true;
+} catch (err) {
+  result.failure = err instanceof Failure ? err.message : `${err.name}: ${err.message}`;
+  // A picture of the failure helps more than none.
+  if (page) await page.screenshot({ path: opts.screenshot, fullPage: true }).catch(() => {});
+} finally {
+  if (browser) await browser.close().catch(() => {});
+}
+
+writeFileSync(opts.out, JSON.stringify(result, null, 2) + "\n");
+if (result.ok) {
+  const r = result.robot;
+  console.log(`viewer_e2e: OK: ${result.tiles} tiles, robot at ${r.x.toFixed(2)},${r.y.toFixed(2)}, ` +
+    `${result.trajectoryPoints} trajectory points` +
+    (result.goalSent ? `, goal sent at ${result.goalSent.x.toFixed(2)},${result.goalSent.y.toFixed(2)}` : ""));
+  process.exit(0);
+}
+console.error(`viewer_e2e: FAILED: ${result.failure}`);
+for (const e of errors) console.error(`  ${e}`);
+process.exit(1);
