@@ -35,6 +35,8 @@ void addLaunchCommand(CLI::App& app, int& result);
 void addDoctorCommand(CLI::App& app, int& result);
 /// Adds `tessera completion bash` (a completion script from the whole command tree: call last).
 void addCompletionCommand(CLI::App& app, int& result);
+/// Adds `tessera topics` and `tessera echo TOPIC` (a running stack seen through its viewer).
+void addTopicsCommands(CLI::App& app, int& result);
 /// Adds `tessera goal` (a navigation goal into a launched deployment; --wait follows it).
 void addGoalCommand(CLI::App& app, int& result);
 

@@ -12,6 +12,7 @@ int main(int argc, char** argv) {
   tessera::app::addRunCommand(app, result);
   tessera::app::addLaunchCommand(app, result);
   tessera::app::addGoalCommand(app, result);
+  tessera::app::addTopicsCommands(app, result);
   tessera::app::addActorsCommand(app, result);
   tessera::app::addRecordCommand(app, result);
   tessera::app::addReplayCommand(app, result);

@@ -18,6 +18,7 @@ void addBenchCommands(CLI::App& app, int& result) {
   addBenchOctomapCommand(*bench, result);
   addBenchPlannerCommand(*bench, result);
   addBenchNavCommand(*bench, result);
+  addBenchViewerCommand(*bench, result);
 }
 
 }  // namespace tessera::app

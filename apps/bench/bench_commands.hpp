@@ -25,5 +25,7 @@ void addBenchOctomapCommand(CLI::App& bench, int& result);
 /// Adds `tessera bench planner` (global planners on a synthetic office costmap).
 void addBenchPlannerCommand(CLI::App& bench, int& result);
 void addBenchNavCommand(CLI::App& bench, int& result);
+/// `tessera bench viewer`: the live viewer's CPU cost and map-update latency.
+void addBenchViewerCommand(CLI::App& bench, int& result);
 
 }  // namespace tessera::app

@@ -283,7 +283,9 @@ void Runtime::Impl::dispatch(ActorSlot& actor, Item& item) {
       requestStop("actor '" + actor.name + "' failed in a timer: " + e.what());
     }
   }
-  actor.handler_time.add(steadyNow() - t0);
+  const Nanos took = steadyNow() - t0;
+  actor.handler_time.add(took);
+  actor.busy_ns.fetch_add(took, std::memory_order_relaxed);
 }
 
 void Runtime::Impl::releaseWork(std::size_t n) {

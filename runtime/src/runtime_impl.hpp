@@ -104,6 +104,7 @@ struct ActorSlot {
   // Metrics (written under strand or atomically).
   std::atomic<std::uint64_t> messages_in{0}, messages_out{0}, timer_calls{0}, malformed{0};
   DurationHistogram handler_time;
+  std::atomic<std::int64_t> busy_ns{0};  // handler_time's total, readable from other threads
 
   // Finite-source bookkeeping.
   bool finite = false;
@@ -215,6 +216,7 @@ class ActorSlotContext final : public ActorContext {
   void callAt(Nanos when, std::function<void()> callback) override;
   const Clock& clock() const override { return rt_.clock; }
   const std::string& name() const override { return actor_.name; }
+  RunSnapshot snapshot() const override;
   const std::string& outputDir() const override { return rt_.options.output_dir; }
   MessageType topicType(std::string_view topic) const override;
   void declareFiniteSource() override;

@@ -89,6 +89,36 @@ void ActorSlotContext::reportProgress(double fraction) {
   actor_.progress = std::clamp(fraction, 0.0, 1.0);
 }
 
+RunSnapshot ActorSlotContext::snapshot() const {
+  RunSnapshot r;
+  // start_wall and start_sim are set before any actor's start(), so before any thread an
+  // actor starts there could call this.
+  r.wall_s = nanosToSeconds(steadyNow() - rt_.start_wall);
+  r.sim_s = nanosToSeconds(rt_.clock.now() - rt_.start_sim);
+  double progress = 0;
+  int finite = 0;
+  for (const auto& c : rt_.actors) {
+    RunSnapshot::ActorFigures a;
+    a.name = c->name;
+    a.messages_in = c->messages_in.load();
+    a.messages_out = c->messages_out.load();
+    a.busy_s = nanosToSeconds(c->busy_ns.load(std::memory_order_relaxed));
+    {
+      std::lock_guard lock(c->mutex);
+      for (const auto& s : c->subscriptions) a.drops += s.drops;
+      a.queue_depth = c->queue.size();
+      a.max_queue_depth = c->max_depth;
+    }
+    if (c->finite) {
+      progress += c->progress.load();
+      ++finite;
+    }
+    r.actors.push_back(std::move(a));
+  }
+  if (finite > 0) r.progress = progress / finite;
+  return r;
+}
+
 void ActorSlotContext::requestStop(std::string_view reason) {
   rt_.requestStop("actor '" + actor_.name + "': " + std::string(reason));
 }

@@ -4,7 +4,9 @@
 // its trajectory, checks the layer toggles, clicks a goal and saves a screenshot. Then the run is
 // stopped with Ctrl-C and what the browser showed is compared with what the run wrote: the
 // robot's pose against trajectory.tum at the same stamp, and the clicked goal on the goal topic
-// (recorded by the same command).
+// (recorded by the same command). Foxglove's own client (@foxglove/ws-protocol,
+// tests/js/foxglove_check.mjs) then subscribes to the same server and its decoded scan, map,
+// pose, transforms and metrics are compared with the run too.
 #include <catch2/catch.hpp>
 #include <nlohmann/json.hpp>
 
@@ -21,6 +23,7 @@
 #include <sstream>
 #include <thread>
 
+#include "cli_child.hpp"
 #include "cli_run.hpp"
 
 namespace fs = std::filesystem;
@@ -42,50 +45,16 @@ void skipOrFail(const std::string& why) {
 
 // Why the browser test cannot run here, or "".
 std::string missingBrowser(const fs::path& js) {
-  if (!fs::exists(js / "node_modules" / "playwright-core"))
-    return "no playwright-core in " + (js / "node_modules").string() + " (run scripts/js_deps.sh)";
+  for (const char* package : {"playwright-core", "@foxglove/ws-protocol", "ws"})
+    if (!fs::exists(js / "node_modules" / package))
+      return std::string("no ") + package + " in " + (js / "node_modules").string() +
+             " (run scripts/js_deps.sh)";
   if (std::system("node --version > /dev/null 2>&1") != 0) return "no node on PATH";
   const char* chromium = std::getenv("CHROMIUM");
   if (!fs::exists(chromium ? chromium : "/usr/bin/chromium"))
     return "no /usr/bin/chromium (apt-get install chromium)";
   return "";
 }
-
-// A child `tessera ARGS` with stderr in a file; stopped with SIGINT (as Ctrl-C) on request.
-class Child {
- public:
-  Child(const std::string& args, const fs::path& err) {
-    pid_ = ::fork();
-    REQUIRE(pid_ >= 0);
-    if (pid_ == 0) {
-      const std::string cmd = "exec " + std::string(TESSERA_CLI_PATH) + " " + args + " 2> " +
-                              err.string() + " > /dev/null";
-      ::execl("/bin/sh", "sh", "-c", cmd.c_str(), static_cast<char*>(nullptr));
-      ::_exit(127);
-    }
-  }
-  ~Child() {
-    if (pid_ > 0) {
-      ::kill(pid_, SIGKILL);
-      ::waitpid(pid_, nullptr, 0);
-    }
-  }
-  int interrupt() {
-    ::kill(pid_, SIGINT);
-    int status = 0;
-    for (int i = 0; i < 600; ++i) {
-      if (::waitpid(pid_, &status, WNOHANG) == pid_) {
-        pid_ = -1;
-        return WIFEXITED(status) ? WEXITSTATUS(status) : -1;
-      }
-      std::this_thread::sleep_for(std::chrono::milliseconds(100));
-    }
-    return -2;
-  }
-
- private:
-  pid_t pid_ = -1;
-};
 
 struct TumPose {
   double t, x, y;
@@ -107,7 +76,8 @@ std::vector<TumPose> readTum(const fs::path& p) {
 
 }  // namespace
 
-TEST_CASE("a browser watches sim_slam_global live and sends a goal", "[viewer][e2e]") {
+TEST_CASE("a browser and Foxglove's client watch sim_slam_global live; the browser sends a goal",
+          "[viewer][e2e]") {
   const fs::path js = fs::path(TESSERA_SOURCE_DIR) / "tests" / "js";
   if (const std::string why = missingBrowser(js); !why.empty()) {
     skipOrFail(why);
@@ -118,17 +88,10 @@ TEST_CASE("a browser watches sim_slam_global live and sends a goal", "[viewer][e
   fs::create_directories(dir);
   const fs::path err = dir / "stderr.txt";
   // Four times real time: a map within seconds, still slow enough to watch.
-  Child run("record sim_slam_global --view 0 --rate 4 --topics goal --out " +
-                (dir / "goal.trec").string() + " --dir " + (dir / "out").string(),
-            err);
-  std::string url;
-  const std::regex url_re(R"(live view: (http://127\.0\.0\.1:[0-9]+/))");
-  for (int i = 0; i < 600 && url.empty(); ++i) {
-    std::smatch m;
-    const std::string text = slurp(err);
-    if (std::regex_search(text, m, url_re)) url = m[1];
-    std::this_thread::sleep_for(std::chrono::milliseconds(100));
-  }
+  tessera::test::CliChild run("record sim_slam_global --view 0 --rate 4 --topics goal --out " +
+                                  (dir / "goal.trec").string() + " --dir " + (dir / "out").string(),
+                              err);
+  const std::string url = tessera::test::waitForViewerUrl(err);
   INFO(slurp(err));
   REQUIRE_FALSE(url.empty());
 
@@ -138,10 +101,18 @@ TEST_CASE("a browser watches sim_slam_global live and sends a goal", "[viewer][e
                           " --out " + result.string() + " --timeout-s 120 > " +
                           (dir / "e2e.log").string() + " 2>&1";
   const int e2e = std::system(cmd.c_str());
+  // Then Foxglove's own client on the same server, as Foxglove Studio would connect.
+  const std::string ws = "ws://" + url.substr(7, url.size() - 8);
+  const std::string fcmd = "node " + (js / "foxglove_check.mjs").string() + " " + ws +
+                           " --timeout-s 60 > " + (dir / "foxglove.json").string() + " 2> " +
+                           (dir / "foxglove.err").string();
+  const int foxglove = std::system(fcmd.c_str());
   const int stopped = run.interrupt();
+  INFO(slurp(dir / "foxglove.err"));
   INFO(slurp(dir / "e2e.log"));
   INFO(slurp(err));
   REQUIRE(e2e == 0);
+  REQUIRE(foxglove == 0);
   CHECK(stopped == 130);  // stopped by Ctrl-C, outputs written
   const auto r = nlohmann::json::parse(slurp(result));
   CHECK(r["ok"] == true);
@@ -167,6 +138,25 @@ TEST_CASE("a browser watches sim_slam_global live and sends a goal", "[viewer][e
       tessera::test::runCli("replay " + (dir / "goal.trec").string() + " --info", dir);
   INFO(info.out);
   CHECK(std::regex_search(info.out, std::regex(R"(goal\b.*\b1 message)")));
+
+  // What Foxglove's client decoded matches the run.
+  const auto f = nlohmann::json::parse(slurp(dir / "foxglove.json"));
+  CHECK(f["server"]["name"] == "tessera");
+  CHECK(f["decoded"]["scan"]["ranges"].get<int>() > 100);
+  CHECK(f["decoded"]["scan"]["finite"].get<int>() > 0);
+  CHECK(f["decoded"]["map"]["cell_size"]["x"].get<double>() == Approx(0.05));
+  CHECK(f["decoded"]["map"]["fields"] == nlohmann::json::array({"occupancy"}));
+  CHECK(f["decoded"]["map"]["rows"].get<double>() > 10);
+  const auto& fp = f["decoded"]["pose"];
+  const double fstamp = fp["stamp_ns"].get<double>() * 1e-9;
+  const auto fnear = std::min_element(traj.begin(), traj.end(), [&](const auto& a, const auto& b) {
+    return std::abs(a.t - fstamp) < std::abs(b.t - fstamp);
+  });
+  CHECK(std::abs(fnear->t - fstamp) < 1e-3);
+  CHECK(std::hypot(fnear->x - fp["x"].get<double>(), fnear->y - fp["y"].get<double>()) < 0.1);
+  const auto actors = f["decoded"]["tessera/metrics"]["actors"];
+  CHECK(std::find(actors.begin(), actors.end(), "slam") != actors.end());
+
   const auto summary = nlohmann::json::parse(slurp(dir / "out" / "summary.json"));
   CHECK(summary["actors"]["viewer"]["goals"] == 1);
   CHECK(summary["actors"]["viewer"]["clients_total"].get<int>() >= 1);

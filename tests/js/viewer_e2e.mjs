@@ -164,8 +164,10 @@ let page = null;
 try {
   browser = await chromium.launch({
     executablePath: process.env.CHROMIUM || "/usr/bin/chromium",
+    // No network beyond localhost here: nothing in the background may try to reach out.
     args: ["--headless=new", "--no-sandbox", "--disable-gpu", "--disable-dev-shm-usage",
-      "--disable-background-networking"],
+      "--disable-background-networking", "--disable-quic", "--no-first-run",
+      "--disable-component-update", "--disable-sync"],
     timeout: remainingMs(),
   });
   page = await browser.newPage({ viewport: { width: 1280, height: 800 } });

@@ -125,6 +125,45 @@ struct FoxgloveServer::Impl {
   bool flush_posted = false;
   bool retry_armed = false;
   std::unique_ptr<asio::steady_timer> retry;
+  struct Periodic {
+    std::uint32_t channel;
+    std::chrono::milliseconds period;
+    std::function<std::string()> make;
+    std::unique_ptr<asio::steady_timer> timer;
+  };
+  std::vector<std::unique_ptr<Periodic>> periodic;  // touched on the server's thread only
+
+  bool subscribedLocked(std::uint32_t channel) const {
+    for (const auto& [h, c] : clients)
+      for (const auto& [id, sub] : c.subscriptions)
+        if (sub.channel + 1 == channel) return true;
+    return false;
+  }
+
+  void arm(Periodic& p) {
+    p.timer->expires_after(p.period);
+    p.timer->async_wait([this, &p](const std::error_code& e) {
+      if (e) return;  // cancelled: the server stops
+      bool wanted;
+      {
+        std::lock_guard<std::mutex> lock(mutex);
+        wanted = subscribedLocked(p.channel);
+      }
+      if (wanted) {
+        std::string payload = p.make();
+        const auto now = std::chrono::duration_cast<std::chrono::nanoseconds>(
+                             std::chrono::system_clock::now().time_since_epoch())
+                             .count();
+        std::lock_guard<std::mutex> lock(mutex);
+        auto& ch = channels[p.channel - 1];
+        ch.payload = std::make_shared<const std::string>(std::move(payload));
+        ch.stamp_ns = static_cast<std::uint64_t>(now);
+        ++ch.version;
+      }
+      if (wanted) flush();
+      arm(p);
+    });
+  }
 
   void fail(Hdl hdl, http_status::value code, const std::string& why) {
     auto con = server.get_con_from_hdl(hdl);
@@ -530,6 +569,7 @@ FoxgloveServer::~FoxgloveServer() {
     websocketpp::lib::error_code ec;
     m.server.stop_listening(ec);
     m.retry->cancel();
+    for (auto& p : m.periodic) p->timer->cancel();
     std::vector<Hdl> open;
     {
       std::lock_guard<std::mutex> lock(m.mutex);
@@ -616,10 +656,24 @@ void FoxgloveServer::acceptClientTopic(const std::string& topic, ClientHandler h
 
 bool FoxgloveServer::subscribed(std::uint32_t channel) const {
   std::lock_guard<std::mutex> lock(impl_->mutex);
-  for (const auto& [h, c] : impl_->clients)
-    for (const auto& [id, sub] : c.subscriptions)
-      if (sub.channel + 1 == channel) return true;
-  return false;
+  return impl_->subscribedLocked(channel);
+}
+
+void FoxgloveServer::publishEvery(std::uint32_t channel, int period_ms,
+                                  std::function<std::string()> make) {
+  Impl& m = *impl_;
+  {
+    std::lock_guard<std::mutex> lock(m.mutex);
+    if (channel == 0 || channel > m.channels.size())
+      throw ServerError("viewer: publishEvery on unknown channel " + std::to_string(channel));
+  }
+  auto p = std::make_shared<std::unique_ptr<Impl::Periodic>>(new Impl::Periodic{
+      channel, std::chrono::milliseconds(std::max(period_ms, 1)), std::move(make),
+      std::make_unique<asio::steady_timer>(m.server.get_io_service())});
+  asio::post(m.server.get_io_service(), [&m, p] {
+    m.periodic.push_back(std::move(*p));
+    m.arm(*m.periodic.back());
+  });
 }
 
 FoxgloveServer::Stats FoxgloveServer::stats() const {

@@ -280,8 +280,11 @@ function updateSubscriptions() {
     if (mapChannelTopic !== null) clearTiles();
     mapChannelTopic = map ? map.topic : null;
   }
+  // Ground truth comes at the simulator's odometry rate: only fetched while its layer is on
+  // (so drawn from then on), which keeps a default page's load on the stack low.
   const wanted = channels.filter((c) =>
-    c.role !== null && ((c.role !== "tiles" && c.role !== "grid") || c === map));
+    c.role !== null && ((c.role !== "tiles" && c.role !== "grid") || c === map) &&
+    (c.role !== "ground_truth" || ui.layers.ground_truth));
 
   const subscribe = [];
   for (const ch of wanted) {
@@ -847,6 +850,7 @@ for (const box of document.querySelectorAll("input[data-layer]")) {
   box.addEventListener("change", () => {
     ui.layers[name] = box.checked;
     hooks.layers = { ...ui.layers };
+    if (name === "ground_truth" && conn.ws) updateSubscriptions();
     requestRedraw();
   });
 }
@@ -1168,8 +1172,7 @@ function showMetrics(msg) {
   document.getElementById("metrics-section").classList.remove("hidden");
   const wall = num(msg.wall_s), sim = num(msg.sim_s);
   document.getElementById("metrics-clock").textContent =
-    `wall ${wall.toFixed(1)} s · sim ${sim.toFixed(1)} s` + (wall > 0 ? ` · ×${(sim / wall).toFixed(2)}` : "") +
-    " · handler times in µs";
+    `wall ${wall.toFixed(1)} s · sim ${sim.toFixed(1)} s` + (wall > 0 ? ` · ×${(sim / wall).toFixed(2)}` : "");
   const progress = document.getElementById("metrics-progress");
   const hasProgress = msg.progress !== null && msg.progress !== undefined;
   progress.classList.toggle("hidden", !hasProgress);
@@ -1179,13 +1182,13 @@ function showMetrics(msg) {
   const rows = [];
   for (const a of msg.actors || []) {
     const tr = document.createElement("tr");
-    const cells = [String(a.name ?? ""), fmt(a.messages_in), fmt(a.messages_out), fmt(a.drops),
-      fmt(a.max_queue_depth), fmt(a.handler_p50_us), fmt(a.handler_p99_us)];
+    const cells = [String(a.name ?? ""), fmt(a.in_per_s, 1), fmt(a.drops),
+      `${fmt(a.queue_depth)} / ${fmt(a.max_queue_depth)}`, `${fmt(a.busy_pct, 1)} %`];
     cells.forEach((text, i) => {
       const td = document.createElement("td");
       td.textContent = text;
       if (i === 0) td.title = text;
-      if (i === 3 && num(a.drops) > 0) td.className = "bad";
+      if (i === 2 && num(a.drops) > 0) td.className = "bad";
       tr.appendChild(td);
     });
     rows.push(tr);

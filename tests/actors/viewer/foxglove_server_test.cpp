@@ -9,6 +9,7 @@
 #include <catch2/catch.hpp>
 #include <nlohmann/json.hpp>
 
+#include <atomic>
 #include <mutex>
 #include <string>
 #include <thread>
@@ -396,4 +397,22 @@ TEST_CASE("the server names what it cannot bind", "[viewer][server]") {
   o.address = "127.0.0.1";
   o.port = 70000;
   CHECK_THROWS_WITH(FoxgloveServer(o, page()), Catch::Contains("0..65535"));
+}
+
+TEST_CASE("periodic figures are made only while someone subscribes", "[viewer][server]") {
+  FoxgloveServer server(anyPort(), page());
+  const auto ch = server.addChannel({"tessera/metrics", "json", "", "", ""});
+  std::atomic<int> made{0};
+  server.publishEvery(ch, 10, [&] { return "{\"n\":" + std::to_string(++made) + "}"; });
+  std::this_thread::sleep_for(std::chrono::milliseconds(100));
+  CHECK(made == 0);  // nobody looks
+  WsClient c(server.port());
+  REQUIRE(c.status() == 101);
+  readJson(c, "advertise");
+  subscribe(c, 1, ch);
+  const Data a = readData(c);
+  const Data b = readData(c);
+  CHECK(a.payload != b.payload);
+  CHECK(b.stamp >= a.stamp);
+  CHECK(made >= 2);
 }

@@ -34,13 +34,9 @@ bool isGrid(std::uint64_t type_id) {
   return type_id == messageTypeOf<msg::OccupancyGrid>().id;
 }
 
-struct PlanarPose {
-  double x = 0, y = 0, theta = std::numeric_limits<double>::quiet_NaN();
-};
+}  // namespace
 
-// {"x","y","theta"} or a pose with position + orientation (Foxglove PoseInFrame, ROS
-// PoseStamped: {"pose": {...}}). Returns an error text, or "" with `out` set.
-std::string parsePose(std::string_view payload, PlanarPose& out) {
+std::string parseClientPose(std::string_view payload, ClientPose& out) {
   const auto j = nlohmann::json::parse(payload, nullptr, false);
   if (j.is_discarded() || !j.is_object()) return "expected a JSON object";
   auto number = [](const nlohmann::json& o, const char* key, double& v) {
@@ -72,6 +68,8 @@ std::string parsePose(std::string_view payload, PlanarPose& out) {
   return "";
 }
 
+namespace {
+
 std::int64_t wallNs() {
   return std::chrono::duration_cast<std::chrono::nanoseconds>(
              std::chrono::system_clock::now().time_since_epoch())
@@ -79,6 +77,32 @@ std::int64_t wallNs() {
 }
 
 }  // namespace
+
+std::string metricsJson(const RunSnapshot& now, RunSnapshot& last) {
+  nlohmann::json j;
+  j["wall_s"] = now.wall_s;
+  j["sim_s"] = now.sim_s;
+  j["progress"] = now.progress >= 0 ? nlohmann::json(now.progress) : nlohmann::json(nullptr);
+  j["actors"] = nlohmann::json::array();
+  const double dt = now.wall_s - last.wall_s;
+  for (std::size_t i = 0; i < now.actors.size(); ++i) {
+    const auto& a = now.actors[i];
+    const bool before = i < last.actors.size() && last.actors[i].name == a.name && dt > 0;
+    j["actors"].push_back(
+        {{"name", a.name},
+         {"messages_in", a.messages_in},
+         {"messages_out", a.messages_out},
+         {"drops", a.drops},
+         {"queue_depth", a.queue_depth},
+         {"max_queue_depth", a.max_queue_depth},
+         {"busy_s", a.busy_s},
+         {"in_per_s",
+          before ? static_cast<double>(a.messages_in - last.actors[i].messages_in) / dt : 0.0},
+         {"busy_pct", before ? 100.0 * (a.busy_s - last.actors[i].busy_s) / dt : 0.0}});
+  }
+  last = now;
+  return j.dump();
+}
 
 ViewerActor::ViewerActor(ViewerActorOptions options) : options_(std::move(options)) {
   auto fail = [](const std::string& key, const std::string& what) {
@@ -148,6 +172,12 @@ void ViewerActor::start() {
     t->frames = frameSourceFor(t->name, type.id);
     frames = frames || t->frames != FrameSource::kNone;
   }
+  // The run's live figures, once a second while someone looks.
+  const std::uint32_t metrics =
+      server_->addChannel({"tessera/metrics", "json", "tessera.Metrics", "", ""});
+  server_->publishEvery(metrics, 1000, [this, last = RunSnapshot{}]() mutable {
+    return metricsJson(ctx_->snapshot(), last);
+  });
   if (frames) {
     const FoxgloveSchema tf = frameTransformSchema();
     tf_channel_ = server_->addChannel({"tf", "json", tf.name, tf.data, tf.encoding});
@@ -218,8 +248,8 @@ void ViewerActor::onMessage(std::size_t index, const std::shared_ptr<const Messa
 }
 
 std::string ViewerActor::onGoal(std::string_view payload) {
-  PlanarPose p;
-  if (std::string e = parsePose(payload, p); !e.empty()) return e;
+  ClientPose p;
+  if (std::string e = parseClientPose(payload, p); !e.empty()) return e;
   const std::uint64_t n = ++goals_;
   auto loan = goal_pub_.loan();
   setHeader(loan->initHeader(), ctx_->now(), "map", goal_pub_.nextSeq());
@@ -235,8 +265,8 @@ std::string ViewerActor::onGoal(std::string_view payload) {
 }
 
 std::string ViewerActor::onInitialPose(std::string_view payload) {
-  PlanarPose p;
-  if (std::string e = parsePose(payload, p); !e.empty()) return e;
+  ClientPose p;
+  if (std::string e = parseClientPose(payload, p); !e.empty()) return e;
   ++initial_poses_;
   auto loan = initial_pose_pub_.loan();
   setHeader(loan->initHeader(), ctx_->now(), "map", initial_pose_pub_.nextSeq());

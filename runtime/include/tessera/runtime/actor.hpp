@@ -131,6 +131,21 @@ const std::string& Publisher<T>::topic() const {
   return detail::topicName(topic_);
 }
 
+/// A live look at this process's run, for viewers and monitors: cheap (a short lock per
+/// actor), safe from any thread.
+struct RunSnapshot {
+  struct ActorFigures {
+    std::string name;
+    std::uint64_t messages_in = 0, messages_out = 0, drops = 0;
+    std::uint64_t queue_depth = 0, max_queue_depth = 0;  ///< now, and the most so far
+    double busy_s = 0;                                   ///< time in its handlers so far
+  };
+  double wall_s = 0;     ///< since the run started
+  double sim_s = 0;      ///< runtime-clock time covered
+  double progress = -1;  ///< mean progress of the finite sources in [0, 1]; -1 without any
+  std::vector<ActorFigures> actors;
+};
+
 /// What an actor sees of the runtime. Given to configure(); valid for the actor's lifetime.
 class ActorContext {
  public:
@@ -186,6 +201,8 @@ class ActorContext {
   virtual void reportProgress(double fraction) = 0;
   /// Asks the whole run to stop cleanly (e.g. a fatal input error).
   virtual void requestStop(std::string_view reason) = 0;
+  /// The run's figures now (RunSnapshot); from start() on, callable from any thread.
+  virtual RunSnapshot snapshot() const = 0;
 
  protected:
   virtual void subscribeRaw(std::string_view topic, MessageType type, MailboxPolicy policy,

@@ -101,6 +101,11 @@ class FoxgloveServer {
   void publishParts(std::uint32_t channel, std::uint64_t stamp_ns, std::uint64_t epoch,
                     std::string header, std::vector<std::pair<std::uint64_t, std::string>> parts);
 
+  /// Every `period_ms` of wall time, while some client subscribes to `channel`, publishes what
+  /// `make` returns (called on the server's thread; it must be thread-safe). For figures that
+  /// are cheap to take but pointless to push when nobody looks (live metrics).
+  void publishEvery(std::uint32_t channel, int period_ms, std::function<std::string()> make);
+
   /// Whether some client subscribes to `channel` (skip converting messages nobody sees).
   bool subscribed(std::uint32_t channel) const;
 

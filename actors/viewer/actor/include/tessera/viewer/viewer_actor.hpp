@@ -23,8 +23,10 @@
 
 #include <atomic>
 #include <cstdint>
+#include <limits>
 #include <memory>
 #include <string>
+#include <string_view>
 #include <vector>
 
 namespace tessera::viewer {
@@ -78,6 +80,20 @@ struct ViewerActorOptions {
     v("queue", queue, "keep-latest mailbox per topic [messages]");
   }
 };
+
+/// A pose a client sent: {"x","y","theta"} [m, m, rad], or a pose with position and orientation
+/// (Foxglove PoseInFrame; ROS PoseStamped as {"pose": {...}}). theta stays NaN when not given.
+struct ClientPose {
+  double x = 0, y = 0, theta = std::numeric_limits<double>::quiet_NaN();
+};
+/// Reads `payload` into `out`; returns "" or what is wrong with it (for the client).
+std::string parseClientPose(std::string_view payload, ClientPose& out);
+
+/// The "tessera/metrics" message: the run's figures and, per actor, rates over the time since
+/// `last` (which becomes `now`). JSON: {wall_s, sim_s, progress (null without finite sources),
+/// actors: [{name, messages_in, messages_out, drops, queue_depth, max_queue_depth, busy_s,
+/// in_per_s, busy_pct}]}.
+std::string metricsJson(const RunSnapshot& now, RunSnapshot& last);
 
 class ViewerActor final : public Actor {
  public:
