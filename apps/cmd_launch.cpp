@@ -13,6 +13,9 @@
 #include <tessera/shm/shm_transport.hpp>
 
 #include <sys/prctl.h>
+#include <sys/stat.h>
+#include <unistd.h>
+#include <yaml-cpp/yaml.h>
 
 #include <chrono>
 #include <cstdio>
@@ -34,17 +37,60 @@ struct LaunchArgs {
   std::string out;
   int threads = 0;
   std::string shm_log = "error";
+  RunSettings view;  // only the --view options
 };
+
+// `launch --view`: the workers read the profile from its file, so the viewer goes into a copy
+// of it (mode 0600: it may hold the token) that the launcher and every worker load instead. The
+// viewer runs in a process of its own ("viewer"): a browser can never disturb the robot's
+// processes, and the deployment plan brings it the topics it shows over shared memory.
+std::string profileWithViewer(const std::string& path, const RunSettings& view) {
+  YAML::Node root = YAML::LoadFile(path);
+  if (!root["name"]) root["name"] = fs::path(path).stem().string();
+  YAML::Node actors = root["actors"];
+  std::string name = "viewer";
+  for (int i = 2; actors[name]; ++i) name = "viewer_" + std::to_string(i);
+  YAML::Node viewer;
+  viewer["type"] = "viewer";
+  viewer["process"] = "viewer";
+  viewer["params"]["port"] = view.view_port;
+  viewer["params"]["address"] = view.view_address;
+  if (!view.view_token.empty()) viewer["params"]["token"] = view.view_token;
+  bool localises = false;
+  for (auto kv : actors) {
+    const std::string type = kv.second["type"] ? kv.second["type"].as<std::string>() : "";
+    localises = localises || type == "monte_carlo_localizer";
+    if (type == "map_assembler" &&
+        !(kv.second["params"] && kv.second["params"]["publish_period_s"] &&
+          kv.second["params"]["publish_period_s"].as<double>(0) > 0))
+      kv.second["params"]["publish_period_s"] = 1.0;
+  }
+  if (!localises) viewer["params"]["initial_pose_topic"] = "";
+  actors[name] = viewer;
+  const fs::path copy =
+      fs::temp_directory_path() / ("tessera_launch_view_" + std::to_string(::getpid()) + ".yaml");
+  {
+    std::ofstream out(copy);
+    out << "# " << path << " with the live viewer (tessera launch --view)\n"
+        << YAML::Dump(root) << "\n";
+  }
+  ::chmod(copy.c_str(), 0600);
+  return copy.string();
+}
 
 int launch(const LaunchArgs& a) {
   LauncherOptions o;
   o.profile_path = resolveProfilePath(a.profile, profileSearchDirs());
+  std::string copy;
+  if (a.view.view_port >= 0) o.profile_path = copy = profileWithViewer(o.profile_path, a.view);
   o.sets = a.sets;
   o.out_dir = a.out;
   o.threads = a.threads;
   o.shm_log = a.shm_log;
   Launcher launcher(std::move(o));
-  return launcher.run().exit_code;
+  const int code = launcher.run().exit_code;
+  if (!copy.empty()) fs::remove(copy);
+  return code;
 }
 
 struct WorkerArgs {
@@ -131,6 +177,12 @@ void addLaunchCommand(CLI::App& app, int& result) {
   cmd->add_option("--out", args->out, "output folder (created); default: none, nothing is written");
   cmd->add_option("--threads", args->threads, "executor threads per process (0: all cores)");
   cmd->add_option("--shm-log", args->shm_log, "iceoryx log level: off, error, warn, info");
+  cmd->add_option("--view", args->view.view_port,
+                  "serve the live viewer on PORT from a process of its own (see tessera run)")
+      ->check(CLI::Range(0, 65535));
+  cmd->add_option("--view-address", args->view.view_address,
+                  "interface the viewer listens on (0.0.0.0: every one; set --view-token)");
+  cmd->add_option("--view-token", args->view.view_token, "token every viewer request must carry");
   cmd->callback([args, &result] { result = launch(*args); });
 
   auto* w = app.add_subcommand("worker", "");  // started by `launch`; hidden from --help

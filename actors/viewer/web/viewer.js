@@ -543,7 +543,9 @@ function decodeTiles(bytes) {
     at += partBytes;
   }
 
-  if (wallNs > 0n) {
+  // The first tiles after (re)subscribing carry the map as it is, however old: that is its age,
+  // not a delivery time, so only later updates count.
+  if (wallNs > 0n && g) {
     hooks.latenciesMs.push(Date.now() - Number(wallNs) / 1e6);
     if (hooks.latenciesMs.length > LATENCIES_KEPT) hooks.latenciesMs.shift();
   }

@@ -423,3 +423,35 @@ TEST_CASE("tessera goal reaches a launched navigator and --wait ends with the go
   CHECK(Launch::reapAll(10s));
   CHECK(shmClean());
 }
+
+TEST_CASE("launch --view serves the live viewer from its own process with every process's topics",
+          "[launch][viewer]") {
+  const auto dir = freshDir("view_launch");
+  std::ofstream(dir / "goal_nav.yaml") << kGoalProfile;
+  Launch launch({(dir / "goal_nav.yaml").string(), "--view", "0", "--out", (dir / "out").string()},
+                dir);
+  const std::string port = launch.waitFor(R"(live view: http://127\.0\.0\.1:([0-9]+)/)");
+  INFO(launch.output());
+  REQUIRE_FALSE(port.empty());
+  REQUIRE(!launch.waitFor(R"(started 'nav')").empty());
+  const auto topics = tessera::test::runCli("topics --port " + port, dir);
+  INFO(topics.out + topics.err);
+  CHECK(topics.exit_code == 0);
+  CHECK(topics.out.find("nav_status") != std::string::npos);  // from the nav process
+  CHECK(topics.out.find("scan") != std::string::npos);        // from the robot process
+  const auto pose =
+      tessera::test::runCli("echo ground_truth -n 1 --timeout 20 --port " + port, dir);
+  INFO(pose.err);
+  CHECK(pose.exit_code == 0);
+  CHECK(nlohmann::json::parse(pose.out)["pose"]["position"]["x"].is_number());
+  ::kill(launch.pid(), SIGTERM);
+  CHECK(launch.wait(60s) == 130);
+  CHECK(fs::exists(dir / "out" / "summary_viewer.json"));
+  CHECK(Launch::reapAll(10s));
+  CHECK(shmClean());
+  // The profile copy with the viewer (it may hold a token) is gone.
+  int copies = 0;
+  for (const auto& e : fs::directory_iterator(fs::temp_directory_path()))
+    copies += e.path().filename().string().rfind("tessera_launch_view_", 0) == 0;
+  CHECK(copies == 0);
+}
