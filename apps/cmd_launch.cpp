@@ -59,7 +59,11 @@ std::string profileWithViewer(const std::string& path, const RunSettings& view) 
   bool localises = false;
   for (auto kv : actors) {
     const std::string type = kv.second["type"] ? kv.second["type"].as<std::string>() : "";
-    localises = localises || type == "monte_carlo_localizer";
+    if (type == "monte_carlo_localizer") {
+      localises = true;
+      if (!(kv.second["params"] && kv.second["params"]["initial_pose_topic"]))
+        kv.second["params"]["initial_pose_topic"] = true;  // the viewer publishes it
+    }
     if (type == "map_assembler" &&
         !(kv.second["params"] && kv.second["params"]["publish_period_s"] &&
           kv.second["params"]["publish_period_s"].as<double>(0) > 0))

@@ -99,10 +99,18 @@ void applyViewOptions(Profile& profile, const RunSettings& s, bool rate_given) {
   params["port"] = s.view_port;
   params["address"] = s.view_address;
   if (!s.view_token.empty()) params["token"] = s.view_token;
-  // Initial poses only where a localiser may listen. Goals are always offered: without a
-  // navigator they are only recorded, which is what a goal sequence for a later run needs.
+  // Initial poses where a localiser listens: its initial_pose subscription is switched on (it
+  // stays off without --view because nothing would publish it). Goals are always offered:
+  // without a navigator they are only recorded.
   bool localises = false;
-  for (const auto& a : profile.actors) localises = localises || a.type == "monte_carlo_localizer";
+  for (auto& a : profile.actors) {
+    if (a.type != "monte_carlo_localizer") continue;
+    localises = true;
+    YAML::Node p = YAML::Clone(a.params.node());
+    if (!p || p.IsNull()) p = YAML::Node(YAML::NodeType::Map);
+    if (!p["initial_pose_topic"]) p["initial_pose_topic"] = true;
+    a.params = Params(p, a.params.where());
+  }
   // A map assembler that publishes only at the end (publish_period_s 0, sim_slam_global's
   // default for batch runs) would show nothing until then: once a second instead.
   for (auto& a : profile.actors) {

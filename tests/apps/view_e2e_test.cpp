@@ -161,3 +161,47 @@ TEST_CASE("a browser and Foxglove's client watch sim_slam_global live; the brows
   CHECK(summary["actors"]["viewer"]["goals"] == 1);
   CHECK(summary["actors"]["viewer"]["clients_total"].get<int>() >= 1);
 }
+
+TEST_CASE("an initial pose placed in the browser restarts the localiser, which keeps its track",
+          "[viewer][e2e]") {
+  const fs::path js = fs::path(TESSERA_SOURCE_DIR) / "tests" / "js";
+  if (const std::string why = missingBrowser(js); !why.empty()) {
+    skipOrFail(why);
+    return;
+  }
+  const fs::path dir = fs::temp_directory_path() / "tessera_view_mcl";
+  fs::remove_all(dir);
+  fs::create_directories(dir);
+  const fs::path err = dir / "stderr.txt";
+  // sim_nav: the world's map, MCL, the navigator driving a goal sequence.
+  tessera::test::CliChild run(
+      "run sim_nav --view 0 --rate 4 --quiet --out " + (dir / "out").string(), err);
+  const std::string url = tessera::test::waitForViewerUrl(err);
+  INFO(slurp(err));
+  REQUIRE_FALSE(url.empty());
+  const std::string cmd = "node " + (js / "viewer_e2e.mjs").string() + " --url " + url +
+                          " --initial-pose robot --screenshot " + (dir / "viewer.png").string() +
+                          " --out " + (dir / "result.json").string() + " --timeout-s 120 > " +
+                          (dir / "e2e.log").string() + " 2>&1";
+  const int e2e = std::system(cmd.c_str());
+  // Some more driving after the restart before stopping.
+  std::this_thread::sleep_for(std::chrono::seconds(5));
+  const int stopped = run.interrupt();
+  INFO(slurp(dir / "e2e.log"));
+  REQUIRE(e2e == 0);
+  CHECK(stopped == 130);
+  const auto r = nlohmann::json::parse(slurp(dir / "result.json"));
+  REQUIRE_FALSE(r["initialPoseSent"].is_null());
+  const auto summary = nlohmann::json::parse(slurp(dir / "out" / "summary.json"));
+  CHECK(summary["actors"]["viewer"]["initial_poses"] == 1);
+  CHECK(summary["actors"]["mcl"]["initial_poses"] == 1);
+  // Restarted where the page drew the robot, MCL still follows the truth at the end.
+  const auto estimate = readTum(dir / "out" / "trajectory.tum");
+  const auto truth = readTum(dir / "out" / "ground_truth.tum");
+  REQUIRE(estimate.size() > 10);
+  const auto& last = estimate.back();
+  const auto near = std::min_element(truth.begin(), truth.end(), [&](const auto& a, const auto& b) {
+    return std::abs(a.t - last.t) < std::abs(b.t - last.t);
+  });
+  CHECK(std::hypot(near->x - last.x, near->y - last.y) < 0.3);
+}

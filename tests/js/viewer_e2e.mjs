@@ -5,7 +5,10 @@
 // as JSON. Any console error or uncaught page error fails the check.
 //
 //   node viewer_e2e.mjs --url http://127.0.0.1:8765/ --screenshot OUT.png --out RESULT.json
-//                       [--goal X,Y] [--timeout-s 60]
+//                       [--goal X,Y] [--initial-pose X,Y|robot] [--timeout-s 60]
+//
+// --initial-pose places a pose for the localiser with the "Initial pose" tool ("robot": where the
+// page draws the robot now).
 //
 // Exit 0 on success; 1 with a message on stderr on failure or timeout (RESULT.json is still
 // written, with "failure" set); 2 on bad arguments. CHROMIUM overrides /usr/bin/chromium.
@@ -13,12 +16,13 @@ import { chromium } from "playwright-core";
 import { writeFileSync } from "node:fs";
 
 const USAGE =
-  "usage: node viewer_e2e.mjs --url URL --screenshot OUT.png --out RESULT.json [--goal X,Y] [--timeout-s 60]";
+  "usage: node viewer_e2e.mjs --url URL --screenshot OUT.png --out RESULT.json [--goal X,Y] " +
+  "[--initial-pose X,Y|robot] [--timeout-s 60]";
 const REQUIRED_LAYERS = ["map", "scan", "robot", "trajectory"];
 const STATUS_QUIET_MS = 1000; // after a goal, this long without an error status
 
 function parseArgs(argv) {
-  const opts = { url: null, screenshot: null, out: null, goal: null, timeoutS: 60 };
+  const opts = { url: null, screenshot: null, out: null, goal: null, initialPose: null, timeoutS: 60 };
   for (let i = 0; i < argv.length; i++) {
     const key = argv[i];
     const value = argv[i + 1];
@@ -35,6 +39,17 @@ function parseArgs(argv) {
         const parts = need().split(",").map(Number);
         if (parts.length !== 2 || !parts.every(Number.isFinite)) usage(`--goal wants X,Y in metres, got '${value}'`);
         opts.goal = { x: parts[0], y: parts[1] };
+        break;
+      }
+      case "--initial-pose": {
+        const text = need();
+        if (text === "robot") {
+          opts.initialPose = "robot";
+          break;
+        }
+        const parts = text.split(",").map(Number);
+        if (parts.length !== 2 || !parts.every(Number.isFinite)) usage(`--initial-pose wants X,Y in metres or 'robot', got '${value}'`);
+        opts.initialPose = { x: parts[0], y: parts[1] };
         break;
       }
       case "--timeout-s":
@@ -85,6 +100,7 @@ const result = {
   messages: {},
   topics: [],
   goalSent: null,
+  initialPoseSent: null,
   lastStatus: null,
   errors,
 };
@@ -118,8 +134,14 @@ function missing(state) {
   return lacks.join(", ") || "nothing";
 }
 
-async function placeGoal(page, goal) {
-  await page.click("#goal-button");
+// The goal and initial-pose tools work alike; what differs is the button and the counters.
+const TOOLS = {
+  goal: { button: "#goal-button", sent: "goalsSent", last: "lastGoal", name: "goal" },
+  initial: { button: "#initial-pose-button", sent: "initialPosesSent", last: "lastInitialPose", name: "initial pose" },
+};
+
+async function placeGoal(page, goal, tool = TOOLS.goal) {
+  await page.click(tool.button);
   // In placement mode the view stops following the robot, so the point stays put.
   const where = async () => page.evaluate(({ x, y }) => {
     const canvas = document.getElementById("map-canvas");
@@ -132,30 +154,30 @@ async function placeGoal(page, goal) {
     // Off screen at this zoom: show the whole map (which leaves placement mode), then again.
     await page.keyboard.press("Escape");
     await page.click("#fit-button");
-    await page.click("#goal-button");
+    await page.click(tool.button);
     at = await where();
-    if (!at.inside) throw new Failure(`goal ${goal.x},${goal.y} is outside the map view even when fitted`);
+    if (!at.inside) throw new Failure(`${tool.name} ${goal.x},${goal.y} is outside the map view even when fitted`);
   }
   const clickedAtMs = await page.evaluate(() => Date.now());
   await page.mouse.move(at.px, at.py);
   await page.mouse.down();
   await page.mouse.up();
   try {
-    await page.waitForFunction(() => window.tessera.goalsSent >= 1, null, { timeout: Math.min(remainingMs(), 10000), polling: 50 });
+    await page.waitForFunction((key) => window.tessera[key] >= 1, tool.sent, { timeout: Math.min(remainingMs(), 10000), polling: 50 });
   } catch {
-    throw new Failure("the goal click did not send a goal (window.tessera.goalsSent stayed 0)");
+    throw new Failure(`the ${tool.name} click sent nothing (window.tessera.${tool.sent} stayed 0)`);
   }
   await page.waitForTimeout(STATUS_QUIET_MS);
   const state = await readState(page);
   const refusals = (state.statuses || []).filter((s) => s.level >= 2 && s.t >= clickedAtMs);
-  if (refusals.length) throw new Failure(`the server answered the goal with an error: ${refusals.map((s) => s.message).join("; ")}`);
-  const sent = state.lastGoal;
+  if (refusals.length) throw new Failure(`the server answered the ${tool.name} with an error: ${refusals.map((s) => s.message).join("; ")}`);
+  const sent = state[tool.last];
   // The click lands on a whole pixel: allow a few pixels' worth of metres.
   const tolerance = 3 / state.view.scale + 1e-6;
   if (!sent || Math.hypot(sent.x - goal.x, sent.y - goal.y) > tolerance) {
-    throw new Failure(`goal sent at ${JSON.stringify(sent)}, wanted ${goal.x},${goal.y} (±${tolerance.toFixed(3)} m)`);
+    throw new Failure(`${tool.name} sent at ${JSON.stringify(sent)}, wanted ${goal.x},${goal.y} (±${tolerance.toFixed(3)} m)`);
   }
-  result.goalSent = { x: sent.x, y: sent.y, theta: sent.theta };
+  result[tool === TOOLS.goal ? "goalSent" : "initialPoseSent"] = { x: sent.x, y: sent.y, theta: sent.theta };
   return state;
 }
 
@@ -206,6 +228,12 @@ try {
 
   if (opts.goal) {
     state = await placeGoal(page, opts.goal);
+    result.lastStatus = state.lastStatus;
+    result.messages = state.messages;
+  }
+  if (opts.initialPose) {
+    const at = opts.initialPose === "robot" ? { x: state.robot.x, y: state.robot.y } : opts.initialPose;
+    state = await placeGoal(page, at, TOOLS.initial);
     result.lastStatus = state.lastStatus;
     result.messages = state.messages;
   }
