@@ -26,9 +26,18 @@ if [ ! -x /usr/bin/chromium ] && { [ "${CI:-}" = true ] || [ "$(id -u)" -eq 0 ];
   SUDO=""
   if [ "$(id -u)" -ne 0 ]; then SUDO="sudo"; fi
   echo "[js] installing Debian's chromium (headless browser for the viewer test)"
-  DEBIAN_FRONTEND=noninteractive $SUDO apt-get install -y -qq --no-install-recommends \
-    -o Dpkg::Options::=--force-unsafe-io chromium > /dev/null ||
-    { [ "${CI:-}" = true ] && { echo "[js] chromium could not be installed" >&2; exit 1; }; } || true
+  install_chromium() {
+    DEBIAN_FRONTEND=noninteractive $SUDO apt-get install -y -qq --no-install-recommends \
+      -o Dpkg::Options::=--force-unsafe-io chromium > /dev/null
+  }
+  # Stale package lists (a machine whose other packages were all present) get one refresh.
+  if ! install_chromium && ! { $SUDO apt-get update -qq && install_chromium; }; then
+    if [ "${CI:-}" = true ]; then
+      echo "[js] chromium could not be installed" >&2
+      exit 1
+    fi
+    echo "[js] no chromium: the viewer's browser test will be skipped"
+  fi
 fi
 if [ -f node_modules/.package-lock.json ] && [ node_modules/.package-lock.json -nt package-lock.json ]; then
   echo "[js] packages present"

@@ -597,16 +597,17 @@ std::uint32_t FoxgloveServer::addChannel(ChannelSpec spec) {
   Impl& m = *impl_;
   std::uint32_t id;
   std::vector<Hdl> open;
+  json channel;
   {
     std::lock_guard<std::mutex> lock(m.mutex);
     m.channels.push_back(Impl::Channel{});
     m.channels.back().spec = std::move(spec);
     id = static_cast<std::uint32_t>(m.channels.size());
+    channel = m.channelJson(id, m.channels.back().spec);
     for (auto& [h, c] : m.clients) open.push_back(h);
   }
   if (!open.empty()) {
-    const json ad = {{"op", "advertise"},
-                     {"channels", json::array({m.channelJson(id, m.channels[id - 1].spec)})}};
+    const json ad = {{"op", "advertise"}, {"channels", json::array({channel})}};
     asio::post(m.server.get_io_service(), [&m, open, ad] {
       for (auto& h : open) m.sendText(h, ad);
     });
