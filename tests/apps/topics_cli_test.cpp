@@ -10,6 +10,9 @@
 #include "cli_child.hpp"
 #include "cli_run.hpp"
 
+// Everything in a namespace of its own: unity builds put test files together.
+namespace topics_cli_test {
+
 namespace fs = std::filesystem;
 using tessera::test::runCli;
 
@@ -62,3 +65,5 @@ TEST_CASE("topics and echo look into a running stack through its viewer", "[view
   CHECK(bad_url.exit_code == 1);
   CHECK_THAT(bad_url.err, Catch::Contains("not a WebSocket URL"));
 }
+
+}  // namespace topics_cli_test

@@ -26,6 +26,9 @@
 #include "cli_child.hpp"
 #include "cli_run.hpp"
 
+// Everything in a namespace of its own: unity builds put test files together.
+namespace view_e2e_test {
+
 namespace fs = std::filesystem;
 
 namespace {
@@ -205,3 +208,5 @@ TEST_CASE("an initial pose placed in the browser restarts the localiser, which k
   });
   CHECK(std::hypot(near->x - last.x, near->y - last.y) < 0.3);
 }
+
+}  // namespace view_e2e_test

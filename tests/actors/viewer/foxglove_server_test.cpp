@@ -15,6 +15,9 @@
 #include <thread>
 #include <vector>
 
+// Everything in a namespace of its own: unity builds put test files together.
+namespace foxglove_server_test {
+
 using namespace tessera::viewer;
 using namespace tessera::viewer::testing;
 using nlohmann::json;
@@ -416,3 +419,5 @@ TEST_CASE("periodic figures are made only while someone subscribes", "[viewer][s
   CHECK(b.stamp >= a.stamp);
   CHECK(made >= 2);
 }
+
+}  // namespace foxglove_server_test

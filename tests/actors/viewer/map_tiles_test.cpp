@@ -9,6 +9,9 @@
 #include <limits>
 #include <vector>
 
+// Everything in a namespace of its own: unity builds put test files together.
+namespace map_tiles_test {
+
 using namespace tessera::viewer;
 
 namespace {
@@ -127,3 +130,5 @@ TEST_CASE("grids that cannot be drawn are refused with the reason", "[viewer][ti
   CHECK(tiler.update(g.view, 0, 0).tiles.empty());
   CHECK_THROWS(MapTiler(0));
 }
+
+}  // namespace map_tiles_test

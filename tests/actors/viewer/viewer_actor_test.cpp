@@ -8,6 +8,9 @@
 
 #include <cmath>
 
+// Everything in a namespace of its own: unity builds put test files together.
+namespace viewer_actor_test {
+
 using namespace tessera;
 using namespace tessera::viewer;
 
@@ -67,3 +70,5 @@ TEST_CASE("the metrics message gives rates over the last interval", "[viewer]") 
   CHECK(j["actors"][0]["busy_pct"].get<double>() == Approx(20.0));
   CHECK(j["actors"][0]["drops"] == 2);
 }
+
+}  // namespace viewer_actor_test
