@@ -50,26 +50,16 @@ std::string profileWithViewer(const std::string& path, const RunSettings& view) 
   YAML::Node actors = root["actors"];
   std::string name = "viewer";
   for (int i = 2; actors[name]; ++i) name = "viewer_" + std::to_string(i);
+  std::vector<ActorParams> edits;
+  for (auto kv : actors) {
+    if (!kv.second["params"]) kv.second["params"] = YAML::Node(YAML::NodeType::Map);
+    edits.emplace_back(kv.second["type"] ? kv.second["type"].as<std::string>() : "",
+                       kv.second["params"]);
+  }
   YAML::Node viewer;
   viewer["type"] = "viewer";
   viewer["process"] = "viewer";
-  viewer["params"]["port"] = view.view_port;
-  viewer["params"]["address"] = view.view_address;
-  if (!view.view_token.empty()) viewer["params"]["token"] = view.view_token;
-  bool localises = false;
-  for (auto kv : actors) {
-    const std::string type = kv.second["type"] ? kv.second["type"].as<std::string>() : "";
-    if (type == "monte_carlo_localizer") {
-      localises = true;
-      if (!(kv.second["params"] && kv.second["params"]["initial_pose_topic"]))
-        kv.second["params"]["initial_pose_topic"] = true;  // the viewer publishes it
-    }
-    if (type == "map_assembler" &&
-        !(kv.second["params"] && kv.second["params"]["publish_period_s"] &&
-          kv.second["params"]["publish_period_s"].as<double>(0) > 0))
-      kv.second["params"]["publish_period_s"] = 1.0;
-  }
-  if (!localises) viewer["params"]["initial_pose_topic"] = "";
+  viewer["params"] = viewerParams(view, edits);
   actors[name] = viewer;
   const fs::path copy =
       fs::temp_directory_path() / ("tessera_launch_view_" + std::to_string(::getpid()) + ".yaml");
@@ -181,12 +171,7 @@ void addLaunchCommand(CLI::App& app, int& result) {
   cmd->add_option("--out", args->out, "output folder (created); default: none, nothing is written");
   cmd->add_option("--threads", args->threads, "executor threads per process (0: all cores)");
   cmd->add_option("--shm-log", args->shm_log, "iceoryx log level: off, error, warn, info");
-  cmd->add_option("--view", args->view.view_port,
-                  "serve the live viewer on PORT from a process of its own (see tessera run)")
-      ->check(CLI::Range(0, 65535));
-  cmd->add_option("--view-address", args->view.view_address,
-                  "interface the viewer listens on (0.0.0.0: every one; set --view-token)");
-  cmd->add_option("--view-token", args->view.view_token, "token every viewer request must carry");
+  addViewOptions(*cmd, args->view);  // the viewer in a process of its own
   cmd->callback([args, &result] { result = launch(*args); });
 
   auto* w = app.add_subcommand("worker", "");  // started by `launch`; hidden from --help

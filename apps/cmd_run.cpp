@@ -66,6 +66,10 @@ void addRunOptions(CLI::App& cmd, RunSettings& s) {
   cmd.add_option("--set", s.sets, "override: ACTOR.KEY=VALUE, KEY=VALUE (repeatable)");
   cmd.add_option("--threads", s.threads, "executor threads (0: all cores)");
   cmd.add_flag("--quiet", s.quiet, "no progress line and no metrics table");
+  addViewOptions(cmd, s);
+}
+
+void addViewOptions(CLI::App& cmd, RunSettings& s) {
   cmd.add_option("--view", s.view_port,
                  "serve the live viewer on PORT: the page at http://127.0.0.1:PORT/, Foxglove "
                  "Studio at ws://127.0.0.1:PORT (simulated clocks then run at real time)")
@@ -93,35 +97,42 @@ ActorSpec actorSpec(const std::string& name, const std::string& type, const YAML
   return spec;
 }
 
-void applyViewOptions(Profile& profile, const RunSettings& s, bool rate_given) {
-  if (s.view_port < 0) return;
+YAML::Node viewerParams(const RunSettings& s, const std::vector<ActorParams>& actors) {
   YAML::Node params;
   params["port"] = s.view_port;
   params["address"] = s.view_address;
   if (!s.view_token.empty()) params["token"] = s.view_token;
-  // Initial poses where a localiser listens: its initial_pose subscription is switched on (it
-  // stays off without --view because nothing would publish it). Goals are always offered:
-  // without a navigator they are only recorded.
   bool localises = false;
-  for (auto& a : profile.actors) {
-    if (a.type != "monte_carlo_localizer") continue;
-    localises = true;
-    YAML::Node p = YAML::Clone(a.params.node());
-    if (!p || p.IsNull()) p = YAML::Node(YAML::NodeType::Map);
-    if (!p["initial_pose_topic"]) p["initial_pose_topic"] = true;
-    a.params = Params(p, a.params.where());
-  }
-  // A map assembler that publishes only at the end (publish_period_s 0, sim_slam_global's
-  // default for batch runs) would show nothing until then: once a second instead.
-  for (auto& a : profile.actors) {
-    if (a.type != "map_assembler") continue;
-    YAML::Node p = YAML::Clone(a.params.node());
-    if (!p || p.IsNull()) p = YAML::Node(YAML::NodeType::Map);
-    if (p["publish_period_s"] && p["publish_period_s"].as<double>(0) > 0) continue;
-    p["publish_period_s"] = 1.0;
-    a.params = Params(p, a.params.where());
+  for (const auto& [type, node] : actors) {
+    YAML::Node p = node;  // a handle: edits reach the caller's node
+    // Initial poses where a localiser listens: its initial_pose subscription is switched on (it
+    // stays off without --view because nothing would publish it). Goals are always offered:
+    // without a navigator they are only recorded.
+    if (type == "monte_carlo_localizer") {
+      localises = true;
+      if (!p["initial_pose_topic"]) p["initial_pose_topic"] = true;
+    }
+    // A map assembler that publishes only at the end (publish_period_s 0, sim_slam_global's
+    // default for batch runs) would show nothing until then: once a second instead.
+    if (type == "map_assembler" &&
+        !(p["publish_period_s"] && p["publish_period_s"].as<double>(0) > 0))
+      p["publish_period_s"] = 1.0;
   }
   if (!localises) params["initial_pose_topic"] = "";
+  return params;
+}
+
+void applyViewOptions(Profile& profile, const RunSettings& s, bool rate_given) {
+  if (s.view_port < 0) return;
+  std::vector<ActorParams> actors;
+  for (const auto& a : profile.actors) {
+    YAML::Node p = YAML::Clone(a.params.node());
+    if (!p.IsMap()) p = YAML::Node(YAML::NodeType::Map);
+    actors.emplace_back(a.type, p);
+  }
+  const YAML::Node params = viewerParams(s, actors);
+  for (std::size_t i = 0; i < actors.size(); ++i)
+    profile.actors[i].params = Params(actors[i].second, profile.actors[i].params.where());
   profile.actors.push_back(actorSpec(uniqueActorName(profile, "viewer"), "viewer", params));
   if (!rate_given && profile.clock == ClockKind::kSimulated && profile.sim_rate == 0) {
     profile.sim_rate = 1;

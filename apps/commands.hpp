@@ -8,6 +8,7 @@
 
 #include <functional>
 #include <string>
+#include <utility>
 #include <vector>
 
 namespace tessera::app {
@@ -59,6 +60,14 @@ struct RunSettings {
 };
 /// Adds --set, --threads, --quiet and the --view options to a command.
 void addRunOptions(CLI::App& cmd, RunSettings& settings);
+/// Adds --view, --view-address and --view-token (part of addRunOptions; `launch` adds them alone).
+void addViewOptions(CLI::App& cmd, RunSettings& settings);
+/// An actor's type and its params, which viewerParams() may change in place.
+using ActorParams = std::pair<std::string, YAML::Node>;
+/// What --view needs: the viewer actor's params, and the changes to the others' (a localiser
+/// listens for initial poses, a map assembler publishes once a second). Shared by `run`, which
+/// edits a loaded profile, and `launch`, which edits the profile's YAML for its workers.
+YAML::Node viewerParams(const RunSettings& settings, const std::vector<ActorParams>& actors);
 /// With --view: adds a viewer actor to `profile` (docs/viewer.md#live) and, unless the pace was
 /// given (`rate_given`), runs a simulated clock at real time so there is something to watch.
 void applyViewOptions(Profile& profile, const RunSettings& settings, bool rate_given);

@@ -7,6 +7,8 @@
 // (recorded by the same command). Foxglove's own client (@foxglove/ws-protocol,
 // tests/js/foxglove_check.mjs) then subscribes to the same server and its decoded scan, map,
 // pose, transforms and metrics are compared with the run too.
+#include <tessera/mapping/trajectory_io.hpp>
+
 #include <catch2/catch.hpp>
 #include <nlohmann/json.hpp>
 
@@ -59,22 +61,23 @@ std::string missingBrowser(const fs::path& js) {
   return "";
 }
 
-struct TumPose {
-  double t, x, y;
-};
+using tessera::mapping::TumPose;
 
-std::vector<TumPose> readTum(const fs::path& p) {
-  std::vector<TumPose> out;
-  std::ifstream in(p);
-  std::string line;
-  while (std::getline(in, line)) {
-    if (line.empty() || line[0] == '#') continue;
-    std::istringstream s(line);
-    TumPose q{};
-    s >> q.t >> q.x >> q.y;
-    out.push_back(q);
-  }
-  return out;
+// The pose of a TUM trajectory closest in time to `stamp_ns`.
+const TumPose& nearest(const std::vector<TumPose>& trajectory, double stamp_ns) {
+  REQUIRE_FALSE(trajectory.empty());
+  return *std::min_element(trajectory.begin(), trajectory.end(), [&](const auto& a, const auto& b) {
+    return std::abs(static_cast<double>(a.stamp_ns) - stamp_ns) <
+           std::abs(static_cast<double>(b.stamp_ns) - stamp_ns);
+  });
+}
+
+// Within 1 ms of `stamp_ns` and 0.1 m of (x, y): the same estimate.
+void checkOnTrajectory(const std::vector<TumPose>& trajectory, double stamp_ns, double x,
+                       double y) {
+  const TumPose& near = nearest(trajectory, stamp_ns);
+  CHECK(std::abs(static_cast<double>(near.stamp_ns) - stamp_ns) < 1e6);
+  CHECK(std::hypot(near.position.x() - x, near.position.y() - y) < 0.1);
 }
 
 }  // namespace
@@ -125,15 +128,9 @@ TEST_CASE("a browser and Foxglove's client watch sim_slam_global live; the brows
     CHECK(std::find(r["topics"].begin(), r["topics"].end(), topic) != r["topics"].end());
 
   // The robot the page drew is the run's estimate at that stamp.
-  const auto traj = readTum(dir / "out" / "trajectory.tum");
-  REQUIRE_FALSE(traj.empty());
-  const double stamp = r["robot"]["stampNs"].get<double>() * 1e-9;
-  const auto near = std::min_element(traj.begin(), traj.end(), [&](const auto& a, const auto& b) {
-    return std::abs(a.t - stamp) < std::abs(b.t - stamp);
-  });
-  CHECK(std::abs(near->t - stamp) < 1e-3);
-  CHECK(std::hypot(near->x - r["robot"]["x"].get<double>(),
-                   near->y - r["robot"]["y"].get<double>()) < 0.1);
+  const auto traj = tessera::mapping::readTum(dir / "out" / "trajectory.tum");
+  checkOnTrajectory(traj, r["robot"]["stampNs"].get<double>(), r["robot"]["x"].get<double>(),
+                    r["robot"]["y"].get<double>());
 
   // The clicked goal arrived on the goal topic: one message, recorded.
   CHECK(std::abs(r["goalSent"]["x"].get<double>() - 2.5) < 0.05);
@@ -151,12 +148,8 @@ TEST_CASE("a browser and Foxglove's client watch sim_slam_global live; the brows
   CHECK(f["decoded"]["map"]["fields"] == nlohmann::json::array({"occupancy"}));
   CHECK(f["decoded"]["map"]["rows"].get<double>() > 10);
   const auto& fp = f["decoded"]["pose"];
-  const double fstamp = fp["stamp_ns"].get<double>() * 1e-9;
-  const auto fnear = std::min_element(traj.begin(), traj.end(), [&](const auto& a, const auto& b) {
-    return std::abs(a.t - fstamp) < std::abs(b.t - fstamp);
-  });
-  CHECK(std::abs(fnear->t - fstamp) < 1e-3);
-  CHECK(std::hypot(fnear->x - fp["x"].get<double>(), fnear->y - fp["y"].get<double>()) < 0.1);
+  checkOnTrajectory(traj, fp["stamp_ns"].get<double>(), fp["x"].get<double>(),
+                    fp["y"].get<double>());
   const auto actors = f["decoded"]["tessera/metrics"]["actors"];
   CHECK(std::find(actors.begin(), actors.end(), "slam") != actors.end());
 
@@ -199,14 +192,12 @@ TEST_CASE("an initial pose placed in the browser restarts the localiser, which k
   CHECK(summary["actors"]["viewer"]["initial_poses"] == 1);
   CHECK(summary["actors"]["mcl"]["initial_poses"] == 1);
   // Restarted where the page drew the robot, MCL still follows the truth at the end.
-  const auto estimate = readTum(dir / "out" / "trajectory.tum");
-  const auto truth = readTum(dir / "out" / "ground_truth.tum");
+  const auto estimate = tessera::mapping::readTum(dir / "out" / "trajectory.tum");
+  const auto truth = tessera::mapping::readTum(dir / "out" / "ground_truth.tum");
   REQUIRE(estimate.size() > 10);
-  const auto& last = estimate.back();
-  const auto near = std::min_element(truth.begin(), truth.end(), [&](const auto& a, const auto& b) {
-    return std::abs(a.t - last.t) < std::abs(b.t - last.t);
-  });
-  CHECK(std::hypot(near->x - last.x, near->y - last.y) < 0.3);
+  const TumPose& last = estimate.back();
+  const TumPose& near = nearest(truth, static_cast<double>(last.stamp_ns));
+  CHECK((near.position - last.position).head<2>().norm() < 0.3);
 }
 
 }  // namespace view_e2e_test

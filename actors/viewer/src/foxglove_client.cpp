@@ -2,6 +2,8 @@
 #include <tessera/viewer/foxglove_client.hpp>
 #include <tessera/viewer/foxglove_server.hpp>  // ServerError
 
+#include "little_endian.hpp"
+
 #define ASIO_STANDALONE
 #include <websocketpp/client.hpp>
 #include <websocketpp/config/asio_no_tls_client.hpp>
@@ -25,13 +27,6 @@ using Client = websocketpp::client<websocketpp::config::asio_client>;
 using nlohmann::json;
 constexpr std::size_t kMaxQueued = 1024;
 
-template <class T>
-T readLe(const std::string& s, std::size_t at) {
-  std::uint64_t v = 0;
-  for (std::size_t i = 0; i < sizeof(T); ++i)
-    v |= static_cast<std::uint64_t>(static_cast<unsigned char>(s[at + i])) << (8 * i);
-  return static_cast<T>(v);
-}
 }  // namespace
 
 struct FoxgloveClient::Impl {
@@ -70,8 +65,11 @@ struct FoxgloveClient::Impl {
   }
 
   void onBinary(const std::string& data) {
-    if (data.size() < 13 || data[0] != 1) return;
-    const auto sub = readLe<std::uint32_t>(data, 1);
+    std::uint32_t sub = 0;
+    std::uint64_t stamp = 0;
+    if (data.size() < 13 || data[0] != 1 || !detail::readLe(data, 1, sub) ||
+        !detail::readLe(data, 5, stamp))
+      return;
     std::lock_guard<std::mutex> lock(mutex);
     const auto it = subscriptions.find(sub);
     if (it == subscriptions.end()) return;
@@ -79,7 +77,7 @@ struct FoxgloveClient::Impl {
       queue.pop_front();
       ++dropped;
     }
-    queue.push_back({it->second, readLe<std::uint64_t>(data, 5), data.substr(13)});
+    queue.push_back({it->second, stamp, data.substr(13)});
     cv.notify_all();
   }
 };

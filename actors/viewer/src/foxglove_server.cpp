@@ -3,6 +3,8 @@
 // its header keeps websocketpp out of everyone else's includes.
 #include <tessera/viewer/foxglove_server.hpp>
 
+#include "little_endian.hpp"
+
 #define ASIO_STANDALONE
 #include <websocketpp/config/asio_no_tls.hpp>
 #include <websocketpp/server.hpp>
@@ -24,26 +26,12 @@ namespace {
 
 using Server = websocketpp::server<websocketpp::config::asio>;
 using Hdl = websocketpp::connection_hdl;
+using detail::appendLe;
+using detail::readLe;
 using nlohmann::json;
 namespace http_status = websocketpp::http::status_code;
 
 const char* const kSubprotocol = "foxglove.websocket.v1";
-
-template <class T>
-void putLe(std::string& out, T v) {
-  for (std::size_t i = 0; i < sizeof(T); ++i)
-    out.push_back(static_cast<char>((static_cast<std::uint64_t>(v) >> (8 * i)) & 0xff));
-}
-
-template <class T>
-bool getLe(std::string_view in, std::size_t at, T& v) {
-  if (at + sizeof(T) > in.size()) return false;
-  std::uint64_t r = 0;
-  for (std::size_t i = 0; i < sizeof(T); ++i)
-    r |= static_cast<std::uint64_t>(static_cast<unsigned char>(in[at + i])) << (8 * i);
-  v = static_cast<T>(r);
-  return true;
-}
 
 bool equalConstantTime(const std::string& a, const std::string& b) {
   if (a.size() != b.size()) return false;
@@ -88,7 +76,7 @@ struct FoxgloveServer::Impl {
     // keep-latest channels
     std::shared_ptr<const std::string> payload;
     std::uint64_t stamp_ns = 0;
-    std::uint64_t version = 0;  // messages published
+    std::uint64_t version = 0;  // messages published (keep-latest channels)
     // parts channels
     std::uint64_t epoch = 0;
     bool has_epoch = false;
@@ -140,6 +128,17 @@ struct FoxgloveServer::Impl {
     return false;
   }
 
+  // The channel's newest message (keep-latest: replaces one no client has had yet).
+  void store(std::uint32_t channel, std::uint64_t stamp_ns, std::string payload) {
+    std::lock_guard<std::mutex> lock(mutex);
+    if (channel == 0 || channel > channels.size())
+      throw ServerError("viewer: publish on unknown channel " + std::to_string(channel));
+    auto& ch = channels[channel - 1];
+    ch.payload = std::make_shared<const std::string>(std::move(payload));
+    ch.stamp_ns = stamp_ns;
+    ++ch.version;
+  }
+
   void arm(Periodic& p) {
     p.timer->expires_after(p.period);
     p.timer->async_wait([this, &p](const std::error_code& e) {
@@ -150,17 +149,12 @@ struct FoxgloveServer::Impl {
         wanted = subscribedLocked(p.channel);
       }
       if (wanted) {
-        std::string payload = p.make();
         const auto now = std::chrono::duration_cast<std::chrono::nanoseconds>(
                              std::chrono::system_clock::now().time_since_epoch())
                              .count();
-        std::lock_guard<std::mutex> lock(mutex);
-        auto& ch = channels[p.channel - 1];
-        ch.payload = std::make_shared<const std::string>(std::move(payload));
-        ch.stamp_ns = static_cast<std::uint64_t>(now);
-        ++ch.version;
+        store(p.channel, static_cast<std::uint64_t>(now), p.make());
+        flush();
       }
-      if (wanted) flush();
       arm(p);
     });
   }
@@ -396,7 +390,7 @@ struct FoxgloveServer::Impl {
   void onBinary(Hdl hdl, const std::string& data) {
     std::uint8_t opcode = 0;
     std::uint32_t channel = 0;
-    if (!getLe(data, 0, opcode) || opcode != 1 || !getLe(data, 1, channel)) {
+    if (!readLe(data, 0, opcode) || opcode != 1 || !readLe(data, 1, channel)) {
       protocolError(hdl, "binary messages must be client message data (opcode 1, channel id)");
       return;
     }
@@ -434,9 +428,9 @@ struct FoxgloveServer::Impl {
                  const std::string& body_a, const std::string* body_b = nullptr) {
     std::string frame;
     frame.reserve(13 + body_a.size() + (body_b ? body_b->size() : 0));
-    putLe<std::uint8_t>(frame, 1);
-    putLe<std::uint32_t>(frame, sub);
-    putLe<std::uint64_t>(frame, stamp);
+    appendLe<std::uint8_t>(frame, 1);
+    appendLe<std::uint32_t>(frame, sub);
+    appendLe<std::uint64_t>(frame, stamp);
     frame += body_a;
     if (body_b) frame += *body_b;
     if (con->send(frame, websocketpp::frame::opcode::binary)) return;
@@ -470,18 +464,18 @@ struct FoxgloveServer::Impl {
         const bool reset = !sub.has_epoch || sub.epoch != ch.epoch;
         if (!reset && ch.part_version <= sub.sent) continue;
         std::string body;
-        putLe<std::uint8_t>(body, reset ? 1 : 0);
-        putLe<std::uint32_t>(body, static_cast<std::uint32_t>(ch.header.size()));
+        appendLe<std::uint8_t>(body, reset ? 1 : 0);
+        appendLe<std::uint32_t>(body, static_cast<std::uint32_t>(ch.header.size()));
         body += ch.header;
         std::string parts;
         std::uint32_t n = 0;
         for (const auto& [key, p] : ch.part)
           if (reset || p.first > sub.sent) {
-            putLe<std::uint32_t>(parts, static_cast<std::uint32_t>(p.second.size()));
+            appendLe<std::uint32_t>(parts, static_cast<std::uint32_t>(p.second.size()));
             parts += p.second;
             ++n;
           }
-        putLe<std::uint32_t>(body, n);
+        appendLe<std::uint32_t>(body, n);
         sendFrame(con, id, ch.stamp_ns, body, &parts);
         sub.sent = ch.part_version;
         sub.epoch = ch.epoch;
@@ -616,17 +610,8 @@ std::uint32_t FoxgloveServer::addChannel(ChannelSpec spec) {
 }
 
 void FoxgloveServer::publish(std::uint32_t channel, std::uint64_t stamp_ns, std::string payload) {
-  Impl& m = *impl_;
-  {
-    std::lock_guard<std::mutex> lock(m.mutex);
-    if (channel == 0 || channel > m.channels.size())
-      throw ServerError("viewer: publish on unknown channel " + std::to_string(channel));
-    auto& ch = m.channels[channel - 1];
-    ch.payload = std::make_shared<const std::string>(std::move(payload));
-    ch.stamp_ns = stamp_ns;
-    ++ch.version;
-  }
-  m.flushNow();
+  impl_->store(channel, stamp_ns, std::move(payload));
+  impl_->flushNow();
 }
 
 void FoxgloveServer::publishParts(std::uint32_t channel, std::uint64_t stamp_ns,
@@ -645,7 +630,6 @@ void FoxgloveServer::publishParts(std::uint32_t channel, std::uint64_t stamp_ns,
     ch.header = std::move(header);
     ch.stamp_ns = stamp_ns;
     for (auto& [key, bytes] : parts) ch.part[key] = {++ch.part_version, std::move(bytes)};
-    ++ch.version;
   }
   m.flushNow();
 }

@@ -1,5 +1,7 @@
 #include <tessera/viewer/map_tiles.hpp>
 
+#include "little_endian.hpp"
+
 #include <cmath>
 #include <cstring>
 #include <set>
@@ -8,14 +10,6 @@
 namespace tessera::viewer {
 
 namespace {
-
-template <class T>
-void putLe(std::string& out, T v) {
-  std::uint64_t bits = 0;
-  std::memcpy(&bits, &v, sizeof(T));
-  for (std::size_t i = 0; i < sizeof(T); ++i)
-    out.push_back(static_cast<char>((bits >> (8 * i)) & 0xff));
-}
 
 std::int64_t floorDiv(std::int64_t a, std::int64_t b) {
   return a >= 0 ? a / b : -((-a + b - 1) / b);
@@ -102,19 +96,19 @@ MapTiler::Update MapTiler::update(const GridView& g, std::int64_t stamp_ns,
     auto it = tiles_.find(key);
     if (it != tiles_.end() && it->second == cells) continue;
     std::string bytes;
-    putLe<std::int32_t>(bytes, static_cast<std::int32_t>(key & 0xffffffffu));
-    putLe<std::int32_t>(bytes, static_cast<std::int32_t>(key >> 32));
+    detail::appendLe<std::int32_t>(bytes, static_cast<std::int32_t>(key & 0xffffffffu));
+    detail::appendLe<std::int32_t>(bytes, static_cast<std::int32_t>(key >> 32));
     bytes += cells;
     tiles_[key] = std::move(cells);
     u.tiles.emplace_back(key, std::move(bytes));
   }
   u.epoch = epoch_;
-  putLe<double>(u.header, resolution_);
-  putLe<double>(u.header, offset_x_);
-  putLe<double>(u.header, offset_y_);
-  putLe<std::uint32_t>(u.header, static_cast<std::uint32_t>(T));
-  putLe<std::int64_t>(u.header, stamp_ns);
-  putLe<std::int64_t>(u.header, received_wall_ns);
+  detail::appendLe<double>(u.header, resolution_);
+  detail::appendLe<double>(u.header, offset_x_);
+  detail::appendLe<double>(u.header, offset_y_);
+  detail::appendLe<std::uint32_t>(u.header, static_cast<std::uint32_t>(T));
+  detail::appendLe<std::int64_t>(u.header, stamp_ns);
+  detail::appendLe<std::int64_t>(u.header, received_wall_ns);
   return u;
 }
 
