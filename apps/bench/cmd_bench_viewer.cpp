@@ -1,11 +1,13 @@
 // `tessera bench viewer`: what the live viewer costs a running pipeline, and how soon a map
-// update reaches a client (docs/viewer.md#live). sim_slam_global runs at real time (10 Hz
-// scans) for --seconds, alternately without and with a viewer that has one client attached, for
-// --rounds pairs (interleaved: the machine's noise hits both alike). The client subscribes to
-// what the web page shows (map tiles, scan, pose, frames, trajectories, submaps, loops, metrics)
-// and runs in this process: its own CPU (its threads' clocks) is taken out of the "with" figure,
-// as a browser's would be in its own process. The map assembler publishes once a second in both
-// variants, as it does under --view.
+// update reaches a client (docs/viewer.md#live). A profile (--profile: sim_slam_global, the
+// two-level SLAM, or sim_nav, MCL + navigation; both 10 Hz scans) runs at real time for
+// --seconds, alternately without and with a viewer that has one client attached, for --rounds
+// pairs (interleaved: the machine's noise hits both alike). The client subscribes to what the
+// web page shows by default (map and costmap tiles, scan, poses, frames, trajectories, submaps,
+// loops, path, the dynamic window's arcs, navigation status, metrics) and runs in this process:
+// its own CPU (its threads' clocks) is taken out of the "with" figure, as a browser's would be
+// in its own process. sim_slam_global's map assembler publishes once a second in both variants,
+// as it does under --view.
 //
 // Map latency: from the viewer receiving a map (the wall time in the tiles' header) to the
 // client having its tiles; the mailbox hand-off before it is the runtime's (bench runtime).
@@ -40,6 +42,7 @@ namespace tessera::app {
 namespace {
 
 struct Options {
+  std::string profile = "sim_slam_global";
   double seconds = 30;
   int rounds = 3;
   bool json = false;
@@ -79,9 +82,10 @@ std::int64_t wallNowNs() {
       .count();
 }
 
-Round runOnce(double seconds, bool with_viewer) {
-  std::vector<std::string> sets = {"assembler.publish_period_s=1"};
-  Profile profile = loadProfile(resolveProfilePath("sim_slam_global", profileSearchDirs()), sets);
+Round runOnce(const std::string& name, double seconds, bool with_viewer) {
+  std::vector<std::string> sets;
+  if (name == "sim_slam_global") sets.push_back("assembler.publish_period_s=1");
+  Profile profile = loadProfile(resolveProfilePath(name, profileSearchDirs()), sets);
   profile.sim_rate = 1;
   profile.max_duration_s = seconds;  // buildRuntime takes the limit from the profile
   const int port = with_viewer ? freePort() : 0;
@@ -116,8 +120,9 @@ Round runOnce(double seconds, bool with_viewer) {
       }
       if (!client) return;
       const std::set<std::string> page = {
-          "map/tiles",        "scan",         "pose",        "tf",
-          "trajectory_final", "submap_poses", "constraints", "tessera/metrics"};
+          "map/tiles",  "costmap/tiles",    "scan",           "pose",        "localized_pose",
+          "tf",         "trajectory_final", "submap_poses",   "constraints", "path",
+          "local_plan", "nav_status",       "tessera/metrics"};
       std::uint32_t tiles = 0;
       for (const auto& c : client->channels())
         if (page.count(c.topic)) {
@@ -154,9 +159,12 @@ Round runOnce(double seconds, bool with_viewer) {
 void addBenchViewerCommand(CLI::App& bench, int& result) {
   auto* cmd = bench.add_subcommand(
       "viewer",
-      "the live viewer's cost to a real-time sim_slam_global run with one client attached, and "
-      "its map-update latency");
+      "the live viewer's cost to a real-time run (sim_slam_global or sim_nav) with one client "
+      "attached, and its map-update latency");
   auto o = std::make_shared<Options>();
+  cmd->add_option("--profile", o->profile, "sim_slam_global (SLAM) or sim_nav (navigation)")
+      ->check(CLI::IsMember({"sim_slam_global", "sim_nav"}))
+      ->capture_default_str();
   cmd->add_option("--seconds", o->seconds, "simulated = wall seconds per run")
       ->capture_default_str();
   cmd->add_option("--rounds", o->rounds, "pairs of runs (without, with the viewer)")
@@ -169,10 +177,10 @@ void addBenchViewerCommand(CLI::App& bench, int& result) {
     std::uint64_t messages = 0;
     for (int i = 0; i < o->rounds; ++i) {
       std::cerr << "[bench viewer] round " << i + 1 << "/" << o->rounds << ": without ...\n";
-      const Round a = runOnce(o->seconds, false);
+      const Round a = runOnce(o->profile, o->seconds, false);
       std::cerr << "[bench viewer] round " << i + 1 << "/" << o->rounds
                 << ": with the viewer and one client ...\n";
-      const Round b = runOnce(o->seconds, true);
+      const Round b = runOnce(o->profile, o->seconds, true);
       without.push_back(a.cpu_s);
       with.push_back(b.cpu_s);
       client.push_back(b.client_cpu_s);
@@ -182,6 +190,7 @@ void addBenchViewerCommand(CLI::App& bench, int& result) {
       messages += b.messages;
     }
     const nlohmann::json j{{"machine", machineDescription()},
+                           {"profile", o->profile},
                            {"seconds", o->seconds},
                            {"rounds", o->rounds},
                            {"cpu_without_s", without},
@@ -201,8 +210,8 @@ void addBenchViewerCommand(CLI::App& bench, int& result) {
     std::cout << "machine: " << machineDescription() << "\n"
               << std::fixed << std::setprecision(2) << "pipeline CPU         "
               << percentile(without, 0.5) << " s without, " << percentile(with, 0.5)
-              << " s with the viewer (medians of " << o->rounds << " x " << o->seconds
-              << " s at real time)\n"
+              << " s with the viewer (medians of " << o->rounds << " x " << o->seconds << " s of "
+              << o->profile << " at real time)\n"
               << "viewer overhead      " << percentile(overhead_pct, 0.5) << " % of the pipeline ("
               << std::setprecision(3) << percentile(overhead_core, 0.5) << " of a core)\n"
               << std::setprecision(2) << "client               " << percentile(client, 0.5)

@@ -23,3 +23,16 @@ struct CameraEvent {
   cameraId @1 :Int32;
   entered @2 :Bool;           # true = entered the view, false = left it
 }
+
+# The floor areas environment cameras see, in the map frame (true ones from a simulator, or
+# estimated ones from a calibration), for display and scoring.
+struct CameraFootprints {
+  struct Footprint {
+    cameraId @0 :Int32;
+    xy @1 :List(Float64);        # polygon corners in the map frame: x0, y0, x1, y1, ... [m]
+    calibrated @2 :Bool;         # true: estimated by a calibration; false: known (simulator,
+                                 # survey)
+  }
+  header @0 :Common.Header;      # frameId = map
+  cameras @1 :List(Footprint);
+}

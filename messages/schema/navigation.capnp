@@ -48,3 +48,23 @@ struct NavStatus {
   reason @3 :Text;             # why failed or refused, which recovery runs; empty otherwise
   distanceRemaining @4 :Float64;  # [m] along the current path to the goal; NaN when unknown
 }
+
+# What the dynamic window weighed in one control period (docs/algorithms.md#local-planning):
+# every sampled velocity pair's arc, for display (the viewer's DWA layer, Foxglove). Published
+# at the navigator's local_plan_hz while a goal is being driven.
+struct LocalPlan {
+  struct Arc {
+    v @0 :Float32;               # [m/s] the pair's forward speed
+    w @1 :Float32;               # [rad/s] its yaw rate
+    admissible @2 :Bool;         # the robot can stop before the arc's first contact
+    score @3 :Float32;           # the dynamic window's normalised score (higher is better);
+                                 # 0 when not admissible
+    clearance @4 :Float32;       # [m] clear length along the arc (capped at the horizon)
+    xy @5 :List(Float32);        # the rolled-out arc in the map frame: x0, y0, x1, y1, ... [m]
+  }
+  header @0 :Common.Header;      # frameId = map; stamp of the control period
+  goalId @1 :UInt64;             # the goal being driven to
+  command @2 :Common.Twist2D;    # the chosen pair (vy = 0)
+  chosen @3 :Int32;              # index of the chosen arc in arcs; -1 when none was admissible
+  arcs @4 :List(Arc);
+}

@@ -176,8 +176,9 @@ TEST_CASE("an initial pose placed in the browser restarts the localiser, which k
   INFO(slurp(err));
   REQUIRE_FALSE(url.empty());
   const std::string cmd = "node " + (js / "viewer_e2e.mjs").string() + " --url " + url +
-                          " --initial-pose robot --screenshot " + (dir / "viewer.png").string() +
-                          " --out " + (dir / "result.json").string() + " --timeout-s 120 > " +
+                          " --initial-pose robot --need map,robot,costmap,local_plan" +
+                          " --screenshot " + (dir / "viewer.png").string() + " --out " +
+                          (dir / "result.json").string() + " --timeout-s 120 > " +
                           (dir / "e2e.log").string() + " 2>&1";
   const int e2e = std::system(cmd.c_str());
   // Some more driving after the restart before stopping.
@@ -198,6 +199,56 @@ TEST_CASE("an initial pose placed in the browser restarts the localiser, which k
   const TumPose& last = estimate.back();
   const TumPose& near = nearest(truth, static_cast<double>(last.stamp_ns));
   CHECK((near.position - last.position).head<2>().norm() < 0.3);
+}
+
+// Runs `tessera run PROFILE --view 0 ARGS` and the browser check with `need`; returns what the
+// page saw (result.json), the run stopped with Ctrl-C.
+nlohmann::json watch(const std::string& profile, const std::string& args, const std::string& need,
+                     const fs::path& dir) {
+  const fs::path js = fs::path(TESSERA_SOURCE_DIR) / "tests" / "js";
+  fs::remove_all(dir);
+  fs::create_directories(dir);
+  const fs::path err = dir / "stderr.txt";
+  tessera::test::CliChild run(
+      "run " + profile + " --view 0 --quiet " + args + " --out " + (dir / "out").string(), err);
+  const std::string url = tessera::test::waitForViewerUrl(err);
+  INFO(slurp(err));
+  REQUIRE_FALSE(url.empty());
+  const std::string cmd = "node " + (js / "viewer_e2e.mjs").string() + " --url " + url +
+                          " --need " + need + " --screenshot " + (dir / "viewer.png").string() +
+                          " --out " + (dir / "result.json").string() + " --timeout-s 120 > " +
+                          (dir / "e2e.log").string() + " 2>&1";
+  const int e2e = std::system(cmd.c_str());
+  const int stopped = run.interrupt();
+  INFO(slurp(dir / "e2e.log"));
+  REQUIRE(e2e == 0);
+  CHECK(stopped == 130);
+  return nlohmann::json::parse(slurp(dir / "result.json"));
+}
+
+TEST_CASE("the browser draws the camera network's footprints and the RGB-D SLAM's 3D map",
+          "[viewer][e2e]") {
+  const fs::path js = fs::path(TESSERA_SOURCE_DIR) / "tests" / "js";
+  if (const std::string why = missingBrowser(js); !why.empty()) {
+    skipOrFail(why);
+    return;
+  }
+  const fs::path cameras_dir = fs::temp_directory_path() / "tessera_view_cameras";
+  const auto cameras = watch("sim_camera_network", "--rate 8", "map,cameras", cameras_dir);
+  // Every camera of the run's cameras file (one line per camera after the comments).
+  std::ifstream list(cameras_dir / "out" / "cameras.txt");
+  int listed = 0;
+  for (std::string line; std::getline(list, line);)
+    if (!line.empty() && line[0] != '#') ++listed;
+  CHECK(listed == 7);
+  CHECK(cameras["scenes"]["camera_footprints"]["entities"] == listed);
+  CHECK(cameras["scenes"]["camera_footprints"]["lines"] == listed);
+
+  // The 3D map as the mapper holds it: voxel centres on its 5 cm OctoMap lattice.
+  const auto rgbd = watch("sim_rgbd", "", "cloud", fs::temp_directory_path() / "tessera_view_rgbd");
+  CHECK(rgbd["cloudPoints"].get<int>() > 1000);
+  CHECK(rgbd["cloudVoxel"].get<double>() == Approx(0.05).margin(1e-4));
+  CHECK(rgbd["messages"]["map_cloud"].get<int>() >= 1);
 }
 
 }  // namespace view_e2e_test

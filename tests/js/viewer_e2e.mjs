@@ -5,7 +5,12 @@
 // as JSON. Any console error or uncaught page error fails the check.
 //
 //   node viewer_e2e.mjs --url http://127.0.0.1:8765/ --screenshot OUT.png --out RESULT.json
-//                       [--goal X,Y] [--initial-pose X,Y|robot] [--timeout-s 60]
+//                       [--goal X,Y] [--initial-pose X,Y|robot] [--need LIST] [--timeout-s 60]
+//
+// --need: what the page must have drawn before the check goes on (comma-separated; default
+// map,robot): map (tiles), robot (a pose and > 5 trajectory points), costmap (costmap tiles),
+// local_plan (the dynamic window's arcs, seen at least once), cloud (3D map points), cameras
+// (camera footprints).
 //
 // --initial-pose places a pose for the localiser with the "Initial pose" tool ("robot": where the
 // page draws the robot now).
@@ -17,12 +22,34 @@ import { writeFileSync } from "node:fs";
 
 const USAGE =
   "usage: node viewer_e2e.mjs --url URL --screenshot OUT.png --out RESULT.json [--goal X,Y] " +
-  "[--initial-pose X,Y|robot] [--timeout-s 60]";
-const REQUIRED_LAYERS = ["map", "scan", "robot", "trajectory"];
+  "[--initial-pose X,Y|robot] [--need map,robot,costmap,local_plan,cloud,cameras] [--timeout-s 60]";
+const REQUIRED_LAYERS = ["map", "costmap", "cloud", "scan", "robot", "trajectory", "local_plan",
+  "cameras"];
+const NEEDS = ["map", "robot", "costmap", "local_plan", "cloud", "cameras"];
+
+// Runs in the page (Playwright sends its source; it must be self-contained): what of `needs`
+// the page's hooks (window.tessera) do not show yet, [] when all is there.
+function pageLacks(needs) {
+  const t = window.tessera;
+  if (!t) return ["window.tessera is not defined (viewer.js did not run?)"];
+  const checks = {
+    map: [t.tiles > 0, "no map tiles"],
+    robot: [t.robot !== null && t.trajectoryPoints > 5,
+      `no robot pose or ${t.trajectoryPoints} trajectory points (want > 5)`],
+    costmap: [t.costmapTiles > 0, "no costmap tiles"],
+    local_plan: [!!t.scenes.local_plan && t.scenes.local_plan.peakLines > 0, "no dynamic window arcs"],
+    cloud: [t.cloudPoints > 0, "no 3D map points"],
+    cameras: [!!t.scenes.camera_footprints && t.scenes.camera_footprints.entities > 0, "no camera footprints"],
+  };
+  const lacks = t.connected ? [] : ["not connected"];
+  for (const n of needs) if (!checks[n][0]) lacks.push(checks[n][1]);
+  return lacks;
+}
 const STATUS_QUIET_MS = 1000; // after a goal, this long without an error status
 
 function parseArgs(argv) {
-  const opts = { url: null, screenshot: null, out: null, goal: null, initialPose: null, timeoutS: 60 };
+  const opts = { url: null, screenshot: null, out: null, goal: null, initialPose: null, timeoutS: 60,
+    need: ["map", "robot"] };
   for (let i = 0; i < argv.length; i++) {
     const key = argv[i];
     const value = argv[i + 1];
@@ -52,6 +79,10 @@ function parseArgs(argv) {
         opts.initialPose = { x: parts[0], y: parts[1] };
         break;
       }
+      case "--need":
+        opts.need = need().split(",").filter((n) => n.length > 0);
+        for (const n of opts.need) if (!NEEDS.includes(n)) usage(`--need: unknown item '${n}' (known: ${NEEDS.join(", ")})`);
+        break;
       case "--timeout-s":
         opts.timeoutS = Number(need());
         if (!(opts.timeoutS > 0)) usage(`--timeout-s wants a positive number, got '${value}'`);
@@ -65,6 +96,8 @@ function parseArgs(argv) {
     }
   }
   if (!opts.url || !opts.screenshot || !opts.out) usage("--url, --screenshot and --out are required");
+  if ((opts.goal || opts.initialPose) && !opts.need.includes("map")) usage("--goal and --initial-pose need the map");
+  if (opts.initialPose === "robot" && !opts.need.includes("robot")) usage("--initial-pose robot needs the robot");
   return opts;
 }
 
@@ -117,21 +150,10 @@ async function readState(page) {
 
 function copyState(state) {
   if (!state) return;
-  for (const key of ["connected", "tiles", "robot", "trajectoryPoints", "latenciesMs", "messages",
-    "topics", "lastStatus"]) {
+  for (const key of ["connected", "tiles", "costmapTiles", "cloudPoints", "cloudVoxel", "scenes",
+    "robot", "trajectoryPoints", "latenciesMs", "messages", "topics", "lastStatus"]) {
     result[key] = state[key];
   }
-}
-
-// What the page still lacks, for a timeout's message.
-function missing(state) {
-  if (!state) return "window.tessera is not defined (viewer.js did not run?)";
-  const lacks = [];
-  if (!state.connected) lacks.push("not connected");
-  if (!(state.tiles > 0)) lacks.push("no map tiles");
-  if (!state.robot) lacks.push("no robot pose");
-  if (!(state.trajectoryPoints > 5)) lacks.push(`${state.trajectoryPoints} trajectory points (want > 5)`);
-  return lacks.join(", ") || "nothing";
 }
 
 // The goal and initial-pose tools work alike; what differs is the button and the counters.
@@ -206,15 +228,14 @@ try {
     throw new Failure(`GET ${opts.url} answered ${response ? `HTTP ${response.status()}` : "nothing"}`);
   }
 
-  try {
-    await page.waitForFunction(() => {
-      const t = window.tessera;
-      return !!t && t.connected && t.tiles > 0 && t.robot !== null && t.trajectoryPoints > 5;
-    }, null, { timeout: remainingMs(), polling: 100 });
-  } catch {
-    const state = await readState(page).catch(() => null);
-    copyState(state);
-    throw new Failure(`timed out after ${opts.timeoutS} s waiting for the viewer: ${missing(state)}`);
+  // Polled from here, so that a timeout can say what was still missing.
+  for (let lacks = await page.evaluate(pageLacks, opts.need); lacks.length > 0;
+    lacks = await page.evaluate(pageLacks, opts.need)) {
+    if (remainingMs() <= 1) {
+      copyState(await readState(page).catch(() => null));
+      throw new Failure(`timed out after ${opts.timeoutS} s waiting for the viewer: ${lacks.join(", ")}`);
+    }
+    await page.waitForTimeout(Math.min(100, remainingMs()));
   }
 
   for (const layer of REQUIRED_LAYERS) {
@@ -252,8 +273,9 @@ try {
 writeFileSync(opts.out, JSON.stringify(result, null, 2) + "\n");
 if (result.ok) {
   const r = result.robot;
-  console.log(`viewer_e2e: OK: ${result.tiles} tiles, robot at ${r.x.toFixed(2)},${r.y.toFixed(2)}, ` +
-    `${result.trajectoryPoints} trajectory points` +
+  console.log(`viewer_e2e: OK: ${result.tiles} tiles, ${result.costmapTiles} costmap tiles, ` +
+    `${result.cloudPoints} cloud points` +
+    (r ? `, robot at ${r.x.toFixed(2)},${r.y.toFixed(2)}, ${result.trajectoryPoints} trajectory points` : "") +
     (result.goalSent ? `, goal sent at ${result.goalSent.x.toFixed(2)},${result.goalSent.y.toFixed(2)}` : ""));
   process.exit(0);
 }

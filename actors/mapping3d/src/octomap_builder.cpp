@@ -156,7 +156,8 @@ struct OctoMapBuilder::State {
   std::condition_variable changed;
   std::shared_ptr<octomap::OcTree> tree;  // served; replaced whole by a finished rebuild
   std::size_t clouds = 0, points = 0, rebuilds = 0;
-  int unfinalized = 0;  // clouds in `tree` since its inner nodes were last updated
+  std::uint64_t revision = 0;  // counts the changes of the served tree
+  int unfinalized = 0;         // clouds in `tree` since its inner nodes were last updated
 
   // Inner nodes up to date before anything reads the tree as a whole (stats, files).
   void finalizeServed() {
@@ -266,6 +267,7 @@ void OctoMapBuilder::State::work(const OctoMapOptions& o) {
       points = fresh_points;
       tree = std::move(fresh);
       ++rebuilds;
+      ++revision;
     } else if (!stop) {
       ++abandoned;
     }
@@ -296,6 +298,7 @@ void OctoMapBuilder::insert(const PointCloud& cloud, const Eigen::Isometry3d& ca
   std::lock_guard lock(state_->mutex);
   insertScan(*state_->tree, scan, options_, &state_->unfinalized);
   ++state_->clouds;
+  ++state_->revision;
   state_->points += scan.points.size();
   if (state_->request) state_->since_pending.push_back(scan);
   if (state_->building) state_->since_building.push_back(std::move(scan));
@@ -363,6 +366,74 @@ OctoMapStats OctoMapBuilder::stats() const {
   return s;
 }
 
+std::uint64_t OctoMapBuilder::revision() const {
+  std::lock_guard lock(state_->mutex);
+  return state_->revision;
+}
+
+namespace {
+
+// The centres of `tree`'s occupied nodes at `depth` (a pruned leaf above it as the nodes it
+// covers there) into `out`; false, as soon as there are more than `max_points`.
+bool occupiedAt(const octomap::OcTree& tree, unsigned depth, std::size_t max_points,
+                std::vector<Eigen::Vector3f>& out) {
+  out.clear();
+  for (auto it = tree.begin_leafs(static_cast<unsigned char>(depth)), end = tree.end_leafs();
+       it != end; ++it) {
+    if (!tree.isNodeOccupied(*it)) continue;
+    const octomap::point3d c = it.getCoordinate();
+    const unsigned above = depth - it.getDepth();  // > 0 for a pruned leaf
+    if (above == 0) {
+      if (out.size() == max_points) return false;
+      out.emplace_back(c.x(), c.y(), c.z());
+      continue;
+    }
+    const std::size_t n = std::size_t{1} << above;  // voxels per axis
+    if (n * n * n > max_points - out.size()) return false;
+    const double edge = it.getSize() / static_cast<double>(n);
+    const Eigen::Vector3d corner =
+        Eigen::Vector3d(c.x(), c.y(), c.z()) - Eigen::Vector3d::Constant(0.5 * it.getSize());
+    for (std::size_t i = 0; i < n; ++i)
+      for (std::size_t j = 0; j < n; ++j)
+        for (std::size_t k = 0; k < n; ++k)
+          out.push_back(
+              (corner + edge * (Eigen::Vector3d(static_cast<double>(i), static_cast<double>(j),
+                                                static_cast<double>(k)) +
+                                Eigen::Vector3d::Constant(0.5)))
+                  .cast<float>());
+  }
+  return true;
+}
+
+}  // namespace
+
+OccupiedVoxels OctoMapBuilder::occupiedVoxels(std::size_t max_points) const {
+  std::lock_guard lock(state_->mutex);
+  const octomap::OcTree& tree = *state_->tree;
+  OccupiedVoxels out;
+  out.revision = state_->revision;
+  out.depth = static_cast<int>(tree.getTreeDepth());
+  out.voxel_size = tree.getResolution();
+  if (max_points == 0 || tree.getRoot() == nullptr) return out;
+  // The leaves hold their own log-odds: only coarser depths need the inner nodes up to date
+  // (their children's maximum), which with lazy evaluation they may not be yet.
+  if (occupiedAt(tree, tree.getTreeDepth(), max_points, out.centres)) return out;
+  state_->finalizeServed();
+  // Depth 0 is not a depth limit for octomap's iterators (it means "the leaves"): the root, the
+  // one voxel of depth 0, is taken by hand.
+  for (unsigned d = tree.getTreeDepth() - 1; d >= 1; --d)
+    if (occupiedAt(tree, d, max_points, out.centres)) {
+      out.depth = static_cast<int>(d);
+      out.voxel_size = tree.getNodeSize(d);
+      return out;
+    }
+  out.centres.clear();
+  out.depth = 0;
+  out.voxel_size = tree.getNodeSize(0);
+  if (tree.isNodeOccupied(tree.getRoot())) out.centres.emplace_back(0.0f, 0.0f, 0.0f);
+  return out;
+}
+
 void OctoMapBuilder::writeBinary(const std::filesystem::path& file) const {
   std::lock_guard lock(state_->mutex);
   state_->finalizeServed();
@@ -384,6 +455,7 @@ void OctoMapBuilder::readBinary(const std::filesystem::path& file) {
   state_->unfinalized = 0;
   state_->clouds = 0;
   state_->points = 0;
+  ++state_->revision;
 }
 
 }  // namespace tessera::mapping3d

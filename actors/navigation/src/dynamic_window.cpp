@@ -71,7 +71,7 @@ std::vector<double> samples(double lo, double hi, int n) {
 
 DynamicWindowResult DynamicWindow::choose(const Pose2& pose, const Velocity& current,
                                           const Eigen::Vector2d& target,
-                                          const DistanceField& obstacles) const {
+                                          const DistanceField& obstacles, bool with_arcs) const {
   const DynamicWindowOptions& o = options_;
   DynamicWindowResult out;
   // A non-finite current velocity (a bad odometry message) counts as standing still.
@@ -123,7 +123,30 @@ DynamicWindowResult DynamicWindow::choose(const Pose2& pose, const Velocity& cur
       sum_clearance += s.clearance;
       sum_velocity += s.velocity;
     }
-  if (out.admissible == 0) return out;
+  // Every sample's arc over the whole horizon, only when asked for (a second rollout of each).
+  const auto arcs = [&](const std::vector<double>& score) {
+    if (!with_arcs) return;
+    out.arcs.resize(grid.size());
+    for (std::size_t n = 0; n < grid.size(); ++n) {
+      const Sample& s = grid[n];
+      DynamicWindowArc& a = out.arcs[n];
+      a.velocity = {vs[n / nw], ws[n % nw]};
+      a.admissible = s.admissible;
+      a.score = s.admissible && !score.empty() ? score[n] : 0.0;
+      a.clearance = std::min(s.clear, std::abs(a.velocity.v) * o.step * steps);
+      a.poses.reserve(static_cast<std::size_t>(steps) + 1);
+      Pose2 p = pose;
+      a.poses.push_back(p);
+      for (int k = 1; k <= steps; ++k) {
+        p = advance(p, a.velocity.v, a.velocity.w, o.step);
+        a.poses.push_back(p);
+      }
+    }
+  };
+  if (out.admissible == 0) {
+    arcs({});
+    return out;
+  }
   auto norm = [](double x, double sum) { return sum > 0 ? x / sum : 0.0; };
   for (Sample& s : grid)
     if (s.admissible)
@@ -154,6 +177,7 @@ DynamicWindowResult DynamicWindow::choose(const Pose2& pose, const Velocity& cur
   const std::size_t best =
       static_cast<std::size_t>(std::max_element(score.begin(), score.end()) - score.begin());
   out.ok = true;
+  out.chosen = static_cast<int>(best);
   out.command = {vs[best / nw], ws[best % nw]};
   out.clearance = grid[best].clear;
   Pose2 p = pose;
@@ -162,6 +186,7 @@ DynamicWindowResult DynamicWindow::choose(const Pose2& pose, const Velocity& cur
     p = advance(p, out.command.v, out.command.w, o.step);
     out.rollout.push_back(p);
   }
+  arcs(score);
   return out;
 }
 

@@ -292,6 +292,7 @@ NavCommand Navigator::step(double now, const Pose2& pose, const Velocity& curren
   NavCommand c;
   c.state = state_;
   c.reason = reason_;
+  has_window_ = false;
   if (!goal_ || isFinal(state_) || state_ == NavState::kIdle) return c;
   if (!finite(pose) || !std::isfinite(current.v) || !std::isfinite(current.w) ||
       !std::isfinite(now))
@@ -331,7 +332,9 @@ NavCommand Navigator::step(double now, const Pose2& pose, const Velocity& curren
     c.replanned = true;
   }
   const Eigen::Vector2d target = lookaheadPoint(pose);
-  const DynamicWindowResult r = dwa_.choose(pose, current, target, obstacles);
+  window_ = dwa_.choose(pose, current, target, obstacles, keep_arcs_);
+  has_window_ = true;
+  const DynamicWindowResult& r = window_;
   const double left = remaining(pose);
   c.distance_remaining = left;
   if (!r.ok) {

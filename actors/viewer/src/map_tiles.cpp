@@ -33,8 +33,12 @@ MapTiler::Update MapTiler::update(const GridView& g, std::int64_t stamp_ns,
   if (!(g.resolution > 0) || !std::isfinite(g.resolution))
     throw std::invalid_argument("map tiles: resolution must be > 0 and finite");
   if (g.width < 0 || g.height < 0) throw std::invalid_argument("map tiles: negative grid size");
-  if (static_cast<std::int64_t>(g.width) * g.height > 0 && !g.cells)
-    throw std::invalid_argument("map tiles: grid without cells");
+  const std::int64_t cells = static_cast<std::int64_t>(g.width) * g.height;
+  if (cells > 0 && !g.cells) throw std::invalid_argument("map tiles: grid without cells");
+  if (static_cast<std::int64_t>(g.cell_count) != cells)
+    throw std::invalid_argument("map tiles: a grid of " + std::to_string(g.width) + " x " +
+                                std::to_string(g.height) + " cells carries " +
+                                std::to_string(g.cell_count) + " cell values");
   if (!std::isfinite(g.origin_x) || !std::isfinite(g.origin_y) || !std::isfinite(g.origin_theta))
     throw std::invalid_argument("map tiles: origin must be finite");
   if (std::abs(g.origin_theta) > 1e-9)

@@ -23,8 +23,13 @@ const MIN_FRAME_MS = 33; // redraw at most ~30 times a second
 const CLICK_TOLERANCE_PX = 6; // a goal "drag" shorter than this is a plain click (heading 0)
 const MIN_SCALE = 0.2; // px per m
 const MAX_SCALE = 2000;
-const LAYERS = ["map", "scan", "robot", "trajectory", "optimised", "ground_truth", "submaps",
-  "loops", "path", "landmarks"];
+const LAYERS = ["map", "costmap", "cloud", "scan", "robot", "trajectory", "optimised",
+  "ground_truth", "submaps", "loops", "path", "local_plan", "landmarks", "cameras"];
+// foxglove.SceneUpdate topics the page draws, and the layer each belongs to.
+const SCENE_LAYERS = { local_plan: "local_plan", camera_footprints: "cameras" };
+// Channels fetched only while their layer is on (high rate or large messages).
+const GATED_ROLES = { ground_truth: "ground_truth", cloud: "cloud" };
+const CLOUD_MAX_PIXELS = 2048; // per side of the 3D map's top view
 
 // An accumulated polyline: flat [x0, y0, x1, y1, ...], at most TRAJECTORY_CAP points.
 class Polyline {
@@ -48,10 +53,26 @@ class Polyline {
   }
 }
 
+// A grid drawn as tiles: the map (occupancy) or the costmap (costs in ROS costmap_2d values).
+class TileLayer {
+  constructor(kind) {
+    this.kind = kind; // "map" | "cost": which colours
+    this.tiles = new Map(); // "tx,ty" -> {tx, ty, canvas, known: world bounds of known cells or null}
+    this.geometry = null; // {resolution, offsetX, offsetY, size}
+  }
+
+  clear() {
+    this.tiles.clear();
+    this.geometry = null;
+  }
+}
+
 // What the page has received (cleared when the server starts a new session).
 const data = {
-  tiles: new Map(), // "tx,ty" -> {tx, ty, canvas, known: world bounds of known cells or null}
-  tileGeometry: null, // {resolution, offsetX, offsetY, size}
+  map: new TileLayer("map"),
+  costmap: new TileLayer("cost"),
+  cloud: null, // {canvas, x0, y0, width, height (world m), points, voxel, zLow, zHigh}
+  scenes: new Map(), // topic -> Map(entity id -> {lines, texts}) in the map frame
   fitted: false, // zoomed to the map once already
   robot: null, // {x, y, theta, stampNs}
   trajectory: new Polyline(), // online estimate ("pose" or "localized_pose")
@@ -86,6 +107,10 @@ const hooks = {
   subscribed: [], // topics this page subscribes to
   messages: {}, // topic -> messages received
   tiles: 0,
+  costmapTiles: 0,
+  cloudPoints: 0,
+  cloudVoxel: null,
+  scenes: {}, // topic -> {entities, lines}
   mapResolution: null,
   robot: null,
   trajectoryPoints: 0,
@@ -226,10 +251,19 @@ function onText(text) {
 // Channels and subscriptions
 
 // Which of our decoders a channel feeds, or null to leave it alone.
+// A costmap topic: "costmap", "local_costmap", "nav/costmap"...
+function isCostmap(topic) {
+  return /(^|[/_])costmap$/.test(topic);
+}
+
 function channelRole(ch) {
-  if (ch.encoding === "tessera.tiles") return "tiles";
+  if (ch.encoding === "tessera.tiles") {
+    return isCostmap(ch.topic.replace(/\/tiles$/, "")) ? "cost_tiles" : "tiles";
+  }
   switch (ch.schemaName) {
-    case "foxglove.Grid": return "grid";
+    case "foxglove.Grid": return isCostmap(ch.topic) ? "cost_grid" : "grid";
+    case "foxglove.SceneUpdate": return SCENE_LAYERS[ch.topic] ? "scene" : null;
+    case "foxglove.PointCloud": return "cloud";
     case "foxglove.LaserScan": return "scan";
     case "foxglove.FrameTransform": return "tf";
     case "foxglove.PosesInFrame": return "path";
@@ -260,31 +294,39 @@ function channelRole(ch) {
   return null;
 }
 
-// The one channel the map layer draws: a tiles channel if there is one ("map/tiles" first),
-// else a full grid that has no tiles channel beside it.
-function chooseMapChannel(channels) {
+// The one channel a tile layer draws: a tiles channel if there is one (`preferred`/tiles
+// first), else a full grid that has no tiles channel beside it.
+function chooseGridChannel(channels, tilesRole, gridRole, preferred) {
   const topics = new Set(channels.map((c) => c.topic));
-  const tiles = channels.filter((c) => c.role === "tiles");
-  const grids = channels.filter((c) => c.role === "grid" && !topics.has(c.topic + "/tiles"));
-  return tiles.find((c) => c.topic === "map/tiles") || tiles[0] ||
-    grids.find((c) => c.topic === "map") || grids[0] || null;
+  const tiles = channels.filter((c) => c.role === tilesRole);
+  const grids = channels.filter((c) => c.role === gridRole && !topics.has(c.topic + "/tiles"));
+  return tiles.find((c) => c.topic === preferred + "/tiles") || tiles[0] ||
+    grids.find((c) => c.topic === preferred) || grids[0] || null;
 }
 
-let mapChannelTopic = null;
+const gridTopics = { map: null, costmap: null }; // the channel each tile layer draws
 
 function updateSubscriptions() {
   const channels = [...conn.channels.values()];
   for (const ch of channels) ch.role = channelRole(ch);
-  const map = chooseMapChannel(channels);
-  if ((map ? map.topic : null) !== mapChannelTopic) {
-    if (mapChannelTopic !== null) clearTiles();
-    mapChannelTopic = map ? map.topic : null;
+  const map = chooseGridChannel(channels, "tiles", "grid", "map");
+  const costmap = chooseGridChannel(channels, "cost_tiles", "cost_grid", "costmap");
+  for (const [name, ch] of [["map", map], ["costmap", costmap]]) {
+    if ((ch ? ch.topic : null) !== gridTopics[name]) {
+      if (gridTopics[name] !== null) clearTiles(data[name]);
+      gridTopics[name] = ch ? ch.topic : null;
+    }
   }
-  // Ground truth comes at the simulator's odometry rate: only fetched while its layer is on
-  // (so drawn from then on), which keeps a default page's load on the stack low.
-  const wanted = channels.filter((c) =>
-    c.role !== null && ((c.role !== "tiles" && c.role !== "grid") || c === map) &&
-    (c.role !== "ground_truth" || ui.layers.ground_truth));
+  // Ground truth comes at the simulator's odometry rate and the 3D map is large: they are only
+  // fetched while their layer is on (so drawn from then on), which keeps a default page's load
+  // on the stack low.
+  const wanted = channels.filter((c) => {
+    if (c.role === null) return false;
+    if (c.role === "tiles" || c.role === "grid") return c === map;
+    if (c.role === "cost_tiles" || c.role === "cost_grid") return c === costmap;
+    const gate = GATED_ROLES[c.role];
+    return gate === undefined || ui.layers[gate];
+  });
 
   const subscribe = [];
   for (const ch of wanted) {
@@ -350,7 +392,9 @@ function onBinary(buffer) {
   hooks.messages[ch.topic] = (hooks.messages[ch.topic] || 0) + 1;
   const payload = new Uint8Array(buffer, 13);
   if (ch.role === "tiles") {
-    decodeTiles(payload);
+    decodeTiles(data.map, payload);
+  } else if (ch.role === "cost_tiles") {
+    decodeTiles(data.costmap, payload);
   } else {
     onJsonMessage(ch, JSON.parse(utf8.decode(payload)));
   }
@@ -379,7 +423,16 @@ function planar(pose) {
 function onJsonMessage(ch, msg) {
   switch (ch.role) {
     case "grid":
-      decodeGrid(msg);
+      decodeGrid(data.map, msg);
+      break;
+    case "cost_grid":
+      decodeGrid(data.costmap, msg);
+      break;
+    case "scene":
+      applyScene(ch.topic, msg);
+      break;
+    case "cloud":
+      decodeCloud(msg);
       break;
     case "pose": {
       if (ch.topic !== robotTopic()) break;
@@ -454,7 +507,13 @@ function onJsonMessage(ch, msg) {
 }
 
 function clearData() {
-  clearTiles();
+  clearTiles(data.map);
+  clearTiles(data.costmap);
+  data.cloud = null;
+  data.scenes.clear();
+  hooks.scenes = {};
+  hooks.cloudPoints = 0;
+  hooks.cloudVoxel = null;
   data.fitted = false;
   data.robot = null;
   data.trajectory.clear();
@@ -491,16 +550,27 @@ const CELL_RGBA = (() => {
   return lut;
 })();
 
-function clearTiles() {
-  data.tiles.clear();
-  data.tileGeometry = null;
-  hooks.tiles = 0;
-  document.body.dataset.tiles = "0";
+// Costmap colours (ROS costmap_2d values as bytes): free and unknown transparent, costs from
+// faint blue to purple, inscribed (99) cyan, lethal (100) magenta; drawn over the map.
+const COST_RGBA = (() => {
+  const lut = new Uint8ClampedArray(256 * 4);
+  for (let v = 1; v <= 98; v++) {
+    const t = v / 98;
+    lut.set([60 + 120 * t, 90 - 60 * t, 255 - 55 * t, 30 + 90 * t], v * 4);
+  }
+  lut.set([0, 220, 230, 130], 99 * 4);
+  lut.set([255, 0, 200, 150], 100 * 4);
+  return lut;
+})();
+
+function clearTiles(layer) {
+  layer.clear();
+  tilesChanged(layer);
 }
 
 // `u8 reset | u32 header bytes | header | u32 n | n x (u32 part bytes | part)`; the header and
 // part layouts are MapTiler's (actors/viewer/include/tessera/viewer/map_tiles.hpp).
-function decodeTiles(bytes) {
+function decodeTiles(layer, bytes) {
   const dv = new DataView(bytes.buffer, bytes.byteOffset, bytes.byteLength);
   const need = (at, n) => {
     if (at + n > bytes.byteLength) throw new Error(`tiles message truncated at byte ${at}`);
@@ -521,12 +591,12 @@ function decodeTiles(bytes) {
   if (!(geometry.resolution > 0) || geometry.size < 1 || geometry.size > 4096) {
     throw new Error(`tiles: bad geometry ${JSON.stringify(geometry)}`);
   }
-  const g = data.tileGeometry;
+  const g = layer.geometry;
   if (reset || !g || g.resolution !== geometry.resolution || g.offsetX !== geometry.offsetX ||
       g.offsetY !== geometry.offsetY || g.size !== geometry.size) {
-    data.tiles.clear();
+    layer.tiles.clear();
   }
-  data.tileGeometry = geometry;
+  layer.geometry = geometry;
 
   let at = 5 + headerBytes;
   const n = dv.getUint32(at, true);
@@ -539,30 +609,31 @@ function decodeTiles(bytes) {
     need(at, partBytes);
     if (partBytes !== 8 + T * T) throw new Error(`tile of ${partBytes} bytes, expected ${8 + T * T}`);
     const tx = dv.getInt32(at, true), ty = dv.getInt32(at + 4, true);
-    putTile(tx, ty, bytes.subarray(at + 8, at + partBytes));
+    putTile(layer, tx, ty, bytes.subarray(at + 8, at + partBytes));
     at += partBytes;
   }
 
   // The first tiles after (re)subscribing carry the map as it is, however old: that is its age,
   // not a delivery time, so only later updates count.
-  if (wallNs > 0n && g) {
+  if (wallNs > 0n && g && layer === data.map) {
     hooks.latenciesMs.push(Date.now() - Number(wallNs) / 1e6);
     if (hooks.latenciesMs.length > LATENCIES_KEPT) hooks.latenciesMs.shift();
   }
-  tilesChanged();
+  tilesChanged(layer);
 }
 
 // Draws one tile's cells (row-major from its lowest-y row, as bytes) into its own canvas.
-function putTile(tx, ty, cells) {
-  const T = data.tileGeometry.size;
+function putTile(layer, tx, ty, cells) {
+  const T = layer.geometry.size;
+  const lut = layer.kind === "cost" ? COST_RGBA : CELL_RGBA;
   const key = `${tx},${ty}`;
-  let tile = data.tiles.get(key);
+  let tile = layer.tiles.get(key);
   if (!tile) {
     const canvas = document.createElement("canvas");
     canvas.width = T;
     canvas.height = T;
     tile = { tx, ty, canvas, known: null };
-    data.tiles.set(key, tile);
+    layer.tiles.set(key, tile);
   }
   const ctx = tile.canvas.getContext("2d");
   const image = ctx.createImageData(T, T);
@@ -571,10 +642,10 @@ function putTile(tx, ty, cells) {
   for (let i = 0; i < T * T; i++) {
     const b = cells[i];
     const o = b * 4, p = i * 4;
-    px[p] = CELL_RGBA[o];
-    px[p + 1] = CELL_RGBA[o + 1];
-    px[p + 2] = CELL_RGBA[o + 2];
-    px[p + 3] = 255;
+    px[p] = lut[o];
+    px[p + 1] = lut[o + 1];
+    px[p + 2] = lut[o + 2];
+    px[p + 3] = lut[o + 3];
     if (b !== 255) { // known cell: grow the tile's known bounds (used to fit the view)
       const cx = i % T, cy = (i - cx) / T;
       if (cx < minX) minX = cx;
@@ -585,17 +656,26 @@ function putTile(tx, ty, cells) {
   }
   // Image row 0 is the tile's lowest-y row: the world transform's y flip puts it at the bottom.
   ctx.putImageData(image, 0, 0);
-  const { resolution: r, offsetX, offsetY } = data.tileGeometry;
+  const { resolution: r, offsetX, offsetY } = layer.geometry;
   tile.known = maxX < 0 ? null : {
     x0: (tx * T + minX) * r + offsetX, y0: (ty * T + minY) * r + offsetY,
     x1: (tx * T + maxX + 1) * r + offsetX, y1: (ty * T + maxY + 1) * r + offsetY,
   };
 }
 
-function tilesChanged() {
-  hooks.tiles = data.tiles.size;
-  hooks.mapResolution = data.tileGeometry ? data.tileGeometry.resolution : null;
-  document.body.dataset.tiles = String(data.tiles.size);
+function tilesChanged(layer) {
+  if (layer === data.costmap) {
+    hooks.costmapTiles = layer.tiles.size;
+    return;
+  }
+  hooks.tiles = layer.tiles.size;
+  hooks.mapResolution = layer.geometry ? layer.geometry.resolution : null;
+  document.body.dataset.tiles = String(layer.tiles.size);
+  fitOnce();
+}
+
+// Zooms to the map (or the 3D map's extent) the first time there is one.
+function fitOnce() {
   if (!data.fitted && mapBounds()) {
     fitToMap();
     data.fitted = true;
@@ -604,7 +684,7 @@ function tilesChanged() {
 
 // A full foxglove.Grid (used only when the server offers no tiles channel): cut into tiles on
 // the grid's own lattice so that one drawing path serves both.
-function decodeGrid(msg) {
+function decodeGrid(layer, msg) {
   const T = 64;
   const cols = num(msg.column_count);
   const rowStride = num(msg.row_stride, cols);
@@ -615,8 +695,8 @@ function decodeGrid(msg) {
   if (!(resolution > 0) || cols <= 0 || rowStride <= 0) throw new Error("grid: bad geometry");
   const rows = Math.floor(raw.length / rowStride);
   const origin = planar(msg.pose); // rotation of the grid is not drawn
-  data.tiles.clear();
-  data.tileGeometry = { resolution, offsetX: origin.x, offsetY: origin.y, size: T };
+  layer.tiles.clear();
+  layer.geometry = { resolution, offsetX: origin.x, offsetY: origin.y, size: T };
   const cells = new Uint8Array(T * T);
   for (let ty = 0; ty * T < rows; ty++) {
     for (let tx = 0; tx * T < cols; tx++) {
@@ -626,16 +706,16 @@ function decodeGrid(msg) {
           cells[cy * T + cx] = raw[(ty * T + cy) * rowStride + (tx * T + cx) * cellStride + num(field.offset)];
         }
       }
-      putTile(tx, ty, cells);
+      putTile(layer, tx, ty, cells);
     }
   }
-  tilesChanged();
+  tilesChanged(layer);
 }
 
-// World bounds of every known cell, or null.
+// World bounds of every known map cell, or of the 3D map without one, or null.
 function mapBounds() {
   let b = null;
-  for (const t of data.tiles.values()) {
+  for (const t of data.map.tiles.values()) {
     const k = t.known;
     if (!k) continue;
     if (!b) b = { ...k };
@@ -644,7 +724,179 @@ function mapBounds() {
       b.x1 = Math.max(b.x1, k.x1); b.y1 = Math.max(b.y1, k.y1);
     }
   }
+  const c = data.cloud;
+  if (!b && c) b = { x0: c.x0, y0: c.y0, x1: c.x0 + c.width, y1: c.y0 + c.height };
   return b;
+}
+
+// ---------------------------------------------------------------------------------------------
+// Scenes (foxglove.SceneUpdate) and the 3D map (foxglove.PointCloud)
+
+function cssColor(c, fallback) {
+  if (!c) return fallback;
+  const u = (v) => Math.round(255 * Math.min(1, Math.max(0, num(v))));
+  return `rgba(${u(c.r)}, ${u(c.g)}, ${u(c.b)}, ${Math.min(1, Math.max(0, num(c.a, 1)))})`;
+}
+
+// The entity's frame in the page's world (the map frame): through a known map -> frame
+// transform, else taken as the map frame itself.
+function frameInWorld(frame) {
+  return data.transforms.get(`map\0${frame}`) || { x: 0, y: 0, theta: 0 };
+}
+
+// A SceneEntity's line and text primitives, transformed into the map frame once.
+function sceneDrawable(e) {
+  const frame = frameInWorld(String(e.frame_id || "map"));
+  const place = (primitivePose, p) => {
+    const pose = planar(primitivePose);
+    const a = compose(pose, num(p.x), num(p.y));
+    return compose(frame, a.x, a.y);
+  };
+  const lines = [];
+  for (const l of e.lines || []) {
+    const pts = (l.points || []).map((p) => place(l.pose, p));
+    const type = num(l.type);
+    const order = Array.isArray(l.indices) && l.indices.length ? l.indices.map((i) => num(i))
+      : pts.map((_, i) => i);
+    const xy = [];
+    for (const i of order) if (pts[i]) xy.push(pts[i].x, pts[i].y);
+    const thickness = num(l.thickness, 1);
+    lines.push({
+      type, xy, color: cssColor(l.color, "#ffffff"),
+      widthPx: l.scale_invariant ? thickness : null, widthM: l.scale_invariant ? null : thickness,
+    });
+  }
+  const texts = (e.texts || []).map((t) => {
+    const p = place(t.pose, { x: 0, y: 0 });
+    return { x: p.x, y: p.y, text: String(t.text ?? ""), color: cssColor(t.color, COLORS.text),
+      sizePx: t.scale_invariant !== false ? num(t.font_size, 12) : null, sizeM: num(t.font_size, 0.3) };
+  });
+  return { lines, texts };
+}
+
+function applyScene(topic, msg) {
+  let scene = data.scenes.get(topic);
+  if (!scene) {
+    scene = new Map();
+    data.scenes.set(topic, scene);
+  }
+  for (const d of msg.deletions || []) {
+    if (num(d.type) === 1) scene.clear(); // ALL
+    else scene.delete(String(d.id)); // MATCHING_ID
+  }
+  for (const e of msg.entities || []) scene.set(String(e.id), sceneDrawable(e));
+  let lines = 0;
+  for (const e of scene.values()) lines += e.lines.length;
+  const peakLines = Math.max(lines, hooks.scenes[topic] ? hooks.scenes[topic].peakLines : 0);
+  hooks.scenes[topic] = { entities: scene.size, lines, peakLines };
+}
+
+function decodeBase64(text) {
+  return Uint8Array.from(atob(text || ""), (c) => c.charCodeAt(0));
+}
+
+// The voxel edge of a cloud of voxel centres: the smallest step between distinct x values of a
+// sample of points (points on a lattice), kept between 5 mm and 1 m.
+function latticeStep(xs) {
+  const sorted = Float64Array.from(xs).sort();
+  let step = Infinity;
+  for (let i = 1; i < sorted.length; i++) {
+    const d = sorted[i] - sorted[i - 1];
+    if (d > 1e-4 && d < step) step = d;
+  }
+  return Math.min(1, Math.max(0.005, Number.isFinite(step) ? step : 0.05));
+}
+
+// A foxglove.PointCloud (float32 x, y, z) as a top view: each pixel of a voxel-sized raster
+// shows the highest point above it, coloured by height (low blue, high red). Which way is up:
+// z in the robot's frames (map, odom, base_link, or a frame the map has a transform to); in any
+// other frame −y, the camera optical convention (x right, y down, z forward) of a visual SLAM
+// world that starts at its first camera (docs/viewer.md#live).
+function decodeCloud(msg) {
+  const bytes = decodeBase64(msg.data);
+  const stride = num(msg.point_stride);
+  const field = (name) => (msg.fields || []).find((f) => f.name === name);
+  const fx = field("x"), fy = field("y"), fz = field("z");
+  if (!fx || !fy || !fz || [fx, fy, fz].some((f) => num(f.type) !== 7) || stride < 12) {
+    showStatus(2, "3D map: only float32 x, y, z point clouds are drawn", true);
+    return;
+  }
+  const n = Math.floor(bytes.length / stride);
+  const dv = new DataView(bytes.buffer, bytes.byteOffset, bytes.byteLength);
+  const frameId = String(msg.frame_id || "map");
+  const zUp = ["map", "odom", "base_link"].includes(frameId) || data.transforms.has(`map\0${frameId}`);
+  const origin = planar(msg.pose);
+  const frame = frameInWorld(frameId);
+  const xs = new Float64Array(n), ys = new Float64Array(n), zs = new Float64Array(n);
+  let m = 0;
+  for (let i = 0; i < n; i++) {
+    const at = i * stride;
+    const x = dv.getFloat32(at + num(fx.offset), true), y = dv.getFloat32(at + num(fy.offset), true);
+    const z = dv.getFloat32(at + num(fz.offset), true);
+    if (!Number.isFinite(x) || !Number.isFinite(y) || !Number.isFinite(z)) continue;
+    if (zUp) {
+      const a = compose(origin, x, y), w = compose(frame, a.x, a.y);
+      xs[m] = w.x;
+      ys[m] = w.y;
+      zs[m] = z + num(msg.pose && msg.pose.position && msg.pose.position.z);
+    } else { // x right, z forward, up = −y: a right-handed top view
+      xs[m] = x;
+      ys[m] = z;
+      zs[m] = -y;
+    }
+    m++;
+  }
+  hooks.cloudPoints = m;
+  if (m === 0) {
+    data.cloud = null;
+    return;
+  }
+  let x0 = Infinity, y0 = Infinity, x1 = -Infinity, y1 = -Infinity;
+  for (let i = 0; i < m; i++) {
+    x0 = Math.min(x0, xs[i]); x1 = Math.max(x1, xs[i]);
+    y0 = Math.min(y0, ys[i]); y1 = Math.max(y1, ys[i]);
+  }
+  const sample = Math.max(1, Math.floor(m / 4096));
+  const sx = [], sz = [];
+  for (let i = 0; i < m; i += sample) {
+    sx.push(xs[i]);
+    sz.push(zs[i]);
+  }
+  const voxel = Math.max(latticeStep(sx), (x1 - x0) / CLOUD_MAX_PIXELS, (y1 - y0) / CLOUD_MAX_PIXELS);
+  sz.sort((a, b) => a - b);
+  const zLow = sz[Math.floor(0.02 * (sz.length - 1))], zHigh = sz[Math.floor(0.98 * (sz.length - 1))];
+  // Voxel centres: the raster's cells are centred on them.
+  x0 -= voxel / 2;
+  y0 -= voxel / 2;
+  const W = Math.max(1, Math.floor((x1 + voxel / 2 - x0) / voxel) + 1);
+  const H = Math.max(1, Math.floor((y1 + voxel / 2 - y0) / voxel) + 1);
+  const top = new Float32Array(W * H).fill(-Infinity);
+  for (let i = 0; i < m; i++) {
+    const cx = Math.min(W - 1, Math.floor((xs[i] - x0) / voxel));
+    const cy = Math.min(H - 1, Math.floor((ys[i] - y0) / voxel));
+    const k = cy * W + cx;
+    if (zs[i] > top[k]) top[k] = zs[i];
+  }
+  const canvas = document.createElement("canvas");
+  canvas.width = W;
+  canvas.height = H;
+  const c2d = canvas.getContext("2d");
+  const image = c2d.createImageData(W, H);
+  const px = image.data;
+  const span = zHigh > zLow ? zHigh - zLow : 1;
+  for (let k = 0; k < W * H; k++) {
+    if (top[k] === -Infinity) continue;
+    const t = Math.min(1, Math.max(0, (top[k] - zLow) / span));
+    // Blue -> cyan -> yellow -> red.
+    const r = t < 0.5 ? 40 + 2 * t * 200 : 240;
+    const g = t < 0.5 ? 120 + 2 * t * 110 : 230 - (t - 0.5) * 2 * 180;
+    const b = t < 0.5 ? 230 - 2 * t * 150 : 80 - (t - 0.5) * 2 * 60;
+    px.set([r, g, b, 235], 4 * k); // image row 0 = lowest y, like the tiles
+  }
+  c2d.putImageData(image, 0, 0);
+  data.cloud = { canvas, x0, y0, width: W * voxel, height: H * voxel, points: m, voxel, zLow, zHigh };
+  hooks.cloudVoxel = voxel;
+  fitOnce();
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -852,7 +1104,7 @@ for (const box of document.querySelectorAll("input[data-layer]")) {
   box.addEventListener("change", () => {
     ui.layers[name] = box.checked;
     hooks.layers = { ...ui.layers };
-    if (name === "ground_truth" && conn.ws) updateSubscriptions();
+    if (Object.values(GATED_ROLES).includes(name) && conn.ws) updateSubscriptions();
     requestRedraw();
   });
 }
@@ -904,14 +1156,18 @@ function draw() {
   ctx.fillStyle = COLORS.background;
   ctx.fillRect(0, 0, view.width, view.height);
 
-  if (ui.layers.map) drawTiles();
+  if (ui.layers.map) drawTiles(data.map);
+  if (ui.layers.costmap) drawTiles(data.costmap);
+  if (ui.layers.cloud) drawCloud();
   ctx.setTransform(view.dpr, 0, 0, view.dpr, 0, 0);
   ctx.lineJoin = "round";
   ctx.lineCap = "round";
+  if (ui.layers.cameras) drawScene("camera_footprints");
   if (ui.layers.ground_truth) strokePolyline(data.groundTruth.xy, COLORS.groundTruth, 1.5);
   if (ui.layers.optimised) strokePolyline(data.optimised.xy, COLORS.optimised, 2);
   if (ui.layers.trajectory) strokePolyline(data.trajectory.xy, COLORS.trajectory, 1.5);
   if (ui.layers.path) for (const flat of data.paths.values()) strokePolyline(flat, COLORS.path, 2.5);
+  if (ui.layers.local_plan) drawScene("local_plan");
   if (ui.layers.loops) drawLoops();
   if (ui.layers.submaps) drawSubmaps();
   if (ui.layers.landmarks) drawLandmarks();
@@ -920,7 +1176,7 @@ function draw() {
   if (hooks.lastGoal) drawPoseArrow(hooks.lastGoal, COLORS.goal, 0.6);
   if (ui.placing) drawPlacing();
   drawScaleBar();
-  if (data.tiles.size === 0) {
+  if (data.map.tiles.size === 0 && !data.cloud) {
     ctx.fillStyle = COLORS.text;
     ctx.font = "14px system-ui, sans-serif";
     ctx.textAlign = "center";
@@ -929,22 +1185,65 @@ function draw() {
   }
 }
 
-function drawTiles() {
-  const g = data.tileGeometry;
-  if (!g) return;
+// World -> device pixels with y up: canvases of cells (tiles, the 3D map) drawn in world units.
+function setWorldTransform() {
   const s = view.scale;
-  // World -> device pixels with y up: the tiles' canvases are drawn in world units.
   ctx.setTransform(view.dpr * s, 0, 0, -view.dpr * s,
     view.dpr * (view.width / 2 - view.cx * s), view.dpr * (view.height / 2 + view.cy * s));
   ctx.imageSmoothingEnabled = false; // crisp cells when zoomed in
+}
+
+function drawTiles(layer) {
+  const g = layer.geometry;
+  if (!g) return;
+  const s = view.scale;
+  setWorldTransform();
   const side = g.size * g.resolution;
   // Half a pixel of overlap hides the hairline seams between neighbouring tiles.
   const overlap = 0.5 / s;
   const lo = screenToWorld(0, view.height), hi = screenToWorld(view.width, 0);
-  for (const t of data.tiles.values()) {
+  for (const t of layer.tiles.values()) {
     const x0 = t.tx * side + g.offsetX, y0 = t.ty * side + g.offsetY;
     if (x0 > hi.x || y0 > hi.y || x0 + side < lo.x || y0 + side < lo.y) continue; // off screen
     ctx.drawImage(t.canvas, x0, y0, side + overlap, side + overlap);
+  }
+}
+
+function drawCloud() {
+  const c = data.cloud;
+  if (!c) return;
+  setWorldTransform();
+  ctx.drawImage(c.canvas, c.x0, c.y0, c.width, c.height);
+  ctx.setTransform(view.dpr, 0, 0, view.dpr, 0, 0);
+}
+
+// A scene topic's entities: lines (strip, loop, list) and labels, in the map frame.
+function drawScene(topic) {
+  const scene = data.scenes.get(topic);
+  if (!scene) return;
+  for (const e of scene.values()) {
+    for (const l of e.lines) {
+      if (l.xy.length < 4) continue;
+      ctx.strokeStyle = l.color;
+      ctx.lineWidth = l.widthPx !== null ? l.widthPx : Math.max(1, l.widthM * view.scale);
+      ctx.beginPath();
+      for (let i = 0; i < l.xy.length; i += 2) {
+        const p = worldToScreen(l.xy[i], l.xy[i + 1]);
+        if (i === 0 || (l.type === 2 && i % 4 === 0)) ctx.moveTo(p.x, p.y); // LINE_LIST: pairs
+        else ctx.lineTo(p.x, p.y);
+      }
+      if (l.type === 1) ctx.closePath(); // LINE_LOOP
+      ctx.stroke();
+    }
+    for (const t of e.texts) {
+      const p = worldToScreen(t.x, t.y);
+      const size = t.sizePx !== null ? t.sizePx : Math.max(8, t.sizeM * view.scale);
+      ctx.font = `${Math.round(size)}px system-ui, sans-serif`;
+      ctx.fillStyle = t.color;
+      ctx.textAlign = "center";
+      ctx.fillText(t.text, p.x, p.y);
+      ctx.textAlign = "start";
+    }
   }
 }
 
@@ -1207,9 +1506,15 @@ function median(values) {
 function updateInfo() {
   const lines = [`${hooks.topics.length} topics, ${hooks.subscribed.length} subscribed`];
   if (hooks.tiles > 0) {
-    lines.push(`map: ${hooks.tiles} tiles, ${hooks.mapResolution} m/cell`);
+    lines.push(`map: ${hooks.tiles} tiles, ${+hooks.mapResolution.toPrecision(4)} m/cell`);
     const m = median(hooks.latenciesMs);
     if (m !== null) lines.push(`map latency: ${m.toFixed(0)} ms (median)`);
+  }
+  if (hooks.costmapTiles > 0) lines.push(`costmap: ${hooks.costmapTiles} tiles`);
+  const c = data.cloud;
+  if (c) {
+    lines.push(`3D map: ${c.points} points, ${(c.voxel * 100).toFixed(1)} cm, ` +
+      `height ${c.zLow.toFixed(2)}…${c.zHigh.toFixed(2)} m`);
   }
   const r = hooks.robot;
   if (r) {

@@ -81,6 +81,41 @@ std::array<Eigen::Vector2d, 4> EnvironmentCamera::footprint() const {
   return {floorPoint({0, 0}), floorPoint({w, 0}), floorPoint({w, h}), floorPoint({0, h})};
 }
 
+std::vector<Eigen::Vector2d> EnvironmentCamera::footprintPolygon(double max_distance) const {
+  if (!(max_distance > 0) || !std::isfinite(max_distance))
+    throw std::invalid_argument("footprint: max_distance must be finite and > 0");
+  // The footprint in homogeneous floor coordinates X = [x y 1]: with rows h0, h1, h2 of H,
+  // u >= 0, u <= W, v >= 0, v <= H read h0 X >= 0, W h2 X - h0 X >= 0, ... when h2 X > 0 (in
+  // front), which any two opposite ones imply. Each is a half-plane g X >= 0; clipping the square
+  // by the four (Sutherland-Hodgman) leaves a convex polygon.
+  const double w = intrinsics_.width_px, hp = intrinsics_.height_px;
+  const Eigen::RowVector3d h0 = h_.row(0), h1 = h_.row(1), h2 = h_.row(2);
+  const std::array<Eigen::RowVector3d, 4> planes = {h1, w * h2 - h0, hp * h2 - h1, h0};
+  const Eigen::Vector2d c = site_.position;
+  const double d = max_distance;
+  std::vector<Eigen::Vector2d> poly = {c + Eigen::Vector2d(-d, -d), c + Eigen::Vector2d(d, -d),
+                                       c + Eigen::Vector2d(d, d),
+                                       c + Eigen::Vector2d(-d, d)};  // counter-clockwise
+  for (const Eigen::RowVector3d& g : planes) {
+    // Scaled so that the value is a distance-like number whatever the scale of H.
+    const Eigen::RowVector3d gn = g / std::max(g.head<2>().norm(), 1e-300);
+    std::vector<Eigen::Vector2d> next;
+    for (std::size_t i = 0; i < poly.size(); ++i) {
+      const Eigen::Vector2d& a = poly[i];
+      const Eigen::Vector2d& b = poly[(i + 1) % poly.size()];
+      const double fa = gn.dot(a.homogeneous()), fb = gn.dot(b.homogeneous());
+      if (fa >= 0) next.push_back(a);
+      if ((fa >= 0) != (fb >= 0)) next.push_back(a + fa / (fa - fb) * (b - a));
+    }
+    poly.clear();
+    // Drop vertices that coincide with their predecessor (a corner on a clipping line).
+    for (const auto& p : next)
+      if (poly.empty() || (p - poly.back()).norm() > 1e-9) poly.push_back(p);
+    while (poly.size() > 1 && (poly.front() - poly.back()).norm() <= 1e-9) poly.pop_back();
+  }
+  return poly;
+}
+
 CameraNetwork::CameraNetwork(const std::vector<CameraSite>& sites,
                              const CameraIntrinsics& intrinsics) {
   std::set<int> ids;

@@ -5,8 +5,12 @@
 
 #include <catch2/catch.hpp>
 
+#include <algorithm>
 #include <chrono>
+#include <cmath>
+#include <cstdint>
 #include <fstream>
+#include <limits>
 #include <memory>
 #include <thread>
 #include <utility>
@@ -281,4 +285,107 @@ TEST_CASE("octomap .bt files round-trip and bad input is named", "[mapping3d][oc
   bad = {};
   bad.log_odds_miss = 0.2;
   CHECK_THROWS_WITH(OctoMapBuilder{bad}, Contains("log_odds_miss"));
+}
+
+namespace occupied_voxels_test {
+
+// Largest per-axis distance from `p` to the nearest point of `points`.
+double nearestInf(const Eigen::Vector3f& p, const std::vector<Eigen::Vector3f>& points) {
+  double best = std::numeric_limits<double>::infinity();
+  for (const auto& q : points)
+    best = std::min(best, static_cast<double>((p - q).lpNorm<Eigen::Infinity>()));
+  return best;
+}
+
+// The wall cloud of the tests above in the world frame, seen from `pose`.
+std::vector<Eigen::Vector3f> worldPoints(const PointCloud& cloud, const Eigen::Isometry3d& pose) {
+  std::vector<Eigen::Vector3f> out;
+  for (const auto& p : cloud.points) out.push_back(pose.cast<float>() * p);
+  return out;
+}
+
+}  // namespace occupied_voxels_test
+
+TEST_CASE("octomap occupied voxel centres lie on the inserted points", "[mapping3d][octomap]") {
+  using occupied_voxels_test::nearestInf;
+  using occupied_voxels_test::worldPoints;
+  OctoMapOptions options;
+  options.prune_period = 1000;  // inner nodes not updated by the insertion itself
+  OctoMapBuilder map(options);
+  const OccupiedVoxels none = map.occupiedVoxels(1000);
+  CHECK(none.centres.empty());
+  CHECK(none.voxel_size == Approx(0.05));
+
+  const PointCloud wall = wallCloud(2.02);
+  map.insert(wall, Eigen::Isometry3d::Identity());
+  const auto points = worldPoints(wall, Eigen::Isometry3d::Identity());
+  const OccupiedVoxels all = map.occupiedVoxels(1'000'000);
+  CHECK(all.depth == 16);
+  CHECK(all.voxel_size == Approx(0.05));
+  CHECK(all.revision == map.revision());
+  REQUIRE(all.centres.size() == map.stats().occupied_leaves);
+  for (const auto& c : all.centres) {
+    REQUIRE(c.allFinite());
+    REQUIRE(nearestInf(c, points) <= 0.025 + 1e-4);
+    REQUIRE(map.occupancy(c.cast<double>()) == Occupancy::kOccupied);
+  }
+  // Every point's voxel is there.
+  for (const auto& p : points) REQUIRE(nearestInf(p, all.centres) <= 0.025 + 1e-4);
+  CHECK(map.occupiedVoxels(0).centres.empty());
+
+  SECTION("a small maximum gives fewer points at a coarser voxel") {
+    OctoMapBuilder fresh(options);  // the inner nodes of a tree nobody finalized yet
+    fresh.insert(wall, Eigen::Isometry3d::Identity());
+    for (const std::size_t max_points : {all.centres.size() - 1, all.centres.size() / 5,
+                                         all.centres.size() / 50, std::size_t{10}}) {
+      CAPTURE(max_points);
+      const OccupiedVoxels coarse = fresh.occupiedVoxels(max_points);
+      CHECK(coarse.depth < 16);
+      CHECK(coarse.voxel_size == Approx(0.05 * std::pow(2.0, 16 - coarse.depth)));
+      REQUIRE_FALSE(coarse.centres.empty());
+      CHECK(coarse.centres.size() <= max_points);
+      const double half = 0.5 * coarse.voxel_size + 1e-4;
+      for (const auto& c : coarse.centres) REQUIRE(nearestInf(c, points) <= half);
+      for (const auto& p : points) REQUIRE(nearestInf(p, coarse.centres) <= half);
+    }
+    // One voxel at least: the root when even the eight octants are too many.
+    const OccupiedVoxels one = fresh.occupiedVoxels(1);
+    CHECK(one.centres.size() == 1);
+    CHECK(one.depth == 0);
+  }
+  SECTION("the revision follows changes") {
+    const std::uint64_t r = map.revision();
+    map.occupiedVoxels(10);
+    CHECK(map.revision() == r);
+    map.insert(onePoint(0, 0, 1), Eigen::Isometry3d::Identity());
+    CHECK(map.revision() > r);
+  }
+}
+
+TEST_CASE("octomap occupied voxels during and after a rebuild", "[mapping3d][octomap]") {
+  using occupied_voxels_test::nearestInf;
+  using occupied_voxels_test::worldPoints;
+  OctoMapBuilder map;
+  auto wall = std::make_shared<const PointCloud>(wallCloud(2.02));
+  std::vector<PlacedCloud> keyframes;
+  for (int i = 0; i < 30; ++i) {
+    map.insert(*wall, at(0.01 * i, 0, 0));
+    keyframes.push_back({wall, at(0.01 * i, 0, 0.5)});  // every keyframe 0.5 m farther forward
+  }
+  const std::uint64_t before = map.revision();
+  map.rebuild(keyframes);
+  // Served meanwhile: the old tree, or the new one once it swapped in, never a mix.
+  while (map.rebuilding()) {
+    const OccupiedVoxels v = map.occupiedVoxels(100'000);
+    REQUIRE_FALSE(v.centres.empty());
+    const float z = v.centres.front().z();
+    for (const auto& c : v.centres) REQUIRE(std::abs(c.z() - z) < 0.051f);
+  }
+  map.waitForRebuild();
+  const OccupiedVoxels after = map.occupiedVoxels(100'000);
+  CHECK(after.revision > before);
+  const auto moved = worldPoints(*wall, at(0, 0, 0.5));
+  REQUIRE_FALSE(after.centres.empty());
+  for (const auto& c : after.centres) REQUIRE(std::abs(c.z() - 2.525f) < 0.026f);
+  CHECK(nearestInf(moved.front(), after.centres) <= 0.025 + 1e-4);
 }

@@ -12,9 +12,12 @@
 #include <catch2/catch.hpp>
 
 #include <algorithm>
+#include <bit>
 #include <cmath>
+#include <cstdint>
 #include <functional>
 #include <limits>
+#include <vector>
 
 #include "../../shared_data.hpp"
 
@@ -208,4 +211,127 @@ TEST_CASE("rgbd_mapper saves periodically with save_period_s", "[actors][mapping
   CHECK(summaryInt(h, "saves") == 1);
   h.stop();
   CHECK(summaryInt(h, "saves") == 2);
+}
+
+namespace map_cloud_preview_test {
+
+// The points of a map_cloud message, checked to be what its fields say.
+std::vector<Eigen::Vector3f> pointsOf(const Message<msg::PointCloud>& m) {
+  const auto xyz = m->getXyz();
+  REQUIRE(xyz.size() == 12 * std::size_t{m->getCount()});
+  CHECK(m->getRgb().size() == 0);
+  std::vector<Eigen::Vector3f> out;
+  for (std::size_t i = 0; i < m->getCount(); ++i) {
+    Eigen::Vector3f p;
+    for (int k = 0; k < 3; ++k) {
+      std::uint32_t bits = 0;
+      for (int b = 0; b < 4; ++b)
+        bits |= static_cast<std::uint32_t>(
+                    xyz[12 * i + 4 * static_cast<std::size_t>(k) + static_cast<std::size_t>(b)])
+                << (8 * b);
+      p[k] = std::bit_cast<float>(bits);
+    }
+    out.push_back(p);
+  }
+  return out;
+}
+
+}  // namespace map_cloud_preview_test
+
+TEST_CASE("rgbd_mapper publishes map_cloud every preview_period_s when the map changed",
+          "[actors][mapping3d][rgbd_mapper][map_cloud]") {
+  using map_cloud_preview_test::pointsOf;
+  ActorHarness h(std::make_unique<RgbdMapperActor>(RgbdMapperOptions{}));  // 1 s, 100000 points
+  h.advance(kNanosPerSecond * 3 / 2);  // an empty map: nothing to preview
+  CHECK(h.publishedCount("map_cloud") == 0);
+  pushKeyframe(h, 0, translation(0, 0, 0));
+  pushKeyframe(h, 1, translation(1, 0, 0));
+  CHECK(h.publishedCount("map_cloud") == 0);  // not before the period ends
+  h.advance(kNanosPerSecond);
+  auto clouds = h.published<msg::PointCloud>("map_cloud");
+  REQUIRE(clouds.size() == 1);
+  const auto& m = clouds[0];
+  CHECK(std::string(m->getHeader().getFrameId().cStr()) == "world");
+  CHECK(m->getVoxelSize() == Approx(0.05));
+  const auto points = pointsOf(m);
+  REQUIRE(points.size() > 500);
+  for (const auto& p : points) {
+    REQUIRE(p.allFinite());
+    REQUIRE(std::abs(p.z() - 2.0f) < 0.06f);  // the wall, 2 m ahead of both keyframes
+    REQUIRE(p.x() > -1.4f);
+    REQUIRE(p.x() < 2.4f);
+  }
+  CHECK(static_cast<std::size_t>(m->getCount()) ==
+        static_cast<RgbdMapperActor&>(h.actor()).octomap().stats().occupied_leaves);
+
+  // Nothing changed: nothing republished, at the next periods or at stop.
+  h.advance(3 * kNanosPerSecond);
+  CHECK(h.publishedCount("map_cloud") == 1);
+  // A new keyframe changes the map: one more at the next period.
+  pushKeyframe(h, 2, translation(0, 0, 0.5));
+  h.advance(kNanosPerSecond);
+  clouds = h.published<msg::PointCloud>("map_cloud");
+  REQUIRE(clouds.size() == 2);
+  CHECK(clouds[1]->getHeader().getSeq() == clouds[0]->getHeader().getSeq() + 1);
+  const auto more = pointsOf(clouds[1]);
+  CHECK(std::any_of(more.begin(), more.end(),
+                    [](const Eigen::Vector3f& p) { return std::abs(p.z() - 2.5f) < 0.06f; }));
+  h.advance(kNanosPerSecond);
+  h.stop();
+  CHECK(h.publishedCount("map_cloud") == 2);
+  CHECK(summaryInt(h, "previews") == 2);
+}
+
+TEST_CASE("rgbd_mapper map_cloud: coarser voxels beyond preview_max_points, off with period 0",
+          "[actors][mapping3d][rgbd_mapper][map_cloud]") {
+  using map_cloud_preview_test::pointsOf;
+  SECTION("preview_max_points") {
+    RgbdMapperOptions o;
+    o.preview_max_points = 200;
+    ActorHarness h(std::make_unique<RgbdMapperActor>(o));
+    pushKeyframe(h, 0, translation(0, 0, 0));
+    h.advance(kNanosPerSecond);
+    const auto clouds = h.published<msg::PointCloud>("map_cloud");
+    REQUIRE(clouds.size() == 1);
+    CHECK(clouds[0]->getCount() <= 200);
+    CHECK(clouds[0]->getCount() > 0);
+    const double voxel = clouds[0]->getVoxelSize();
+    CHECK(voxel > 0.09);
+    // A power of two times the resolution.
+    CHECK(std::log2(voxel / 0.05) == Approx(std::round(std::log2(voxel / 0.05))).margin(1e-4));
+    for (const auto& p : pointsOf(clouds[0])) REQUIRE(std::abs(p.z() - 2.0f) < voxel);
+  }
+  SECTION("preview_period_s = 0: never, not even at stop") {
+    RgbdMapperOptions o;
+    o.preview_period_s = 0;
+    ActorHarness h(std::make_unique<RgbdMapperActor>(o));
+    pushKeyframe(h, 0, translation(0, 0, 0));
+    h.advance(5 * kNanosPerSecond);
+    h.stop();
+    CHECK(h.publishedCount("map_cloud") == 0);
+  }
+  SECTION("the map at stop, after its last rebuild") {
+    RgbdMapperOptions o;
+    o.preview_period_s = 10;
+    ActorHarness h(std::make_unique<RgbdMapperActor>(o));
+    pushKeyframe(h, 0, translation(0, 0, 0));
+    pushPoses(h, {{0, translation(0, 0, 0.5)}});
+    h.stop();
+    const auto clouds = h.published<msg::PointCloud>("map_cloud");
+    REQUIRE(clouds.size() == 1);
+    for (const auto& p : pointsOf(clouds[0])) REQUIRE(std::abs(p.z() - 2.5f) < 0.06f);
+  }
+}
+
+TEST_CASE("rgbd_mapper rejects bad preview options naming the key",
+          "[actors][mapping3d][rgbd_mapper][map_cloud]") {
+  RgbdMapperOptions o;
+  o.preview_period_s = -1;
+  CHECK_THROWS_WITH(RgbdMapperActor(o), Catch::Contains("preview_period_s"));
+  o = {};
+  o.preview_period_s = std::numeric_limits<double>::infinity();
+  CHECK_THROWS_WITH(RgbdMapperActor(o), Catch::Contains("preview_period_s"));
+  o = {};
+  o.preview_max_points = 0;
+  CHECK_THROWS_WITH(RgbdMapperActor(o), Catch::Contains("preview_max_points"));
 }

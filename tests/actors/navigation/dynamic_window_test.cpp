@@ -5,6 +5,7 @@
 
 #include <catch2/catch.hpp>
 
+#include <algorithm>
 #include <cmath>
 #include <limits>
 
@@ -122,4 +123,65 @@ TEST_CASE("the window refuses bad options and survives bad inputs", "[navigation
   // Outside the distance field nothing is admissible but turning on the spot.
   const auto outside = dwa.choose(Pose2(50, 50, 0), {}, {51, 50}, free_space);
   if (outside.ok) CHECK(outside.command.v == 0);
+}
+
+TEST_CASE("the window returns every sampled arc, only when asked", "[navigation]") {
+  // A wide window (0-1 m/s) before a wall 0.6 m ahead: the slow pairs can stop, the fast cannot.
+  const DistanceField wall(field(0.6, 1.0));
+  DynamicWindowOptions o;
+  o.max_speed = 1.0;
+  o.acceleration = 10.0;
+  const DynamicWindow dwa(o);
+  const Pose2 pose(0, 0, 0.05);
+  const Velocity current{0.5, 0.0};
+  const Eigen::Vector2d target(3.0, 0.5);
+  const auto plain = dwa.choose(pose, current, target, wall);
+  CHECK(plain.arcs.empty());
+  const auto r = dwa.choose(pose, current, target, wall, true);
+  REQUIRE(r.ok);
+  CHECK(r.command.v == plain.command.v);
+  CHECK(r.command.w == plain.command.w);
+  CHECK(r.sampled == o.speed_samples * o.turn_samples);
+  REQUIRE(static_cast<int>(r.arcs.size()) == r.sampled);
+  CHECK(r.admissible > 0);
+  CHECK(r.admissible < r.sampled);
+  const int steps = static_cast<int>(std::ceil(o.horizon / o.step - 1e-9));
+  int admissible = 0;
+  double best = -1;
+  for (const DynamicWindowArc& a : r.arcs) {
+    admissible += a.admissible ? 1 : 0;
+    if (a.admissible) best = std::max(best, a.score);
+    if (!a.admissible) CHECK(a.score == 0);
+    CHECK(a.clearance >= 0);
+    CHECK(a.clearance <= std::abs(a.velocity.v) * o.step * steps + 1e-12);
+    REQUIRE(a.poses.size() == static_cast<std::size_t>(steps) + 1);
+    CHECK(a.poses.front().x == pose.x);
+    CHECK(a.poses.front().y == pose.y);
+    CHECK(a.poses.front().theta == pose.theta);
+  }
+  CHECK(admissible == r.admissible);
+  // The chosen arc is the command, the best score and the result's rollout.
+  REQUIRE(r.chosen >= 0);
+  REQUIRE(r.chosen < r.sampled);
+  const DynamicWindowArc& chosen = r.arcs[static_cast<std::size_t>(r.chosen)];
+  CHECK(chosen.velocity.v == r.command.v);
+  CHECK(chosen.velocity.w == r.command.w);
+  CHECK(chosen.admissible);
+  CHECK(chosen.score == best);
+  REQUIRE(chosen.poses.size() == r.rollout.size());
+  for (std::size_t k = 0; k < r.rollout.size(); ++k) {
+    CHECK(chosen.poses[k].x == r.rollout[k].x);
+    CHECK(chosen.poses[k].y == r.rollout[k].y);
+  }
+  // Too fast to stop before the wall whatever the pair: the arcs come back, none chosen.
+  o.acceleration = 0.5;
+  const auto none = DynamicWindow(o).choose(Pose2(0.1, 0, 0), {0.9, 0.0}, target, wall, true);
+  CHECK_FALSE(none.ok);
+  CHECK(none.chosen == -1);
+  CHECK(none.admissible == 0);
+  REQUIRE(static_cast<int>(none.arcs.size()) == none.sampled);
+  for (const DynamicWindowArc& a : none.arcs) {
+    CHECK_FALSE(a.admissible);
+    CHECK(a.score == 0);
+  }
 }

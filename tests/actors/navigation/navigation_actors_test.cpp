@@ -13,6 +13,8 @@
 
 #include <catch2/catch.hpp>
 
+#include "nav_test_inputs.hpp"
+
 #include <cmath>
 #include <cstring>
 #include <filesystem>
@@ -28,6 +30,14 @@ using navigation::NavigationActorOptions;
 
 namespace {
 
+// The shared inputs take the place of what this file used to define here itself.
+using tessera::test::nav::placeRobot;
+using tessera::test::nav::pushGoal;
+using tessera::test::nav::pushOdom;
+using tessera::test::nav::pushPose;
+using tessera::test::nav::pushRoom;
+using tessera::test::nav::roomOptions;
+
 namespace fs = std::filesystem;
 constexpr Nanos kStep = 50'000'000;  // the navigator's default 20 Hz
 
@@ -38,58 +48,6 @@ T summaryValue(Actor& a, const std::string& key) {
   const auto it = s.find(key);
   if (it == s.end()) return T{};
   return std::get<T>(it->second);
-}
-
-/// A 10 m x 8 m room at 0.1 m with a 0.2 m wall all round, as a map message.
-void pushRoom(ActorHarness& h, const std::string& topic = "map") {
-  const int w = 100, hgt = 80;
-  h.push<msg::OccupancyGrid>(topic, [&](auto& b) {
-    setHeader(b.initHeader(), 0, "map", 0);
-    b.setResolution(0.1f);
-    b.setWidth(w);
-    b.setHeight(hgt);
-    writePose(b.initOrigin(), Pose2());
-    auto cells = mutableViewInt8(b.initCells(w * hgt));
-    for (int r = 0; r < hgt; ++r)
-      for (int c = 0; c < w; ++c)
-        cells[static_cast<std::size_t>(r * w + c)] =
-            (r < 2 || c < 2 || r >= hgt - 2 || c >= w - 2) ? 100 : 0;
-  });
-}
-
-void pushPose(ActorHarness& h, Nanos t, const Pose2& p) {
-  h.push<msg::PoseStamped>("pose", [&](auto& b) {
-    setHeader(b.initHeader(), t, "map", 0);
-    writePose(b.initPose(), p);
-  });
-}
-
-void pushOdom(ActorHarness& h, Nanos t, const Pose2& p, double v, double w) {
-  h.push<msg::Odometry>("odom", [&](auto& b) {
-    setHeader(b.initHeader(), t, "odom", 0);
-    b.setChildFrameId("base_link");
-    writePose(b.initPose(), p);
-    b.initTwist().setVx(v);
-    b.getTwist().setOmega(w);
-  });
-}
-
-void pushGoal(ActorHarness& h, std::uint64_t id, const Pose2& g, const std::string& frame = "map") {
-  h.push<msg::NavGoal>("goal", [&](auto& b) {
-    setHeader(b.initHeader(), h.now(), frame, 0);
-    writePose(b.initPose(), g);
-    b.setId(id);
-    b.setToleranceXy(0);
-    b.setToleranceYaw(0);
-  });
-}
-
-NavigationActorOptions roomOptions() {
-  NavigationActorOptions o;
-  o.use_scan = false;
-  o.inflation.inscribed_radius = 0.2;
-  o.inflation.inflation_radius = 0.5;
-  return o;
 }
 
 std::string lastState(ActorHarness& h) {
@@ -135,9 +93,7 @@ TEST_CASE("navigator drives a kinematic robot to its goal on a map topic", "[nav
   ActorHarness h(std::make_unique<NavigationActor>(roomOptions()));
   pushRoom(h);
   const Pose2 start(1.5, 1.5, 0.0);
-  pushPose(h, 0, start);
-  pushOdom(h, 0, start, 0, 0);
-  h.runUntilIdle();
+  placeRobot(h, start);
   pushGoal(h, 7, Pose2(8.0, 6.0, 1.57));
   const Pose2 end = driveLoop(h, start, 60);
   CHECK(lastState(h) == "reached");
@@ -182,9 +138,7 @@ TEST_CASE("navigator stops the base when localisation goes stale", "[navigator]"
   ActorHarness h(std::make_unique<NavigationActor>(o));
   pushRoom(h);
   const Pose2 start(1.5, 1.5, 0.0);
-  pushPose(h, 0, start);
-  pushOdom(h, 0, start, 0, 0);
-  h.runUntilIdle();
+  placeRobot(h, start);
   pushGoal(h, 1, Pose2(8.0, 1.5, 0.0));
   driveLoop(h, start, 1.0);  // starts moving
   const auto moving = h.published<msg::Twist>("cmd_vel");

@@ -206,3 +206,32 @@ TEST_CASE("Navigator drives through unknown space it may plan across without rep
   // One plan: the unknown cells on the path do not count as blocking it.
   CHECK(navigator.stats().plans == 1);
 }
+
+TEST_CASE("Navigator keeps the dynamic window's arcs of the last step when asked", "[navigation]") {
+  nav::Navigator navigator;
+  const nav::Costmap map = inflated(room());
+  const nav::DistanceField field(map);
+  CHECK(navigator.lastWindow() == nullptr);
+  REQUIRE(navigator.setGoal(Pose2(2, 4, 0), map).empty());
+  const Pose2 pose(2, 2, M_PI / 2);
+  auto c = navigator.step(0, pose, {}, map, field);
+  REQUIRE(c.state == nav::NavState::kDriving);
+  REQUIRE(navigator.lastWindow() != nullptr);
+  CHECK(navigator.lastWindow()->arcs.empty());  // not kept by default
+  navigator.setKeepArcs(true);
+  c = navigator.step(0.05, pose, {c.velocity.v, c.velocity.w}, map, field);
+  REQUIRE(c.state == nav::NavState::kDriving);
+  const nav::DynamicWindowResult* w = navigator.lastWindow();
+  REQUIRE(w != nullptr);
+  REQUIRE(w->ok);
+  REQUIRE(static_cast<int>(w->arcs.size()) == w->sampled);
+  const auto& chosen = w->arcs.at(static_cast<std::size_t>(w->chosen));
+  CHECK(chosen.velocity.v == c.velocity.v);
+  CHECK(chosen.velocity.w == c.velocity.w);
+  CHECK(chosen.poses.front().x == pose.x);
+  CHECK(chosen.poses.front().y == pose.y);
+  // A step that does not run the window (no goal) leaves no result.
+  navigator.cancel();
+  navigator.step(0.1, pose, {}, map, field);
+  CHECK(navigator.lastWindow() == nullptr);
+}

@@ -26,6 +26,7 @@ struct Grid {
     view.origin_x = ox;
     view.origin_y = oy;
     view.cells = cells.data();
+    view.cell_count = cells.size();
   }
   std::int8_t& at(int x, int y) { return cells[y * view.width + x]; }
 };
@@ -124,9 +125,15 @@ TEST_CASE("grids that cannot be drawn are refused with the reason", "[viewer][ti
   g.view.origin_theta = 0.3;
   CHECK_THROWS_WITH(tiler.update(g.view, 0, 0), Catch::Contains("rotated"));
   g.view.origin_theta = 0;
+  g.view.cell_count = 15;  // a message whose cells do not fill its width x height
+  CHECK_THROWS_WITH(tiler.update(g.view, 0, 0), Catch::Contains("4 x 4 cells carries 15"));
+  g.view.cell_count = 17;
+  CHECK_THROWS_WITH(tiler.update(g.view, 0, 0), Catch::Contains("carries 17"));
+  g.view.cell_count = 16;
   g.view.cells = nullptr;
   CHECK_THROWS_WITH(tiler.update(g.view, 0, 0), Catch::Contains("without cells"));
   g.view.width = 0;  // an empty grid is fine: no tiles
+  g.view.cell_count = 0;
   CHECK(tiler.update(g.view, 0, 0).tiles.empty());
   CHECK_THROWS(MapTiler(0));
 }

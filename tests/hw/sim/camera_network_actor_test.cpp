@@ -9,11 +9,18 @@
 #include <catch2/catch.hpp>
 
 #include "../../shared_data.hpp"
+#include "polygon_margin.hpp"
 
+#include <algorithm>
+#include <cmath>
+#include <cstdint>
 #include <filesystem>
 #include <fstream>
+#include <limits>
+#include <random>
 #include <sstream>
 #include <string>
+#include <vector>
 
 using namespace tessera;
 using tessera::sim::CameraNetworkActor;
@@ -150,4 +157,108 @@ TEST_CASE("CameraNetworkActor: the camera group from YAML, old flat keys name th
   CHECK(o.camera.height_px == 480);  // default kept inside the group
   CHECK_THROWS_WITH(read("{miss_prob: 0.1}"), Catch::Contains("camera.miss_probability"));
   CHECK_THROWS_WITH(read("{image_width: 800}"), Catch::Contains("camera.width_px"));
+}
+
+namespace camera_footprints_test {
+
+// x0, y0, x1, y1, ... as points.
+std::vector<Eigen::Vector2d> polygonOf(msg::CameraFootprints::Footprint::Reader f) {
+  const auto xy = f.getXy();
+  REQUIRE(xy.size() % 2 == 0);
+  std::vector<Eigen::Vector2d> out;
+  for (unsigned i = 0; i + 1 < xy.size(); i += 2) out.emplace_back(xy[i], xy[i + 1]);
+  return out;
+}
+
+using tessera::test::insideMargin;
+
+void pushPose(ActorHarness& h, std::int64_t stamp, double x, double y) {
+  h.push<msg::GroundTruthPose>("ground_truth", [&](msg::GroundTruthPose::Builder b) {
+    setHeader(b.initHeader(), stamp, "map", 0);
+    writePose(b.initPose(), tessera::Pose2{x, y, 0});
+  });
+  h.runUntilIdle();
+}
+
+}  // namespace camera_footprints_test
+
+TEST_CASE("CameraNetworkActor: camera_footprints at the first frame and every footprint_period_s",
+          "[sim][actor][camera][footprint]") {
+  using camera_footprints_test::insideMargin;
+  using camera_footprints_test::polygonOf;
+  using camera_footprints_test::pushPose;
+  CameraNetworkOptions o;  // builtin:camera_floor: 7 cameras, yawed and tilted; 5 s
+  ActorHarness h(std::make_unique<CameraNetworkActor>(o));
+  const auto& network = static_cast<CameraNetworkActor&>(h.actor()).network();
+  h.advance(2 * kNanosPerSecond);  // no frame yet: nothing
+  CHECK(h.publishedCount("camera_footprints") == 0);
+  pushPose(h, 0, 7.5, 7.5);
+  REQUIRE(h.publishedCount("camera_footprints") == 1);
+
+  const auto m = h.published<msg::CameraFootprints>("camera_footprints")[0];
+  CHECK(std::string(m->getHeader().getFrameId().cStr()) == "map");
+  REQUIRE(m->getCameras().size() == network.cameras().size());
+  std::mt19937_64 rng(3);
+  std::uniform_real_distribution<double> offset(-6, 6);
+  for (unsigned i = 0; i < m->getCameras().size(); ++i) {
+    const auto f = m->getCameras()[i];
+    const auto& cam = network.cameras()[i];
+    CAPTURE(cam.id());
+    CHECK(f.getCameraId() == cam.id());
+    CHECK_FALSE(f.getCalibrated());
+    const auto poly = polygonOf(f);
+    REQUIRE(poly.size() >= 3);
+    CHECK(insideMargin(poly, cam.site().position) > 0.5);  // counter-clockwise, holds the site
+    int in = 0, out = 0;
+    for (int k = 0; k < 400; ++k) {
+      const Eigen::Vector2d p = cam.site().position + Eigen::Vector2d(offset(rng), offset(rng));
+      const double margin = insideMargin(poly, p);
+      if (std::abs(margin) < 1e-6) continue;
+      CAPTURE(p.x(), p.y());
+      CHECK(cam.inView(p) == (margin > 0));
+      ++(margin > 0 ? in : out);
+    }
+    CHECK(in > 10);
+    CHECK(out > 10);
+  }
+
+  // Again after footprint_period_s (run clock), and again after the next.
+  h.advance(4 * kNanosPerSecond);  // t = 6 s: the timer fired at 5 s
+  CHECK(h.publishedCount("camera_footprints") == 2);
+  h.advance(3 * kNanosPerSecond);  // 9 s
+  CHECK(h.publishedCount("camera_footprints") == 2);
+  h.advance(2 * kNanosPerSecond);  // 11 s
+  CHECK(h.publishedCount("camera_footprints") == 3);
+  pushPose(h, 100'000'000, 7.5, 7.5);  // later frames do not add any
+  CHECK(h.publishedCount("camera_footprints") == 3);
+  const auto all = h.published<msg::CameraFootprints>("camera_footprints");
+  CHECK(all[2]->getCameras().size() == network.cameras().size());
+  CHECK(all[2]->getHeader().getSeq() == 2);
+  Summary s;
+  h.actor().summarize(s);
+  CHECK(std::get<std::int64_t>(s.at("footprint_messages")) == 3);
+}
+
+TEST_CASE("CameraNetworkActor: footprint_period_s = 0 publishes the footprints once",
+          "[sim][actor][camera][footprint]") {
+  CameraNetworkOptions o = oneCamera();
+  o.footprint_period_s = 0;
+  ActorHarness h(std::make_unique<CameraNetworkActor>(o));
+  camera_footprints_test::pushPose(h, 0, 0, 0);
+  h.advance(30 * kNanosPerSecond);
+  REQUIRE(h.publishedCount("camera_footprints") == 1);
+  // One camera at (12, 0), untilted: x in [9, 15], y in [-2.25, 2.25].
+  const auto poly = camera_footprints_test::polygonOf(
+      h.published<msg::CameraFootprints>("camera_footprints")[0]->getCameras()[0]);
+  REQUIRE(poly.size() == 4);
+  for (const auto& p : poly) {
+    CHECK(std::abs(std::abs(p.x() - 12) - 3) < 1e-9);
+    CHECK(std::abs(std::abs(p.y()) - 2.25) < 1e-9);
+  }
+  CHECK(camera_footprints_test::insideMargin(poly, {12, 0}) == Approx(2.25));
+
+  o.footprint_period_s = -1;
+  CHECK(configErrorOf(o).find("footprint_period_s") != std::string::npos);
+  o.footprint_period_s = std::numeric_limits<double>::quiet_NaN();
+  CHECK(configErrorOf(o).find("footprint_period_s") != std::string::npos);
 }

@@ -2,8 +2,14 @@
 
 #include <catch2/catch.hpp>
 
+#include <algorithm>
 #include <cmath>
+#include <limits>
 #include <random>
+#include <stdexcept>
+#include <vector>
+
+#include "polygon_margin.hpp"
 
 using namespace tessera;
 using namespace tessera::sim;
@@ -168,4 +174,91 @@ TEST_CASE("CameraNetwork: one enter and one leave event on a straight pass under
   const auto again = net.observe({10, 0}, rng);
   REQUIRE(again.transitions.size() == 1);
   CHECK(again.transitions[0].entered);
+}
+
+namespace footprint_polygon_test {
+
+double signedArea(const std::vector<Eigen::Vector2d>& poly) {
+  double a = 0;
+  for (std::size_t i = 0; i < poly.size(); ++i) {
+    const auto& p = poly[i];
+    const auto& q = poly[(i + 1) % poly.size()];
+    a += p.x() * q.y() - q.x() * p.y();
+  }
+  return 0.5 * a;
+}
+
+using tessera::test::insideMargin;
+
+// inView agrees with the polygon on random floor points around the site (those within 1e-6 m of
+// its border are not judged).
+void requireAgrees(const EnvironmentCamera& cam, const std::vector<Eigen::Vector2d>& poly,
+                   double box) {
+  std::mt19937_64 rng(7);
+  std::uniform_real_distribution<double> d(-box, box);
+  int in = 0, out = 0;
+  for (int i = 0; i < 4000; ++i) {
+    const Eigen::Vector2d p = cam.site().position + Eigen::Vector2d(d(rng), d(rng));
+    const double m = insideMargin(poly, p);
+    if (std::abs(m) < 1e-6) continue;
+    CAPTURE(p.x(), p.y(), m);
+    REQUIRE(cam.inView(p) == (m > 0));
+    ++(m > 0 ? in : out);
+  }
+  CHECK(in > 50);
+  CHECK(out > 50);
+}
+
+}  // namespace footprint_polygon_test
+
+TEST_CASE("EnvironmentCamera: the footprint polygon is the image border on the floor",
+          "[sim][camera][footprint]") {
+  using footprint_polygon_test::insideMargin;
+  using footprint_polygon_test::requireAgrees;
+  using footprint_polygon_test::signedArea;
+  CameraIntrinsics in;
+  SECTION("untilted: the four corners, counter-clockwise") {
+    const EnvironmentCamera cam(site(3, 10, 20), in);
+    const auto poly = cam.footprintPolygon(30);
+    REQUIRE(poly.size() == 4);
+    CHECK(signedArea(poly) == Approx(6.0 * 4.5));
+    for (const auto& corner : cam.footprint()) {
+      bool found = false;
+      for (const auto& p : poly) found = found || (p - corner).norm() < 1e-9;
+      CHECK(found);
+    }
+    CHECK(insideMargin(poly, cam.site().position) > 2.0);
+    requireAgrees(cam, poly, 5);
+  }
+  SECTION("yawed and tilted: a convex quadrilateral holding the site") {
+    for (const CameraSite& s : {site(0, 1, 2, 0.7, 0.3, -0.2), site(1, -4, 3, -2.5, -0.45, 0.45),
+                                site(2, 0, 0, M_PI, 0.1, 0.4)}) {
+      CAPTURE(s.id);
+      const EnvironmentCamera cam(s, in);
+      const auto poly = cam.footprintPolygon(30);
+      REQUIRE(poly.size() >= 4);
+      CHECK(signedArea(poly) > 0);
+      CHECK(insideMargin(poly, s.position) > 0);
+      requireAgrees(cam, poly, 12);
+    }
+  }
+  SECTION("a wide view tilted past the horizon is cut at max_distance") {
+    CameraIntrinsics wide = in;
+    wide.focal_px = 120;  // 2 x 69 deg across the width
+    const EnvironmentCamera cam(site(4, 5, 5, 0.3, 0.45, 0.45), wide);
+    // Some image corner's ray misses the floor: its floor point lies behind the camera.
+    bool past_horizon = false;
+    for (const auto& corner : cam.footprint()) past_horizon = past_horizon || !cam.project(corner);
+    CHECK(past_horizon);
+    const auto poly = cam.footprintPolygon(20);
+    REQUIRE(poly.size() >= 3);
+    CHECK(signedArea(poly) > 0);
+    for (const auto& p : poly) {
+      REQUIRE(p.allFinite());
+      CHECK((p - cam.site().position).lpNorm<Eigen::Infinity>() <= 20 + 1e-9);
+    }
+    CHECK(insideMargin(poly, cam.site().position) > 0);
+    requireAgrees(cam, poly, 19.9);
+  }
+  CHECK_THROWS_AS(EnvironmentCamera(site(0, 0, 0), in).footprintPolygon(0), std::invalid_argument);
 }

@@ -7,6 +7,7 @@
 #include <tessera/runtime/registry.hpp>
 
 #include <algorithm>
+#include <bit>
 #include <chrono>
 #include <cmath>
 #include <condition_variable>
@@ -167,6 +168,12 @@ RgbdMapperActor::RgbdMapperActor(RgbdMapperOptions options)
     throw ConfigError("rgbd_mapper: move_threshold_rad must be finite and >= 0");
   if (!(std::isfinite(options_.save_period_s) && options_.save_period_s >= 0))
     throw ConfigError("rgbd_mapper: save_period_s must be finite and >= 0");
+  if (!(std::isfinite(options_.preview_period_s) && options_.preview_period_s >= 0))
+    throw ConfigError("rgbd_mapper: preview_period_s must be finite and >= 0 (0 = off), got " +
+                      std::to_string(options_.preview_period_s));
+  if (options_.preview_max_points < 1)
+    throw ConfigError("rgbd_mapper: preview_max_points must be >= 1, got " +
+                      std::to_string(options_.preview_max_points));
 }
 
 // Waits for a running rebuild (OctoMapBuilder's destructor).
@@ -174,6 +181,8 @@ RgbdMapperActor::~RgbdMapperActor() = default;
 
 void RgbdMapperActor::configure(ActorContext& ctx) {
   output_dir_ = ctx.outputDir();
+  ctx_ = &ctx;
+  cloud_pub_ = ctx.advertise<msg::PointCloud>("map_cloud");
   ctx.subscribe<msg::Keyframe>("keyframes", MailboxPolicy::reliable(),
                                [this](const Message<msg::Keyframe>& m) { onKeyframe(m); });
   ctx.subscribe<msg::KeyframePoses>("keyframe_poses", MailboxPolicy::reliable(),
@@ -182,6 +191,13 @@ void RgbdMapperActor::configure(ActorContext& ctx) {
     const auto period = static_cast<Nanos>(options_.save_period_s * 1e9);
     ctx.addTimer(
         period, [this] { writeOutputs(); }, period);
+  }
+  if (options_.preview_period_s > 0) {
+    // At most ~30 years: a huge period must not overflow the nanoseconds.
+    const auto period =
+        std::max<Nanos>(1, static_cast<Nanos>(std::min(options_.preview_period_s, 1e9) * 1e9));
+    ctx.addTimer(
+        period, [this] { publishPreview(); }, period);
   }
 }
 
@@ -222,6 +238,7 @@ void RgbdMapperActor::onKeyframe(const Message<msg::Keyframe>& m) {
   insert_ms_total_ += ms(Clock::now() - t1);
   insert_ms_max_ = std::max(insert_ms_max_, ms(Clock::now() - t0));
   ++mapped_;
+  if (const auto frame = m->getHeader().getFrameId(); frame.size() > 0) world_frame_ = frame.cStr();
   // Kept in the map (its pose may still move) but counted: no reading in range.
   if (cloud_map_.keyframe(id).cloud->empty()) ++empty_clouds_;
 }
@@ -265,6 +282,40 @@ void RgbdMapperActor::stop() {
   stop_wait_ms_ =
       std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
   if (!output_dir_.empty()) writeOutputs();
+  if (options_.preview_period_s > 0) publishPreview();  // the map as it ends, if it changed
+}
+
+void RgbdMapperActor::publishPreview() {
+  // Nothing inserted since the last preview (or at all): nothing to send.
+  const std::uint64_t revision = octomap_->revision();
+  if (revision == previewed_revision_) return;
+  const auto t0 = std::chrono::steady_clock::now();
+  const OccupiedVoxels voxels =
+      octomap_->occupiedVoxels(static_cast<std::size_t>(options_.preview_max_points));
+  previewed_revision_ = voxels.revision;
+  const std::size_t n = voxels.centres.size();
+  // x, y, z as little-endian float32 whatever the host, written once into the loan's blob.
+  auto loan = n > 0 ? cloud_pub_.loanWithBlob(12 * n, 256) : cloud_pub_.loan(256);
+  setHeader(loan->initHeader(), ctx_->now(), world_frame_, cloud_pub_.nextSeq());
+  loan->setCount(static_cast<std::uint32_t>(n));
+  loan->setVoxelSize(static_cast<float>(voxels.voxel_size));
+  if (n > 0) {
+    auto* out = reinterpret_cast<std::uint8_t*>(loan.blob().data());
+    for (const Eigen::Vector3f& p : voxels.centres)
+      for (int k = 0; k < 3; ++k) {
+        const auto bits = std::bit_cast<std::uint32_t>(p[k]);
+        for (int b = 0; b < 4; ++b) *out++ = static_cast<std::uint8_t>(bits >> (8 * b));
+      }
+    loan->adoptXyz(loan.blobData());
+  }
+  cloud_pub_.publish(std::move(loan));
+  const double ms =
+      std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+  ++previews_;
+  preview_points_ = n;
+  preview_voxel_m_ = voxels.voxel_size;
+  preview_ms_total_ += ms;
+  preview_ms_max_ = std::max(preview_ms_max_, ms);
 }
 
 void RgbdMapperActor::writeOutputs() {
@@ -342,6 +393,13 @@ void RgbdMapperActor::summarize(Summary& out) const {
     out["assembled_points"] = i64(assembled_points_);
     out["write_ms"] = write_ms_;  // the last save
     out["assemble_ms"] = assemble_ms_;
+  }
+  if (previews_ > 0) {
+    out["previews"] = i64(previews_);              // map_cloud messages
+    out["preview_points"] = i64(preview_points_);  // the last one's
+    out["preview_voxel_m"] = preview_voxel_m_;
+    out["preview_ms_mean"] = preview_ms_total_ / static_cast<double>(previews_);
+    out["preview_ms_max"] = preview_ms_max_;
   }
   if (!pcd_path_.empty()) out["pcd_path"] = pcd_path_;
   if (!ply_path_.empty()) out["ply_path"] = ply_path_;

@@ -8,6 +8,7 @@
 #include <tessera/runtime/registry.hpp>
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <cstring>
 #include <ctime>
@@ -58,6 +59,11 @@ NavigationActorOptions checked(NavigationActorOptions o) {
     fail("landmarks", "must be in [0, 16], got " + std::to_string(o.landmarks));
   checkPositive("pose_timeout_s", o.pose_timeout_s);
   checkPositive("status_period_s", o.status_period_s);
+  if (!(std::isfinite(o.local_plan_hz) && o.local_plan_hz >= 0))
+    fail("local_plan_hz",
+         "must be finite and >= 0 (0: off), got " + std::to_string(o.local_plan_hz));
+  if (o.local_plan_points < 2)
+    fail("local_plan_points", "must be at least 2, got " + std::to_string(o.local_plan_points));
   if (!(std::isfinite(o.laser_height) && o.laser_height >= 0))
     fail("laser_height", "must be finite and >= 0");
   if (o.depth_stride < 1) fail("depth_stride", "must be at least 1");
@@ -84,6 +90,19 @@ Costmap boundsFrame(const NavigationActorOptions& o) {
                  static_cast<int>(std::ceil((b[3] - b[1]) / res)), res, Pose2(b[0], b[1], 0.0),
                  cost::kUnknown);
 }
+
+/// Cost -> OccupancyGrid value, as ROS costmap_2d publishes costmaps: free 0, 1-252 linearly to
+/// 1-98, inscribed 99, lethal 100, unknown -1.
+constexpr std::array<std::int8_t, 256> kCostToOccupancy = [] {
+  std::array<std::int8_t, 256> t{};
+  for (int c = 1; c <= cost::kMaxTraversable; ++c)
+    t[static_cast<std::size_t>(c)] = static_cast<std::int8_t>(1 + ((c - 1) * 97 + 125) / 251);
+  t[cost::kInscribed] = 99;
+  t[cost::kLethal] = 100;
+  t[cost::kUnknown] = -1;
+  return t;
+}();
+static_assert(kCostToOccupancy[0] == 0 && kCostToOccupancy[1] == 1 && kCostToOccupancy[252] == 98);
 
 msg::NavStatus::State messageState(NavState s) {
   switch (s) {
@@ -164,6 +183,8 @@ void NavigationActor::configure(ActorContext& ctx) {
   cmd_pub_ = ctx.advertise<msg::Twist>("cmd_vel");
   status_pub_ = ctx.advertise<msg::NavStatus>("nav_status");
   path_pub_ = ctx.advertise<msg::Path>("path");
+  if (options_.publish_costmap) costmap_pub_ = ctx.advertise<msg::OccupancyGrid>("costmap");
+  if (options_.local_plan_hz > 0) local_plan_pub_ = ctx.advertise<msg::LocalPlan>("local_plan");
   const auto period = static_cast<Nanos>(std::llround(1e9 / options_.control_hz));
   ctx.addTimer(std::max<Nanos>(period, 1), [this] { tick(); });
 }
@@ -381,7 +402,28 @@ void NavigationActor::rebuildCostmap() {
   obstacles_dirty_ = false;
   last_costmap_ = ctx_->now();
   ++costmap_builds_;
+  if (options_.publish_costmap) publishCostmap();
   costmap_cpu_ms_ += threadCpuMs() - cpu0;
+}
+
+void NavigationActor::publishCostmap() {
+  // A static map while idle is rebuilt unchanged at costmap_hz: send it once.
+  if (!published_costmap_.empty() && sameGeometry(planning_, published_costmap_) &&
+      planning_.cells == published_costmap_.cells)
+    return;
+  const std::size_t cells = planning_.cells.size();
+  auto loan = costmap_pub_.loanWithBlob(cells, 512);
+  setHeader(loan->initHeader(), ctx_->now(), options_.frame_id, costmap_pub_.nextSeq());
+  loan->setResolution(static_cast<float>(planning_.resolution));
+  loan->setWidth(static_cast<std::uint32_t>(planning_.width));
+  loan->setHeight(static_cast<std::uint32_t>(planning_.height));
+  writePose(loan->initOrigin(), planning_.origin);
+  auto* out = reinterpret_cast<std::int8_t*>(loan.blob().data());
+  for (std::size_t i = 0; i < cells; ++i) out[i] = kCostToOccupancy[planning_.cells[i]];
+  loan->adoptCells(loan.blobData());
+  costmap_pub_.publish(std::move(loan));
+  published_costmap_ = planning_;
+  ++costmaps_published_;
 }
 
 void NavigationActor::tick() {
@@ -423,7 +465,18 @@ void NavigationActor::tick() {
   }
 
   const DistanceField field(window(combined_, pose->translation(), options_.local_size));
+  // The dynamic window rolls out every arc only in the periods that publish a local plan.
+  const Nanos plan_period =
+      options_.local_plan_hz > 0 ? std::llround(1e9 / options_.local_plan_hz) : 0;
+  const bool plan_due =
+      plan_period > 0 && (!last_local_plan_ || now - *last_local_plan_ >= plan_period);
+  navigator_.setKeepArcs(plan_due);
   const NavCommand cmd = navigator_.step(nanosToSeconds(now), *pose, velocity_, planning_, field);
+  if (plan_due)
+    if (const DynamicWindowResult* w = navigator_.lastWindow()) publishLocalPlan(now, *w);
+  // The goal ended: one plan without arcs tells viewers to remove the last one.
+  if (local_plan_shown_ && (cmd.state == NavState::kIdle || isFinal(cmd.state)))
+    publishLocalPlan(now, DynamicWindowResult{});
   if (cmd.clear_obstacles && obstacles_) {
     obstacles_->clear();
     obstacles_dirty_ = true;
@@ -502,6 +555,43 @@ void NavigationActor::publishPath() {
   ++paths_published_;
 }
 
+void NavigationActor::publishLocalPlan(Nanos stamp, const DynamicWindowResult& window) {
+  // Each arc keeps `points` of its poses, evenly spaced by index, the first and the last among
+  // them: with the default window (231 arcs of 31 poses) and 16 points, ~40 KB a message.
+  const auto n = static_cast<unsigned>(window.arcs.size());
+  const std::size_t poses = window.arcs.empty() ? 0 : window.arcs.front().poses.size();
+  const std::size_t points = std::min(poses, static_cast<std::size_t>(options_.local_plan_points));
+  auto loan = local_plan_pub_.loan(256 + n * (40 + points * 8));
+  setHeader(loan->initHeader(), stamp, options_.frame_id, local_plan_pub_.nextSeq());
+  loan->setGoalId(goal_id_);
+  auto command = loan->initCommand();
+  command.setVx(window.command.v);
+  command.setVy(0);
+  command.setOmega(window.command.w);
+  loan->setChosen(window.ok ? window.chosen : -1);
+  auto arcs = loan->initArcs(n);
+  for (unsigned i = 0; i < n; ++i) {
+    const DynamicWindowArc& a = window.arcs[i];
+    auto out = arcs[i];
+    out.setV(static_cast<float>(a.velocity.v));
+    out.setW(static_cast<float>(a.velocity.w));
+    out.setAdmissible(a.admissible);
+    out.setScore(static_cast<float>(a.score));
+    out.setClearance(static_cast<float>(a.clearance));
+    const std::size_t m = std::min(points, a.poses.size());
+    auto xy = out.initXy(static_cast<unsigned>(2 * m));
+    for (std::size_t k = 0; k < m; ++k) {
+      const std::size_t at = m > 1 ? (k * (a.poses.size() - 1) + (m - 1) / 2) / (m - 1) : 0;
+      xy.set(static_cast<unsigned>(2 * k), static_cast<float>(a.poses[at].x));
+      xy.set(static_cast<unsigned>(2 * k + 1), static_cast<float>(a.poses[at].y));
+    }
+  }
+  local_plan_pub_.publish(std::move(loan));
+  local_plan_shown_ = n > 0;
+  last_local_plan_ = stamp;
+  ++local_plans_published_;
+}
+
 void NavigationActor::summarize(Summary& out) const {
   const NavigatorStats& s = navigator_.stats();
   out["goals"] = static_cast<std::int64_t>(goals_);
@@ -529,6 +619,8 @@ void NavigationActor::summarize(Summary& out) const {
   out["depth_frames"] = static_cast<std::int64_t>(depth_frames_);
   out["maps"] = static_cast<std::int64_t>(maps_);
   out["paths_published"] = static_cast<std::int64_t>(paths_published_);
+  out["costmaps_published"] = static_cast<std::int64_t>(costmaps_published_);
+  out["local_plans_published"] = static_cast<std::int64_t>(local_plans_published_);
   // Shares of one core over the run's clock (simulated time in the simulator).
   const double span_ms = first_tick_ >= 0 ? nanosToSeconds(last_tick_ - first_tick_) * 1e3 : 0.0;
   if (span_ms > 0) {

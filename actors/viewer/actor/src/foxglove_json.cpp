@@ -3,6 +3,7 @@
 #include <tessera/viewer/foxglove_json.hpp>
 
 #include <tessera/msg/camera.capnp.h>
+#include <tessera/msg/cloud.capnp.h>
 #include <tessera/msg/common.capnp.h>
 #include <tessera/msg/image.capnp.h>
 #include <tessera/msg/keyframe.capnp.h>
@@ -18,6 +19,7 @@
 #include <kj/exception.h>
 #include <nlohmann/json.hpp>
 
+#include <algorithm>
 #include <cmath>
 #include <cstring>
 #include <map>
@@ -58,7 +60,18 @@ std::string timeFramePose() {
          kPose;
 }
 
-enum class Kind { kLaserScan, kGrid, kPoseStamped, kGroundTruth, kOdometry, kPath, kGeneric };
+enum class Kind {
+  kLaserScan,
+  kGrid,
+  kPoseStamped,
+  kGroundTruth,
+  kOdometry,
+  kPath,
+  kPointCloud,
+  kLocalPlan,
+  kCameraFootprints,
+  kGeneric
+};
 
 struct TypeEntry {
   Kind kind;
@@ -77,6 +90,9 @@ const std::map<std::uint64_t, TypeEntry>& types() {
     add(Kind::kGroundTruth, static_cast<msg::GroundTruthPose*>(nullptr));
     add(Kind::kOdometry, static_cast<msg::Odometry*>(nullptr));
     add(Kind::kPath, static_cast<msg::Path*>(nullptr));
+    add(Kind::kPointCloud, static_cast<msg::PointCloud*>(nullptr));
+    add(Kind::kLocalPlan, static_cast<msg::LocalPlan*>(nullptr));
+    add(Kind::kCameraFootprints, static_cast<msg::CameraFootprints*>(nullptr));
     const auto generic = Kind::kGeneric;
     add(generic, static_cast<msg::MarkerDetection*>(nullptr));
     add(generic, static_cast<msg::CameraEvent*>(nullptr));
@@ -144,6 +160,199 @@ double finiteOrZero(float v) {
   return std::isfinite(v) ? static_cast<double>(v) : 0.0;
 }
 
+// foxglove.SceneUpdate: entities of line and text primitives (what Tessera draws with it).
+const char* const kColor =
+    R"({"type":"object","properties":{"r":{"type":"number"},"g":{"type":"number"},"b":{"type":"number"},"a":{"type":"number"}}})";
+const char* const kPoint =
+    R"({"type":"object","properties":{"x":{"type":"number"},"y":{"type":"number"},"z":{"type":"number"}}})";
+
+std::string sceneUpdateSchema() {
+  const std::string line =
+      std::string(R"({"type":"object","properties":{"type":{"type":"integer"},"pose":)") + kPose +
+      R"(,"thickness":{"type":"number"},"scale_invariant":{"type":"boolean"},)"
+      R"("points":{"type":"array","items":)" +
+      kPoint + R"(},"color":)" + kColor + R"(,"colors":{"type":"array","items":)" + kColor +
+      R"(},"indices":{"type":"array","items":{"type":"integer"}}}})";
+  const std::string text = std::string(R"({"type":"object","properties":{"pose":)") + kPose +
+                           R"(,"billboard":{"type":"boolean"},"font_size":{"type":"number"},)"
+                           R"("scale_invariant":{"type":"boolean"},"color":)" +
+                           kColor + R"(,"text":{"type":"string"}}})";
+  const std::string any = R"({"type":"array","items":{"type":"object"}})";
+  const std::string entity =
+      std::string(R"({"type":"object","properties":{"timestamp":)") + kTime +
+      R"(,"frame_id":{"type":"string"},"id":{"type":"string"},"lifetime":)" + kTime +
+      R"(,"frame_locked":{"type":"boolean"},"metadata":)" + any + R"(,"arrows":)" + any +
+      R"(,"cubes":)" + any + R"(,"spheres":)" + any + R"(,"cylinders":)" + any +
+      R"(,"lines":{"type":"array","items":)" + line + R"(},"triangles":)" + any +
+      R"(,"texts":{"type":"array","items":)" + text + R"(},"models":)" + any + "}}";
+  return objectSchema(
+      "foxglove.SceneUpdate",
+      std::string(
+          R"("deletions":{"type":"array","items":{"type":"object","properties":{"timestamp":)") +
+          kTime +
+          R"(,"type":{"type":"integer"},"id":{"type":"string"}}}},"entities":{"type":"array","items":)" +
+          entity + "}");
+}
+
+json color(double r, double g, double b, double a) {
+  return {{"r", r}, {"g", g}, {"b", b}, {"a", a}};
+}
+
+/// A SceneEntity with every primitive list present (Foxglove expects them all).
+json sceneEntity(std::int64_t stamp_ns, const std::string& frame, const std::string& id) {
+  return {{"timestamp", stamp(stamp_ns)},
+          {"frame_id", frame},
+          {"id", id},
+          {"lifetime", {{"sec", 0}, {"nsec", 0}}},  // until replaced or deleted
+          {"frame_locked", true},
+          {"metadata", json::array()},
+          {"arrows", json::array()},
+          {"cubes", json::array()},
+          {"spheres", json::array()},
+          {"cylinders", json::array()},
+          {"lines", json::array()},
+          {"triangles", json::array()},
+          {"texts", json::array()},
+          {"models", json::array()}};
+}
+
+/// A line primitive through flat (x, y) pairs at z = 0, `width_px` screen pixels wide.
+/// type: 0 LINE_STRIP, 1 LINE_LOOP, 2 LINE_LIST.
+template <class List>
+json linePrimitive(int type, const List& xy, double width_px, json rgba) {
+  json points = json::array();
+  const auto n = xy.size() / 2;
+  for (decltype(xy.size()) i = 0; i < n; ++i) {
+    const double x = xy[2 * i], y = xy[2 * i + 1];
+    if (!std::isfinite(x) || !std::isfinite(y)) continue;
+    points.push_back({{"x", x}, {"y", y}, {"z", 0.0}});
+  }
+  return {{"type", type},
+          {"pose", planarPose(0, 0, 0)},
+          {"thickness", width_px},
+          {"scale_invariant", true},
+          {"points", std::move(points)},
+          {"color", std::move(rgba)},
+          {"colors", json::array()},
+          {"indices", json::array()}};
+}
+
+/// A LocalPlan as one entity "local_plan": inadmissible arcs faint red, admissible ones from
+/// blue (low score) to yellow (high), the chosen one green and thick; an empty plan (the goal
+/// ended) deletes the entity.
+std::string localPlanScene(msg::LocalPlan::Reader m) {
+  const std::int64_t t = m.getHeader().getStampNs();
+  const std::string frame = m.getHeader().getFrameId().cStr();
+  const auto arcs = m.getArcs();
+  json deletions = json::array(), entities = json::array();
+  if (arcs.size() == 0) {
+    deletions.push_back({{"timestamp", stamp(t)}, {"type", 0}, {"id", "local_plan"}});
+  } else {
+    json e = sceneEntity(t, frame, "local_plan");
+    float best = 0;
+    for (const auto a : arcs)
+      if (a.getAdmissible() && std::isfinite(a.getScore())) best = std::max(best, a.getScore());
+    for (const auto a : arcs) {
+      if (!a.getAdmissible()) {
+        e["lines"].push_back(linePrimitive(0, a.getXy(), 1.0, color(0.9, 0.25, 0.2, 0.35)));
+      } else {
+        const double s = best > 0 && std::isfinite(a.getScore()) ? a.getScore() / best : 0.0;
+        e["lines"].push_back(
+            linePrimitive(0, a.getXy(), 1.5, color(0.2 + 0.8 * s, 0.45 + 0.45 * s, 1.0 - s, 0.7)));
+      }
+    }
+    const int chosen = m.getChosen();
+    if (chosen >= 0 && static_cast<unsigned>(chosen) < arcs.size())
+      e["lines"].push_back(linePrimitive(0, arcs[static_cast<unsigned>(chosen)].getXy(), 4.0,
+                                         color(0.18, 0.75, 0.44, 1.0)));
+    e["metadata"].push_back({{"key", "goal_id"}, {"value", std::to_string(m.getGoalId())}});
+    e["metadata"].push_back({{"key", "command"},
+                             {"value", std::to_string(m.getCommand().getVx()) + " m/s, " +
+                                           std::to_string(m.getCommand().getOmega()) + " rad/s"}});
+    entities.push_back(std::move(e));
+  }
+  return json{{"deletions", std::move(deletions)}, {"entities", std::move(entities)}}.dump();
+}
+
+/// CameraFootprints as one entity per camera, "camera_<id>": its floor polygon (orange when
+/// known, green when calibrated) and a label at the polygon's centre.
+std::string cameraFootprintsScene(msg::CameraFootprints::Reader m) {
+  const std::int64_t t = m.getHeader().getStampNs();
+  const std::string frame = m.getHeader().getFrameId().cStr();
+  json entities = json::array();
+  for (const auto c : m.getCameras()) {
+    const auto xy = c.getXy();
+    if (xy.size() % 2 != 0)
+      throw MessageError("foxglove: camera " + std::to_string(c.getCameraId()) +
+                         "'s footprint has an odd number of coordinates (" +
+                         std::to_string(xy.size()) + ")");
+    json e = sceneEntity(t, frame, "camera_" + std::to_string(c.getCameraId()));
+    const json rgba = c.getCalibrated() ? color(0.18, 0.75, 0.44, 0.9) : color(1.0, 0.6, 0.1, 0.9);
+    e["lines"].push_back(linePrimitive(1, xy, 2.0, rgba));
+    double cx = 0, cy = 0;
+    int n = 0;
+    for (unsigned i = 0; i + 1 < xy.size(); i += 2)
+      if (std::isfinite(xy[i]) && std::isfinite(xy[i + 1])) cx += xy[i], cy += xy[i + 1], ++n;
+    if (n > 0)
+      e["texts"].push_back({{"pose", planarPose(cx / n, cy / n, 0)},
+                            {"billboard", true},
+                            {"font_size", 14.0},
+                            {"scale_invariant", true},
+                            {"color", rgba},
+                            {"text", "camera " + std::to_string(c.getCameraId())}});
+    e["metadata"].push_back(
+        {{"key", "calibrated"}, {"value", c.getCalibrated() ? "true" : "false"}});
+    entities.push_back(std::move(e));
+  }
+  return json{{"deletions", json::array()}, {"entities", std::move(entities)}}.dump();
+}
+
+/// A PointCloud as foxglove.PointCloud: x, y, z float32 (and red, green, blue uint8 when the
+/// cloud has colour) packed per point.
+std::string pointCloudJson(msg::PointCloud::Reader m) {
+  const std::size_t n = m.getCount();
+  const auto xyz = m.getXyz();
+  const auto rgb = m.getRgb();
+  if (xyz.size() != n * 12)
+    throw MessageError("foxglove: PointCloud of " + std::to_string(n) + " points carries " +
+                       std::to_string(xyz.size()) + " xyz bytes, expected " +
+                       std::to_string(n * 12));
+  if (rgb.size() != 0 && rgb.size() != n * 3)
+    throw MessageError("foxglove: PointCloud of " + std::to_string(n) + " points carries " +
+                       std::to_string(rgb.size()) + " rgb bytes, expected 0 or " +
+                       std::to_string(n * 3));
+  // Foxglove's NumericType: UINT8 = 1, FLOAT32 = 7.
+  json fields = json::array({{{"name", "x"}, {"offset", 0}, {"type", 7}},
+                             {{"name", "y"}, {"offset", 4}, {"type", 7}},
+                             {{"name", "z"}, {"offset", 8}, {"type", 7}}});
+  std::size_t stride = 12;
+  std::string packed;
+  if (rgb.size() == 0) {
+    packed.assign(reinterpret_cast<const char*>(xyz.begin()), xyz.size());
+  } else {
+    stride = 16;
+    fields.push_back({{"name", "red"}, {"offset", 12}, {"type", 1}});
+    fields.push_back({{"name", "green"}, {"offset", 13}, {"type", 1}});
+    fields.push_back({{"name", "blue"}, {"offset", 14}, {"type", 1}});
+    packed.assign(n * stride, '\0');
+    for (std::size_t i = 0; i < n; ++i) {
+      std::memcpy(packed.data() + i * stride, xyz.begin() + i * 12, 12);
+      std::memcpy(packed.data() + i * stride + 12, rgb.begin() + i * 3, 3);
+      packed[i * stride + 15] = static_cast<char>(0xff);
+    }
+  }
+  return json{
+      {"timestamp", stamp(m.getHeader().getStampNs())},
+      {"frame_id", m.getHeader().getFrameId().cStr()},
+      {"pose", planarPose(0, 0, 0)},
+      {"point_stride", stride},
+      {"fields", std::move(fields)},
+      {"data", kj::encodeBase64(
+                   kj::arrayPtr(reinterpret_cast<const kj::byte*>(packed.data()), packed.size()))
+                   .cStr()}}
+      .dump();
+}
+
 }  // namespace
 
 bool knownMessageType(std::uint64_t type_id) {
@@ -202,6 +411,18 @@ FoxgloveSchema foxgloveSchemaFor(std::uint64_t type_id) {
                            std::string(R"("timestamp":)") + kTime +
                                R"(,"frame_id":{"type":"string"},"poses":{"type":"array","items":)" +
                                kPose + "}")};
+    case Kind::kPointCloud:
+      return {
+          "foxglove.PointCloud", "jsonschema",
+          objectSchema(
+              "foxglove.PointCloud",
+              timeFramePose() +
+                  R"(,"point_stride":{"type":"integer"},)"
+                  R"("fields":{"type":"array","items":{"type":"object","properties":{"name":{"type":"string"},"offset":{"type":"integer"},"type":{"type":"integer"}}}},)"
+                  R"("data":{"type":"string","contentEncoding":"base64"})")};
+    case Kind::kLocalPlan:
+    case Kind::kCameraFootprints:
+      return {"foxglove.SceneUpdate", "jsonschema", sceneUpdateSchema()};
     case Kind::kGeneric:
       break;
   }
@@ -265,6 +486,12 @@ std::string foxgloveJson(std::uint64_t type_id, const MessageStorage& message) {
                     {"poses", std::move(poses)}}
             .dump();
       }
+      case Kind::kPointCloud:
+        return pointCloudJson(root.getAs<msg::PointCloud>());
+      case Kind::kLocalPlan:
+        return localPlanScene(root.getAs<msg::LocalPlan>());
+      case Kind::kCameraFootprints:
+        return cameraFootprintsScene(root.getAs<msg::CameraFootprints>());
       case Kind::kGeneric: {
         capnp::JsonCodec codec;
         Base64Data base64;

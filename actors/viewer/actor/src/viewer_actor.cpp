@@ -209,19 +209,18 @@ void ViewerActor::onMessage(std::size_t index, const std::shared_ptr<const Messa
       const std::int64_t received = wallNs();
       const auto g = m->root().getAs<msg::OccupancyGrid>();
       const auto cells = g.getCells();
-      const auto width = static_cast<std::int64_t>(g.getWidth());
-      const auto height = static_cast<std::int64_t>(g.getHeight());
-      if (static_cast<std::int64_t>(cells.size()) != width * height)
-        throw MessageError("grid of " + std::to_string(width) + " x " + std::to_string(height) +
-                           " cells carries " + std::to_string(cells.size()) + " bytes");
+      if (g.getWidth() > 1u << 30 || g.getHeight() > 1u << 30)
+        throw MessageError("grid of " + std::to_string(g.getWidth()) + " x " +
+                           std::to_string(g.getHeight()) + " cells is too large to draw");
       GridView view;
       view.resolution = g.getResolution();
-      view.width = static_cast<int>(width);
-      view.height = static_cast<int>(height);
+      view.width = static_cast<int>(g.getWidth());
+      view.height = static_cast<int>(g.getHeight());
       view.origin_x = g.getOrigin().getX();
       view.origin_y = g.getOrigin().getY();
       view.origin_theta = g.getOrigin().getTheta();
       view.cells = reinterpret_cast<const std::int8_t*>(cells.begin());
+      view.cell_count = cells.size();
       MapTiler::Update u;
       try {
         u = t.tiler->update(view, g.getHeader().getStampNs(), received);

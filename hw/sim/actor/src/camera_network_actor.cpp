@@ -6,6 +6,7 @@
 
 #include "option_checks.hpp"
 
+#include <algorithm>
 #include <cmath>
 #include <filesystem>
 #include <fstream>
@@ -51,6 +52,9 @@ CameraNetworkActor::CameraNetworkActor(CameraNetworkOptions options)
     kErrors.fail("marker", "needs 2 values [x, y], got " + str(o.marker.size()));
   if (!std::isfinite(o.marker[0]) || !std::isfinite(o.marker[1]))
     kErrors.fail("marker", "not finite");
+  if (!std::isfinite(o.footprint_period_s) || o.footprint_period_s < 0)
+    kErrors.fail("footprint_period_s",
+                 "must be finite and >= 0 (0 = only once), got " + str(o.footprint_period_s));
   kErrors.check(o.camera.check(), "camera");
   try {
     network_.emplace(sitesOf(o), o.camera);
@@ -63,6 +67,18 @@ void CameraNetworkActor::configure(ActorContext& ctx) {
   ctx_ = &ctx;
   event_pub_ = ctx.advertise<msg::CameraEvent>("camera_events");
   detection_pub_ = ctx.advertise<msg::MarkerDetection>("camera_detections");
+  footprint_pub_ = ctx.advertise<msg::CameraFootprints>("camera_footprints");
+  if (options_.footprint_period_s > 0) {
+    // At most ~30 years: a huge period must not overflow the nanoseconds.
+    const auto period =
+        std::max<Nanos>(1, static_cast<Nanos>(std::min(options_.footprint_period_s, 1e9) * 1e9));
+    ctx.addTimer(
+        period,
+        [this] {
+          if (footprints_started_) publishFootprints();
+        },
+        period);
+  }
   ctx.subscribe<msg::GroundTruthPose>(
       "ground_truth", MailboxPolicy::reliable(), [this](const Message<msg::GroundTruthPose>& m) {
         const auto p = m->getPose();
@@ -96,6 +112,10 @@ void CameraNetworkActor::onPose(Nanos stamp, double x, double y, double theta) {
   if (stamp < *next_frame_) return;
   while (*next_frame_ <= stamp) *next_frame_ += period_;
 
+  if (!footprints_started_) {
+    footprints_started_ = true;
+    publishFootprints();
+  }
   const Pose2 marker = compose({x, y, theta}, {options_.marker[0], options_.marker[1], 0});
   const CameraNetwork::Frame frame = network_->observe(marker.translation(), rng_);
   ++frames_;
@@ -127,12 +147,34 @@ void CameraNetworkActor::onPose(Nanos stamp, double x, double y, double theta) {
   }
 }
 
+void CameraNetworkActor::publishFootprints() {
+  const auto& cameras = network_->cameras();
+  auto loan = footprint_pub_.loan(256 + 128 * cameras.size());
+  auto b = loan.builder();
+  setHeader(b.initHeader(), ctx_->now(), "map", footprint_pub_.nextSeq());
+  auto list = b.initCameras(static_cast<unsigned>(cameras.size()));
+  for (unsigned i = 0; i < cameras.size(); ++i) {
+    const EnvironmentCamera& cam = cameras[i];
+    const auto polygon = cam.footprintPolygon(kFootprintRange * cam.intrinsics().ceiling_height);
+    list[i].setCameraId(cam.id());
+    list[i].setCalibrated(false);  // the true cameras
+    auto xy = list[i].initXy(static_cast<unsigned>(2 * polygon.size()));
+    for (unsigned k = 0; k < polygon.size(); ++k) {
+      xy.set(2 * k, polygon[k].x());
+      xy.set(2 * k + 1, polygon[k].y());
+    }
+  }
+  footprint_pub_.publish(std::move(loan));
+  ++footprint_messages_;
+}
+
 void CameraNetworkActor::summarize(Summary& out) const {
   out["camera_count"] = static_cast<std::int64_t>(network_->cameras().size());
   out["frames"] = frames_;
   out["detections"] = detections_;
   out["misses"] = misses_;
   out["events"] = events_;
+  out["footprint_messages"] = footprint_messages_;
 }
 
 TESSERA_REGISTER_ACTOR("camera_network", CameraNetworkActor, CameraNetworkOptions,

@@ -13,6 +13,11 @@
 // waitForRebuild waits for) and applies them to the tree in keyframe order: the tree is the one
 // inserting them one by one gives.
 //
+// Preview: occupiedVoxels(max_points) gives the centres of the served tree's occupied voxels, at
+// the leaf resolution or, when there are more than max_points of them, at the finest coarser
+// depth (voxel edge 2x, 4x, ...) where they fit: a coarse voxel is occupied when any leaf below it
+// is (octomap's inner nodes hold their children's maximum log-odds, brought up to date first).
+//
 // Thread-safe: insert/queries/writes from one or more threads, the rebuild on its own thread.
 // octomap types stay in the .cpp: the tree is reached through this class only.
 #pragma once
@@ -24,6 +29,7 @@
 
 #include <array>
 #include <cstddef>
+#include <cstdint>
 #include <filesystem>
 #include <memory>
 #include <optional>
@@ -106,6 +112,14 @@ struct OctoMapStats {
   std::size_t rebuilds_abandoned = 0;  ///< by waitForRebuild, for a newer request
 };
 
+/// A preview of the served tree's occupied space (OctoMapBuilder::occupiedVoxels).
+struct OccupiedVoxels {
+  std::vector<Eigen::Vector3f> centres;  ///< [m, world frame] one per occupied voxel
+  double voxel_size = 0;                 ///< [m] edge of the voxels the centres stand for
+  int depth = 0;                         ///< octree depth of those voxels (16 = the leaves)
+  std::uint64_t revision = 0;            ///< revision() of the tree they were taken from
+};
+
 class OctoMapBuilder {
  public:
   /// Throws std::invalid_argument for bad options.
@@ -133,6 +147,14 @@ class OctoMapBuilder {
   std::optional<double> logOdds(const Eigen::Vector3d& point) const;
 
   OctoMapStats stats() const;
+  /// Centres of the served tree's occupied voxels, at most `max_points` of them: at the leaf
+  /// resolution when they fit, else at the finest coarser depth where they do (a pruned leaf
+  /// larger than that depth's voxels counts as all the voxels it covers). Empty for an empty map
+  /// or max_points = 0. Holds the tree's lock while it walks the tree (inserts wait meanwhile).
+  OccupiedVoxels occupiedVoxels(std::size_t max_points) const;
+  /// Changes each time the served tree does (an insert, a finished rebuild, readBinary): a map
+  /// whose revision is unchanged holds the same voxels.
+  std::uint64_t revision() const;
   /// Writes the served tree as an OctoMap binary file (.bt, octovis; free/occupied only). Throws
   /// std::runtime_error naming the file.
   void writeBinary(const std::filesystem::path& file) const;

@@ -9,7 +9,8 @@
 // with each term divided by its sum over the admissible pairs (so the weights compare like with
 // like), heading = π − |bearing of the target from the arc's end pose|, clearance = the clear
 // arc length capped at max_clearance, velocity = v. Optionally the score is smoothed over
-// neighbouring samples. Poses and the target are in the map frame [m, rad].
+// neighbouring samples. Poses and the target are in the map frame [m, rad]. On request choose()
+// also returns every sampled pair's arc, for display (it costs a rollout of each pair).
 #pragma once
 
 #include <tessera/geometry/pose2.hpp>
@@ -82,13 +83,24 @@ struct Velocity {
   double w = 0;  ///< [rad/s]
 };
 
+/// One sampled pair as the window weighed it (choose() with `with_arcs`).
+struct DynamicWindowArc {
+  Velocity velocity;
+  bool admissible = false;
+  double score = 0;      ///< the normalised (and smoothed) score compared; 0 when not admissible
+  double clearance = 0;  ///< [m] clear arc length, at most the arc's length over the horizon
+  std::vector<Pose2> poses;  ///< map frame: the start pose, then one per `step` to the horizon
+};
+
 struct DynamicWindowResult {
   bool ok = false;   ///< an admissible pair was found; otherwise command is (0, 0)
   Velocity command;  ///< for the next period
   int sampled = 0;
   int admissible = 0;
-  double clearance = 0;        ///< [m] clear arc length of the chosen pair
+  int chosen = -1;             ///< index of the command among the samples (speed-major); -1: none
+  double clearance = 0;        ///< [m] clear arc length of the chosen pair (+inf: no contact)
   std::vector<Pose2> rollout;  ///< the chosen arc, for display
+  std::vector<DynamicWindowArc> arcs;  ///< every sample in that order; empty unless asked for
 };
 
 class DynamicWindow {
@@ -96,9 +108,11 @@ class DynamicWindow {
   explicit DynamicWindow(const DynamicWindowOptions& options = {});
 
   /// The pair to command now, from the robot's pose and current velocity, a target point to head
-  /// for (a look-ahead point on the global path) and the obstacles' distance field.
+  /// for (a look-ahead point on the global path) and the obstacles' distance field. With
+  /// `with_arcs` the result also holds every sampled pair's arc (`arcs`, `sampled` of them).
   DynamicWindowResult choose(const Pose2& pose, const Velocity& current,
-                             const Eigen::Vector2d& target, const DistanceField& obstacles) const;
+                             const Eigen::Vector2d& target, const DistanceField& obstacles,
+                             bool with_arcs = false) const;
 
   const DynamicWindowOptions& options() const { return options_; }
 

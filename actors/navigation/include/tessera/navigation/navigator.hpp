@@ -149,6 +149,14 @@ class Navigator {
   const NavigatorStats& stats() const { return stats_; }
   const NavigatorOptions& options() const { return options_; }
 
+  /// Whether the following steps keep every sampled arc of the dynamic window (for display; it
+  /// costs a rollout of each sample). Off by default.
+  void setKeepArcs(bool keep) { keep_arcs_ = keep; }
+  bool keepArcs() const { return keep_arcs_; }
+  /// The dynamic window's result in the last step() (map frame; with `arcs` when kept), or
+  /// nullptr when that step did not run it (no goal, turning at the goal, recovering, bad input).
+  const DynamicWindowResult* lastWindow() const { return has_window_ ? &window_ : nullptr; }
+
  private:
   bool plan(const Pose2& pose, const Costmap& costmap, std::string* why);
   bool pathBlocked(const Costmap& costmap) const;
@@ -178,6 +186,8 @@ class Navigator {
   double recovery_turned_ = 0, recovery_start_time_ = 0;
   double last_theta_ = 0;
   NavigatorStats stats_;
+  bool keep_arcs_ = false, has_window_ = false;
+  DynamicWindowResult window_;  ///< the last step's, valid when has_window_
 };
 
 }  // namespace tessera::navigation

@@ -31,6 +31,8 @@ struct GridView {
   double origin_x = 0, origin_y = 0;   ///< [m] cell (0,0)'s outer corner
   double origin_theta = 0;             ///< [rad]
   const std::int8_t* cells = nullptr;  ///< width * height
+  std::size_t cell_count = 0;          ///< cells held at `cells` (a message's byte count);
+                                       ///< must equal width * height
 };
 
 class MapTiler {

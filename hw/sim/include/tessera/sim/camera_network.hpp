@@ -16,7 +16,11 @@
 // untilted camera that makes H(2,2) = 1 and the last row (0, 0, 1).
 //
 // Footprint: the floor region whose projection lies in the image ([0, W) x [0, H) pixels) is the
-// camera's footprint, a convex quadrilateral (the image corners mapped back through H^-1).
+// camera's footprint: the points in front of the camera on the image side of each of the four
+// floor lines the image borders map to (H maps lines to lines), a convex region. When every image
+// corner's ray meets the floor it is the quadrilateral of the image corners mapped back through
+// H^-1 (footprint()); a wide view tilted far enough sees past the horizon, and the region is then
+// unbounded (footprintPolygon() clips it).
 //
 // Observation model (CameraNetwork::observe): for every camera whose footprint contains the
 // marker, the marker is missed with probability miss_probability, otherwise reported at its true
@@ -85,7 +89,14 @@ class EnvironmentCamera {
   /// True when the floor point projects inside the image.
   bool inView(const Eigen::Vector2d& floor) const;
   /// The footprint: floor points of the image corners (0,0), (W,0), (W,H), (0,H).
+  /// That is the footprint only when every corner's ray meets the floor (footprintPolygon()).
   std::array<Eigen::Vector2d, 4> footprint() const;
+  /// The footprint as a convex polygon, counter-clockwise seen from above (x right, y up),
+  /// clipped to the square of half-side `max_distance` [m] around the site (which matters only
+  /// when the view reaches past the horizon). Equals footprint()'s corners when every corner's ray
+  /// meets the floor within that square. Throws std::invalid_argument unless max_distance is
+  /// finite and > 0.
+  std::vector<Eigen::Vector2d> footprintPolygon(double max_distance) const;
 
  private:
   CameraSite site_;

@@ -13,6 +13,15 @@
 //                                        (OctoMapBuilder::rebuild: the mailbox is not blocked;
 //                                        the old tree is served until the new one swaps in; a
 //                                        request made meanwhile follows it)
+// Publishes:
+//   map_cloud        msg::PointCloud     a preview of the 3D map for viewers: the centres of the
+//                                        OctoMap's occupied voxels (OctoMapBuilder::
+//                                        occupiedVoxels; at most preview_max_points, at a coarser
+//                                        voxel when the leaves are more, voxelSize = the edge
+//                                        used), no colour, frameId = the keyframes' world frame.
+//                                        Every preview_period_s of run clock when the OctoMap
+//                                        changed since the last one (0 = never), and at stop
+//                                        when it changed since then.
 // Writes (with an output directory, in stop(), once the OctoMap holds the latest poses): cloud.pcd
 // and cloud.ply (the assembled cloud, pcl_viewer / CloudCompare) and map.bt (octovis); also every
 // save_period_s when that is > 0.
@@ -24,6 +33,7 @@
 // (non-finite, or an id the map has not seen) are counted by kind and skipped, never a crash.
 #pragma once
 
+#include <tessera/msg/cloud.capnp.h>
 #include <tessera/msg/keyframe.capnp.h>
 #include <tessera/mapping3d/cloud_map.hpp>
 #include <tessera/mapping3d/keyframe_cloud.hpp>
@@ -55,6 +65,8 @@ struct RgbdMapperOptions {
   std::string ply_file = "cloud.ply";
   std::string octomap_file = "map.bt";
   double save_period_s = 0;  ///< [s] also write the outputs this often (run clock); 0 = at stop
+  double preview_period_s = 1.0;    ///< [s] map_cloud at most this often (run clock); 0 = off
+  int preview_max_points = 100000;  ///< map_cloud points at most (coarser voxels beyond)
 
   template <class V>
   void visit(V& v) {
@@ -69,6 +81,12 @@ struct RgbdMapperOptions {
     v("ply_file", ply_file, "assembled cloud (binary PLY) in the output directory; empty: none");
     v("octomap_file", octomap_file, "OctoMap (.bt) in the output directory; empty: none");
     v("save_period_s", save_period_s, "also write the outputs this often; 0 = only at stop [s]");
+    v("preview_period_s", preview_period_s,
+      "publish map_cloud (the OctoMap's occupied voxel centres) this often when the map changed; "
+      "0 = never [s]");
+    v("preview_max_points", preview_max_points,
+      "map_cloud holds at most this many points: beyond, coarser voxels (2x, 4x, ... the "
+      "resolution)");
   }
 };
 
@@ -92,6 +110,8 @@ class RgbdMapperActor final : public Actor {
   void bad(std::map<std::string, std::uint64_t>& counts, const std::string& what,
            const std::string& why);
   void writeOutputs();
+  /// Publishes map_cloud when the OctoMap changed since the last preview.
+  void publishPreview();
 
   RgbdMapperOptions options_;
   CloudMap cloud_map_;
@@ -99,6 +119,13 @@ class RgbdMapperActor final : public Actor {
   class MapThread;  ///< where clouds are built and stored (see the .cpp)
   std::unique_ptr<MapThread> map_thread_;
   std::string output_dir_;
+  ActorContext* ctx_ = nullptr;
+  Publisher<msg::PointCloud> cloud_pub_;
+  std::string world_frame_ = "world";     ///< the keyframes' frame (their header's frameId)
+  std::uint64_t previewed_revision_ = 0;  ///< OctoMap revision of the last map_cloud
+  std::uint64_t previews_ = 0;
+  std::size_t preview_points_ = 0;
+  double preview_voxel_m_ = 0, preview_ms_total_ = 0, preview_ms_max_ = 0;
 
   std::uint64_t keyframes_ = 0, mapped_ = 0, empty_clouds_ = 0;
   std::uint64_t pose_messages_ = 0, keyframes_moved_ = 0, rebuilds_ = 0, saves_ = 0;

@@ -37,6 +37,14 @@
 //                               pose_timeout_s) and instead of any non-finite command
 //   nav_status  msg::NavStatus  on every change of state or goal and every status_period_s
 //   path        msg::Path       the global path after every (re)plan, frame_id
+//   costmap     msg::OccupancyGrid  with publish_costmap: the planning costmap after each rebuild
+//                               that changed it (cells or geometry), frame_id, values as ROS
+//                               costmap_2d publishes them: free 0, cost 1-252 -> 1-98, inscribed
+//                               99, lethal 100, unknown -1
+//   local_plan  msg::LocalPlan  at most local_plan_hz while a goal is driven: the control
+//                               period's dynamic window, every sampled arc (map frame), each cut
+//                               to local_plan_points poses evenly spaced along it; when the
+//                               goal ends, one plan without arcs (chosen -1)
 // Timing: all on the runtime clock (simulated in the simulator). Bad input (non-finite poses,
 // malformed scans or depth images, goals in another frame) is counted by kind and skipped.
 #pragma once
@@ -90,6 +98,9 @@ struct NavigationActorOptions {
   int odom_queue = 64;
   int scan_queue = 4;
   int pose_history = 256;
+  bool publish_costmap = true;
+  double local_plan_hz = 5;
+  int local_plan_points = 16;
 
   template <class V>
   void visit(V& v) {
@@ -123,6 +134,12 @@ struct NavigationActorOptions {
     v("odom_queue", odom_queue, "odometry mailbox size (keep-latest)");
     v("scan_queue", scan_queue, "scan mailbox size (keep-latest)");
     v("pose_history", pose_history, "odometry poses remembered to place sensor data");
+    v("publish_costmap", publish_costmap,
+      "publish the planning costmap on 'costmap' after each rebuild that changed it");
+    v("local_plan_hz", local_plan_hz,
+      "[Hz] highest rate of 'local_plan' (the dynamic window's arcs) while driving; 0: off");
+    v("local_plan_points", local_plan_points,
+      "points per arc in 'local_plan' (>= 2; first and last kept, the rest evenly spaced)");
   }
 };
 
@@ -134,7 +151,8 @@ class NavigationActor final : public Actor {
 
   void configure(ActorContext& ctx) override;
   /// Goals by outcome, plans, recoveries, stale-localisation stops, control and costmap CPU
-  /// (ms per call, share of one core over the run's clock), bad input by kind.
+  /// (ms per call, share of one core over the run's clock), paths, costmaps and local plans
+  /// published, bad input by kind.
   void summarize(Summary& out) const override;
 
   const Navigator& navigator() const { return navigator_; }
@@ -155,6 +173,8 @@ class NavigationActor final : public Actor {
   void publishCommand(const Velocity& v);
   void publishStatus(bool force);
   void publishPath();
+  void publishCostmap();  ///< planning_, unless equal to the last published
+  void publishLocalPlan(Nanos stamp, const DynamicWindowResult& window);
   /// The map pose at `stamp` (the newest localisation moved by odometry), if known.
   std::optional<Pose2> mapPoseAt(Nanos stamp) const;
   void bad(const std::string& kind, const std::string& what);
@@ -165,10 +185,15 @@ class NavigationActor final : public Actor {
   Publisher<msg::Twist> cmd_pub_;
   Publisher<msg::NavStatus> status_pub_;
   Publisher<msg::Path> path_pub_;
+  Publisher<msg::OccupancyGrid> costmap_pub_;
+  Publisher<msg::LocalPlan> local_plan_pub_;
 
-  Costmap static_;    // the static layer's costs
-  Costmap combined_;  // static + obstacles, before inflation
-  Costmap planning_;  // combined, inflated: what the planner searches
+  Costmap static_;             // the static layer's costs
+  Costmap combined_;           // static + obstacles, before inflation
+  Costmap planning_;           // combined, inflated: what the planner searches
+  Costmap published_costmap_;  // the last planning costmap published (empty: none yet)
+  std::optional<Nanos> last_local_plan_;
+  bool local_plan_shown_ = false;  ///< the last local plan had arcs
   std::optional<ObstacleLayer> obstacles_;
   bool obstacles_dirty_ = true;
   Nanos last_costmap_ = 0;
@@ -200,6 +225,7 @@ class NavigationActor final : public Actor {
   std::uint64_t goals_ = 0, reached_ = 0, failed_ = 0, refused_ = 0, stale_stops_ = 0;
   std::uint64_t ticks_ = 0, costmap_builds_ = 0, scans_ = 0, depth_frames_ = 0, maps_ = 0;
   std::uint64_t nonfinite_commands_ = 0, paths_published_ = 0;
+  std::uint64_t costmaps_published_ = 0, local_plans_published_ = 0;
   double control_cpu_ms_ = 0, control_cpu_max_ms_ = 0, costmap_cpu_ms_ = 0, sensor_cpu_ms_ = 0;
   double landmarks_ms_ = 0;
   std::uint64_t landmark_builds_ = 0;

@@ -8,6 +8,11 @@
 //   OccupancyGrid    -> foxglove.Grid       (one int8 field "occupancy": -1 unknown, 0-100 %)
 //   PoseStamped, GroundTruthPose, Odometry -> foxglove.PoseInFrame
 //   Path             -> foxglove.PosesInFrame
+//   PointCloud       -> foxglove.PointCloud  (x y z float32, + red green blue uint8 with colour)
+//   LocalPlan        -> foxglove.SceneUpdate (entity "local_plan": every arc of the dynamic
+//                                            window as a line, coloured by score, the chosen
+//                                            one thick green; an empty plan deletes it)
+//   CameraFootprints -> foxglove.SceneUpdate (entity "camera_<id>": floor polygon + label)
 // Every other message type is written as its own JSON (Cap'n Proto's JSON mapping, Data fields
 // as base64) on a channel without a schema, which Foxglove shows in its raw message panel.
 // Times: Header.stampNs as {sec, nsec}. Planar poses get z = 0 and a yaw-only quaternion.

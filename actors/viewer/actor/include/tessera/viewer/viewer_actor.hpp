@@ -49,7 +49,11 @@ struct ViewerActorOptions {
                                      "path",
                                      "nav_status",
                                      "landmark_map",
-                                     "line_map"};
+                                     "line_map",
+                                     "costmap",
+                                     "local_plan",
+                                     "map_cloud",
+                                     "camera_footprints"};
   std::string goal_topic = "goal";
   std::string initial_pose_topic = "initial_pose";
   std::int64_t max_clients = 16;

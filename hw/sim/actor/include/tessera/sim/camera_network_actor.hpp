@@ -8,8 +8,15 @@
 //   camera_events      msg::CameraEvent      the marker entered / left a camera's footprint
 //   camera_detections  msg::MarkerDetection  one per camera whose footprint holds the marker,
 //                                            per frame; detected = false when missed
-// Both carry the stamp of the ground-truth pose the frame was taken at, frame id "camera_<id>";
-// a frame's events come before its detections.
+//   camera_footprints  msg::CameraFootprints the true cameras' floor footprints (frame id "map",
+//                                            calibrated = false; stamp = run clock), at the first
+//                                            frame and then every footprint_period_s, so a viewer
+//                                            that connects later still gets them
+// Events and detections carry the stamp of the ground-truth pose the frame was taken at, frame id
+// "camera_<id>"; a frame's events come before its detections.
+//
+// Footprint polygons: EnvironmentCamera::footprintPolygon, counter-clockwise seen from above; a
+// view reaching past the horizon is cut at kFootprintRange ceiling heights from the site.
 //
 // Frames: one at the first pose stamped at or after each multiple of 1/camera_hz (with the
 // simulator's ground truth at 50 Hz and camera_hz dividing 50 that is exactly every multiple).
@@ -43,6 +50,7 @@ struct CameraNetworkOptions {
   CameraIntrinsics camera;
   std::vector<double> marker = {0, 0};
   std::string cameras_file;
+  double footprint_period_s = 5.0;
   std::uint64_t seed = 1;
 
   template <class V>
@@ -57,6 +65,9 @@ struct CameraNetworkOptions {
     v("marker", marker, "marker position in base_link [x m, y m]");
     v("cameras_file", cameras_file,
       "write the true cameras to this file in the output folder; empty = none");
+    v("footprint_period_s", footprint_period_s,
+      "publish camera_footprints at the first frame and then this often (run clock); 0 = only "
+      "once [s]");
     v("seed", seed, "random seed for noise and misses");
   }
 
@@ -70,18 +81,22 @@ struct CameraNetworkOptions {
 
 class CameraNetworkActor final : public Actor {
  public:
+  /// A footprint that reaches past the horizon is cut this many ceiling heights from its site.
+  static constexpr double kFootprintRange = 10.0;
+
   /// Throws ConfigError naming the option.
   explicit CameraNetworkActor(CameraNetworkOptions options);
   void configure(ActorContext& ctx) override;
   /// Writes cameras_file when named; throws std::runtime_error naming the file.
   void start() override;
-  /// camera_count, frames, detections, misses, events.
+  /// camera_count, frames, detections, misses, events, footprint_messages.
   void summarize(Summary& out) const override;
 
   const CameraNetwork& network() const { return *network_; }
 
  private:
   void onPose(Nanos stamp, double x, double y, double theta);
+  void publishFootprints();
 
   CameraNetworkOptions options_;
   std::optional<CameraNetwork> network_;
@@ -89,9 +104,11 @@ class CameraNetworkActor final : public Actor {
   ActorContext* ctx_ = nullptr;
   Publisher<msg::MarkerDetection> detection_pub_;
   Publisher<msg::CameraEvent> event_pub_;
+  Publisher<msg::CameraFootprints> footprint_pub_;
+  bool footprints_started_ = false;  ///< the first frame has been taken
   Nanos period_ = 0;
   std::optional<Nanos> next_frame_;
-  std::int64_t frames_ = 0, detections_ = 0, misses_ = 0, events_ = 0;
+  std::int64_t frames_ = 0, detections_ = 0, misses_ = 0, events_ = 0, footprint_messages_ = 0;
 };
 
 }  // namespace tessera::sim
