@@ -5,12 +5,13 @@
 // as JSON. Any console error or uncaught page error fails the check.
 //
 //   node viewer_e2e.mjs --url http://127.0.0.1:8765/ --screenshot OUT.png --out RESULT.json
-//                       [--goal X,Y] [--initial-pose X,Y|robot] [--need LIST] [--timeout-s 60]
+//                       [--goal X,Y] [--initial-pose X,Y|robot] [--need LIST] [--linger-s S]
+//                       [--timeout-s 60]
 //
 // --need: what the page must have drawn before the check goes on (comma-separated; default
 // map,robot): map (tiles), robot (a pose and > 5 trajectory points), costmap (costmap tiles),
 // local_plan (the dynamic window's arcs, seen at least once), cloud (3D map points), cameras
-// (camera footprints).
+// (camera footprints). --linger-s: watch S seconds more before the screenshot.
 //
 // --initial-pose places a pose for the localiser with the "Initial pose" tool ("robot": where the
 // page draws the robot now).
@@ -49,7 +50,7 @@ const STATUS_QUIET_MS = 1000; // after a goal, this long without an error status
 
 function parseArgs(argv) {
   const opts = { url: null, screenshot: null, out: null, goal: null, initialPose: null, timeoutS: 60,
-    need: ["map", "robot"] };
+    need: ["map", "robot"], lingerS: 0 };
   for (let i = 0; i < argv.length; i++) {
     const key = argv[i];
     const value = argv[i + 1];
@@ -82,6 +83,10 @@ function parseArgs(argv) {
       case "--need":
         opts.need = need().split(",").filter((n) => n.length > 0);
         for (const n of opts.need) if (!NEEDS.includes(n)) usage(`--need: unknown item '${n}' (known: ${NEEDS.join(", ")})`);
+        break;
+      case "--linger-s":
+        opts.lingerS = Number(need());
+        if (!(opts.lingerS >= 0)) usage(`--linger-s wants a number >= 0, got '${value}'`);
         break;
       case "--timeout-s":
         opts.timeoutS = Number(need());
@@ -259,6 +264,10 @@ try {
     result.messages = state.messages;
   }
 
+  if (opts.lingerS > 0) {
+    await page.waitForTimeout(Math.min(opts.lingerS * 1000, remainingMs()));
+    copyState(await readState(page));
+  }
   await page.screenshot({ path: opts.screenshot, fullPage: true });
   if (errors.length) throw new Failure(`the page reported ${errors.length} error(s): ${errors[0]}`);
   result.ok = true;

@@ -109,6 +109,7 @@ struct FoxgloveServer::Impl {
   std::vector<Channel> channels;
   std::map<Hdl, Client, std::owner_less<Hdl>> clients;
   std::map<std::string, ClientHandler> client_topics;
+  std::function<void(std::uint32_t)> on_subscribe;  // set before clients connect
   Stats stats;
   bool flush_posted = false;
   bool retry_armed = false;
@@ -308,9 +309,12 @@ struct FoxgloveServer::Impl {
     }
     const std::string op = j["op"];
     std::vector<std::string> errors;
+    std::vector<std::uint32_t> empty;  // subscribed channels without a message yet
+    std::function<void(std::uint32_t)> subscribed_empty;
     bool flush = false;
     {
       std::lock_guard<std::mutex> lock(mutex);
+      subscribed_empty = on_subscribe;
       auto it = clients.find(hdl);
       if (it == clients.end()) return;
       Client& c = it->second;
@@ -345,6 +349,7 @@ struct FoxgloveServer::Impl {
             const Channel& ch = channels[sub.channel];
             // The newest message goes out at once (maps are published rarely).
             sub.sent = ch.version > 0 ? ch.version - 1 : 0;
+            if (ch.version == 0 && !ch.parts) empty.push_back(sub.channel + 1);
             c.subscriptions[static_cast<std::uint32_t>(id)] = sub;
             flush = true;
           }
@@ -384,6 +389,8 @@ struct FoxgloveServer::Impl {
       stats.protocol_errors += errors.size();
     }
     for (const auto& e : errors) status(hdl, 2, e);
+    if (subscribed_empty)
+      for (const std::uint32_t channel : empty) subscribed_empty(channel);
     if (flush) flushNow();
   }
 
@@ -637,6 +644,11 @@ void FoxgloveServer::publishParts(std::uint32_t channel, std::uint64_t stamp_ns,
 void FoxgloveServer::acceptClientTopic(const std::string& topic, ClientHandler handler) {
   std::lock_guard<std::mutex> lock(impl_->mutex);
   impl_->client_topics[topic] = std::move(handler);
+}
+
+void FoxgloveServer::onSubscribe(std::function<void(std::uint32_t channel)> handler) {
+  std::lock_guard<std::mutex> lock(impl_->mutex);
+  impl_->on_subscribe = std::move(handler);
 }
 
 bool FoxgloveServer::subscribed(std::uint32_t channel) const {

@@ -25,8 +25,11 @@ const MIN_SCALE = 0.2; // px per m
 const MAX_SCALE = 2000;
 const LAYERS = ["map", "costmap", "cloud", "scan", "robot", "trajectory", "optimised",
   "ground_truth", "submaps", "loops", "path", "local_plan", "landmarks", "cameras"];
-// foxglove.SceneUpdate topics the page draws, and the layer each belongs to.
+// The layer of each foxglove.SceneUpdate topic the page draws; any other scene topic (landmark
+// and line maps: landmark_map, line_map, a simulator's true landmarks...) is drawn on
+// "landmarks". submap_poses is read for the submaps layer (and the loop edges between them).
 const SCENE_LAYERS = { local_plan: "local_plan", camera_footprints: "cameras" };
+const sceneLayer = (topic) => SCENE_LAYERS[topic] || "landmarks";
 // Channels fetched only while their layer is on (high rate or large messages).
 const GATED_ROLES = { ground_truth: "ground_truth", cloud: "cloud" };
 const CLOUD_MAX_PIXELS = 2048; // per side of the 3D map's top view
@@ -83,8 +86,6 @@ const data = {
   paths: new Map(), // topic -> flat [x0, y0, x1, y1, ...]
   submaps: new Map(), // id -> {x, y, theta}
   loops: new Map(), // "from-to" -> {from, to}
-  landmarks: new Map(), // topic -> [{id, x, y}]
-  lines: new Map(), // topic -> [{x0, y0, x1, y1}]
 };
 
 // The view: `scale` pixels per metre, (cx, cy) the world point at the canvas centre.
@@ -262,7 +263,7 @@ function channelRole(ch) {
   }
   switch (ch.schemaName) {
     case "foxglove.Grid": return isCostmap(ch.topic) ? "cost_grid" : "grid";
-    case "foxglove.SceneUpdate": return SCENE_LAYERS[ch.topic] ? "scene" : null;
+    case "foxglove.SceneUpdate": return ch.topic === "submap_poses" ? "submaps" : "scene";
     case "foxglove.PointCloud": return "cloud";
     case "foxglove.LaserScan": return "scan";
     case "foxglove.FrameTransform": return "tf";
@@ -279,19 +280,12 @@ function channelRole(ch) {
   }
   if (ch.encoding !== "json") return null;
   switch (ch.topic) {
-    case "submap_poses": return "submaps";
     case "constraints":
     case "loop_constraints": return "constraints";
     case "nav_status": return "nav";
     case "tessera/metrics": return "metrics";
-    case "landmarks":
-    case "landmark_map": return "landmarks";
-    case "line_map": return "lines";
-    default: break;
+    default: return null;
   }
-  if (/LandmarkMap$/.test(ch.schemaName)) return "landmarks";
-  if (/LineMap$/.test(ch.schemaName)) return "lines";
-  return null;
 }
 
 // The one channel a tile layer draws: a tiles channel if there is one (`preferred`/tiles
@@ -472,10 +466,12 @@ function onJsonMessage(ch, msg) {
       break;
     }
     case "submaps":
-      data.submaps.clear();
-      for (const s of msg.poses || []) {
-        const p = s.pose || {};
-        data.submaps.set(num(s.id), { x: num(p.x), y: num(p.y), theta: num(p.theta) });
+      // One entity per submap (foxglove_json.cpp): its id in the metadata, its frame the arrow.
+      if ((msg.deletions || []).some((d) => num(d.type) === 1)) data.submaps.clear();
+      for (const e of msg.entities || []) {
+        const id = (e.metadata || []).find((m) => m.key === "submap_id");
+        const arrow = (e.arrows || [])[0];
+        if (id && arrow) data.submaps.set(num(id.value), planar(arrow.pose));
       }
       break;
     case "constraints":
@@ -490,16 +486,6 @@ function onJsonMessage(ch, msg) {
       break;
     case "metrics":
       showMetrics(msg);
-      break;
-    case "landmarks":
-      data.landmarks.set(ch.topic, (msg.landmarks || []).map((l) =>
-        ({ id: l.id, x: num(l.x), y: num(l.y) })));
-      break;
-    case "lines":
-      // Tessera's LineMap has extents (x0, y0)-(x1, y1); accept (x1, y1)-(x2, y2) too.
-      data.lines.set(ch.topic, (msg.lines || []).map((l) => ("x2" in l
-        ? { x0: num(l.x1), y0: num(l.y1), x1: num(l.x2), y1: num(l.y2) }
-        : { x0: num(l.x0), y0: num(l.y0), x1: num(l.x1), y1: num(l.y1) })));
       break;
     default:
       break;
@@ -519,8 +505,7 @@ function clearData() {
   data.trajectory.clear();
   data.optimised.clear();
   data.groundTruth.clear();
-  for (const m of [data.scans, data.transforms, data.paths, data.submaps, data.loops,
-    data.landmarks, data.lines]) m.clear();
+  for (const m of [data.scans, data.transforms, data.paths, data.submaps, data.loops]) m.clear();
   hooks.robot = null;
   hooks.trajectoryPoints = 0;
   hooks.latenciesMs = [];
@@ -766,12 +751,22 @@ function sceneDrawable(e) {
       widthPx: l.scale_invariant ? thickness : null, widthM: l.scale_invariant ? null : thickness,
     });
   }
+  const spheres = (e.spheres || []).map((sp) => {
+    const p = place(sp.pose, { x: 0, y: 0 });
+    return { x: p.x, y: p.y, sizeM: num(sp.size && sp.size.x, 0.2), color: cssColor(sp.color, COLORS.landmark) };
+  });
+  const arrows = (e.arrows || []).map((a) => {
+    const p = place(a.pose, { x: 0, y: 0 });
+    const theta = planar(a.pose).theta + frame.theta;
+    return { x: p.x, y: p.y, theta, lengthM: num(a.shaft_length) + num(a.head_length),
+      color: cssColor(a.color, COLORS.text) };
+  });
   const texts = (e.texts || []).map((t) => {
     const p = place(t.pose, { x: 0, y: 0 });
     return { x: p.x, y: p.y, text: String(t.text ?? ""), color: cssColor(t.color, COLORS.text),
       sizePx: t.scale_invariant !== false ? num(t.font_size, 12) : null, sizeM: num(t.font_size, 0.3) };
   });
-  return { lines, texts };
+  return { lines, spheres, arrows, texts };
 }
 
 function applyScene(topic, msg) {
@@ -785,10 +780,13 @@ function applyScene(topic, msg) {
     else scene.delete(String(d.id)); // MATCHING_ID
   }
   for (const e of msg.entities || []) scene.set(String(e.id), sceneDrawable(e));
-  let lines = 0;
-  for (const e of scene.values()) lines += e.lines.length;
+  let lines = 0, spheres = 0;
+  for (const e of scene.values()) {
+    lines += e.lines.length;
+    spheres += e.spheres.length;
+  }
   const peakLines = Math.max(lines, hooks.scenes[topic] ? hooks.scenes[topic].peakLines : 0);
-  hooks.scenes[topic] = { entities: scene.size, lines, peakLines };
+  hooks.scenes[topic] = { entities: scene.size, lines, spheres, peakLines };
 }
 
 function decodeBase64(text) {
@@ -1170,13 +1168,18 @@ function draw() {
   if (ui.layers.local_plan) drawScene("local_plan");
   if (ui.layers.loops) drawLoops();
   if (ui.layers.submaps) drawSubmaps();
-  if (ui.layers.landmarks) drawLandmarks();
+  for (const topic of data.scenes.keys()) {
+    const layer = sceneLayer(topic);
+    if (layer === "landmarks" && ui.layers.landmarks) drawScene(topic);
+  }
   if (ui.layers.scan) drawScans();
   if (ui.layers.robot) drawRobot();
   if (hooks.lastGoal) drawPoseArrow(hooks.lastGoal, COLORS.goal, 0.6);
   if (ui.placing) drawPlacing();
   drawScaleBar();
-  if (data.map.tiles.size === 0 && !data.cloud) {
+  // Before the first map, when there will be one (a channel offers it) or nothing to see yet.
+  if (!hooks.connected || (data.map.tiles.size === 0 && !data.cloud &&
+      (gridTopics.map !== null || !data.robot))) {
     ctx.fillStyle = COLORS.text;
     ctx.font = "14px system-ui, sans-serif";
     ctx.textAlign = "center";
@@ -1235,6 +1238,14 @@ function drawScene(topic) {
       if (l.type === 1) ctx.closePath(); // LINE_LOOP
       ctx.stroke();
     }
+    for (const sp of e.spheres) { // a disc, at least a few pixels across
+      const p = worldToScreen(sp.x, sp.y);
+      ctx.fillStyle = sp.color;
+      ctx.beginPath();
+      ctx.arc(p.x, p.y, Math.max(3, sp.sizeM * view.scale / 2), 0, 2 * Math.PI);
+      ctx.fill();
+    }
+    for (const a of e.arrows) drawPoseArrow(a, a.color, a.lengthM);
     for (const t of e.texts) {
       const p = worldToScreen(t.x, t.y);
       const size = t.sizePx !== null ? t.sizePx : Math.max(8, t.sizeM * view.scale);
@@ -1350,34 +1361,6 @@ function drawLoops() {
   }
   ctx.stroke();
   ctx.setLineDash([]);
-}
-
-function drawLandmarks() {
-  ctx.strokeStyle = COLORS.line;
-  ctx.lineWidth = 2;
-  ctx.beginPath();
-  for (const lines of data.lines.values()) {
-    for (const l of lines) {
-      const a = worldToScreen(l.x0, l.y0), b = worldToScreen(l.x1, l.y1);
-      ctx.moveTo(a.x, a.y);
-      ctx.lineTo(b.x, b.y);
-    }
-  }
-  ctx.stroke();
-  ctx.fillStyle = COLORS.landmark;
-  const d = 4;
-  for (const marks of data.landmarks.values()) {
-    for (const l of marks) {
-      const p = worldToScreen(l.x, l.y);
-      ctx.beginPath();
-      ctx.moveTo(p.x, p.y - d);
-      ctx.lineTo(p.x + d, p.y);
-      ctx.lineTo(p.x, p.y + d);
-      ctx.lineTo(p.x - d, p.y);
-      ctx.closePath();
-      ctx.fill();
-    }
-  }
 }
 
 // An arrow `lengthM` long from the pose along its heading, with a dot at the position.

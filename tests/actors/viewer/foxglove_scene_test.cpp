@@ -5,7 +5,10 @@
 
 #include <tessera/msg/camera.capnp.h>
 #include <tessera/msg/cloud.capnp.h>
+#include <tessera/msg/landmark.capnp.h>
+#include <tessera/msg/lines.capnp.h>
 #include <tessera/msg/navigation.capnp.h>
+#include <tessera/msg/submap.capnp.h>
 #include <tessera/messages/types.hpp>
 
 #include <kj/encoding.h>
@@ -184,6 +187,74 @@ TEST_CASE("a point cloud becomes foxglove.PointCloud, packed with colour when it
                     Catch::Contains("3 points carries 24 xyz bytes"));
   CHECK_THROWS_WITH(foxgloveJson(type, *cloud(2, 24, 5)), Catch::Contains("5 rgb bytes"));
   CHECK(json::parse(foxgloveJson(type, *cloud(0, 0, 0)))["data"] == "");  // empty is fine
+}
+
+TEST_CASE("submap poses become an arrow and a label per submap, replacing the last set",
+          "[viewer]") {
+  const auto type = messageTypeOf<msg::SubmapPoses>().id;
+  CHECK(foxgloveSchemaFor(type).name == "foxglove.SceneUpdate");
+  const auto poses = make<msg::SubmapPoses>([](auto b) {
+    setHeader(b.initHeader(), 0, "map", 0);
+    auto p = b.initPoses(3);
+    p[0].setId(0);
+    p[0].initPose();
+    p[1].setId(4);
+    p[1].initPose().setX(2.0);
+    p[1].getPose().setTheta(M_PI / 2);
+    p[2].setId(5);
+    p[2].initPose().setX(std::numeric_limits<double>::quiet_NaN());  // skipped
+  });
+  const json j = json::parse(foxgloveJson(type, *poses));
+  REQUIRE(j["deletions"].size() == 1);
+  CHECK(j["deletions"][0]["type"] == 1);  // all: the message holds every submap
+  REQUIRE(j["entities"].size() == 2);
+  const json& e = j["entities"][1];
+  CHECK(e["id"] == "submap_4");
+  CHECK(e["metadata"][0]["key"] == "submap_id");
+  CHECK(e["metadata"][0]["value"] == "4");
+  REQUIRE(e["arrows"].size() == 1);
+  CHECK(e["arrows"][0]["pose"]["position"]["x"].get<double>() == Approx(2.0));
+  CHECK(e["arrows"][0]["pose"]["orientation"]["z"].get<double>() == Approx(std::sqrt(0.5)));
+  CHECK(e["texts"][0]["text"] == "4");
+  CHECK(e["lines"].empty());
+}
+
+TEST_CASE("landmark and line maps become spheres and a line list", "[viewer]") {
+  const auto landmarks = make<msg::LandmarkMap>([](auto b) {
+    setHeader(b.initHeader(), 0, "map", 0);
+    auto l = b.initLandmarks(3);
+    l[0].setId(7);
+    l[0].setX(1);
+    l[0].setY(2);
+    l[1].setId(8);
+    l[1].setX(std::numeric_limits<double>::infinity());  // skipped
+    l[2].setId(9);
+    l[2].setX(-1);
+  });
+  const auto lt = messageTypeOf<msg::LandmarkMap>().id;
+  CHECK(foxgloveSchemaFor(lt).name == "foxglove.SceneUpdate");
+  const json l = json::parse(foxgloveJson(lt, *landmarks));
+  const json& le = l["entities"][0];
+  CHECK(le["id"] == "landmarks");
+  REQUIRE(le["spheres"].size() == 2);
+  CHECK(le["spheres"][0]["pose"]["position"]["y"].get<double>() == Approx(2.0));
+  CHECK(le["metadata"][0]["value"] == "7,9");
+
+  const auto lines = make<msg::LineMap>([](auto b) {
+    setHeader(b.initHeader(), 0, "map", 0);
+    auto f = b.initLines(2);
+    f[0].setX0(0);
+    f[0].setY0(0);
+    f[0].setX1(3);
+    f[0].setY1(0);
+    f[1].setX0(std::numeric_limits<double>::quiet_NaN());  // skipped
+  });
+  const auto nt = messageTypeOf<msg::LineMap>().id;
+  const json n = json::parse(foxgloveJson(nt, *lines));
+  const json& line = n["entities"][0]["lines"][0];
+  CHECK(line["type"] == 2);  // a line list: pairs of points
+  REQUIRE(line["points"].size() == 2);
+  CHECK(line["points"][1]["x"].get<double>() == Approx(3.0));
 }
 
 }  // namespace foxglove_scene_test

@@ -420,4 +420,31 @@ TEST_CASE("periodic figures are made only while someone subscribes", "[viewer][s
   CHECK(made >= 2);
 }
 
+TEST_CASE("a first subscription to a channel without a message asks for one", "[viewer][server]") {
+  FoxgloveServer server(anyPort(), page());
+  const auto held = server.addChannel({"landmark_map", "json", "", "", ""});
+  const auto sent = server.addChannel({"map", "json", "", "", ""});
+  server.publish(sent, 1, "m");
+  std::mutex m;
+  std::vector<std::uint32_t> asked;
+  server.onSubscribe([&](std::uint32_t channel) {
+    {
+      std::lock_guard<std::mutex> lock(m);
+      asked.push_back(channel);
+    }
+    server.publish(channel, 2, "held back");  // what a publisher that kept it would do
+  });
+  WsClient c(server.port());
+  REQUIRE(c.status() == 101);
+  readJson(c, "advertise");
+  subscribe(c, 1, sent);  // has a message: no question
+  CHECK(readData(c).payload == "m");
+  subscribe(c, 2, held);
+  const Data d = readData(c);
+  CHECK(d.sub == 2);
+  CHECK(d.payload == "held back");
+  std::lock_guard<std::mutex> lock(m);
+  CHECK(asked == std::vector<std::uint32_t>{held});
+}
+
 }  // namespace foxglove_server_test

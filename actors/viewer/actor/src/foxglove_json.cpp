@@ -20,9 +20,12 @@
 #include <nlohmann/json.hpp>
 
 #include <algorithm>
+#include <array>
+#include <charconv>
 #include <cmath>
 #include <cstring>
 #include <map>
+#include <vector>
 
 namespace tessera::viewer {
 
@@ -70,6 +73,9 @@ enum class Kind {
   kPointCloud,
   kLocalPlan,
   kCameraFootprints,
+  kSubmapPoses,
+  kLandmarkMap,
+  kLineMap,
   kGeneric
 };
 
@@ -108,15 +114,15 @@ const std::map<std::uint64_t, TypeEntry>& types() {
     add(generic, static_cast<msg::KeyframeConstraint*>(nullptr));
     add(generic, static_cast<msg::LandmarkScan*>(nullptr));
     add(generic, static_cast<msg::DriveControl*>(nullptr));
-    add(generic, static_cast<msg::LandmarkMap*>(nullptr));
-    add(generic, static_cast<msg::LineMap*>(nullptr));
+    add(Kind::kLandmarkMap, static_cast<msg::LandmarkMap*>(nullptr));
+    add(Kind::kLineMap, static_cast<msg::LineMap*>(nullptr));
     add(generic, static_cast<msg::NavGoal*>(nullptr));
     add(generic, static_cast<msg::NavStatus*>(nullptr));
     add(generic, static_cast<msg::WheelTicks*>(nullptr));
     add(generic, static_cast<msg::ImuSample*>(nullptr));
     add(generic, static_cast<msg::Submap*>(nullptr));
     add(generic, static_cast<msg::SubmapConstraint*>(nullptr));
-    add(generic, static_cast<msg::SubmapPoses*>(nullptr));
+    add(Kind::kSubmapPoses, static_cast<msg::SubmapPoses*>(nullptr));
     return t;
   }();
   return table;
@@ -177,12 +183,22 @@ std::string sceneUpdateSchema() {
                            R"(,"billboard":{"type":"boolean"},"font_size":{"type":"number"},)"
                            R"("scale_invariant":{"type":"boolean"},"color":)" +
                            kColor + R"(,"text":{"type":"string"}}})";
+  const std::string arrow =
+      std::string(R"({"type":"object","properties":{"pose":)") + kPose +
+      R"(,"shaft_length":{"type":"number"},"shaft_diameter":{"type":"number"},)"
+      R"("head_length":{"type":"number"},"head_diameter":{"type":"number"},"color":)" +
+      kColor + "}}";
+  const std::string sphere = std::string(R"({"type":"object","properties":{"pose":)") + kPose +
+                             R"(,"size":)" + kPoint + R"(,"color":)" + kColor + "}}";
+  const std::string metadata =
+      R"({"type":"array","items":{"type":"object","properties":{"key":{"type":"string"},"value":{"type":"string"}}}})";
   const std::string any = R"({"type":"array","items":{"type":"object"}})";
   const std::string entity =
       std::string(R"({"type":"object","properties":{"timestamp":)") + kTime +
       R"(,"frame_id":{"type":"string"},"id":{"type":"string"},"lifetime":)" + kTime +
-      R"(,"frame_locked":{"type":"boolean"},"metadata":)" + any + R"(,"arrows":)" + any +
-      R"(,"cubes":)" + any + R"(,"spheres":)" + any + R"(,"cylinders":)" + any +
+      R"(,"frame_locked":{"type":"boolean"},"metadata":)" + metadata +
+      R"(,"arrows":{"type":"array","items":)" + arrow + R"(},"cubes":)" + any +
+      R"(,"spheres":{"type":"array","items":)" + sphere + R"(},"cylinders":)" + any +
       R"(,"lines":{"type":"array","items":)" + line + R"(},"triangles":)" + any +
       R"(,"texts":{"type":"array","items":)" + text + R"(},"models":)" + any + "}}";
   return objectSchema(
@@ -194,11 +210,8 @@ std::string sceneUpdateSchema() {
           entity + "}");
 }
 
-json color(double r, double g, double b, double a) {
-  return {{"r", r}, {"g", g}, {"b", b}, {"a", a}};
-}
-
-/// A SceneEntity with every primitive list present (Foxglove expects them all).
+/// A SceneEntity with every primitive list present (Foxglove expects them all) but "lines",
+/// which withLines() adds as text.
 json sceneEntity(std::int64_t stamp_ns, const std::string& frame, const std::string& id) {
   return {{"timestamp", stamp(stamp_ns)},
           {"frame_id", frame},
@@ -210,31 +223,89 @@ json sceneEntity(std::int64_t stamp_ns, const std::string& frame, const std::str
           {"cubes", json::array()},
           {"spheres", json::array()},
           {"cylinders", json::array()},
-          {"lines", json::array()},
           {"triangles", json::array()},
           {"texts", json::array()},
           {"models", json::array()}};
 }
 
-/// A line primitive through flat (x, y) pairs at z = 0, `width_px` screen pixels wide.
+/// `entity` as JSON text with "lines": the given line primitives (JSON texts).
+std::string withLines(const json& entity, const std::vector<std::string>& lines) {
+  std::string out = entity.dump();
+  out.pop_back();  // the closing brace
+  out += R"(,"lines":[)";
+  for (std::size_t i = 0; i < lines.size(); ++i) {
+    if (i > 0) out += ',';
+    out += lines[i];
+  }
+  out += "]}";
+  return out;
+}
+
+/// The shortest text that reads back as `v` (JSON has no inf or NaN: callers skip those).
+template <class T>
+void appendNumber(std::string& out, T v) {
+  char buf[32];
+  const auto r = std::to_chars(buf, buf + sizeof buf, v);
+  out.append(buf, r.ptr);
+}
+
+/// A line primitive through flat (x, y) pairs at z = 0, `width_px` screen pixels wide, in
+/// colour (r, g, b, a), as JSON text (written directly: a dynamic window's 231 arcs of 16 points
+/// each, five times a second, cost nlohmann's objects several times more).
 /// type: 0 LINE_STRIP, 1 LINE_LOOP, 2 LINE_LIST.
 template <class List>
-json linePrimitive(int type, const List& xy, double width_px, json rgba) {
-  json points = json::array();
+std::string linePrimitive(int type, const List& xy, double width_px,
+                          const std::array<double, 4>& rgba) {
+  std::string out =
+      R"({"type":)" + std::to_string(type) +
+      R"(,"pose":{"position":{"x":0,"y":0,"z":0},"orientation":{"x":0,"y":0,"z":0,"w":1}})"
+      R"(,"thickness":)";
+  appendNumber(out, width_px);
+  out += R"(,"scale_invariant":true,"points":[)";
+  bool first = true;
   const auto n = xy.size() / 2;
   for (decltype(xy.size()) i = 0; i < n; ++i) {
-    const double x = xy[2 * i], y = xy[2 * i + 1];
+    const auto x = xy[2 * i], y = xy[2 * i + 1];
     if (!std::isfinite(x) || !std::isfinite(y)) continue;
-    points.push_back({{"x", x}, {"y", y}, {"z", 0.0}});
+    out += first ? R"({"x":)" : R"(,{"x":)";
+    first = false;
+    appendNumber(out, x);
+    out += R"(,"y":)";
+    appendNumber(out, y);
+    out += R"(,"z":0})";
   }
-  return {{"type", type},
-          {"pose", planarPose(0, 0, 0)},
-          {"thickness", width_px},
-          {"scale_invariant", true},
-          {"points", std::move(points)},
-          {"color", std::move(rgba)},
-          {"colors", json::array()},
-          {"indices", json::array()}};
+  out += R"(],"color":{"r":)";
+  appendNumber(out, rgba[0]);
+  out += R"(,"g":)";
+  appendNumber(out, rgba[1]);
+  out += R"(,"b":)";
+  appendNumber(out, rgba[2]);
+  out += R"(,"a":)";
+  appendNumber(out, rgba[3]);
+  out += R"(},"colors":[],"indices":[]})";
+  return out;
+}
+
+json rgbaJson(const std::array<double, 4>& c) {
+  return {{"r", c[0]}, {"g", c[1]}, {"b", c[2]}, {"a", c[3]}};
+}
+
+/// A text label at (x, y), size_px screen pixels high, facing the viewer.
+json label(double x, double y, const std::string& text, double size_px,
+           const std::array<double, 4>& rgba) {
+  return {{"pose", planarPose(x, y, 0)}, {"billboard", true},       {"font_size", size_px},
+          {"scale_invariant", true},     {"color", rgbaJson(rgba)}, {"text", text}};
+}
+
+/// {"deletions": ..., "entities": [...]} with the entities given as JSON texts.
+std::string sceneUpdate(const json& deletions, const std::vector<std::string>& entities) {
+  std::string out = R"({"deletions":)" + deletions.dump() + R"(,"entities":[)";
+  for (std::size_t i = 0; i < entities.size(); ++i) {
+    if (i > 0) out += ',';
+    out += entities[i];
+  }
+  out += "]}";
+  return out;
 }
 
 /// A LocalPlan as one entity "local_plan": inadmissible arcs faint red, admissible ones from
@@ -244,7 +315,8 @@ std::string localPlanScene(msg::LocalPlan::Reader m) {
   const std::int64_t t = m.getHeader().getStampNs();
   const std::string frame = m.getHeader().getFrameId().cStr();
   const auto arcs = m.getArcs();
-  json deletions = json::array(), entities = json::array();
+  json deletions = json::array();
+  std::vector<std::string> entities;
   if (arcs.size() == 0) {
     deletions.push_back({{"timestamp", stamp(t)}, {"type", 0}, {"id", "local_plan"}});
   } else {
@@ -252,26 +324,28 @@ std::string localPlanScene(msg::LocalPlan::Reader m) {
     float best = 0;
     for (const auto a : arcs)
       if (a.getAdmissible() && std::isfinite(a.getScore())) best = std::max(best, a.getScore());
+    std::vector<std::string> lines;
+    lines.reserve(arcs.size() + 1);
     for (const auto a : arcs) {
       if (!a.getAdmissible()) {
-        e["lines"].push_back(linePrimitive(0, a.getXy(), 1.0, color(0.9, 0.25, 0.2, 0.35)));
+        lines.push_back(linePrimitive(0, a.getXy(), 1.0, {0.9, 0.25, 0.2, 0.35}));
       } else {
         const double s = best > 0 && std::isfinite(a.getScore()) ? a.getScore() / best : 0.0;
-        e["lines"].push_back(
-            linePrimitive(0, a.getXy(), 1.5, color(0.2 + 0.8 * s, 0.45 + 0.45 * s, 1.0 - s, 0.7)));
+        lines.push_back(
+            linePrimitive(0, a.getXy(), 1.5, {0.2 + 0.8 * s, 0.45 + 0.45 * s, 1.0 - s, 0.7}));
       }
     }
     const int chosen = m.getChosen();
     if (chosen >= 0 && static_cast<unsigned>(chosen) < arcs.size())
-      e["lines"].push_back(linePrimitive(0, arcs[static_cast<unsigned>(chosen)].getXy(), 4.0,
-                                         color(0.18, 0.75, 0.44, 1.0)));
+      lines.push_back(linePrimitive(0, arcs[static_cast<unsigned>(chosen)].getXy(), 4.0,
+                                    {0.18, 0.75, 0.44, 1.0}));
     e["metadata"].push_back({{"key", "goal_id"}, {"value", std::to_string(m.getGoalId())}});
     e["metadata"].push_back({{"key", "command"},
                              {"value", std::to_string(m.getCommand().getVx()) + " m/s, " +
                                            std::to_string(m.getCommand().getOmega()) + " rad/s"}});
-    entities.push_back(std::move(e));
+    entities.push_back(withLines(e, lines));
   }
-  return json{{"deletions", std::move(deletions)}, {"entities", std::move(entities)}}.dump();
+  return sceneUpdate(deletions, entities);
 }
 
 /// CameraFootprints as one entity per camera, "camera_<id>": its floor polygon (orange when
@@ -279,7 +353,7 @@ std::string localPlanScene(msg::LocalPlan::Reader m) {
 std::string cameraFootprintsScene(msg::CameraFootprints::Reader m) {
   const std::int64_t t = m.getHeader().getStampNs();
   const std::string frame = m.getHeader().getFrameId().cStr();
-  json entities = json::array();
+  std::vector<std::string> entities;
   for (const auto c : m.getCameras()) {
     const auto xy = c.getXy();
     if (xy.size() % 2 != 0)
@@ -287,24 +361,79 @@ std::string cameraFootprintsScene(msg::CameraFootprints::Reader m) {
                          "'s footprint has an odd number of coordinates (" +
                          std::to_string(xy.size()) + ")");
     json e = sceneEntity(t, frame, "camera_" + std::to_string(c.getCameraId()));
-    const json rgba = c.getCalibrated() ? color(0.18, 0.75, 0.44, 0.9) : color(1.0, 0.6, 0.1, 0.9);
-    e["lines"].push_back(linePrimitive(1, xy, 2.0, rgba));
+    const std::array<double, 4> rgba =
+        c.getCalibrated() ? std::array{0.18, 0.75, 0.44, 0.9} : std::array{1.0, 0.6, 0.1, 0.9};
     double cx = 0, cy = 0;
     int n = 0;
     for (unsigned i = 0; i + 1 < xy.size(); i += 2)
       if (std::isfinite(xy[i]) && std::isfinite(xy[i + 1])) cx += xy[i], cy += xy[i + 1], ++n;
     if (n > 0)
-      e["texts"].push_back({{"pose", planarPose(cx / n, cy / n, 0)},
-                            {"billboard", true},
-                            {"font_size", 14.0},
-                            {"scale_invariant", true},
-                            {"color", rgba},
-                            {"text", "camera " + std::to_string(c.getCameraId())}});
+      e["texts"].push_back(
+          label(cx / n, cy / n, "camera " + std::to_string(c.getCameraId()), 14.0, rgba));
     e["metadata"].push_back(
         {{"key", "calibrated"}, {"value", c.getCalibrated() ? "true" : "false"}});
-    entities.push_back(std::move(e));
+    entities.push_back(withLines(e, {linePrimitive(1, xy, 2.0, rgba)}));
   }
-  return json{{"deletions", json::array()}, {"entities", std::move(entities)}}.dump();
+  return sceneUpdate(json::array(), entities);
+}
+
+/// SubmapPoses as one entity per submap, "submap_<id>" (metadata submap_id): an arrow along
+/// its frame's x axis and its id. The message lists every submap, so the update first deletes
+/// all earlier entities.
+std::string submapPosesScene(msg::SubmapPoses::Reader m) {
+  const std::int64_t t = m.getHeader().getStampNs();
+  const std::string frame = m.getHeader().getFrameId().cStr();
+  const std::array<double, 4> purple{0.56, 0.36, 0.97, 1.0};
+  std::vector<std::string> entities;
+  for (const auto p : m.getPoses()) {
+    const auto pose = p.getPose();
+    if (!std::isfinite(pose.getX()) || !std::isfinite(pose.getY()) ||
+        !std::isfinite(pose.getTheta()))
+      continue;
+    const std::string id = std::to_string(p.getId());
+    json e = sceneEntity(t, frame, "submap_" + id);
+    e["arrows"].push_back({{"pose", pose2d(pose)},
+                           {"shaft_length", 0.35},
+                           {"shaft_diameter", 0.04},
+                           {"head_length", 0.15},
+                           {"head_diameter", 0.12},
+                           {"color", rgbaJson(purple)}});
+    e["texts"].push_back(label(pose.getX(), pose.getY(), id, 11.0, purple));
+    e["metadata"].push_back({{"key", "submap_id"}, {"value", id}});
+    entities.push_back(withLines(e, {}));
+  }
+  return sceneUpdate(json::array({{{"timestamp", stamp(t)}, {"type", 1}, {"id", ""}}}), entities);
+}
+
+/// A LandmarkMap as one entity "landmarks": a 0.3 m sphere per landmark (its id in the
+/// sphere's order in metadata "ids", comma-separated).
+std::string landmarkMapScene(msg::LandmarkMap::Reader m) {
+  const std::int64_t t = m.getHeader().getStampNs();
+  json e = sceneEntity(t, m.getHeader().getFrameId().cStr(), "landmarks");
+  std::string ids;
+  for (const auto l : m.getLandmarks()) {
+    if (!std::isfinite(l.getX()) || !std::isfinite(l.getY())) continue;
+    e["spheres"].push_back({{"pose", planarPose(l.getX(), l.getY(), 0)},
+                            {"size", {{"x", 0.3}, {"y", 0.3}, {"z", 0.3}}},
+                            {"color", rgbaJson({0.9, 0.63, 0.0, 1.0})}});
+    ids += (ids.empty() ? "" : ",") + std::to_string(l.getId());
+  }
+  e["metadata"].push_back({{"key", "ids"}, {"value", ids}});
+  return sceneUpdate(json::array(), {withLines(e, {})});
+}
+
+/// A LineMap as one entity "lines": each line's extent as a segment of one line list.
+std::string lineMapScene(msg::LineMap::Reader m) {
+  const std::int64_t t = m.getHeader().getStampNs();
+  json e = sceneEntity(t, m.getHeader().getFrameId().cStr(), "lines");
+  std::vector<double> xy;
+  for (const auto l : m.getLines()) {
+    const double v[] = {l.getX0(), l.getY0(), l.getX1(), l.getY1()};
+    if (std::all_of(std::begin(v), std::end(v), [](double d) { return std::isfinite(d); }))
+      xy.insert(xy.end(), std::begin(v), std::end(v));
+  }
+  return sceneUpdate(json::array(),
+                     {withLines(e, {linePrimitive(2, xy, 2.0, {0.75, 0.22, 0.17, 1.0})})});
 }
 
 /// A PointCloud as foxglove.PointCloud: x, y, z float32 (and red, green, blue uint8 when the
@@ -422,6 +551,9 @@ FoxgloveSchema foxgloveSchemaFor(std::uint64_t type_id) {
                   R"("data":{"type":"string","contentEncoding":"base64"})")};
     case Kind::kLocalPlan:
     case Kind::kCameraFootprints:
+    case Kind::kSubmapPoses:
+    case Kind::kLandmarkMap:
+    case Kind::kLineMap:
       return {"foxglove.SceneUpdate", "jsonschema", sceneUpdateSchema()};
     case Kind::kGeneric:
       break;
@@ -492,6 +624,12 @@ std::string foxgloveJson(std::uint64_t type_id, const MessageStorage& message) {
         return localPlanScene(root.getAs<msg::LocalPlan>());
       case Kind::kCameraFootprints:
         return cameraFootprintsScene(root.getAs<msg::CameraFootprints>());
+      case Kind::kSubmapPoses:
+        return submapPosesScene(root.getAs<msg::SubmapPoses>());
+      case Kind::kLandmarkMap:
+        return landmarkMapScene(root.getAs<msg::LandmarkMap>());
+      case Kind::kLineMap:
+        return lineMapScene(root.getAs<msg::LineMap>());
       case Kind::kGeneric: {
         capnp::JsonCodec codec;
         Base64Data base64;

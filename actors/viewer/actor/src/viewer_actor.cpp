@@ -26,6 +26,9 @@ struct ViewerActor::Topic {
   std::uint32_t tiles_channel = 0;  // occupancy grids: the tiles
   FrameSource frames = FrameSource::kNone;
   std::unique_ptr<MapTiler> tiler;
+  // The newest message (guarded by ViewerActor::latest_mutex_): converted when a client
+  // subscribes to a channel that was published before anyone looked.
+  std::shared_ptr<const MessageStorage> latest;
 };
 
 namespace {
@@ -182,6 +185,7 @@ void ViewerActor::start() {
     const FoxgloveSchema tf = frameTransformSchema();
     tf_channel_ = server_->addChannel({"tf", "json", tf.name, tf.data, tf.encoding});
   }
+  server_->onSubscribe([this](std::uint32_t channel) { onFirstSubscriber(channel); });
   if (goal_pub_.valid())
     server_->acceptClientTopic(options_.goal_topic,
                                [this](std::string_view p) { return onGoal(p); });
@@ -232,8 +236,13 @@ void ViewerActor::onMessage(std::size_t index, const std::shared_ptr<const Messa
       server_->publishParts(t.tiles_channel, stamp, u.epoch, std::move(u.header),
                             std::move(u.tiles));
     }
-    if (server_->subscribed(t.channel))
-      server_->publish(t.channel, stamp, foxgloveJson(t.type_id, *m));
+    {
+      // Kept for a later first subscriber; the lock orders this publish and that one.
+      std::lock_guard<std::mutex> lock(latest_mutex_);
+      if (!t.tiler) t.latest = m;
+      if (server_->subscribed(t.channel))
+        server_->publish(t.channel, stamp, foxgloveJson(t.type_id, *m));
+    }
     if (tf_channel_ && t.frames != FrameSource::kNone && server_->subscribed(tf_channel_))
       if (auto tf = frameTransformFor(t.frames, *m)) server_->publish(tf_channel_, stamp, *tf);
   } catch (const MessageError& e) {
@@ -243,6 +252,21 @@ void ViewerActor::onMessage(std::size_t index, const std::shared_ptr<const Messa
     if (++unreadable_ <= 5)
       std::cerr << "[" << ctx_->name() << "] " << t.name << ": " << e.getDescription().cStr()
                 << "; skipped\n";
+  }
+}
+
+void ViewerActor::onFirstSubscriber(std::uint32_t channel) {
+  std::lock_guard<std::mutex> lock(latest_mutex_);
+  if (stopping_) return;  // the server is going away
+  for (auto& t : topics_) {
+    if (t->channel != channel || !t->latest) continue;
+    try {
+      const auto stamp = static_cast<std::uint64_t>(std::max<Nanos>(ctx_->now(), 0));
+      server_->publish(channel, stamp, foxgloveJson(t->type_id, *t->latest));
+    } catch (const MessageError&) {
+      // Already reported when it arrived (onMessage).
+    } catch (const kj::Exception&) {
+    }
   }
 }
 
@@ -276,6 +300,11 @@ std::string ViewerActor::onInitialPose(std::string_view payload) {
 
 void ViewerActor::stop() {
   if (!server_) return;
+  {
+    // After this no subscription handler touches the server (one running has finished).
+    std::lock_guard<std::mutex> lock(latest_mutex_);
+    stopping_ = true;
+  }
   final_stats_ = server_->stats();
   server_.reset();
 }

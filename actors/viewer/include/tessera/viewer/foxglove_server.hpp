@@ -106,6 +106,12 @@ class FoxgloveServer {
   /// are cheap to take but pointless to push when nobody looks (live metrics).
   void publishEvery(std::uint32_t channel, int period_ms, std::function<std::string()> make);
 
+  /// Calls `handler(channel)` (on the server's thread, the subscription in place) when a client
+  /// subscribes to a keep-latest channel that holds no message yet: a publisher that converts
+  /// only while someone subscribes can publish its newest message then (a map sent once before
+  /// anyone looked).
+  void onSubscribe(std::function<void(std::uint32_t channel)> handler);
+
   /// Whether some client subscribes to `channel` (skip converting messages nobody sees).
   bool subscribed(std::uint32_t channel) const;
 

@@ -13,6 +13,9 @@
 //                                            window as a line, coloured by score, the chosen
 //                                            one thick green; an empty plan deletes it)
 //   CameraFootprints -> foxglove.SceneUpdate (entity "camera_<id>": floor polygon + label)
+//   SubmapPoses      -> foxglove.SceneUpdate (entity "submap_<id>": arrow + id; replaces all)
+//   LandmarkMap      -> foxglove.SceneUpdate (entity "landmarks": a sphere per landmark)
+//   LineMap          -> foxglove.SceneUpdate (entity "lines": one line list of the extents)
 // Every other message type is written as its own JSON (Cap'n Proto's JSON mapping, Data fields
 // as base64) on a channel without a schema, which Foxglove shows in its raw message panel.
 // Times: Header.stampNs as {sec, nsec}. Planar poses get z = 0 and a yaw-only quaternion.

@@ -25,6 +25,7 @@
 #include <cstdint>
 #include <limits>
 #include <memory>
+#include <mutex>
 #include <string>
 #include <string_view>
 #include <vector>
@@ -113,6 +114,8 @@ class ViewerActor final : public Actor {
  private:
   struct Topic;
   void onMessage(std::size_t topic, const std::shared_ptr<const MessageStorage>& message);
+  /// A client subscribed to a channel that holds no message: publish the topic's newest.
+  void onFirstSubscriber(std::uint32_t channel);
   std::string onGoal(std::string_view payload);
   std::string onInitialPose(std::string_view payload);
 
@@ -120,6 +123,8 @@ class ViewerActor final : public Actor {
   ActorContext* ctx_ = nullptr;
   std::unique_ptr<FoxgloveServer> server_;
   std::vector<std::unique_ptr<Topic>> topics_;
+  std::mutex latest_mutex_;  ///< Topic::latest, stopping_, and publishing in arrival order
+  bool stopping_ = false;
   std::uint32_t tf_channel_ = 0;
   Publisher<msg::NavGoal> goal_pub_;
   Publisher<msg::PoseStamped> initial_pose_pub_;
