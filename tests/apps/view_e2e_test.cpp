@@ -171,7 +171,9 @@ TEST_CASE("an initial pose placed in the browser restarts the localiser, which k
   const fs::path err = dir / "stderr.txt";
   // sim_nav: the world's map, MCL, the navigator driving a goal sequence.
   tessera::test::CliChild run(
-      "run sim_nav --view 0 --rate 4 --quiet --out " + (dir / "out").string(), err);
+      // Twice real time: the robot moves ~1 m per wall second, so the pose the page places (read
+      // when the tool is picked, dragged along the heading) is a few centimetres old on arrival.
+      "run sim_nav --view 0 --rate 2 --quiet --out " + (dir / "out").string(), err);
   const std::string url = tessera::test::waitForViewerUrl(err);
   INFO(slurp(err));
   REQUIRE_FALSE(url.empty());

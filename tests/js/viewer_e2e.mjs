@@ -167,8 +167,14 @@ const TOOLS = {
   initial: { button: "#initial-pose-button", sent: "initialPosesSent", last: "lastInitialPose", name: "initial pose" },
 };
 
-async function placeGoal(page, goal, tool = TOOLS.goal) {
+// Places a pose with `tool` at `target`: {x, y} by a click (heading 0), or "robot": where the
+// page draws the robot the moment the tool is active, dragged along its heading (a pose that is
+// stale by the time it arrives would send a localiser astray on a moving robot).
+async function placeGoal(page, target, tool = TOOLS.goal) {
   await page.click(tool.button);
+  const robot = target === "robot" ? await page.evaluate(() => window.tessera.robot) : null;
+  if (target === "robot" && !robot) throw new Failure("no robot drawn to place the pose at");
+  const goal = robot ? { x: robot.x, y: robot.y } : target;
   // In placement mode the view stops following the robot, so the point stays put.
   const where = async () => page.evaluate(({ x, y }) => {
     const canvas = document.getElementById("map-canvas");
@@ -188,6 +194,9 @@ async function placeGoal(page, goal, tool = TOOLS.goal) {
   const clickedAtMs = await page.evaluate(() => Date.now());
   await page.mouse.move(at.px, at.py);
   await page.mouse.down();
+  if (robot) { // drag 40 px along the heading (screen y points down)
+    await page.mouse.move(at.px + 40 * Math.cos(robot.theta), at.py - 40 * Math.sin(robot.theta), { steps: 4 });
+  }
   await page.mouse.up();
   try {
     await page.waitForFunction((key) => window.tessera[key] >= 1, tool.sent, { timeout: Math.min(remainingMs(), 10000), polling: 50 });
@@ -203,6 +212,9 @@ async function placeGoal(page, goal, tool = TOOLS.goal) {
   const tolerance = 3 / state.view.scale + 1e-6;
   if (!sent || Math.hypot(sent.x - goal.x, sent.y - goal.y) > tolerance) {
     throw new Failure(`${tool.name} sent at ${JSON.stringify(sent)}, wanted ${goal.x},${goal.y} (±${tolerance.toFixed(3)} m)`);
+  }
+  if (robot && Math.abs(Math.atan2(Math.sin(sent.theta - robot.theta), Math.cos(sent.theta - robot.theta))) > 0.1) {
+    throw new Failure(`${tool.name} sent with heading ${sent.theta.toFixed(3)}, the robot's is ${robot.theta.toFixed(3)} rad`);
   }
   result[tool === TOOLS.goal ? "goalSent" : "initialPoseSent"] = { x: sent.x, y: sent.y, theta: sent.theta };
   return state;
@@ -258,7 +270,7 @@ try {
     result.messages = state.messages;
   }
   if (opts.initialPose) {
-    const at = opts.initialPose === "robot" ? { x: state.robot.x, y: state.robot.y } : opts.initialPose;
+    const at = opts.initialPose;
     state = await placeGoal(page, at, TOOLS.initial);
     result.lastStatus = state.lastStatus;
     result.messages = state.messages;
