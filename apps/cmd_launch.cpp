@@ -6,6 +6,7 @@
 #include "cli_inputs.hpp"
 #include "commands.hpp"
 
+#include <tessera/io/atomic_file.hpp>
 #include <tessera/runtime/process_stats.hpp>
 #include <tessera/shm/deployment.hpp>
 #include <tessera/shm/launcher.hpp>
@@ -149,15 +150,22 @@ int worker(const WorkerArgs& a) {
   std::cerr << "shared memory: " << stats.sent << " sent, " << stats.received << " received, "
             << stats.copies << " copied into a larger chunk, " << stats.drops
             << " discarded by full keep_latest queues\n";
+  bool summary_failed = false;
   if (!a.out.empty()) {
     auto j = summaryJson(profile, report);
     j["shm_sent"] = stats.sent;
     j["shm_received"] = stats.received;
     j["shm_copies"] = stats.copies;
-    std::ofstream(fs::path(a.out) / ("summary_" + a.process + ".json")) << j.dump(2) << "\n";
+    try {
+      tessera::io::writeFileAtomically(fs::path(a.out) / ("summary_" + a.process + ".json"),
+                                       j.dump(2) + "\n");
+    } catch (const std::exception& e) {
+      std::cerr << "error: " << e.what() << "\n";
+      summary_failed = true;
+    }
   }
   const bool actor_failure = report.interrupted && report.stop_reason.rfind("actor '", 0) == 0;
-  return actor_failure ? 1 : 0;
+  return actor_failure || summary_failed ? 1 : 0;
 }
 
 }  // namespace

@@ -1,6 +1,7 @@
 #include "cli_inputs.hpp"
 #include "commands.hpp"
 
+#include <tessera/io/atomic_file.hpp>
 #include <tessera/runtime/process_stats.hpp>
 #include <tessera/runtime/profile.hpp>
 #include <tessera/runtime/registry.hpp>
@@ -183,9 +184,16 @@ int runProfile(const Profile& profile, const std::string& verb, const RunSetting
   std::cerr << std::fixed << std::setprecision(2) << "data " << report.sim_duration_s << " s in "
             << report.wall_s << " s wall, " << report.cpu_s << " s CPU, peak RSS "
             << report.peak_rss_mb << " MB\n";
+  bool summary_failed = false;
   if (!options.output_dir.empty()) {
     const auto j = summaryJson(profile, report);
-    std::ofstream(fs::path(options.output_dir) / "summary.json") << j.dump(2) << "\n";
+    try {
+      tessera::io::writeFileAtomically(fs::path(options.output_dir) / "summary.json",
+                                       j.dump(2) + "\n");
+    } catch (const std::exception& e) {
+      std::cerr << "error: " << e.what() << "\n";
+      summary_failed = true;
+    }
     std::cerr << "outputs in " << options.output_dir << ":\n";
     std::vector<std::string> files;
     for (const auto& e : fs::directory_iterator(options.output_dir)) {
@@ -198,7 +206,7 @@ int runProfile(const Profile& profile, const std::string& verb, const RunSetting
   const bool actor_failure = report.interrupted && report.stop_reason.rfind("actor '", 0) == 0;
   if (actor_failure) std::cerr << "error: " << report.stop_reason << "\n";
   if (report_out != nullptr) *report_out = report;
-  return actor_failure ? 1 : (report.interrupted ? 130 : 0);
+  return actor_failure || summary_failed ? 1 : (report.interrupted ? 130 : 0);
 }
 
 void addRunCommand(CLI::App& app, int& result) {

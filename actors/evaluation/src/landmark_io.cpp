@@ -1,4 +1,5 @@
 #include <tessera/evaluation/landmark_io.hpp>
+#include <tessera/io/atomic_file.hpp>
 
 #include <array>
 #include <charconv>
@@ -90,13 +91,15 @@ std::vector<Landmark> readLandmarks(const std::filesystem::path& path) {
 }
 
 void writeLandmarks(const std::filesystem::path& path, const std::vector<Landmark>& landmarks) {
-  std::ofstream out(path, std::ios::trunc);
-  if (!out) throw LandmarkFileError(path.string() + ": cannot open for writing");
+  std::ostringstream out;
   out << "# id x y\n";
   for (const auto& lm : landmarks)
     out << lm.id << ' ' << shortest(lm.position.x()) << ' ' << shortest(lm.position.y()) << '\n';
-  out.flush();
-  if (!out) throw LandmarkFileError(path.string() + ": write failed");
+  try {
+    io::writeFileAtomically(path, out.str());  // the old file or the new one, whole
+  } catch (const io::FileWriteError& e) {
+    throw LandmarkFileError(e.what());
+  }
 }
 
 }  // namespace tessera::evaluation

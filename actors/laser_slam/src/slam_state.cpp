@@ -1,3 +1,4 @@
+#include <tessera/io/atomic_file.hpp>
 #include <tessera/laser_slam/map_assembler.hpp>
 #include <tessera/laser_slam/slam_state.hpp>
 
@@ -16,6 +17,7 @@
 #include <map>
 #include <set>
 #include <sstream>
+#include <string_view>
 
 namespace tessera::laser_slam {
 namespace fs = std::filesystem;
@@ -26,6 +28,15 @@ constexpr const char* kStateFile = "state.yaml";
 
 [[noreturn]] void fail(const fs::path& file, const std::string& what) {
   throw SlamStateError(file.string() + ": " + what);
+}
+
+/// Written aside and renamed over any older file (io::AtomicFile): each file is whole.
+void writeStateFile(const fs::path& path, std::string_view content) {
+  try {
+    io::writeFileAtomically(path, content);
+  } catch (const io::FileWriteError& e) {
+    fail(path, e.reason());
+  }
 }
 
 /// Shortest text that reads back as the same double (std::to_chars without a precision).
@@ -225,12 +236,7 @@ std::vector<std::int8_t> readCells(const fs::path& path, std::size_t expected,
 }
 
 void writeCells(const fs::path& path, const std::vector<std::int8_t>& cells) {
-  std::ofstream out(path, std::ios::binary | std::ios::trunc);
-  if (!out) fail(path, "cannot open for writing");
-  out.write(reinterpret_cast<const char*>(cells.data()),
-            static_cast<std::streamsize>(cells.size()));
-  out.close();
-  if (!out) fail(path, "write failed");
+  writeStateFile(path, {reinterpret_cast<const char*>(cells.data()), cells.size()});
 }
 
 }  // namespace
@@ -294,16 +300,7 @@ void saveSlamState(const SlamState& state, const fs::path& dir) {
     y << "]\n";
   }
   // state.yaml appears only once complete: written aside, then renamed over any older one.
-  const fs::path tmp = dir / (std::string(kStateFile) + ".tmp");
-  {
-    std::ofstream out(tmp, std::ios::trunc);
-    if (!out) fail(tmp, "cannot open for writing");
-    out << y.str();
-    out.close();
-    if (!out) fail(tmp, "write failed");
-  }
-  fs::rename(tmp, yaml_path, ec);
-  if (ec) fail(yaml_path, "cannot replace: " + ec.message());
+  writeStateFile(yaml_path, y.str());
 }
 
 SlamState loadSlamState(const fs::path& dir) {

@@ -1,4 +1,5 @@
 #include <tessera/geometry/pose2.hpp>
+#include <tessera/io/atomic_file.hpp>
 #include <tessera/line_slam/line_map_io.hpp>
 
 #include <algorithm>
@@ -47,15 +48,14 @@ std::vector<MapSegment> readWallSegments(const fs::path& path) {
 }
 
 void writeLinesCsv(const fs::path& path, const std::vector<MapSegment>& lines) {
-  std::ofstream out(path);
-  if (!out) throw std::runtime_error("cannot write '" + path.string() + "'");
+  io::AtomicFile file(path);  // throws io::FileWriteError naming the file and the reason
+  std::ostream& out = file.stream();
   out << std::setprecision(10) << "id,r,phi,var_r,cov_r_phi,var_phi,x0,y0,x1,y1,observations\n";
   for (const auto& l : lines)
     out << l.id << ',' << l.r << ',' << l.phi << ',' << l.covariance(0, 0) << ','
         << l.covariance(0, 1) << ',' << l.covariance(1, 1) << ',' << l.p0.x() << ',' << l.p0.y()
         << ',' << l.p1.x() << ',' << l.p1.y() << ',' << l.observations << '\n';
-  out.flush();
-  if (!out) throw std::runtime_error("failed writing '" + path.string() + "'");
+  file.commit();
 }
 
 void writeLinesSvg(const fs::path& path, const std::vector<MapSegment>& lines,
@@ -84,8 +84,8 @@ void writeLinesSvg(const fs::path& path, const std::vector<MapSegment>& lines,
       << (hi.y() - p.y()) * ppm;
     return s.str();
   };
-  std::ofstream out(path);
-  if (!out) throw std::runtime_error("cannot write '" + path.string() + "'");
+  io::AtomicFile file(path);  // throws io::FileWriteError naming the file and the reason
+  std::ostream& out = file.stream();
   out << "<svg xmlns=\"http://www.w3.org/2000/svg\" width=\"" << std::lround(w) << "\" height=\""
       << std::lround(h) << "\" viewBox=\"0 0 " << std::lround(w) << ' ' << std::lround(h)
       << "\">\n<rect width=\"100%\" height=\"100%\" fill=\"white\"/>\n";
@@ -103,8 +103,7 @@ void writeLinesSvg(const fs::path& path, const std::vector<MapSegment>& lines,
   }
   for (const auto& s : lines) segment(s, "#1f77b4", 2);
   out << "</svg>\n";
-  out.flush();
-  if (!out) throw std::runtime_error("failed writing '" + path.string() + "'");
+  file.commit();
 }
 
 namespace {

@@ -1,3 +1,4 @@
+#include <tessera/io/atomic_file.hpp>
 #include <tessera/io/image_file.hpp>
 #include <tessera/mapping/map_io.hpp>
 
@@ -43,6 +44,8 @@ auto mapIo(F&& f) {
   try {
     return f();
   } catch (const io::ImageFileError& e) {
+    throw MapIoError(e.what());
+  } catch (const io::FileWriteError& e) {
     throw MapIoError(e.what());
   }
 }
@@ -124,8 +127,7 @@ SavedMap saveMap(const grid::OccupancyMap& map, const fs::path& base,
   const GrayImage img = renderTrinary(map, options);
   writePgm(img, saved.pgm);
 
-  std::ofstream yaml(saved.yaml, std::ios::trunc);
-  if (!yaml) fail(saved.yaml, "cannot open for writing");
+  std::ostringstream yaml;
   yaml << "image: " << saved.pgm.filename().string() << "\n"
        << "mode: trinary\n"
        << "resolution: " << numberText(map.resolution) << "\n"
@@ -134,8 +136,10 @@ SavedMap saveMap(const grid::OccupancyMap& map, const fs::path& base,
        << "negate: 0\n"
        << "occupied_thresh: " << numberText(options.occupied_thresh) << "\n"
        << "free_thresh: " << numberText(options.free_thresh) << "\n";
-  yaml.close();
-  if (!yaml) fail(saved.yaml, "write failed");
+  mapIo([&] {
+    io::writeFileAtomically(saved.yaml, yaml.str());
+    return 0;
+  });
 
   if (options.write_png) {
     saved.png = withSuffix(base, ".png");

@@ -5,6 +5,7 @@
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
+#include <fstream>
 #include <limits>
 
 namespace tessera::mapping {
@@ -131,30 +132,47 @@ TumPose parseTumLine(std::string_view line, const std::string& where) {
   return p;
 }
 
+namespace {
+template <typename F>
+void asTrajectoryError(F&& f) {
+  try {
+    f();
+  } catch (const io::FileWriteError& e) {
+    throw TrajectoryError(e.what());
+  }
+}
+}  // namespace
+
 TumWriter::TumWriter(const fs::path& path) : path_(path) {
   if (path.has_parent_path()) {
     std::error_code ec;
     fs::create_directories(path.parent_path(), ec);
   }
-  out_.open(path, std::ios::trunc);
-  if (!out_) throw TrajectoryError(path.string() + ": cannot open for writing");
-  out_ << "# timestamp tx ty tz qx qy qz qw\n";
+  asTrajectoryError([&] { out_ = std::make_unique<io::AtomicFile>(path); });
+  out_->stream() << "# timestamp tx ty tz qx qy qz qw\n";
 }
 
 void TumWriter::write(const TumPose& pose) {
-  out_ << formatTumLine(pose) << '\n';
+  if (!out_) throw TrajectoryError(path_.string() + ": write after close");
+  out_->stream() << formatTumLine(pose) << '\n';
   ++count_;
 }
 
 void TumWriter::flush() {
-  out_.flush();
-  if (!out_) throw TrajectoryError(path_.string() + ": write failed");
+  if (!out_) return;
+  asTrajectoryError([&] { out_->flush(); });
+}
+
+void TumWriter::close() {
+  if (!out_) return;
+  const std::unique_ptr<io::AtomicFile> file = std::move(out_);
+  asTrajectoryError([&] { file->commit(); });
 }
 
 void writeTum(const fs::path& path, const std::vector<TumPose>& poses) {
   TumWriter w(path);
   for (const auto& p : poses) w.write(p);
-  w.flush();
+  w.close();
 }
 
 std::vector<TumPose> readTum(const fs::path& path) {

@@ -2,6 +2,7 @@
 // PLY files (pcl::io, binary).
 #include "pcl_convert.hpp"
 
+#include <tessera/io/atomic_file.hpp>
 #include <tessera/mapping3d/cloud_map.hpp>
 
 #include <pcl/conversions.h>
@@ -168,16 +169,21 @@ void checkPcdHeader(const std::filesystem::path& file) {
 
 void writePcd(const PointCloud& cloud, const std::filesystem::path& file) {
   if (cloud.empty()) throw std::runtime_error(file.string() + ": the cloud is empty");
-  writeEither(cloud, [&](const auto& c) {
-    checkIo(pcl::io::savePCDFileBinary(file.string(), c), file, "writing PCD");
+  // PCL writes by name: to a temporary name (extension kept) renamed into place when complete.
+  io::replaceFileAtomically(file, [&](const std::filesystem::path& temp) {
+    writeEither(cloud, [&](const auto& c) {
+      checkIo(pcl::io::savePCDFileBinary(temp.string(), c), file, "writing PCD");
+    });
   });
 }
 
 void writePly(const PointCloud& cloud, const std::filesystem::path& file) {
   if (cloud.empty()) throw std::runtime_error(file.string() + ": the cloud is empty");
-  writeEither(cloud, [&](const auto& c) {
-    // No camera element: CloudCompare and pcl_viewer need only the vertices.
-    checkIo(pcl::PLYWriter().write(file.string(), c, true, false), file, "writing PLY");
+  io::replaceFileAtomically(file, [&](const std::filesystem::path& temp) {
+    writeEither(cloud, [&](const auto& c) {
+      // No camera element: CloudCompare and pcl_viewer need only the vertices.
+      checkIo(pcl::PLYWriter().write(temp.string(), c, true, false), file, "writing PLY");
+    });
   });
 }
 

@@ -1,5 +1,6 @@
 // OctoMapBuilder: octomap::OcTree insertion with our log-odds options, and the background rebuild
 // that swaps a fresh tree in once every keyframe has been re-inserted at its new pose.
+#include <tessera/io/atomic_file.hpp>
 #include <tessera/mapping3d/octomap_builder.hpp>
 
 #include <octomap/OcTree.h>
@@ -437,8 +438,11 @@ OccupiedVoxels OctoMapBuilder::occupiedVoxels(std::size_t max_points) const {
 void OctoMapBuilder::writeBinary(const std::filesystem::path& file) const {
   std::lock_guard lock(state_->mutex);
   state_->finalizeServed();
-  if (!state_->tree->writeBinaryConst(file.string()))
-    throw std::runtime_error(file.string() + ": writing the OctoMap failed");
+  // Written to a temporary name (extension kept) and renamed into place when complete.
+  io::replaceFileAtomically(file, [&](const std::filesystem::path& temp) {
+    if (!state_->tree->writeBinaryConst(temp.string()))
+      throw std::runtime_error(file.string() + ": writing the OctoMap failed");
+  });
 }
 
 void OctoMapBuilder::readBinary(const std::filesystem::path& file) {

@@ -1,4 +1,5 @@
 #include <tessera/geometry/pose2.hpp>
+#include <tessera/io/atomic_file.hpp>
 #include <tessera/pose_graph/pose_graph_io.hpp>
 
 #include <Eigen/Eigenvalues>
@@ -463,11 +464,12 @@ class LineWriter {
   void endLine() { text_.push_back('\n'); }
 
   void save() {
-    std::ofstream out(path_, std::ios::binary | std::ios::trunc);
-    if (!out) throw DatasetError(path_, 0, "cannot open for writing");
-    out.write(text_.data(), static_cast<std::streamsize>(text_.size()));
-    out.close();
-    if (!out) throw DatasetError(path_, 0, "write failed");
+    // Written aside and renamed into place: the file is the old graph or the new one, whole.
+    try {
+      io::writeFileAtomically(path_, text_);
+    } catch (const io::FileWriteError& e) {
+      throw DatasetError(path_, 0, e.reason());
+    }
   }
 
  private:

@@ -5,6 +5,7 @@
 // L, node count n, word count w; n records {uint32 id, uint32 parent, float64 weight, 32 bytes
 // descriptor} breadth first (so children keep their order, which breaks distance ties); w uint32
 // node ids, index = word id. Nothing may follow.
+#include <tessera/io/atomic_file.hpp>
 #include <tessera/visual_slam/vocabulary.hpp>
 
 #include <algorithm>
@@ -12,6 +13,7 @@
 #include <cstring>
 #include <deque>
 #include <fstream>
+#include <memory>
 #include <sstream>
 
 namespace tessera::visual_slam {
@@ -271,8 +273,13 @@ Vocabulary Vocabulary::load(const std::filesystem::path& path) {
 
 void Vocabulary::save(const std::filesystem::path& path) const {
   if (words_.empty()) fail(path.string(), "cannot save an empty vocabulary");
-  std::ofstream out(path, std::ios::binary | std::ios::trunc);
-  if (!out) fail(path.string(), "cannot be opened for writing");
+  std::unique_ptr<io::AtomicFile> file;  // the old file or the new one, whole
+  try {
+    file = std::make_unique<io::AtomicFile>(path);
+  } catch (const io::FileWriteError& e) {
+    fail(path.string(), e.reason());
+  }
+  std::ostream& out = file->stream();
   out.write(kMagic, sizeof(kMagic));
   put(out, static_cast<std::uint32_t>(k_));
   put(out, static_cast<std::uint32_t>(levels_));
@@ -294,8 +301,11 @@ void Vocabulary::save(const std::filesystem::path& path) const {
     }
   }
   for (NodeId id : words_) put(out, id);
-  out.flush();
-  if (!out) fail(path.string(), "write failed");
+  try {
+    file->commit();
+  } catch (const io::FileWriteError& e) {
+    fail(path.string(), e.reason());
+  }
 }
 
 }  // namespace tessera::visual_slam

@@ -1,4 +1,5 @@
 // libpng (simplified API) and libjpeg behind tessera/io/image_file.hpp.
+#include <tessera/io/atomic_file.hpp>
 #include <tessera/io/image_file.hpp>
 
 #include <jpeglib.h>
@@ -22,6 +23,16 @@ constexpr long long kMaxPixels = 1LL << 28;
 
 [[noreturn]] void fail(const fs::path& file, const std::string& what) {
   throw ImageFileError(file.string() + ": " + what);
+}
+
+/// Writing goes through AtomicFile; its errors are reported as ImageFileError like the others.
+template <typename F>
+void asImageFileError(F&& write) {
+  try {
+    write();
+  } catch (const FileWriteError& e) {
+    throw ImageFileError(e.what());
+  }
 }
 
 std::string readWholeFile(const fs::path& path) {
@@ -172,13 +183,14 @@ void writePgmFile(const Gray8& image, const fs::path& path) {
   if (image.pixels.size() != static_cast<std::size_t>(image.width) * image.height)
     fail(path, "image holds " + std::to_string(image.pixels.size()) + " pixels, expected " +
                    std::to_string(static_cast<std::size_t>(image.width) * image.height));
-  std::ofstream out(path, std::ios::binary | std::ios::trunc);
-  if (!out) fail(path, "cannot open for writing");
-  out << "P5\n# tessera occupancy map\n" << image.width << ' ' << image.height << "\n255\n";
-  out.write(reinterpret_cast<const char*>(image.pixels.data()),
-            static_cast<std::streamsize>(image.pixels.size()));
-  out.close();
-  if (!out) fail(path, "write failed");
+  const std::string header = "P5\n# tessera occupancy map\n" + std::to_string(image.width) + ' ' +
+                             std::to_string(image.height) + "\n255\n";
+  asImageFileError([&] {
+    AtomicFile out(path);
+    out.write(header);
+    out.write({reinterpret_cast<const char*>(image.pixels.data()), image.pixels.size()});
+    out.commit();
+  });
 }
 
 Gray8 readPgmFile(const fs::path& path) {
@@ -246,8 +258,15 @@ void writePngGray8(const Gray8& image, const fs::path& path) {
   png.width = static_cast<png_uint_32>(image.width);
   png.height = static_cast<png_uint_32>(image.height);
   png.format = PNG_FORMAT_GRAY;
-  if (!png_image_write_to_file(&png, path.c_str(), 0, image.pixels.data(), 0, nullptr))
-    fail(path, std::string("PNG write failed: ") + png.message);
+  // Encoded in memory, so that the file is written (and replaced) in one piece.
+  png_alloc_size_t size = 0;
+  if (!png_image_write_get_memory_size(png, size, 0, image.pixels.data(), 0, nullptr))
+    fail(path, std::string("PNG encoding failed: ") + png.message);
+  std::string bytes(size, '\0');
+  if (!png_image_write_to_memory(&png, bytes.data(), &size, 0, image.pixels.data(), 0, nullptr))
+    fail(path, std::string("PNG encoding failed: ") + png.message);
+  bytes.resize(size);
+  asImageFileError([&] { writeFileAtomically(path, bytes); });
 }
 
 Rgb8 decodeRgb8(std::span<const std::uint8_t> bytes, const std::string& name) {

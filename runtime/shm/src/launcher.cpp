@@ -4,6 +4,7 @@
 // clock), and merges the processes' summaries into one.
 #include <tessera/shm/launcher.hpp>
 
+#include <tessera/io/atomic_file.hpp>
 #include <tessera/runtime/options.hpp>
 
 #include <nlohmann/json.hpp>
@@ -478,8 +479,14 @@ LaunchResult Launcher::run() {
   nlohmann::json summary = mergeSummaries(profile_, workers, out_dir, result.wall_s);
   summary["interrupted"] = failed || result.interrupted;
   summary["stop_reason"] = result.stop_reason;
+  bool summary_failed = false;
   if (!out_dir.empty()) {
-    std::ofstream(fs::path(out_dir) / "summary.json") << summary.dump(2) << "\n";
+    try {
+      io::writeFileAtomically(fs::path(out_dir) / "summary.json", summary.dump(2) + "\n");
+    } catch (const std::exception& e) {
+      log(std::string("[launch] error: ") + e.what());
+      summary_failed = true;
+    }
   }
   std::ostringstream figures;
   figures << std::fixed << std::setprecision(2) << "[launch] data "
@@ -488,7 +495,7 @@ LaunchResult Launcher::run() {
   log("[launch] stopped: " + result.stop_reason);
   log(figures.str());
   if (!out_dir.empty()) log("[launch] outputs in " + out_dir);
-  result.exit_code = failed ? 1 : (result.interrupted ? 130 : 0);
+  result.exit_code = failed || summary_failed ? 1 : (result.interrupted ? 130 : 0);
   return result;
 }
 

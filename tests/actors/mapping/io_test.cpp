@@ -4,8 +4,17 @@
 
 #include <catch2/catch.hpp>
 
+#include "../../file_size_limit.hpp"
+
+#include <signal.h>
+#include <sys/resource.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <algorithm>
 #include <filesystem>
 #include <fstream>
+#include <iterator>
 #include <numbers>
 #include <random>
 #include <string>
@@ -207,6 +216,46 @@ TEST_CASE("saving an empty map is an error", "[map_io]") {
   CHECK_THROWS_AS(saveMap(OccupancyMap{}, dir.path / "map"), MapIoError);
 }
 
+namespace map_io_failed_write_test {
+
+using tessera::test::whatWithFileSizeLimit;
+
+std::string bytesOf(const fs::path& file) {
+  std::ifstream in(file, std::ios::binary);
+  return {std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()};
+}
+
+}  // namespace map_io_failed_write_test
+
+TEST_CASE("a map save that fails leaves the previous complete map", "[map_io][atomic_file]") {
+  using namespace map_io_failed_write_test;
+  TempDir dir;
+  const fs::path base = dir.path / "map";
+  saveMap(smallMap(), base);
+  const std::string old_pgm = bytesOf(dir.path / "map.pgm");
+  const std::string old_yaml = bytesOf(dir.path / "map.yaml");
+  const std::string old_png = bytesOf(dir.path / "map.png");
+
+  OccupancyMap big = smallMap();  // 120 kB of pixels
+  big.width = 400;
+  big.height = 300;
+  big.cells.assign(static_cast<std::size_t>(400) * 300, 0);
+  const std::string what = whatWithFileSizeLimit(16 * 1024, [&] { saveMap(big, base); });
+  CHECK_THAT(what, Contains((dir.path / "map.pgm").string() + ": cannot write: File too large"));
+
+  CHECK(bytesOf(dir.path / "map.pgm") == old_pgm);
+  CHECK(bytesOf(dir.path / "map.yaml") == old_yaml);
+  CHECK(bytesOf(dir.path / "map.png") == old_png);
+  const OccupancyMap back = loadMap(dir.path / "map.yaml");
+  CHECK(back.width == 3);
+  CHECK(back.height == 2);
+  std::vector<std::string> files;
+  for (const auto& e : fs::directory_iterator(dir.path))
+    files.push_back(e.path().filename().string());
+  std::sort(files.begin(), files.end());
+  CHECK(files == std::vector<std::string>{"map.pgm", "map.png", "map.yaml"});
+}
+
 TEST_CASE("TUM round trip is exact in time and planar pose", "[trajectory_io]") {
   TempDir dir;
   const fs::path file = dir.path / "t.tum";
@@ -279,13 +328,36 @@ TEST_CASE("TUM reader reports malformed lines with file:line", "[trajectory_io]"
 
 TEST_CASE("TumWriter streams and counts", "[trajectory_io]") {
   TempDir dir;
-  TumWriter w(dir.path / "deep" / "s.tum");
+  const auto file = dir.path / "deep" / "s.tum";
+  TumWriter w(file);
   w.write(10, Pose2(1, 2, 0.5));
   w.flush();
-  // Readable while the writer is still open (nothing is held back after flush).
-  const auto poses = readTum(dir.path / "deep" / "s.tum");
+  // Until close() the poses are in a temporary file next to it; the trajectory file appears
+  // complete or not at all.
+  CHECK_FALSE(std::filesystem::exists(file));
+  w.close();
+  const auto poses = readTum(file);
   REQUIRE(poses.size() == 1);
   CHECK(poses[0].stamp_ns == 10);
   CHECK(poses[0].planar().theta == Approx(0.5));
   CHECK(w.count() == 1);
+  CHECK(std::distance(std::filesystem::directory_iterator(dir.path / "deep"),
+                      std::filesystem::directory_iterator()) == 1);
+}
+
+TEST_CASE("TumWriter without close leaves the previous trajectory", "[trajectory_io]") {
+  TempDir dir;
+  const auto file = dir.path / "s.tum";
+  writeTum(file, {TumPose::fromPlanar(1, Pose2(0, 0, 0))});
+  {
+    TumWriter w(file);
+    w.write(2, Pose2(1, 1, 0));
+    w.write(3, Pose2(2, 2, 0));
+    w.flush();
+  }  // abandoned (a run that failed before stop): no close
+  const auto poses = readTum(file);
+  REQUIRE(poses.size() == 1);
+  CHECK(poses[0].stamp_ns == 1);
+  CHECK(std::distance(std::filesystem::directory_iterator(dir.path),
+                      std::filesystem::directory_iterator()) == 1);
 }

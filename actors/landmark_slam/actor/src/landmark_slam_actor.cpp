@@ -1,6 +1,7 @@
 #include <tessera/landmark_slam/landmark_slam_actor.hpp>
 
 #include <tessera/evaluation/trajectory_metrics.hpp>
+#include <tessera/io/atomic_file.hpp>
 #include <tessera/runtime/options.hpp>
 #include <tessera/runtime/registry.hpp>
 
@@ -221,8 +222,8 @@ void LandmarkSlamActor::writeSvg(const std::string& path) const {
   const double scale = 1000.0 / std::max(box.sizes().x(), box.sizes().y());  // px per metre
   const auto X = [&](double x) { return (x - box.min().x()) * scale; };
   const auto Y = [&](double y) { return (box.max().y() - y) * scale; };  // y up
-  std::ofstream out(path);
-  if (!out) throw std::runtime_error("cannot write '" + path + "'");
+  io::AtomicFile file(path);  // the old file or the new one, whole; errors name the file
+  std::ostream& out = file.stream();
   out << std::fixed << std::setprecision(2) << "<svg xmlns=\"http://www.w3.org/2000/svg\" width=\""
       << X(box.max().x()) << "\" height=\"" << Y(box.min().y())
       << "\">\n<rect width=\"100%\" height=\"100%\" "
@@ -253,8 +254,7 @@ void LandmarkSlamActor::writeSvg(const std::string& path) const {
         << Y(l.mean.y()) << ")\"/>\n";
   }
   out << "</svg>\n";
-  out.flush();
-  if (!out) throw std::runtime_error("failed writing '" + path + "'");
+  file.commit();
 }
 
 void LandmarkSlamActor::summarize(Summary& out) const {

@@ -32,22 +32,26 @@ std::string seconds(std::int64_t ns) {
   return buf;
 }
 
-std::ofstream openIn(const std::string& dir, const std::string& name, const char* header) {
-  const fs::path path = fs::path(dir) / name;
-  std::ofstream out(path);
-  if (!out) throw std::runtime_error("cannot write '" + path.string() + "'");
-  out << std::setprecision(12) << header << '\n';
+/// A CSV streamed over the run: written to a temporary file next to `name`, renamed into place
+/// at stop() (finish()), so `name` is only ever a complete file. Throws io::FileWriteError.
+std::unique_ptr<tessera::io::AtomicFile> openIn(const std::string& dir, const std::string& name,
+                                                const char* header) {
+  auto out = std::make_unique<tessera::io::AtomicFile>(fs::path(dir) / name);
+  out->stream() << std::setprecision(12) << header << '\n';
   return out;
 }
 
-void finish(std::ofstream& out, const ActorContext& ctx, std::string& error) {
-  if (!out.is_open()) return;
-  out.flush();
-  if (!out && error.empty()) {
-    error = "write failed";
-    std::cerr << ctx.name() << ": " << error << "\n";
+/// stop() must not throw: a failed write is reported (stderr and the summary's error).
+void finish(std::unique_ptr<tessera::io::AtomicFile>& out, const ActorContext& ctx,
+            std::string& error) {
+  if (!out) return;
+  try {
+    out->commit();
+  } catch (const std::exception& e) {
+    if (error.empty()) error = e.what();
+    std::cerr << ctx.name() << ": " << e.what() << "\n";
   }
-  out.close();
+  out.reset();
 }
 
 }  // namespace
@@ -64,17 +68,17 @@ void CameraLogWriterActor::configure(ActorContext& ctx) {
   ctx_ = &ctx;
   ctx.subscribe<msg::MarkerDetection>(
       "detections", MailboxPolicy::reliable(), [this](const Message<msg::MarkerDetection>& m) {
-        if (!detections_.is_open()) return;
-        detections_ << seconds(m->getHeader().getStampNs()) << ',' << m->getCameraId() << ','
-                    << (m->getDetected() ? 1 : 0) << ',' << m->getU() << ',' << m->getV() << ','
-                    << m->getPixelStd() << '\n';
+        if (!detections_) return;
+        detections_->stream() << seconds(m->getHeader().getStampNs()) << ',' << m->getCameraId()
+                              << ',' << (m->getDetected() ? 1 : 0) << ',' << m->getU() << ','
+                              << m->getV() << ',' << m->getPixelStd() << '\n';
         ++detections_written_;
       });
   ctx.subscribe<msg::CameraEvent>(
       "events", MailboxPolicy::reliable(), [this](const Message<msg::CameraEvent>& m) {
-        if (!events_.is_open()) return;
-        events_ << seconds(m->getHeader().getStampNs()) << ',' << m->getCameraId() << ','
-                << (m->getEntered() ? 1 : 0) << '\n';
+        if (!events_) return;
+        events_->stream() << seconds(m->getHeader().getStampNs()) << ',' << m->getCameraId() << ','
+                          << (m->getEntered() ? 1 : 0) << '\n';
         ++events_written_;
       });
 }
@@ -112,19 +116,21 @@ void LandmarkLogWriterActor::configure(ActorContext& ctx) {
   ctx_ = &ctx;
   ctx.subscribe<msg::LandmarkScan>(
       "landmarks", MailboxPolicy::reliable(), [this](const Message<msg::LandmarkScan>& m) {
-        if (!observations_.is_open()) return;
+        if (!observations_) return;
         const std::string t = seconds(m->getHeader().getStampNs());
         for (const auto o : m->getObservations()) {
-          observations_ << t << ',' << o.getId() << ',' << o.getRange() << ',' << o.getBearing()
-                        << ',' << o.getRangeStd() << ',' << o.getBearingStd() << '\n';
+          observations_->stream() << t << ',' << o.getId() << ',' << o.getRange() << ','
+                                  << o.getBearing() << ',' << o.getRangeStd() << ','
+                                  << o.getBearingStd() << '\n';
           ++observations_written_;
         }
       });
   ctx.subscribe<msg::DriveControl>(
       "control", MailboxPolicy::reliable(), [this](const Message<msg::DriveControl>& m) {
-        if (!controls_.is_open()) return;
-        controls_ << seconds(m->getHeader().getStampNs()) << ',' << m->getSpeed() << ','
-                  << m->getSteering() << ',' << m->getWheelbase() << ',' << m->getDtS() << '\n';
+        if (!controls_) return;
+        controls_->stream() << seconds(m->getHeader().getStampNs()) << ',' << m->getSpeed() << ','
+                            << m->getSteering() << ',' << m->getWheelbase() << ',' << m->getDtS()
+                            << '\n';
         ++controls_written_;
       });
 }
@@ -173,16 +179,15 @@ void LandmarkMapWriterActor::stop() {
   // stop() must not throw: report failures instead.
   try {
     const fs::path path = fs::path(ctx_->outputDir()) / options_.file;
-    std::ofstream out(path);
-    if (!out) throw std::runtime_error("cannot write '" + path.string() + "'");
+    tessera::io::AtomicFile file(path);  // the old file or the new one, whole
+    std::ostream& out = file.stream();
     const auto lms = latest_->getLandmarks();
     out << std::setprecision(12) << "# landmarks in frame '"
         << latest_->getHeader().getFrameId().cStr()
         << "' at t = " << seconds(latest_->getHeader().getStampNs()) << " s: " << lms.size()
         << "\n# id x y\n";
     for (const auto lm : lms) out << lm.getId() << ' ' << lm.getX() << ' ' << lm.getY() << '\n';
-    out.flush();
-    if (!out) throw std::runtime_error("failed writing '" + path.string() + "'");
+    file.commit();
     landmarks_written_ = lms.size();
     path_ = path.string();
   } catch (const std::exception& e) {

@@ -133,8 +133,9 @@ void TrajectoryWriterActor::configure(ActorContext& ctx) {
                  [this](Nanos stamp, const tessera::Pose2& pose) {
                    if (!writer_) return;
                    writer_->write(stamp, pose);
-                   // The file is flushed at stop(); flushing now and then as well bounds
-                   // what a crash (rather than a clean Ctrl-C) could lose.
+                   // The file is completed at stop(); flushing now and then as well bounds
+                   // what a crash (rather than a clean Ctrl-C) could lose: the poses are then
+                   // in the temporary file next to it.
                    if (++poses_written_ % 256 == 0) writer_->flush();
                  });
 }
@@ -148,8 +149,10 @@ void TrajectoryWriterActor::start() {
 
 void TrajectoryWriterActor::stop() {
   if (!writer_) return;
+  // Until here the poses went to a temporary file; close() renames it over the trajectory file,
+  // so that file is either the complete trajectory or (a failed write) the previous one.
   try {
-    writer_->flush();
+    writer_->close();
   } catch (const std::exception& e) {
     error_ = e.what();
     std::cerr << ctx_->name() << ": " << error_ << "\n";

@@ -2,6 +2,7 @@
 
 #include <tessera/actor_common/map_message.hpp>
 #include <tessera/actor_common/pose_source.hpp>
+#include <tessera/io/atomic_file.hpp>
 #include <tessera/messages/geometry.hpp>
 #include <tessera/navigation/grid_planner.hpp>
 #include <tessera/runtime/registry.hpp>
@@ -285,14 +286,19 @@ void GoalSequencerActor::finish(const std::string& outcome, const std::string& r
 void GoalSequencerActor::stop() {
   if (options_.goals_csv.empty() || ctx_->outputDir().empty()) return;
   const auto path = std::filesystem::path(ctx_->outputDir()) / options_.goals_csv;
-  std::ofstream out(path);
+  std::ostringstream out;
   out << std::setprecision(10);
   out << "id,x,y,theta,outcome,time_s,driven_m,shortest_m,reason\n";
   for (const Result& r : results_)
     out << r.id << ',' << r.goal.pose.x << ',' << r.goal.pose.y << ',' << r.goal.pose.theta << ','
         << r.outcome << ',' << r.time_s << ',' << r.driven_m << ',' << r.shortest_m << ",\""
         << r.reason << "\"\n";
-  if (!out) std::cerr << "[" << ctx_->name() << "] failed writing '" << path.string() << "'\n";
+  // stop() must not throw: a failed write is reported (the old file, if any, stays whole).
+  try {
+    io::writeFileAtomically(path, out.str());
+  } catch (const std::exception& e) {
+    std::cerr << "[" << ctx_->name() << "] " << e.what() << "\n";
+  }
 }
 
 void GoalSequencerActor::summarize(Summary& out) const {

@@ -148,7 +148,7 @@ void KeyframeGraphActor::writeFiles() {
     if (!options_.keyframes_file.empty()) {
       mapping::TumWriter writer(dir / options_.keyframes_file);
       for (const auto& [id, p] : graph_.poses()) writer.write({stamps_.at(id), p.t, p.q});
-      writer.flush();
+      writer.close();
       keyframes_path_ = (dir / options_.keyframes_file).string();
     }
     if (!options_.g2o_file.empty()) {
@@ -165,7 +165,7 @@ void KeyframeGraphActor::writeFiles() {
       mapping::TumWriter writer(dir / options_.frames_file);
       for (std::size_t i = 0; i < frames_.size(); ++i)
         writer.write({frames_[i].first, corrected[i].t, corrected[i].q});
-      writer.flush();
+      writer.close();
       frames_path_ = (dir / options_.frames_file).string();
     }
   } catch (const std::exception& e) {

@@ -94,19 +94,27 @@ void LoopDetectorActor::configure(ActorContext& ctx) {
   pub_ = ctx.advertise<msg::KeyframeConstraint>("loop_constraints");
   if (!options_.loops_file.empty() && !ctx.outputDir().empty()) {
     loops_path_ = (std::filesystem::path(ctx.outputDir()) / options_.loops_file).string();
-    loops_out_ = std::make_unique<std::ofstream>(loops_path_);
-    if (!*loops_out_)
-      throw ConfigError("rgbd_loop_detector: loops_file: cannot write " + loops_path_);
-    *loops_out_ << "query_id,candidate_id,query_stamp_ns,candidate_stamp_ns,accepted,rejection,"
-                   "matches,inliers,inlier_ratio,rms_px,depth_agreement,coverage,fit_rms_m,"
-                   "pose_disagreement_m,pose_disagreement_rad,x,y,z,qx,qy,qz,qw\n";
+    // Streamed to a temporary file over the run, renamed into place at stop().
+    try {
+      loops_out_ = std::make_unique<io::AtomicFile>(loops_path_);
+    } catch (const io::FileWriteError& e) {
+      throw ConfigError(std::string("rgbd_loop_detector: loops_file: ") + e.what());
+    }
+    loops_out_->stream()
+        << "query_id,candidate_id,query_stamp_ns,candidate_stamp_ns,accepted,rejection,"
+           "matches,inliers,inlier_ratio,rms_px,depth_agreement,coverage,fit_rms_m,"
+           "pose_disagreement_m,pose_disagreement_rad,x,y,z,qx,qy,qz,qw\n";
   }
 }
 
 void LoopDetectorActor::stop() {
   if (loops_out_) {
-    loops_out_->flush();
-    if (!*loops_out_) loops_error_ = loops_path_ + ": write failed";
+    try {
+      loops_out_->commit();
+    } catch (const std::exception& e) {
+      loops_error_ = e.what();
+      std::cerr << "[rgbd_loop_detector] " << loops_error_ << "\n";
+    }
     loops_out_.reset();
   }
 }
@@ -116,7 +124,7 @@ void LoopDetectorActor::writeRow(const LoopQuery& q) {
   const LoopVerification& v = *q.verification;
   const Eigen::Isometry3d& T = v.candidate_from_query;
   const Eigen::Quaterniond r(T.rotation());
-  std::ostream& o = *loops_out_;
+  std::ostream& o = loops_out_->stream();
   o << q.query << ',' << *q.candidate << ',' << stamps_[q.query] << ',' << stamps_[*q.candidate]
     << ',' << (v.accepted ? 1 : 0) << ',' << rejectionName(v.rejection) << ',' << v.matches << ','
     << v.inliers << ',' << v.inlier_ratio << ',' << v.rms_px << ',' << v.depth_agreement << ','

@@ -1,6 +1,6 @@
-#include <tessera/sim/camera_network_actor.hpp>
-
+#include <tessera/io/atomic_file.hpp>
 #include <tessera/runtime/registry.hpp>
+#include <tessera/sim/camera_network_actor.hpp>
 #include <tessera/sim/robot.hpp>
 #include <tessera/sim/world.hpp>
 
@@ -11,6 +11,7 @@
 #include <filesystem>
 #include <fstream>
 #include <iomanip>
+#include <sstream>
 #include <stdexcept>
 
 namespace tessera::sim {
@@ -89,8 +90,7 @@ void CameraNetworkActor::configure(ActorContext& ctx) {
 void CameraNetworkActor::start() {
   if (options_.cameras_file.empty() || ctx_->outputDir().empty()) return;
   const auto path = std::filesystem::path(ctx_->outputDir()) / options_.cameras_file;
-  std::ofstream out(path);
-  if (!out) throw std::runtime_error("camera_network: cannot write '" + path.string() + "'");
+  std::ostringstream out;
   out << std::setprecision(12)
       << "# true cameras: floor point below the camera [m], yaw/roll/pitch [rad], image size "
          "[px], floor->pixel homography (row-major, scaled so the site maps with w = 1)\n"
@@ -103,8 +103,11 @@ void CameraNetworkActor::start() {
       for (int c = 0; c < 3; ++c) out << ' ' << cam.homography()(r, c);
     out << '\n';
   }
-  out.flush();
-  if (!out) throw std::runtime_error("camera_network: failed writing '" + path.string() + "'");
+  try {
+    tessera::io::writeFileAtomically(path, out.str());  // the old file or the new one, whole
+  } catch (const tessera::io::FileWriteError& e) {
+    throw std::runtime_error(std::string("camera_network: ") + e.what());
+  }
 }
 
 void CameraNetworkActor::onPose(Nanos stamp, double x, double y, double theta) {

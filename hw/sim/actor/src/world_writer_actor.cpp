@@ -1,8 +1,8 @@
-#include <tessera/sim/world_writer_actor.hpp>
-
+#include <tessera/io/atomic_file.hpp>
 #include <tessera/messages/views.hpp>
 #include <tessera/runtime/registry.hpp>
 #include <tessera/sim/collision.hpp>
+#include <tessera/sim/world_writer_actor.hpp>
 
 #include "option_checks.hpp"
 
@@ -19,16 +19,24 @@ namespace {
 
 constexpr detail::OptionErrors kErrors("world_writer");
 
-std::ofstream openOut(const std::filesystem::path& path) {
-  std::ofstream out(path);
-  if (!out) throw std::runtime_error("world_writer: cannot write '" + path.string() + "'");
-  out << std::setprecision(12);
-  return out;
+/// The file is written aside and renamed into place by closeOut(): the old file or the new one,
+/// whole. Errors name the file and the reason.
+tessera::io::AtomicFile openOut(const std::filesystem::path& path) {
+  try {
+    tessera::io::AtomicFile out(path);
+    out.stream() << std::setprecision(12);
+    return out;
+  } catch (const tessera::io::FileWriteError& e) {
+    throw std::runtime_error(std::string("world_writer: ") + e.what());
+  }
 }
 
-void closeOut(std::ofstream& out, const std::filesystem::path& path) {
-  out.flush();
-  if (!out) throw std::runtime_error("world_writer: failed writing '" + path.string() + "'");
+void closeOut(tessera::io::AtomicFile& out) {
+  try {
+    out.commit();
+  } catch (const tessera::io::FileWriteError& e) {
+    throw std::runtime_error(std::string("world_writer: ") + e.what());
+  }
 }
 
 }  // namespace
@@ -84,24 +92,26 @@ void WorldWriterActor::start() {
   if (dir.empty()) return;
   if (!options_.walls_file.empty()) {
     const auto path = std::filesystem::path(dir) / options_.walls_file;
-    auto out = openOut(path);
+    auto file = openOut(path);
+    std::ostream& out = file.stream();
     const auto segments = wallSegments(world_, options_.walls_min_length);
     out << "# true wall faces of world '" << world_.name() << "': " << segments.size()
         << " (map frame, metres; free space on the left of (x0,y0)->(x1,y1); faces shorter than "
         << options_.walls_min_length << " m omitted)\n# x0 y0 x1 y1\n";
     for (const auto& w : segments)
       out << w.a.x() << ' ' << w.a.y() << ' ' << w.b.x() << ' ' << w.b.y() << '\n';
-    closeOut(out, path);
+    closeOut(file);
     walls_written_ = static_cast<std::int64_t>(segments.size());
   }
   if (!options_.landmarks_file.empty()) {
     const auto path = std::filesystem::path(dir) / options_.landmarks_file;
-    auto out = openOut(path);
+    auto file = openOut(path);
+    std::ostream& out = file.stream();
     out << "# true landmarks of world '" << world_.name() << "': " << world_.landmarks().size()
         << " (map frame, metres)\n# id x y\n";
     for (const auto& lm : world_.landmarks())
       out << lm.id << ' ' << lm.position.x() << ' ' << lm.position.y() << '\n';
-    closeOut(out, path);
+    closeOut(file);
     landmarks_written_ = static_cast<std::int64_t>(world_.landmarks().size());
   }
   if (!options_.image_file.empty())

@@ -10,13 +10,14 @@
 #pragma once
 
 #include <tessera/geometry/pose2.hpp>
+#include <tessera/io/atomic_file.hpp>
 
 #include <Eigen/Core>
 #include <Eigen/Geometry>
 
 #include <cstdint>
 #include <filesystem>
-#include <fstream>
+#include <memory>
 #include <stdexcept>
 #include <string>
 #include <string_view>
@@ -45,23 +46,29 @@ std::string formatTumLine(const TumPose& pose);
 /// Parses one data line; throws TrajectoryError prefixed with `where` (e.g. "file:12").
 TumPose parseTumLine(std::string_view line, const std::string& where);
 
-/// Streams poses to a file as they come; flush() makes them durable, the destructor closes.
+/// Streams poses to a file as they come. They go to a temporary file next to `path`
+/// (io::AtomicFile); close() renames it over `path`, so `path` only ever holds a complete
+/// trajectory. Destroyed without close(), the temporary file is removed and `path` is untouched.
 class TumWriter {
  public:
-  /// Creates or truncates `path` and writes a comment header. Throws TrajectoryError.
+  /// Creates the folder and the temporary file and writes a comment header. Throws
+  /// TrajectoryError.
   explicit TumWriter(const std::filesystem::path& path);
   void write(const TumPose& pose);
   void write(std::int64_t stamp_ns, const Pose2& pose) {
     write(TumPose::fromPlanar(stamp_ns, pose));
   }
-  /// Throws TrajectoryError if anything written so far failed to reach the file.
+  /// Hands the poses so far to the temporary file (what a crash then leaves behind there).
+  /// Throws TrajectoryError if anything written so far failed to reach it.
   void flush();
+  /// Completes the file: flushed, synced and renamed over path(). Throws TrajectoryError.
+  void close();
   std::size_t count() const { return count_; }
   const std::filesystem::path& path() const { return path_; }
 
  private:
   std::filesystem::path path_;
-  std::ofstream out_;
+  std::unique_ptr<io::AtomicFile> out_;
   std::size_t count_ = 0;
 };
 

@@ -25,11 +25,12 @@
 #include <tessera/msg/camera.capnp.h>
 #include <tessera/msg/landmark.capnp.h>
 #include <tessera/msg/lines.capnp.h>
+#include <tessera/io/atomic_file.hpp>
 #include <tessera/messages/types.hpp>
 #include <tessera/runtime/actor.hpp>
 
 #include <cstdint>
-#include <fstream>
+#include <memory>
 #include <string>
 #include <vector>
 
@@ -60,7 +61,7 @@ class CameraLogWriterActor final : public Actor {
  private:
   CameraLogWriterOptions options_;
   ActorContext* ctx_ = nullptr;
-  std::ofstream detections_, events_;
+  std::unique_ptr<tessera::io::AtomicFile> detections_, events_;  ///< renamed into place at stop()
   std::int64_t detections_written_ = 0, events_written_ = 0;
   std::string error_;
 };
@@ -88,7 +89,7 @@ class LandmarkLogWriterActor final : public Actor {
  private:
   LandmarkLogWriterOptions options_;
   ActorContext* ctx_ = nullptr;
-  std::ofstream observations_, controls_;
+  std::unique_ptr<tessera::io::AtomicFile> observations_, controls_;  ///< renamed at stop()
   std::int64_t observations_written_ = 0, controls_written_ = 0;
   std::string error_;
 };

@@ -24,6 +24,7 @@
 #pragma once
 
 #include <tessera/msg/keyframe.capnp.h>
+#include <tessera/io/atomic_file.hpp>
 #include <tessera/runtime/actor.hpp>
 #include <tessera/runtime/options.hpp>
 #include <tessera/visual_slam/loop_detector.hpp>
@@ -85,7 +86,7 @@ class LoopDetectorActor final : public Actor {
   std::map<std::int64_t, std::int64_t> stamps_;  ///< keyframe id -> header stamp [ns]
   std::map<std::string, std::uint64_t> bad_;
   std::uint64_t received_ = 0, published_ = 0;
-  std::unique_ptr<std::ofstream> loops_out_;
+  std::unique_ptr<io::AtomicFile> loops_out_;  ///< renamed into place at stop()
   std::string loops_path_, loops_error_;
 };
 
