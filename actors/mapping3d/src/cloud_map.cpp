@@ -1,13 +1,9 @@
 // CloudMap: per-keyframe clouds at their current poses, the assembled global cloud and its PCD /
-// PLY files (pcl::io, binary).
-#include "pcl_convert.hpp"
+// PLY files (pcl::io, binary, in libtessera_pcl_bridge.so, loaded on first use: pcl_bridge.hpp).
+#include "pcl_bridge.hpp"
 
 #include <tessera/io/atomic_file.hpp>
 #include <tessera/mapping3d/cloud_map.hpp>
-
-#include <pcl/conversions.h>
-#include <pcl/io/pcd_io.h>
-#include <pcl/io/ply_io.h>
 
 #include <algorithm>
 #include <cmath>
@@ -106,30 +102,6 @@ void checkIo(int code, const std::filesystem::path& file, const char* what) {
   if (code < 0) throw std::runtime_error(file.string() + ": " + what + " failed");
 }
 
-template <class Write>
-void writeEither(const PointCloud& cloud, Write&& write) {
-  if (cloud.hasColor())
-    write(*toPcl<pcl::PointXYZRGB>(cloud));
-  else
-    write(*toPcl<pcl::PointXYZ>(cloud));
-}
-
-bool hasRgb(const pcl::PCLPointCloud2& blob) {
-  return std::any_of(blob.fields.begin(), blob.fields.end(),
-                     [](const auto& f) { return f.name == "rgb" || f.name == "rgba"; });
-}
-
-PointCloud fromBlob(const pcl::PCLPointCloud2& blob) {
-  if (hasRgb(blob)) {
-    pcl::PointCloud<pcl::PointXYZRGB> c;
-    pcl::fromPCLPointCloud2(blob, c);
-    return fromPcl(c);
-  }
-  pcl::PointCloud<pcl::PointXYZ> c;
-  pcl::fromPCLPointCloud2(blob, c);
-  return fromPcl(c);
-}
-
 // PCL 1.13's PCDReader dereferences fields a malformed header never declared (it crashed on a
 // text file in our tests), so the header is checked here first: FIELDS with x, y and z, POINTS
 // and a DATA line of a known encoding. A truncated body is left to PCL, which checks the size.
@@ -171,33 +143,29 @@ void writePcd(const PointCloud& cloud, const std::filesystem::path& file) {
   if (cloud.empty()) throw std::runtime_error(file.string() + ": the cloud is empty");
   // PCL writes by name: to a temporary name (extension kept) renamed into place when complete.
   io::replaceFileAtomically(file, [&](const std::filesystem::path& temp) {
-    writeEither(cloud, [&](const auto& c) {
-      checkIo(pcl::io::savePCDFileBinary(temp.string(), c), file, "writing PCD");
-    });
+    checkIo(pcl_bridge::savePcdBinary(cloud, temp.string()), file, "writing PCD");
   });
 }
 
 void writePly(const PointCloud& cloud, const std::filesystem::path& file) {
   if (cloud.empty()) throw std::runtime_error(file.string() + ": the cloud is empty");
+  // Binary, no camera element (CloudCompare and pcl_viewer need only the vertices).
   io::replaceFileAtomically(file, [&](const std::filesystem::path& temp) {
-    writeEither(cloud, [&](const auto& c) {
-      // No camera element: CloudCompare and pcl_viewer need only the vertices.
-      checkIo(pcl::PLYWriter().write(temp.string(), c, true, false), file, "writing PLY");
-    });
+    checkIo(pcl_bridge::savePlyBinary(cloud, temp.string()), file, "writing PLY");
   });
 }
 
 PointCloud readPcd(const std::filesystem::path& file) {
   checkPcdHeader(file);
-  pcl::PCLPointCloud2 blob;
-  checkIo(pcl::io::loadPCDFile(file.string(), blob), file, "reading PCD");
-  return fromBlob(blob);
+  PointCloud cloud;
+  checkIo(pcl_bridge::loadPcd(file.string(), cloud), file, "reading PCD");
+  return cloud;
 }
 
 PointCloud readPly(const std::filesystem::path& file) {
-  pcl::PCLPointCloud2 blob;
-  checkIo(pcl::io::loadPLYFile(file.string(), blob), file, "reading PLY");
-  return fromBlob(blob);
+  PointCloud cloud;
+  checkIo(pcl_bridge::loadPly(file.string(), cloud), file, "reading PLY");
+  return cloud;
 }
 
 }  // namespace tessera::mapping3d

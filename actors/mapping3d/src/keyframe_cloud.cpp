@@ -1,10 +1,8 @@
 // Back-projection of a depth image into a keyframe cloud, and the PCL voxel filter every cloud of
-// this library goes through.
-#include "pcl_convert.hpp"
+// this library goes through (in libtessera_pcl_bridge.so, loaded on first use: pcl_bridge.hpp).
+#include "pcl_bridge.hpp"
 
 #include <tessera/mapping3d/keyframe_cloud.hpp>
-
-#include <pcl/filters/voxel_grid.h>
 
 #include <cmath>
 #include <stdexcept>
@@ -92,27 +90,12 @@ PointCloud makeKeyframeCloud(const visual_slam::PinholeCamera& camera,
   return voxelFilter(cloud, options.voxel_leaf);
 }
 
-namespace {
-
-// Colours, for PointXYZRGB, are averaged with the positions (VoxelGrid's default).
-template <class PointT>
-PointCloud voxelFilterAs(const PointCloud& cloud, float leaf) {
-  pcl::VoxelGrid<PointT> grid;
-  grid.setInputCloud(toPcl<PointT>(cloud));
-  grid.setLeafSize(leaf, leaf, leaf);
-  pcl::PointCloud<PointT> out;
-  grid.filter(out);
-  return fromPcl(out);
-}
-
-}  // namespace
-
 PointCloud voxelFilter(const PointCloud& cloud, double leaf) {
   if (!std::isfinite(leaf)) throw std::invalid_argument("voxel leaf must be finite");
   if (leaf <= 0 || cloud.empty()) return cloud;
-  const auto l = static_cast<float>(leaf);
-  return cloud.hasColor() ? voxelFilterAs<pcl::PointXYZRGB>(cloud, l)
-                          : voxelFilterAs<pcl::PointXYZ>(cloud, l);
+  // PointXYZRGB when the cloud has colours (averaged with the positions, VoxelGrid's default),
+  // PointXYZ otherwise.
+  return pcl_bridge::voxelFilter(cloud, static_cast<float>(leaf));
 }
 
 }  // namespace tessera::mapping3d

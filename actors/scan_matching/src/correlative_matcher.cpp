@@ -193,35 +193,39 @@ double meanProbability(const MatchGrid& grid, std::span<const Eigen::Vector2d> p
 
 }  // namespace
 
+std::string MatchGrid::check(const GridView& view) {
+  const std::size_t n = static_cast<std::size_t>(std::max(view.width, 0)) *
+                        static_cast<std::size_t>(std::max(view.height, 0));
+  if (view.width <= 0 || view.height <= 0)
+    return "grid has no cells (" + std::to_string(view.width) + "x" + std::to_string(view.height) +
+           ")";
+  if (!(view.resolution > 0.0) || !std::isfinite(view.resolution))
+    return "grid resolution must be positive and finite";
+  if (!view.origin.isFinite()) return "grid origin is not finite";
+  const bool has_percent = !view.percent.empty(), has_prob = !view.probability.empty();
+  if (has_percent == has_prob)
+    return "grid view must hold exactly one of percent or probability cells";
+  if ((has_percent ? view.percent.size() : view.probability.size()) != n)
+    return "grid cell count does not match width x height";
+  return {};
+}
+
+std::size_t MatchGrid::bytes() const {
+  std::size_t total = sizeof(MatchGrid) + levels_.capacity() * sizeof(Level);
+  for (const Level& l : levels_) total += l.cells.capacity() * sizeof(std::uint16_t);
+  return total;
+}
+
 MatchGrid::MatchGrid(const GridView& view, int depth, double unknown_probability) {
   require(depth >= 0 && depth <= kMaxDepth, "pyramid_depth must be in 0..10");
   require(unknown_probability >= 0.0 && unknown_probability <= 1.0,
           "unknown_probability must be in [0, 1]");
   unknown_ = toFixed(unknown_probability);
-  const std::size_t n = static_cast<std::size_t>(std::max(view.width, 0)) *
-                        static_cast<std::size_t>(std::max(view.height, 0));
-  if (view.width <= 0 || view.height <= 0) {
-    error_ = "grid has no cells (" + std::to_string(view.width) + "x" +
-             std::to_string(view.height) + ")";
-    return;
-  }
-  if (!(view.resolution > 0.0) || !std::isfinite(view.resolution)) {
-    error_ = "grid resolution must be positive and finite";
-    return;
-  }
-  if (!view.origin.isFinite()) {
-    error_ = "grid origin is not finite";
-    return;
-  }
-  const bool has_percent = !view.percent.empty(), has_prob = !view.probability.empty();
-  if (has_percent == has_prob) {
-    error_ = "grid view must hold exactly one of percent or probability cells";
-    return;
-  }
-  if ((has_percent ? view.percent.size() : view.probability.size()) != n) {
-    error_ = "grid cell count does not match width x height";
-    return;
-  }
+  error_ = check(view);
+  if (!error_.empty()) return;
+  const std::size_t n =
+      static_cast<std::size_t>(view.width) * static_cast<std::size_t>(view.height);
+  const bool has_percent = !view.percent.empty();
   width_ = view.width;
   height_ = view.height;
   resolution_ = view.resolution;

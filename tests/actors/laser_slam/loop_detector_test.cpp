@@ -11,6 +11,7 @@
 
 #include <Eigen/LU>
 
+#include <yaml-cpp/yaml.h>
 #include <catch2/catch.hpp>
 
 #include <algorithm>
@@ -42,15 +43,21 @@ double apart(const Pose2& a, const Pose2& b) {
   return (a.translation() - b.translation()).norm();
 }
 
+// The room mapped from every other scan of the first 120, in the first scan's frame.
+tessera::grid::OccupancyMap roomMap(const test::SimScans& sim) {
+  const Pose2 frame0 = sim.scans[0].truth;
+  tessera::grid::OccupancyGrid grid;
+  for (std::size_t k = 0; k < 120; k += 2)
+    grid.insertScan(sim.range(sim.scans[k]), frame0.inverse() * sim.scans[k].truth);
+  return grid.toOccupancyMap();
+}
+
 // `copies` finished submaps hold the same map (ids 0..copies-1); the robot's own is `copies`.
 ClosureRun runClosure(const std::optional<Pose2>& smoothed, int copies = 1,
                       int closures_per_scan = 1) {
   const auto sim = test::simulateRoomLoop();
   const Pose2 frame0 = sim.scans[0].truth;
-  tessera::grid::OccupancyGrid grid;
-  for (std::size_t k = 0; k < 120; k += 2)
-    grid.insertScan(sim.range(sim.scans[k]), frame0.inverse() * sim.scans[k].truth);
-  const tessera::grid::OccupancyMap map = grid.toOccupancyMap();
+  const tessera::grid::OccupancyMap map = roomMap(sim);
 
   laser_slam::LoopDetectorOptions o;
   o.skip_recent = 0;  // submap 0 is the most recent finished one
@@ -77,7 +84,7 @@ ClosureRun runClosure(const std::optional<Pose2>& smoothed, int copies = 1,
   const Pose2 in_map = frame0.inverse() * sim.scans[probe].truth;  // chained = submap 0 frame
   const Nanos stamp = test::stampOf(5.0);
   test::pushScan(h, stamp, sim, sim.scans[probe].ranges);
-  h.push<msg::PoseStamped>("pose", [&](auto& b) {
+  h.push<msg::PoseStamped>("chained_pose", [&](auto& b) {
     setHeader(b.initHeader(), stamp, "map", 0);
     writePose(b.initPose(), tessera::Pose2{in_map.x, in_map.y, in_map.theta});
   });
@@ -208,4 +215,130 @@ TEST_CASE("a non-finite smoothed scan pose falls back to the online estimate", "
   CHECK(run.smoothed == 0);
   CHECK(run.relative.isFinite());
   CHECK(apart(run.relative, expect_online) < 0.05);
+}
+
+namespace {
+
+// Every published closure, field by field, to compare runs exactly.
+struct PublishedClosure {
+  std::uint32_t from = 0, to = 0;
+  std::vector<double> values;  // relative and scanInTo poses with their covariances
+  bool operator==(const PublishedClosure&) const = default;
+};
+
+struct CacheRun {
+  std::vector<PublishedClosure> closures;
+  std::size_t before_stop = 0;  // published before the actor was stopped
+  std::int64_t builds = 0, hits = 0;
+  double memory_mb = 0, memory_peak_mb = 0;
+};
+
+std::vector<double> poseValues(msg::Pose2D::Reader p) {
+  std::vector<double> v{p.getX(), p.getY(), p.getTheta()};
+  Eigen::Matrix3d cov;
+  if (readCovariance(p, cov))
+    for (int k = 0; k < 9; ++k) v.push_back(cov(k / 3, k % 3));
+  return v;
+}
+
+// Two finished submaps (ids 0, 1) hold the same room; probe scans in submap 2 match both, so
+// each scan searches one, then the other: with one cached pyramid every search rebuilds one.
+CacheRun runCachedClosures(int pyramid_cache) {
+  const auto sim = test::simulateRoomLoop();
+  const Pose2 frame0 = sim.scans[0].truth;
+  const tessera::grid::OccupancyMap map = roomMap(sim);
+
+  laser_slam::LoopDetectorOptions o;
+  o.skip_recent = 0;
+  o.every_n_scans = 1;
+  o.closures_per_scan = 2;
+  o.pyramid_cache = pyramid_cache;
+  ActorHarness h(std::make_unique<laser_slam::LoopDetectorActor>(o));
+  const auto pushSubmap = [&](int id, double t, const tessera::grid::OccupancyMap& m,
+                              const Pose2& origin) {
+    h.push<msg::Submap>("submaps", [&](auto& b) {
+      setHeader(b.initHeader(), test::stampOf(t), "map", 0);
+      b.setId(static_cast<std::uint32_t>(id));
+      auto g = b.initGrid();
+      g.setResolution(static_cast<float>(m.resolution));
+      g.setWidth(static_cast<std::uint32_t>(m.width));
+      g.setHeight(static_cast<std::uint32_t>(m.height));
+      writePose(g.initOrigin(), tessera::Pose2{m.origin.x, m.origin.y, m.origin.theta});
+      auto cells = mutableViewInt8(g.initCells(static_cast<unsigned>(m.cells.size())));
+      std::copy(m.cells.begin(), m.cells.end(), cells.begin());
+      writePose(b.initGlobalPose(), tessera::Pose2{origin.x, origin.y, origin.theta});
+      b.setFinished(true);
+    });
+    h.runUntilIdle();
+  };
+  const auto pushPose = [&](Nanos stamp, const Pose2& p) {
+    h.push<msg::PoseStamped>("chained_pose", [&](auto& b) {
+      setHeader(b.initHeader(), stamp, "map", 0);
+      writePose(b.initPose(), tessera::Pose2{p.x, p.y, p.theta});
+    });
+    h.runUntilIdle();
+  };
+  pushSubmap(0, 1.0, map, Pose2());
+  pushSubmap(1, 1.1, map, Pose2());
+  double t = 5.0;
+  for (const std::size_t probe : {40u, 60u, 80u, 100u}) {
+    const Nanos stamp = test::stampOf(t);
+    t += 0.5;
+    test::pushScan(h, stamp, sim, sim.scans[probe].ranges);
+    pushPose(stamp, frame0.inverse() * sim.scans[probe].truth);
+  }
+  tessera::grid::OccupancyMap own;  // the robot's submap: a single cell
+  own.width = own.height = 1;
+  own.cells = {-1};
+  pushSubmap(2, 10.0, own, Pose2(1.0, 0.5, 0.2));
+  // Its closures go out with the builder's next pose (which follows its hand-over).
+  pushPose(test::stampOf(10.0), Pose2(1.0, 0.5, 0.2));
+
+  CacheRun run;
+  run.before_stop = h.published<msg::SubmapConstraint>("loop_constraints").size();
+  h.stop();
+  for (const auto& c : h.published<msg::SubmapConstraint>("loop_constraints")) {
+    PublishedClosure p{c->getFromId(), c->getToId(), poseValues(c->getRelative())};
+    const auto scan = poseValues(c->getScanInTo());
+    p.values.insert(p.values.end(), scan.begin(), scan.end());
+    run.closures.push_back(std::move(p));
+  }
+  Summary s;
+  h.actor().summarize(s);
+  run.builds = std::get<std::int64_t>(s.at("pyramid_builds"));
+  run.hits = std::get<std::int64_t>(s.at("pyramid_cache_hits"));
+  run.memory_mb = std::get<double>(s.at("memory_mb"));
+  run.memory_peak_mb = std::get<double>(s.at("memory_peak_mb"));
+  return run;
+}
+
+}  // namespace
+
+TEST_CASE("pyramids rebuilt from a submap's cells give the same closures as cached ones",
+          "[loop_detector][pyramid_cache]") {
+  const CacheRun big = runCachedClosures(8);
+  const CacheRun one = runCachedClosures(1);
+  REQUIRE(big.closures.size() >= 4);  // the probes match both submaps
+  CHECK(big.before_stop == big.closures.size());
+  CHECK(one.closures == big.closures);  // bit for bit
+  CHECK(big.builds == 2);               // each submap's pyramid once
+  CHECK(one.builds > 2);                // rebuilt as the searches alternate
+  CHECK(one.builds + one.hits == big.builds + big.hits);
+  // Held: the cells of the three submaps plus the cached pyramids (~16 bytes per cell each).
+  CHECK(one.memory_mb > 0);
+  CHECK(one.memory_mb < big.memory_mb);
+  CHECK(big.memory_peak_mb >= big.memory_mb);
+}
+
+TEST_CASE("loop_detector pyramid_cache must be at least 1", "[loop_detector][options]") {
+  CHECK(laser_slam::LoopDetectorOptions{}.pyramid_cache == 4);
+  const auto o = loadOptions<laser_slam::LoopDetectorOptions>(
+      Params(YAML::Load("{pyramid_cache: 0}"), "test"));
+  CHECK(o.pyramid_cache == 0);
+  CHECK_THROWS_AS(laser_slam::LoopDetectorActor(o), ConfigError);
+  CHECK_THROWS_WITH(laser_slam::LoopDetectorActor(o),
+                    Catch::Contains("loop_detector: pyramid_cache must be >= 1"));
+  auto one = o;
+  one.pyramid_cache = 1;
+  CHECK_NOTHROW(laser_slam::LoopDetectorActor(one));
 }

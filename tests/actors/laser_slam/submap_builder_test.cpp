@@ -115,6 +115,7 @@ SmoothedRun smoothedRun(const test::SimScans& sim, std::size_t n, bool interpola
   o.rbpf.parallel = false;  // the same filter run with either setting
   o.submap_scans = 25;
   o.interpolate_updates = interpolate;
+  o.rbpf.track_between_updates = false;  // the odometry carries the scans between updates
   ActorHarness h(std::make_unique<SubmapBuilderActor>(o));
   feedAndStop(h, sim, n);
   SmoothedRun run;
@@ -170,6 +171,132 @@ TEST_CASE("interpolate_updates spreads the correction found at an update over th
     const Pose2 truth = tessera::between(sim.scans.front().truth, sim.scans[i].truth);
     CHECK((blended.poses[i].translation() - truth.translation()).norm() < 0.25);
   }
+}
+
+namespace {
+
+/// Feeds scans [from, to) of the room loop, one at a time.
+void feedScans(ActorHarness& h, const test::SimScans& sim, std::size_t from, std::size_t to) {
+  for (std::size_t k = from; k < to; ++k) {
+    const Nanos t = stampOf(sim.scans[k].stamp_s);
+    pushOdometry(h, t, sim.scans[k].odometry);
+    pushScan(h, t, sim, sim.scans[k].ranges);
+    h.runUntilIdle();
+  }
+}
+
+void pushSubmapPoses(ActorHarness& h, const std::vector<std::pair<int, Pose2>>& poses) {
+  h.push<msg::SubmapPoses>("submap_poses", [&](auto& b) {
+    setHeader(b.initHeader(), 0, "map", 0);
+    auto list = b.initPoses(static_cast<unsigned>(poses.size()));
+    for (unsigned i = 0; i < poses.size(); ++i) {
+      list[i].setId(static_cast<std::uint32_t>(poses[i].first));
+      writePose(list[i].initPose(), poses[i].second);
+    }
+  });
+  h.runUntilIdle();
+}
+
+}  // namespace
+
+TEST_CASE("with optimized_poses the live pose follows the latest optimised graph",
+          "[rbpf][submap_builder]") {
+  const auto sim = test::simulateRoomLoop();
+  SubmapBuilderOptions o = fastOptions();
+  o.rbpf.parallel = false;
+  o.submap_scans = 12;
+  o.optimized_poses = true;
+  ActorHarness h(std::make_unique<SubmapBuilderActor>(o));
+  feedScans(h, sim, 0, 140);
+  const auto submaps = h.published<msg::Submap>("submaps");
+  REQUIRE(submaps.size() >= 2);
+  // Before any graph: pose = chained_pose.
+  {
+    const auto live = h.published<msg::PoseStamped>("pose");
+    const auto chained = h.published<msg::PoseStamped>("chained_pose");
+    REQUIRE(live.size() == chained.size());
+    const Pose2 a = poseOf(live.back()->getPose()), b = poseOf(chained.back()->getPose());
+    CHECK((a.translation() - b.translation()).norm() < 1e-12);
+  }
+  // The graph moved submap 0 (the newest it holds): every later submap moves with it.
+  const Pose2 moved(0.4, -0.3, 0.1);
+  pushSubmapPoses(h, {{0, moved}});
+  // A graph naming submaps this builder never started, or a NaN pose, changes nothing.
+  pushSubmapPoses(h, {{99, Pose2(5, 5, 0)}});
+  pushSubmapPoses(h, {{0, Pose2(std::nan(""), 0, 0)}});
+  const std::size_t before = h.publishedCount("pose");
+  feedScans(h, sim, 140, 150);
+  const auto live = h.published<msg::PoseStamped>("pose");
+  const auto chained = h.published<msg::PoseStamped>("chained_pose");
+  const auto corrections = h.published<msg::PoseStamped>("map_to_odom");
+  REQUIRE(live.size() == before + 10);  // scans 140..149
+  for (std::size_t i = before; i < live.size(); ++i) {
+    // Submap 0's chained origin is the map frame's: live = moved ⊕ chained.
+    const Pose2 expected = moved * poseOf(chained[i]->getPose());
+    const Pose2 got = poseOf(live[i]->getPose());
+    CHECK(got.x == Approx(expected.x).margin(1e-9));
+    CHECK(got.y == Approx(expected.y).margin(1e-9));
+    CHECK(tessera::angleDiff(got.theta, expected.theta) == Approx(0).margin(1e-9));
+    const Pose2 via_odom = poseOf(corrections[i]->getPose()) * sim.scans[i].odometry;
+    CHECK(via_odom.x == Approx(got.x).margin(1e-6));
+    CHECK(via_odom.y == Approx(got.y).margin(1e-6));
+  }
+  // The newest submap the graph holds wins: submap 1 placed elsewhere overrides submap 0.
+  const Pose2 one = poseOf(submaps[1]->getGlobalPose());
+  const Pose2 one_moved = Pose2(-0.2, 0.3, -0.05) * one;
+  pushSubmapPoses(h, {{0, moved}, {1, one_moved}});
+  feedScans(h, sim, 150, 151);
+  {
+    const auto l = h.published<msg::PoseStamped>("pose");
+    const auto c = h.published<msg::PoseStamped>("chained_pose");
+    const Pose2 expected = one_moved * one.inverse() * poseOf(c.back()->getPose());
+    const Pose2 got = poseOf(l.back()->getPose());
+    CHECK(got.x == Approx(expected.x).margin(1e-9));
+    CHECK(got.y == Approx(expected.y).margin(1e-9));
+  }
+  h.stop();
+  Summary s;
+  h.actor().summarize(s);
+  CHECK(std::get<std::int64_t>(s.at("graph_updates")) == 2);
+  CHECK(std::get<std::int64_t>(s.at("live_corrections")) >= 1);
+  // The first correction moved the robot by about |moved| at once (rotation about the origin
+  // adds to the 0.5 m shift).
+  CHECK(std::get<double>(s.at("live_correction_max_m")) > 0.4);
+}
+
+TEST_CASE("with tracking the smoothed trajectory follows the scan-matched motion between updates",
+          "[rbpf][submap_builder]") {
+  const auto sim = test::simulateRoomLoop();
+  SubmapBuilderOptions o = fastOptions();
+  o.rbpf.parallel = false;
+  o.rbpf.track_between_updates = true;
+  o.submap_scans = 25;
+  ActorHarness h(std::make_unique<SubmapBuilderActor>(o));
+  const std::size_t n = 160;
+  feedAndStop(h, sim, n);
+  const auto online = h.published<msg::PoseStamped>("chained_pose");
+  const auto smoothed = h.published<msg::PoseStamped>("final_poses");
+  REQUIRE(online.size() == n);
+  REQUIRE(smoothed.size() == n);
+  // Between two scans of one filter interval the smoothed poses move as the online (tracked)
+  // ones do, which is not the odometry's motion wherever tracking corrected it.
+  std::size_t tracked = 0, as_tracked = 0;
+  for (std::size_t i = 1; i < n; ++i) {
+    const Pose2 online_step =
+        poseOf(online[i - 1]->getPose()).inverse() * poseOf(online[i]->getPose());
+    const Pose2 odom_step = sim.scans[i - 1].odometry.inverse() * sim.scans[i].odometry;
+    const Pose2 smoothed_step =
+        poseOf(smoothed[i - 1]->getPose()).inverse() * poseOf(smoothed[i]->getPose());
+    if ((online_step.translation() - odom_step.translation()).norm() < 1e-6) continue;
+    ++tracked;
+    if ((smoothed_step.translation() - online_step.translation()).norm() < 1e-6 &&
+        std::abs(tessera::angleDiff(smoothed_step.theta, online_step.theta)) < 1e-6)
+      ++as_tracked;
+  }
+  // Steps that end at an update (the online pose jumps to the filter's estimate there) differ;
+  // the others move as tracked. Moved by odometry, as before tracking counted, none would.
+  CHECK(tracked > 20);
+  CHECK(as_tracked > 20);
 }
 
 TEST_CASE("submap builder waits for odometry and counts scans it cannot pair",

@@ -1,5 +1,6 @@
 // Keyframe clouds from synthetic depth images, the voxel filter, the cloud map under moved
-// keyframes, PCD/PLY round trips and bad input.
+// keyframes, PCD/PLY round trips and bad input, and the loading of the PCL bridge module they all
+// go through (libtessera_pcl_bridge.so beside this binary).
 #include <tessera/mapping3d/cloud_map.hpp>
 #include <tessera/mapping3d/keyframe_cloud.hpp>
 
@@ -7,6 +8,7 @@
 
 #include <fstream>
 
+#include "../../../actors/mapping3d/src/pcl_bridge.hpp"
 #include "../../shared_data.hpp"
 #include "mapping3d_fixtures.hpp"
 
@@ -227,4 +229,55 @@ TEST_CASE("keyframe cloud and cloud map reject bad input naming the field", "[ma
     CHECK_THROWS_WITH(map.setKeyframe(1, odd, Eigen::Isometry3d::Identity()), Contains("cloud"));
     CHECK(map.keyframeCount() == 0);
   }
+}
+
+TEST_CASE("the PCL bridge loads beside the binary, or says which path it could not load",
+          "[mapping3d]") {
+  namespace bridge = tessera::mapping3d::pcl_bridge;
+  namespace fs = std::filesystem;
+  const auto dir = tessera::test::scratchDir("mapping3d_bridge");
+  SECTION("a module that does not exist") {
+    const auto missing = dir / "nowhere" / bridge::kModuleName;
+    CHECK_THROWS_WITH(bridge::loadModule(missing),
+                      Contains("point-cloud support: cannot load " + missing.string() + ": ") &&
+                          Contains("No such file") && Contains("beside the tessera binary"));
+  }
+  SECTION("a file that is not a shared object") {
+    std::ofstream(dir / "libjunk.so") << "not an ELF file\n";
+    CHECK_THROWS_WITH(bridge::loadModule(dir / "libjunk.so"),
+                      Contains("cannot load " + (dir / "libjunk.so").string()));
+  }
+  SECTION("the process's module is the one beside the executable") {
+    const auto& module = bridge::module();
+    const auto exe_dir = fs::weakly_canonical(fs::read_symlink("/proc/self/exe")).parent_path();
+    CHECK(module.path == exe_dir / bridge::kModuleName);
+    CHECK(bridge::candidatePaths().front() == module.path);
+    CHECK(&bridge::module() == &module);  // loaded once
+  }
+}
+
+TEST_CASE("a PCD round trip through the PCL bridge keeps every point and colour", "[mapping3d]") {
+  namespace bridge = tessera::mapping3d::pcl_bridge;
+  const auto dir = tessera::test::scratchDir("mapping3d_bridge_io");
+  PointCloud cloud;
+  for (int i = 0; i < 1000; ++i) {
+    cloud.points.emplace_back(0.001f * i - 0.3f, -1e-7f * i, 123.456f + 0.25f * i);
+    cloud.colors.push_back({static_cast<std::uint8_t>(i), static_cast<std::uint8_t>(255 - i % 256),
+                            static_cast<std::uint8_t>(i * 7)});
+  }
+  writePcd(cloud, dir / "colour.pcd");
+  const auto back = readPcd(dir / "colour.pcd");
+  CHECK(back.points == cloud.points);
+  CHECK(back.colors == cloud.colors);
+
+  // The bridge's own calls: PCL's result code, and the cloud as the file has it.
+  PointCloud plain;
+  plain.points = cloud.points;
+  CHECK(bridge::savePcdBinary(plain, (dir / "plain.pcd").string()) == 0);
+  PointCloud plain_back;
+  CHECK(bridge::loadPcd((dir / "plain.pcd").string(), plain_back) == 0);
+  CHECK(plain_back.points == plain.points);
+  CHECK_FALSE(plain_back.hasColor());
+  CHECK(bridge::loadPcd((dir / "missing.pcd").string(), plain_back) < 0);
+  CHECK(plain_back.points == plain.points);  // untouched by the failed read
 }

@@ -469,3 +469,35 @@ TEST_CASE("correlative matcher accepts float probability grids", "[correlative_m
   CHECK(b.score == Approx(a.score).margin(1e-4));
   CHECK(translationError(a.pose, b.pose) < 1e-9);
 }
+
+TEST_CASE("MatchGrid reports the bytes it holds; check() tells a bad view without building",
+          "[correlative_matcher]") {
+  OccupancyMap map;
+  map.width = 100;
+  map.height = 60;
+  map.resolution = 0.05;
+  map.cells.assign(static_cast<std::size_t>(map.width * map.height), -1);
+  for (int x = 10; x < 90; ++x) map.at(x, 30) = 100;
+  CHECK(MatchGrid::check(GridView::of(map)).empty());
+  for (const int depth : {0, 3, 7}) {
+    const MatchGrid grid(GridView::of(map), depth, 0.1);
+    REQUIRE(grid.depth() == depth);
+    // Level h is padded by 2^h − 1 cells per axis; each cell is 2 bytes.
+    std::size_t cells = 0;
+    for (int h = 0; h <= depth; ++h)
+      cells += static_cast<std::size_t>(map.width + (1 << h) - 1) *
+               static_cast<std::size_t>(map.height + (1 << h) - 1);
+    CHECK(grid.bytes() >= static_cast<std::size_t>(map.width * map.height * 2 * (depth + 1)));
+    CHECK(grid.bytes() >= 2 * cells);
+    CHECK(grid.bytes() < 2 * cells + 1024);  // the small overhead: object and level table
+  }
+  const MatchGrid none(GridView{}, 7, 0.1);
+  CHECK(none.bytes() < 1024);
+  GridView bad = GridView::of(map);
+  bad.resolution = 0.0;
+  CHECK_FALSE(MatchGrid::check(bad).empty());
+  CHECK(MatchGrid::check(bad) == MatchGrid(bad, 7, 0.1).error());
+  bad = GridView::of(map);
+  bad.percent = bad.percent.first(10);
+  CHECK(MatchGrid::check(bad) == "grid cell count does not match width x height");
+}

@@ -38,6 +38,9 @@ const LoopDetectorOptions& checked(const LoopDetectorOptions& o) {
     throw ConfigError("loop_detector: truth tolerances must be > 0");
   if (o.scan_queue < 1 || o.pose_queue < 1)
     throw ConfigError("loop_detector: scan_queue and pose_queue must be >= 1");
+  if (o.pyramid_cache < 1)
+    throw ConfigError("loop_detector: pyramid_cache must be >= 1 (pyramids kept; got " +
+                      std::to_string(o.pyramid_cache) + ")");
   return o;
 }
 
@@ -88,15 +91,21 @@ LoopDetectorActor::LoopDetectorActor(LoopDetectorOptions options)
     : options_(checked(options)),
       points_(pointMaker(options_)),
       matcher_(correlativeMatcher(options_)),
-      verifier_(verifier(options_)) {}
+      verifier_(verifier(options_)) {
+  pyramids_.reserve(static_cast<std::size_t>(options_.pyramid_cache));
+}
 
 void LoopDetectorActor::configure(ActorContext& ctx) {
   ctx.subscribe<msg::LaserScan>(
       "scan", MailboxPolicy::keepLatest(static_cast<std::size_t>(options_.scan_queue)),
       [this](const Message<msg::LaserScan>& m) { onScan(m); });
   ctx.subscribe<msg::PoseStamped>(
-      "pose", MailboxPolicy::keepLatest(static_cast<std::size_t>(options_.pose_queue)),
+      "chained_pose", MailboxPolicy::keepLatest(static_cast<std::size_t>(options_.pose_queue)),
       [this](const Message<msg::PoseStamped>& m) { onPose(m); });
+  if (options_.publish_at_match)
+    ctx.subscribe<msg::SubmapConstraint>(
+        "constraints", MailboxPolicy::reliable(),
+        [this](const Message<msg::SubmapConstraint>& m) { onConstraint(m); });
   ctx.subscribe<msg::Submap>("submaps", MailboxPolicy::reliable(),
                              [this](const Message<msg::Submap>& m) { onSubmap(m); });
   if (options_.optimized_poses)
@@ -117,6 +126,8 @@ void LoopDetectorActor::onScan(const Message<msg::LaserScan>& m) {
 }
 
 void LoopDetectorActor::onPose(const Message<msg::PoseStamped>& m) {
+  // The builder publishes a finished submap, its hand-over, then the pose of the same scan.
+  if (m->getHeader().getStampNs() >= ready_after_) publishReady();
   const tessera::Pose2 pose = toPose2(m->getPose());
   if (!pose.isFinite()) return;
   poses_.emplace_back(m->getHeader().getStampNs(), pose);
@@ -153,9 +164,16 @@ void LoopDetectorActor::tryScan(const Message<msg::LaserScan>& scan,
   const int searchable = static_cast<int>(submaps_.size()) - options_.skip_recent;
   if (searchable <= 0) return;
   ++scans_tried_;
-  // The robot in the optimised frame: moved like the newest finished submap was.
+  // The robot in the optimised frame: moved like the newest submap the graph has placed was
+  // (the current one when its closures are published at once, else the newest finished one).
   const FinishedSubmap& newest = submaps_.back();
-  const tessera::Pose2 robot = newest.optimized * newest.chained.inverse() * robot_chained;
+  tessera::Pose2 robot = newest.optimized * newest.chained.inverse() * robot_chained;
+  if (const auto current = current_optimized_.find(current_submap_);
+      current != current_optimized_.end() && current_submap_ > newest.id) {
+    const auto chained = chained_origins_.find(current_submap_);
+    if (chained != chained_origins_.end())
+      robot = current->second * chained->second.inverse() * robot_chained;
+  }
   struct Candidate {
     std::size_t index;
     double distance;
@@ -186,11 +204,12 @@ void LoopDetectorActor::tryScan(const Message<msg::LaserScan>& scan,
   if (points.empty()) return;
 
   const auto start = std::chrono::steady_clock::now();
+  const double build_seconds_before = pyramid_build_seconds_;
   std::vector<std::pair<double, PendingClosure>> accepted;  // by score
   for (const auto& c : candidates) {
     const auto& s = submaps_[c.index];
     const tessera::scan_matching::SearchWindow window = windowFor(s);
-    const auto result = matcher_.match(s.grid, points, c.local, window);
+    const auto result = matcher_.match(pyramidFor(s), points, c.local, window);
     ++matches_run_;
     const Eigen::Vector3d sigma(window.linear / 3, window.linear / 3,
                                 std::max(window.angular, 1e-3) / 3);
@@ -201,17 +220,39 @@ void LoopDetectorActor::tryScan(const Message<msg::LaserScan>& scan,
         {result.score,
          {scan->getHeader().getStampNs(), s.id, result.pose, robot_chained, result.covariance}});
   }
-  match_seconds_ += std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  // Matching only: the pyramids built on the way count in pyramid_build_s.
+  match_seconds_ +=
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count() -
+      (pyramid_build_seconds_ - build_seconds_before);
   // Best first (the nearer submap on a tie). Closures beyond the best tie the scan to further
   // submaps; a scan-level graph uses each, a submap-level one fuses them.
   std::stable_sort(accepted.begin(), accepted.end(),
                    [](const auto& a, const auto& b) { return a.first > b.first; });
   if (accepted.size() > static_cast<std::size_t>(options_.closures_per_scan))
     accepted.resize(static_cast<std::size_t>(options_.closures_per_scan));
+  // A scan after the newest finished submap's last one was taken in the submap being built.
+  const bool in_current = scan->getHeader().getStampNs() > last_end_;
+  const auto origin = chained_origins_.find(current_submap_);
+  const bool now = options_.publish_at_match && in_current && origin != chained_origins_.end();
   for (const auto& [score, closure] : accepted) {
     if (options_.score_ground_truth) scoreClosure(closure);
-    pending_.push_back(closure);
+    if (now && closure.matched != current_submap_) {
+      publishClosure(closure, current_submap_, origin->second.inverse() * closure.robot_chained);
+      ++published_at_match_;
+    } else {
+      pending_.push_back(closure);
+    }
   }
+}
+
+void LoopDetectorActor::onConstraint(const Message<msg::SubmapConstraint>& m) {
+  if (m->getKind() != msg::SubmapConstraint::Kind::HAND_OVER) return;
+  const auto from = chained_origins_.find(static_cast<int>(m->getFromId()));
+  const tessera::Pose2 relative = toPose2(m->getRelative());
+  if (from == chained_origins_.end() || !relative.isFinite()) return;
+  const int to = static_cast<int>(m->getToId());
+  chained_origins_[to] = from->second * relative;
+  current_submap_ = std::max(current_submap_, to);
 }
 
 void LoopDetectorActor::scoreClosure(const PendingClosure& c) {
@@ -242,14 +283,19 @@ void LoopDetectorActor::onSubmap(const Message<msg::Submap>& m) {
   if (!m->getFinished()) return;
   const int id = static_cast<int>(m->getId());
   const auto g = m->getGrid();
-  tessera::scan_matching::GridView view;
-  view.width = static_cast<int>(g.getWidth());
-  view.height = static_cast<int>(g.getHeight());
-  view.resolution = g.getResolution();
-  view.origin = toPose2(g.getOrigin());
+  FinishedSubmap s;
+  s.id = id;
+  s.cells.width = static_cast<int>(g.getWidth());
+  s.cells.height = static_cast<int>(g.getHeight());
+  s.cells.resolution = g.getResolution();
+  s.cells.origin = toPose2(g.getOrigin());
   const auto cells = viewInt8(g.getCells());
-  view.percent = std::span<const std::int8_t>(cells.data(), cells.size());
-  FinishedSubmap s{id, matcher_.precompute(view), toPose2(m->getGlobalPose()), {}};
+  s.cells.cells.assign(cells.begin(), cells.end());
+  s.chained = toPose2(m->getGlobalPose());
+  const tessera::scan_matching::GridView view = tessera::scan_matching::GridView::of(s.cells);
+  // Checked now, built when first searched (pyramidFor).
+  const std::string grid_error = tessera::scan_matching::MatchGrid::check(view);
+  if (s.chained.isFinite()) chained_origins_[id] = s.chained;
   const Nanos end = m->getHeader().getStampNs();
   const Nanos start = last_end_ >= 0 ? last_end_ : std::max<Nanos>(first_stamp_, 0);
   last_end_ = std::max(last_end_, end);
@@ -277,15 +323,16 @@ void LoopDetectorActor::onSubmap(const Message<msg::Submap>& m) {
       } else {
         in_current = chained.inverse() * c.robot_chained;  // the online estimate
       }
-      publishClosure(c, id, in_current);
+      ready_.push_back({c, id, in_current});
     } else {
       still.push_back(c);
     }
   }
   pending_ = std::move(still);
-  if (s.grid.empty() || !chained.isFinite()) {
+  ready_after_ = end;
+  if (!grid_error.empty() || !chained.isFinite()) {
     std::cerr << "[loop_detector] submap " << id << " cannot be searched: "
-              << (s.grid.empty() ? s.grid.error() : "non-finite global pose") << "\n";
+              << (!grid_error.empty() ? grid_error : "non-finite global pose") << "\n";
     ++submaps_rejected_;
     return;
   }
@@ -295,9 +342,60 @@ void LoopDetectorActor::onSubmap(const Message<msg::Submap>& m) {
   s.centre = view.origin * Eigen::Vector2d(half_w, half_h);
   s.radius = std::hypot(half_w, half_h);
   s.driven_at_finish = driven_;
+  last_finished_id_ = std::max(last_finished_id_, id);
+  current_optimized_.erase(current_optimized_.begin(), current_optimized_.upper_bound(id));
   s.start = start;
   s.end = end;
   submaps_.push_back(std::move(s));
+  notePeak();
+}
+
+const tessera::scan_matching::MatchGrid& LoopDetectorActor::pyramidFor(const FinishedSubmap& s) {
+  ++pyramid_clock_;
+  for (auto& p : pyramids_)
+    if (p.id == s.id) {
+      p.used = pyramid_clock_;
+      ++pyramid_hits_;
+      return *p.grid;
+    }
+  // A miss takes a free slot, else the least recently used one, whose pyramid is freed before
+  // the new one is built: at most pyramid_cache pyramids at any time. (Rebuilding in place in
+  // the old one's storage was tried: submap sizes vary, so every slot grew to the largest, 60%
+  // more memory, with no lower RSS on the Intel log.)
+  CachedPyramid* slot = nullptr;
+  if (pyramids_.size() < static_cast<std::size_t>(options_.pyramid_cache)) {
+    slot = &pyramids_.emplace_back();
+  } else {
+    slot = &*std::min_element(pyramids_.begin(), pyramids_.end(),
+                              [](const auto& a, const auto& b) { return a.used < b.used; });
+    slot->grid.reset();
+  }
+  const auto start = std::chrono::steady_clock::now();
+  slot->grid.emplace(matcher_.precompute(tessera::scan_matching::GridView::of(s.cells)));
+  pyramid_build_seconds_ +=
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  ++pyramid_builds_;
+  slot->id = s.id;
+  slot->used = pyramid_clock_;
+  notePeak();
+  return *slot->grid;
+}
+
+std::size_t LoopDetectorActor::memoryBytes() const {
+  std::size_t total = 0;
+  for (const auto& s : submaps_) total += s.cells.cells.capacity();
+  for (const auto& p : pyramids_)
+    if (p.grid) total += p.grid->bytes();
+  return total;
+}
+
+void LoopDetectorActor::publishReady() {
+  for (const auto& r : ready_) publishClosure(r.closure, r.current, r.in_current);
+  ready_.clear();
+}
+
+void LoopDetectorActor::stop() {
+  publishReady();  // those of the last submap, which no hand-over follows
 }
 
 void LoopDetectorActor::publishClosure(const PendingClosure& c, int current,
@@ -330,6 +428,8 @@ void LoopDetectorActor::onSubmapPoses(const Message<msg::SubmapPoses>& m) {
     if (!pose.isFinite()) continue;
     for (auto& s : submaps_)
       if (s.id == static_cast<int>(p.getId())) s.optimized = pose;
+    if (options_.publish_at_match && static_cast<int>(p.getId()) > last_finished_id_)
+      current_optimized_[static_cast<int>(p.getId())] = pose;
   }
 }
 
@@ -364,9 +464,15 @@ void LoopDetectorActor::summarize(Summary& out) const {
   out["loop_scans_tried"] = i64(scans_tried_);
   out["loop_matches_run"] = i64(matches_run_);
   out["loop_match_s"] = match_seconds_;
+  out["pyramid_builds"] = i64(pyramid_builds_);
+  out["pyramid_cache_hits"] = i64(pyramid_hits_);
+  out["pyramid_build_s"] = pyramid_build_seconds_;
+  out["memory_mb"] = static_cast<double>(memoryBytes()) / (1024.0 * 1024.0);  // MiB, as peak_rss_mb
+  out["memory_peak_mb"] = static_cast<double>(memory_peak_) / (1024.0 * 1024.0);
   out["loops_accepted"] = i64(c.accepted);
   out["loops_published"] = i64(published_);
   out["loops_published_smoothed"] = i64(published_smoothed_);
+  if (options_.publish_at_match) out["loops_published_at_match"] = i64(published_at_match_);
   out["loops_rejected_no_match"] = i64(c.no_match);
   out["loops_rejected_low_score"] = i64(c.low_score);
   out["loops_rejected_ambiguous"] = i64(c.ambiguous);

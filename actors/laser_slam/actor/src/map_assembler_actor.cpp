@@ -60,7 +60,16 @@ void MapAssemblerActor::loadState() {
     kept_.push_back(c);
   }
   placeChained();
+  noteGridBytes();
   loaded_ = true;
+}
+
+std::size_t MapAssemblerActor::gridBytes() const {
+  std::size_t total = 0;
+  for (const auto& [id, finished] : finished_)
+    if (const tessera::grid::OccupancyMap* grid = assembler_.grid(id))
+      total += grid->cells.capacity();
+  return total;
 }
 
 void MapAssemblerActor::configure(ActorContext& ctx) {
@@ -108,6 +117,7 @@ void MapAssemblerActor::onSubmap(const Message<msg::Submap>& m) {
   last_stamp_ = std::max(last_stamp_, m->getHeader().getStampNs());
   ++submaps_;
   placeChained();
+  noteGridBytes();
   dirty_ = true;
 }
 
@@ -254,6 +264,8 @@ void MapAssemblerActor::summarize(Summary& out) const {
   out["map_width"] = static_cast<std::int64_t>(map_width_);
   out["map_height"] = static_cast<std::int64_t>(map_height_);
   if (submaps_rejected_ > 0) out["submaps_rejected"] = i64(submaps_rejected_);
+  out["memory_mb"] = static_cast<double>(gridBytes()) / (1024.0 * 1024.0);  // MiB, as peak_rss_mb
+  out["memory_peak_mb"] = static_cast<double>(grid_bytes_peak_) / (1024.0 * 1024.0);
   if (constraints_rejected_ > 0) out["constraints_rejected"] = i64(constraints_rejected_);
   if (options_.optimized_poses) out["optimized_pose_updates"] = i64(pose_updates_);
   if (loaded_) out["state_loaded"] = options_.load_state;

@@ -5,6 +5,7 @@
 #include <tessera/runtime/options.hpp>
 #include <tessera/runtime/registry.hpp>
 
+#include <algorithm>
 #include <cmath>
 #include <stdexcept>
 #include <string>
@@ -60,8 +61,14 @@ void SubmapBuilderActor::configure(ActorContext& ctx) {
         "camera_events", MailboxPolicy::reliable(),
         [this](const Message<msg::CameraEvent>& m) { onCameraEvent(m); });
   }
+  if (options_.optimized_poses) {
+    ctx.subscribe<msg::SubmapPoses>(
+        "submap_poses", MailboxPolicy::keepLatest(1),
+        [this](const Message<msg::SubmapPoses>& m) { onSubmapPoses(m); });
+  }
   pose_pub_ = ctx.advertise<msg::PoseStamped>("pose");
   correction_pub_ = ctx.advertise<msg::PoseStamped>("map_to_odom");
+  chained_pub_ = ctx.advertise<msg::PoseStamped>("chained_pose");
   submap_pub_ = ctx.advertise<msg::Submap>("submaps");
   constraint_pub_ = ctx.advertise<msg::SubmapConstraint>("constraints");
   final_pub_ = ctx.advertise<msg::PoseStamped>("final_poses");
@@ -87,6 +94,31 @@ void SubmapBuilderActor::onCameraEvent(const Message<msg::CameraEvent>& event) {
   handover_requested_ = true;
 }
 
+void SubmapBuilderActor::onSubmapPoses(const Message<msg::SubmapPoses>& poses) {
+  // The newest submap the graph holds that this builder has started: the others follow it by
+  // their chained hand-overs. A graph from another run (ids beyond ours) is ignored.
+  int newest = -1;
+  tessera::Pose2 origin;
+  for (const auto& p : poses->getPoses()) {
+    const auto id = static_cast<int>(p.getId());
+    if (id >= static_cast<int>(chained_origins_.size()) || id < newest) continue;
+    const tessera::Pose2 pose = toPose2(p.getPose());
+    if (!pose.isFinite()) continue;
+    newest = id;
+    origin = pose;
+  }
+  if (newest < 0) return;
+  optimized_id_ = newest;
+  optimized_origin_ = origin;
+  ++graph_updates_;
+}
+
+tessera::Pose2 SubmapBuilderActor::liveOrigin() const {
+  if (optimized_id_ < 0) return submap_origin_;
+  const auto& anchor = chained_origins_[static_cast<std::size_t>(optimized_id_)];
+  return optimized_origin_ * (anchor.inverse() * submap_origin_);
+}
+
 void SubmapBuilderActor::process(const Message<msg::LaserScan>& scan, const tessera::Pose2& odom) {
   const Nanos stamp = scan->getHeader().getStampNs();
   const tessera::grid::RangeScan ranges{view<float>(scan->getRanges()), scan->getAngleMin(),
@@ -96,7 +128,19 @@ void SubmapBuilderActor::process(const Message<msg::LaserScan>& scan, const tess
   const RbpfStep step = rbpf_.addScan(nanosToSeconds(stamp), ranges, mount, odom);
   last_stamp_ = stamp;
   if (!rbpf_.initialized()) return;  // nothing to publish before the first usable scan
-  scan_odometry_.emplace_back(nanosToSeconds(stamp), odom);
+  // The motion the smoothed trajectory moves each scan by since its update: the odometry, or
+  // with tracking the scan-matched motion of the online pose (continuous between updates;
+  // an update's scan, where the online pose jumps to the filter's estimate, moves by odometry).
+  const tessera::Pose2 online = rbpf_.pose();
+  if (scan_odometry_.empty())
+    scan_motion_ = odom;
+  else if (step.updated || !options_.rbpf.track_between_updates)
+    scan_motion_ = scan_motion_ * (last_odom_.inverse() * odom);
+  else
+    scan_motion_ = scan_motion_ * (last_online_.inverse() * online);
+  last_odom_ = odom;
+  last_online_ = online;
+  scan_odometry_.emplace_back(nanosToSeconds(stamp), scan_motion_);
 
   const bool by_distance =
       options_.submap_distance > 0 && rbpf_.submapTravelled() >= options_.submap_distance;
@@ -111,14 +155,33 @@ void SubmapBuilderActor::process(const Message<msg::LaserScan>& scan, const tess
 }
 
 void SubmapBuilderActor::publishPose(Nanos stamp, const tessera::Pose2& odometry) {
-  const tessera::Pose2 global = submap_origin_ * rbpf_.pose();
-  const Eigen::Matrix3d cov =
-      rotateCovariance(rbpf_.poseWithCovariance().covariance, submap_origin_);
+  const tessera::Pose2 origin = liveOrigin();
+  const tessera::Pose2 local = rbpf_.pose();
+  if (options_.optimized_poses && last_live_submap_ == rbpf_.submapId()) {
+    // How far a new optimum moved the robot between two scans (same submap, so the filter's
+    // own motion is not in it).
+    const double jump =
+        ((origin * local).translation() - (last_live_origin_ * local).translation()).norm();
+    if (jump > 1e-9) ++live_corrections_;
+    live_correction_max_m_ = std::max(live_correction_max_m_, jump);
+  }
+  last_live_origin_ = origin;
+  last_live_submap_ = rbpf_.submapId();
+  const tessera::Pose2 global = origin * local;
+  const Eigen::Matrix3d cov = rotateCovariance(rbpf_.poseWithCovariance().covariance, origin);
   {
     auto loan = pose_pub_.loan();
     setHeader(loan->initHeader(), stamp, options_.frame_id, pose_pub_.nextSeq());
     writePose(loan->initPose(), global, &cov);
     pose_pub_.publish(std::move(loan));
+  }
+  {
+    auto loan = chained_pub_.loan();
+    setHeader(loan->initHeader(), stamp, options_.frame_id, chained_pub_.nextSeq());
+    const Eigen::Matrix3d chained_cov =
+        rotateCovariance(rbpf_.poseWithCovariance().covariance, submap_origin_);
+    writePose(loan->initPose(), submap_origin_ * local, &chained_cov);
+    chained_pub_.publish(std::move(loan));
   }
   {
     auto loan = correction_pub_.loan();
@@ -141,6 +204,8 @@ void SubmapBuilderActor::handOver(Nanos stamp) {
   loan->setKind(msg::SubmapConstraint::Kind::HAND_OVER);
   constraint_pub_.publish(std::move(loan));
   submap_origin_ = submap_origin_ * done.next_in_this.pose;
+  chained_origins_.push_back(submap_origin_);
+  last_online_ = rbpf_.pose();  // the next scan's tracked motion is in the new submap
 }
 
 void SubmapBuilderActor::publishSubmap(const FinishedSubmap& submap, Nanos stamp,
@@ -262,6 +327,11 @@ void SubmapBuilderActor::summarize(Summary& out) const {
   out["scans_unpaired"] = i64(pairing_.unpaired());
   out["scans_unusable"] = i64(s.unusable_scans);
   if (camera_handovers_ > 0) out["camera_handovers"] = i64(camera_handovers_);
+  if (options_.optimized_poses) {
+    out["graph_updates"] = i64(graph_updates_);
+    out["live_corrections"] = i64(live_corrections_);
+    out["live_correction_max_m"] = live_correction_max_m_;
+  }
   if (odometry_invalid_ + s.invalid_odometry > 0)
     out["odometry_invalid"] = i64(odometry_invalid_ + s.invalid_odometry);
 }

@@ -40,6 +40,10 @@
 //
 // Ownership and threads: GridView borrows cells; MatchGrid owns its pyramid and is immutable
 // once built, so one MatchGrid (e.g. per finished submap) can serve concurrent match() calls.
+// Memory: a pyramid holds depth()+1 levels of 16-bit cells (levels above 0 padded by 2^h − 1
+// per axis), about 2·(depth+1) bytes per grid cell — 16 times the int8 grid at depth 7. A user
+// matching against many grids can keep their int8 cells and rebuild pyramids on demand: the
+// build is deterministic, so the same cells give the same pyramid and the same matches.
 // CorrelativeMatcher holds only options. LoopClosureVerifier counts its decisions and is not
 // thread-safe.
 #pragma once
@@ -147,9 +151,15 @@ class MatchGrid {
   /// 0..15 or unknown_probability outside [0, 1].
   MatchGrid(const GridView& view, int depth, double unknown_probability);
 
+  /// Why `view` gives an empty() grid (the error() MatchGrid would report), or "" when a
+  /// pyramid can be built from it; checks the view without building anything.
+  static std::string check(const GridView& view);
+
   bool empty() const { return levels_.empty(); }
   /// Why the grid is empty; "" when it is not.
   const std::string& error() const { return error_; }
+  /// Bytes the grid holds: every level's cells (capacity × 2) plus the object and level table.
+  std::size_t bytes() const;
   int depth() const { return static_cast<int>(levels_.size()) - 1; }
   int width() const { return width_; }
   int height() const { return height_; }

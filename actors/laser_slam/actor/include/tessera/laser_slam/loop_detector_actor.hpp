@@ -5,8 +5,10 @@
 //
 // Subscribes:
 //   scan          msg::LaserScan        keep_latest(scan_queue)  the laser (with its mounting)
-//   pose          msg::PoseStamped      keep_latest(pose_queue)  the submap builder's estimate of
+//   chained_pose  msg::PoseStamped      keep_latest(pose_queue)  the submap builder's estimate of
 //                                                                 each scan (chained map frame)
+//   constraints   msg::SubmapConstraint reliable, with publish_at_match: the builder's hand-overs
+//                                       (where each new submap starts; other kinds ignored)
 //   submaps       msg::Submap           reliable                 finished submaps: searched, and
 //                                                                 the end of the current one
 //   submap_poses  msg::SubmapPoses      keep_latest(1), with optimized_poses: where the graph
@@ -16,13 +18,21 @@
 // Publishes:
 //   loop_constraints msg::SubmapConstraint  kind revisit, from the submap the robot was in to
 //                                       the matched one. A match is published when the robot's
-//                                       own submap is finished (its origin is known then), with
-//                                       the scan's smoothed pose in it from the finished submap's
-//                                       trajectory: the online estimate came from the particle
+//                                       own submap is finished (its origin is known then; sent
+//                                       at the builder's next pose, which follows its hand-over,
+//                                       or at stop for the last submap), with the scan's smoothed
+//                                       pose in it from the finished submap's trajectory: the
+//                                       online estimate came from the particle
 //                                       that was best then, which need not be the one whose map
 //                                       the submap keeps. scanInTo carries the match itself (the
 //                                       scan's pose in the matched submap, with its covariance)
 //                                       for a scan-level graph.
+//                                       With publish_at_match, a match made in the submap the
+//                                       robot is in now is published at once, with the online
+//                                       estimate of the scan in that submap (its origin chained
+//                                       from the hand-overs): the live pose and the search
+//                                       centres are corrected a submap earlier, while a
+//                                       scan-level graph still ties the scan by its match.
 //
 // Search. Every `every_n_scans`-th scan with a pose is tried against the finished submaps whose
 // area (expanded by the window) holds the robot's estimate, nearest first, skipping the
@@ -37,19 +47,30 @@
 // decision is counted in the summary. Frames: submap grids in their own frame; robot poses in the
 // chained map frame (builder) or the optimised one; constraint = pose of the matched submap's
 // origin in the current submap's frame.
+//
+// Memory. Each finished submap is kept as its int8 cells (1 byte per cell), so what the actor
+// holds grows with the explored area. The matcher's branch-and-bound pyramid (about 16 bytes per
+// cell at depth 7) is built on demand and kept in an LRU cache of `pyramid_cache` submaps; a
+// miss rebuilds it from the cells. The build is deterministic, so the cache size changes the
+// time spent, never a match. Summary: pyramid_builds, pyramid_cache_hits, pyramid_build_s (not
+// part of loop_match_s), memory_mb (cells + cached pyramids at stop) and memory_peak_mb.
 #pragma once
 
 #include <tessera/msg/sensor.capnp.h>
 #include <tessera/msg/submap.capnp.h>
+#include <tessera/grid/occupancy_map.hpp>
 #include <tessera/runtime/actor.hpp>
 #include <tessera/runtime/options.hpp>
 #include <tessera/scan_matching/correlative_matcher.hpp>
 #include <tessera/scan_matching/scan_matcher.hpp>
 
+#include <algorithm>
+#include <cstddef>
 #include <cstdint>
 #include <deque>
 #include <map>
 #include <memory>
+#include <optional>
 #include <string>
 #include <utility>
 #include <vector>
@@ -88,11 +109,13 @@ struct LoopDetectorOptions {
   double sigma_floor_linear = 0.05;
   double sigma_floor_angular = 0.02;
   bool optimized_poses = false;
+  bool publish_at_match = false;
   bool score_ground_truth = false;
   double truth_tolerance_linear = 0.5;
   double truth_tolerance_angular = 0.1;
   int scan_queue = 20;
   int pose_queue = 20;
+  int pyramid_cache = 4;
 
   template <class V>
   void visit(V& v) {
@@ -113,6 +136,9 @@ struct LoopDetectorOptions {
     v("sigma_floor_linear", sigma_floor_linear, "[m] added to the published std (quadrature)");
     v("sigma_floor_angular", sigma_floor_angular, "[rad] added to the published std");
     v("optimized_poses", optimized_poses, "subscribe to submap_poses (graph_optimizer)");
+    v("publish_at_match", publish_at_match,
+      "publish a closure of the current submap when it is matched (online pose of the scan, "
+      "origin from the hand-overs on constraints) instead of when the submap is finished");
     v("score_ground_truth", score_ground_truth,
       "subscribe to ground_truth and count accepted closures as true or false");
     v("truth_tolerance_linear", truth_tolerance_linear,
@@ -120,6 +146,12 @@ struct LoopDetectorOptions {
     v("truth_tolerance_angular", truth_tolerance_angular, "[rad] the same for heading");
     v("scan_queue", scan_queue, "scan mailbox size");
     v("pose_queue", pose_queue, "pose mailbox size");
+    v("pyramid_cache", pyramid_cache,
+      "matcher pyramids kept, least recently used evicted (>= 1); the others are rebuilt from "
+      "the submap's cells when searched: same matches, ~16 bytes per cell each. 4 by "
+      "measurement on the Intel log (carmen_global, up to 3 submaps per scan): 61 builds (20 "
+      "if every pyramid were kept, 92 with 3, 393 with 2), +0.2 s beside ~2.4 s of matching, "
+      "30 MB at most; 8 saves 17 builds for 20 MB more");
   }
 
   /// The flat keys of earlier versions, now inside the matcher and verifier groups.
@@ -138,14 +170,15 @@ class LoopDetectorActor final : public Actor {
   /// Throws ConfigError on invalid options.
   explicit LoopDetectorActor(LoopDetectorOptions options);
   void configure(ActorContext& ctx) override;
+  void stop() override;
   void summarize(Summary& out) const override;
 
  private:
   struct FinishedSubmap {
     int id = 0;
-    tessera::scan_matching::MatchGrid grid;
-    tessera::Pose2 chained;    // origin in the chained map frame (as published)
-    tessera::Pose2 optimized;  // origin in the optimised frame (= chained until told)
+    tessera::grid::OccupancyMap cells;  // as received (int8, 1 byte per cell); pyramids from it
+    tessera::Pose2 chained;             // origin in the chained map frame (as published)
+    tessera::Pose2 optimized;           // origin in the optimised frame (= chained until told)
     Eigen::Vector2d centre = Eigen::Vector2d::Zero();  // grid centre in the submap frame
     double radius = 0.0;                               // [m] half-diagonal of the grid
     double driven_at_finish = 0.0;                     // [m] robot path length then
@@ -159,20 +192,35 @@ class LoopDetectorActor final : public Actor {
     Eigen::Matrix3d covariance = Eigen::Matrix3d::Zero();  // of in_matched
   };
 
+  struct CachedPyramid {
+    int id = 0;              // submap
+    std::uint64_t used = 0;  // pyramid_clock_ at the last use
+    std::optional<tessera::scan_matching::MatchGrid> grid;
+  };
+
   void onScan(const Message<msg::LaserScan>& m);
   void onPose(const Message<msg::PoseStamped>& m);
   void pairScansWithPoses();
   void onSubmap(const Message<msg::Submap>& m);
   void onSubmapPoses(const Message<msg::SubmapPoses>& m);
+  void onConstraint(const Message<msg::SubmapConstraint>& m);
   void onGroundTruth(const Message<msg::GroundTruthPose>& m);
   void tryScan(const Message<msg::LaserScan>& scan, const tessera::Pose2& robot_chained);
   /// `in_current`: the robot's pose in the current submap at the match.
   void publishClosure(const PendingClosure& c, int current, const tessera::Pose2& in_current);
+  /// Publishes the closures a finished submap made ready (see ready_).
+  void publishReady();
   bool truthAt(Nanos stamp, tessera::Pose2& out) const;
   /// With score_ground_truth: counts the closure as true or false.
   void scoreClosure(const PendingClosure& c);
   /// Search window for a submap: grows with the distance driven since it was finished.
   tessera::scan_matching::SearchWindow windowFor(const FinishedSubmap& s) const;
+  /// The matcher pyramid of `s`, from the cache or built from its cells (evicting the least
+  /// recently used one when the cache is full). Valid until the next call.
+  const tessera::scan_matching::MatchGrid& pyramidFor(const FinishedSubmap& s);
+  /// Bytes held now: submap cells and cached pyramids.
+  std::size_t memoryBytes() const;
+  void notePeak() { memory_peak_ = std::max(memory_peak_, memoryBytes()); }
 
   LoopDetectorOptions options_;
   tessera::scan_matching::ScanMatcher points_;  // only to turn scans into base-frame points
@@ -180,9 +228,30 @@ class LoopDetectorActor final : public Actor {
   tessera::scan_matching::LoopClosureVerifier verifier_;
   Publisher<msg::SubmapConstraint> loop_pub_;
   std::vector<FinishedSubmap> submaps_;
+  std::vector<CachedPyramid> pyramids_;  // at most pyramid_cache
+  std::uint64_t pyramid_clock_ = 0, pyramid_builds_ = 0, pyramid_hits_ = 0;
+  double pyramid_build_seconds_ = 0.0;
+  std::size_t memory_peak_ = 0;                         // [bytes] largest memoryBytes() so far
   std::deque<Message<msg::LaserScan>> scans_;           // waiting for their pose
   std::deque<std::pair<Nanos, tessera::Pose2>> poses_;  // waiting for their scan
   std::vector<PendingClosure> pending_;  // matched, waiting for their own submap to end
+  // Closures of a finished submap, published at the builder's next pose (stamped ready_after_ or
+  // later) or at stop. The builder publishes that pose after its hand-over, so the optimiser
+  // always receives the hand-over first, and the scan of that pose is searched with the poses
+  // the graph had before these closures: the same order however the threads run.
+  struct ReadyClosure {
+    PendingClosure closure;
+    int current = 0;
+    tessera::Pose2 in_current;
+  };
+  std::vector<ReadyClosure> ready_;
+  Nanos ready_after_ = 0;
+  // publish_at_match: chained origins by submap id (the first submap's is the chained frame's
+  // origin; later ones from hand-overs and finished submaps) and the newest submap started.
+  std::map<int, tessera::Pose2> chained_origins_{{0, tessera::Pose2()}};
+  int current_submap_ = 0;
+  int last_finished_id_ = -1;
+  std::map<int, tessera::Pose2> current_optimized_;  // optimised origins of unfinished submaps
   std::map<Nanos, tessera::Pose2> truth_;
   Nanos last_end_ = -1;  // last stamp of the newest finished submap
   Nanos first_stamp_ = -1;
@@ -191,6 +260,7 @@ class LoopDetectorActor final : public Actor {
   double driven_ = 0.0;
   std::uint64_t scans_seen_ = 0, scans_tried_ = 0, matches_run_ = 0, published_ = 0;
   std::uint64_t published_smoothed_ = 0;  // of published_: with the submap's smoothed scan pose
+  std::uint64_t published_at_match_ = 0;  // of published_: at once (publish_at_match)
   std::uint64_t truth_true_ = 0, truth_false_ = 0, truth_unknown_ = 0, submaps_rejected_ = 0;
   double match_seconds_ = 0.0;
 };

@@ -12,6 +12,10 @@
 // A submap's global pose: the optimiser's when it has one, else chained from its hand-over
 // constraint when its predecessor is placed, otherwise the globalPose its message carries.
 //
+// Memory: every submap's grid is kept (1 byte per cell) to redraw the map when poses change;
+// summary memory_mb (at stop) and memory_peak_mb give their bytes, which grow with the explored
+// area.
+//
 // Saved state (slam_state.hpp, docs/architecture.md#saved-slam-state):
 //   state_dir   at stop, with an output folder, writes what it holds there (relative to the
 //               output folder): every placed submap at the pose it was drawn with, and every
@@ -28,6 +32,8 @@
 #include <tessera/messages/types.hpp>
 #include <tessera/runtime/actor.hpp>
 
+#include <algorithm>
+#include <cstddef>
 #include <cstdint>
 #include <map>
 #include <set>
@@ -81,6 +87,9 @@ class MapAssemblerActor final : public Actor {
   void publishMap();
   void loadState();
   void writeState();
+  /// Bytes of the submap grids held now.
+  std::size_t gridBytes() const;
+  void noteGridBytes() { grid_bytes_peak_ = std::max(grid_bytes_peak_, gridBytes()); }
 
   MapAssemblerOptions options_;
   MapAssembler assembler_;
@@ -99,6 +108,7 @@ class MapAssemblerActor final : public Actor {
   std::uint64_t submaps_ = 0, constraints_ = 0, maps_published_ = 0, submaps_rejected_ = 0;
   std::uint64_t constraints_rejected_ = 0, pose_updates_ = 0;
   int map_width_ = 0, map_height_ = 0;
+  std::size_t grid_bytes_peak_ = 0;  // largest gridBytes() so far
 };
 
 }  // namespace tessera::laser_slam

@@ -8,20 +8,30 @@
 //   camera_events  msg::CameraEvent  reliable                  only with camera_trigger: entering
 //                                                              a camera other than the last one
 //                                                              starts a new submap
+//   submap_poses   msg::SubmapPoses  keep_latest(1)            only with optimized_poses: where
+//                                                              the graph optimiser put the submaps
 // Publishes:
 //   pose         msg::PoseStamped       every scan: base_link in map (best particle at updates,
 //                                       in between scans matched against its map, or odometry
 //                                       with track_between_updates false), covariance =
-//                                       particle spread
+//                                       particle spread. The current submap is placed by
+//                                       chaining hand-overs, or with optimized_poses by the
+//                                       latest optimised graph: the optimised origin of the
+//                                       newest submap it holds, chained from there (the best
+//                                       current estimate, which a loop closure moves at once)
 //   map_to_odom  msg::PoseStamped       every scan: the correction map ⊕ odom⁻¹
+//   chained_pose msg::PoseStamped       every scan: base_link in the chained map frame (as pose
+//                                       without optimized_poses; what the loop detector reads)
 //   submaps      msg::Submap            reliable consumers: each finished submap, and the last
 //                                       one (finished) in stop(), with the smoothed pose of
 //                                       every scan in it (submap frame, as final_poses)
 //   constraints  msg::SubmapConstraint  at each hand-over: the new submap's origin in the old one
 //   final_poses  msg::PoseStamped       in stop(): one per scan, the best particle's pose at the
 //                                       filter update before it (trajectory tree, submap by
-//                                       submap, map frame) moved by the odometry since: the
-//                                       smoothed estimate (write trajectory_final.tum). With
+//                                       submap, map frame) moved by the odometry since (with
+//                                       track_between_updates, by the scan-matched motion of
+//                                       the online pose since): the smoothed estimate (write
+//                                       trajectory_final.tum). With
 //                                       interpolate_updates, the odometry correction of a scan
 //                                       between two updates is blended by time from the first
 //                                       update's to the next one's, so the drift found at an
@@ -29,8 +39,12 @@
 //                                       the submaps' trajectories).
 //
 // The map frame is the first submap's frame; later submaps are placed by chaining hand-over
-// constraints (the graph optimiser moves them later). Scans wait (bounded) for an odometry pose
-// at or after their stamp and are paired by interpolation; unpairable scans are counted.
+// constraints (the graph optimiser moves them later). submaps, constraints and final_poses stay
+// in that chained frame whatever optimized_poses says: the optimiser and the loop detector
+// place them themselves. The summary reports how far the optimised graph moved the live pose
+// at once (`live_correction_max_m`, the largest jump between two scans). Scans wait (bounded) for
+// an odometry pose at or after their stamp and are paired by interpolation; unpairable scans are
+// counted.
 #pragma once
 
 #include <tessera/msg/camera.capnp.h>
@@ -54,6 +68,7 @@ struct SubmapBuilderOptions {
   int submap_scans = 0;          // inserted scans; 0 = never
   bool camera_trigger = false;
   bool interpolate_updates = false;
+  bool optimized_poses = false;
   // Plumbing.
   std::string frame_id = "map";
   int scan_queue = 8;
@@ -72,6 +87,9 @@ struct SubmapBuilderOptions {
     v("interpolate_updates", interpolate_updates,
       "smoothed trajectory (final_poses, submap trajectories): blend each scan's odometry "
       "correction between the updates around it instead of holding the earlier one's");
+    v("optimized_poses", optimized_poses,
+      "subscribe to submap_poses: the live pose and map_to_odom place the current submap by the "
+      "latest optimised graph instead of by chained hand-overs");
     v("frame_id", frame_id, "global frame of the published poses");
     v("scan_queue", scan_queue, "scan mailbox size (keep-latest)");
     v("odom_queue", odom_queue, "odometry mailbox size (keep-latest)");
@@ -149,6 +167,10 @@ class SubmapBuilderActor final : public Actor {
   void onScan(const Message<msg::LaserScan>& scan);
   void onOdometry(Nanos stamp, const tessera::Pose2& pose);
   void onCameraEvent(const Message<msg::CameraEvent>& event);
+  void onSubmapPoses(const Message<msg::SubmapPoses>& poses);
+  /// The current submap's origin in the published map frame: chained, or moved with the
+  /// newest optimised submap (optimized_poses).
+  tessera::Pose2 liveOrigin() const;
   /// Runs a scan, paired with the odometry pose at its stamp, through the filter.
   void process(const Message<msg::LaserScan>& scan, const tessera::Pose2& odom);
   void publishPose(Nanos stamp, const tessera::Pose2& odometry);
@@ -163,14 +185,26 @@ class SubmapBuilderActor final : public Actor {
   SubmapBuilderOptions options_;
   Rbpf rbpf_;
   tessera::PosePairing<Message<msg::LaserScan>> pairing_;
-  Publisher<msg::PoseStamped> pose_pub_, correction_pub_;
+  Publisher<msg::PoseStamped> pose_pub_, correction_pub_, chained_pub_;
   Publisher<msg::Submap> submap_pub_;
   Publisher<msg::SubmapConstraint> constraint_pub_;
   Publisher<msg::PoseStamped> final_pub_;
   std::vector<Rbpf::StampedPose> finished_trajectory_;  // best trajectories of closed submaps
-  std::vector<std::pair<double, tessera::Pose2>> scan_odometry_;  // [s], odometry of each scan
+  // [s], each scan's motion chain: odometry, or with tracking the online pose's scan-matched
+  // motion between updates (densify() moves the smoothed update poses by it)
+  std::vector<std::pair<double, tessera::Pose2>> scan_odometry_;
+  tessera::Pose2 scan_motion_, last_odom_, last_online_;
 
   tessera::Pose2 submap_origin_;  // current submap's origin in the map frame
+  // optimized_poses: the chained origin of every submap so far (index = id), and the latest
+  // optimised graph's newest submap with its optimised origin.
+  std::vector<tessera::Pose2> chained_origins_{tessera::Pose2()};
+  int optimized_id_ = -1;
+  tessera::Pose2 optimized_origin_;
+  tessera::Pose2 last_live_origin_;
+  int last_live_submap_ = -1;
+  double live_correction_max_m_ = 0.0;
+  std::uint64_t graph_updates_ = 0, live_corrections_ = 0;
   Nanos last_stamp_ = 0;
   int last_camera_ = -1;
   bool handover_requested_ = false;
