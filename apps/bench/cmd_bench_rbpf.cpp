@@ -168,8 +168,9 @@ void addBenchRbpfCommand(CLI::App& bench, int& result) {
             nlohmann::json summary;
             std::ifstream(dir / "summary.json") >> summary;
             nlohmann::json memory = nlohmann::json::object();
-            for (const auto& [actor, figures] :
-                 summary.value("actors", nlohmann::json::object()).items())
+            // A named copy: items() of a temporary would outlive it.
+            const nlohmann::json actors = summary.value("actors", nlohmann::json::object());
+            for (const auto& [actor, figures] : actors.items())
               if (figures.contains("memory_peak_mb")) memory[actor] = figures["memory_peak_mb"];
             runs.push_back({{"profile", profile},
                             {"particles", n},
