@@ -52,6 +52,24 @@ tessera::grid::OccupancyMap roomMap(const test::SimScans& sim) {
   return grid.toOccupancyMap();
 }
 
+// Publishes a finished submap holding `m`, placed at `origin` in the chained frame.
+void pushSubmap(ActorHarness& h, int id, double t, const tessera::grid::OccupancyMap& m,
+                const Pose2& origin) {
+  h.push<msg::Submap>("submaps", [&](auto& b) {
+    setHeader(b.initHeader(), test::stampOf(t), "map", 0);
+    b.setId(static_cast<std::uint32_t>(id));
+    auto g = b.initGrid();
+    g.setResolution(static_cast<float>(m.resolution));
+    g.setWidth(static_cast<std::uint32_t>(m.width));
+    g.setHeight(static_cast<std::uint32_t>(m.height));
+    writePose(g.initOrigin(), tessera::Pose2{m.origin.x, m.origin.y, m.origin.theta});
+    auto cells = mutableViewInt8(g.initCells(static_cast<unsigned>(m.cells.size())));
+    std::copy(m.cells.begin(), m.cells.end(), cells.begin());
+    writePose(b.initGlobalPose(), tessera::Pose2{origin.x, origin.y, origin.theta});
+    b.setFinished(true);
+  });
+}
+
 // `copies` finished submaps hold the same map (ids 0..copies-1); the robot's own is `copies`.
 ClosureRun runClosure(const std::optional<Pose2>& smoothed, int copies = 1,
                       int closures_per_scan = 1) {
@@ -64,20 +82,7 @@ ClosureRun runClosure(const std::optional<Pose2>& smoothed, int copies = 1,
   o.every_n_scans = 1;
   o.closures_per_scan = closures_per_scan;
   ActorHarness h(std::make_unique<laser_slam::LoopDetectorActor>(o));
-  for (int id = 0; id < copies; ++id)
-    h.push<msg::Submap>("submaps", [&](auto& b) {
-      setHeader(b.initHeader(), test::stampOf(1.0 + 0.1 * id), "map", 0);
-      b.setId(static_cast<std::uint32_t>(id));
-      auto g = b.initGrid();
-      g.setResolution(static_cast<float>(map.resolution));
-      g.setWidth(static_cast<std::uint32_t>(map.width));
-      g.setHeight(static_cast<std::uint32_t>(map.height));
-      writePose(g.initOrigin(), tessera::Pose2{map.origin.x, map.origin.y, map.origin.theta});
-      auto cells = mutableViewInt8(g.initCells(static_cast<unsigned>(map.cells.size())));
-      std::copy(map.cells.begin(), map.cells.end(), cells.begin());
-      writePose(b.initGlobalPose(), tessera::Pose2{0, 0, 0});
-      b.setFinished(true);
-    });
+  for (int id = 0; id < copies; ++id) pushSubmap(h, id, 1.0 + 0.1 * id, map, Pose2{});
   h.runUntilIdle();
 
   const std::size_t probe = 60;
@@ -254,21 +259,9 @@ CacheRun runCachedClosures(int pyramid_cache) {
   o.closures_per_scan = 2;
   o.pyramid_cache = pyramid_cache;
   ActorHarness h(std::make_unique<laser_slam::LoopDetectorActor>(o));
-  const auto pushSubmap = [&](int id, double t, const tessera::grid::OccupancyMap& m,
-                              const Pose2& origin) {
-    h.push<msg::Submap>("submaps", [&](auto& b) {
-      setHeader(b.initHeader(), test::stampOf(t), "map", 0);
-      b.setId(static_cast<std::uint32_t>(id));
-      auto g = b.initGrid();
-      g.setResolution(static_cast<float>(m.resolution));
-      g.setWidth(static_cast<std::uint32_t>(m.width));
-      g.setHeight(static_cast<std::uint32_t>(m.height));
-      writePose(g.initOrigin(), tessera::Pose2{m.origin.x, m.origin.y, m.origin.theta});
-      auto cells = mutableViewInt8(g.initCells(static_cast<unsigned>(m.cells.size())));
-      std::copy(m.cells.begin(), m.cells.end(), cells.begin());
-      writePose(b.initGlobalPose(), tessera::Pose2{origin.x, origin.y, origin.theta});
-      b.setFinished(true);
-    });
+  const auto pushSubmapNow = [&](int id, double t, const tessera::grid::OccupancyMap& m,
+                                 const Pose2& origin) {
+    pushSubmap(h, id, t, m, origin);
     h.runUntilIdle();
   };
   const auto pushPose = [&](Nanos stamp, const Pose2& p) {
@@ -278,8 +271,8 @@ CacheRun runCachedClosures(int pyramid_cache) {
     });
     h.runUntilIdle();
   };
-  pushSubmap(0, 1.0, map, Pose2());
-  pushSubmap(1, 1.1, map, Pose2());
+  pushSubmapNow(0, 1.0, map, Pose2());
+  pushSubmapNow(1, 1.1, map, Pose2());
   double t = 5.0;
   for (const std::size_t probe : {40u, 60u, 80u, 100u}) {
     const Nanos stamp = test::stampOf(t);
@@ -290,7 +283,7 @@ CacheRun runCachedClosures(int pyramid_cache) {
   tessera::grid::OccupancyMap own;  // the robot's submap: a single cell
   own.width = own.height = 1;
   own.cells = {-1};
-  pushSubmap(2, 10.0, own, Pose2(1.0, 0.5, 0.2));
+  pushSubmapNow(2, 10.0, own, Pose2(1.0, 0.5, 0.2));
   // Its closures go out with the builder's next pose (which follows its hand-over).
   pushPose(test::stampOf(10.0), Pose2(1.0, 0.5, 0.2));
 

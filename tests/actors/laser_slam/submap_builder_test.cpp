@@ -39,14 +39,19 @@ Pose2 poseOf(msg::Pose2D::Reader p) {
   return {p.getX(), p.getY(), p.getTheta()};
 }
 
-/// The first n scans of the room loop with their odometry, one at a time, then stop().
-void feedAndStop(ActorHarness& h, const test::SimScans& sim, std::size_t n) {
-  for (std::size_t k = 0; k < n; ++k) {
+/// Feeds scans [from, to) of the room loop with their odometry, one at a time.
+void feedScans(ActorHarness& h, const test::SimScans& sim, std::size_t from, std::size_t to) {
+  for (std::size_t k = from; k < to; ++k) {
     const Nanos t = stampOf(sim.scans[k].stamp_s);
     pushOdometry(h, t, sim.scans[k].odometry);
     pushScan(h, t, sim, sim.scans[k].ranges);
     h.runUntilIdle();
   }
+}
+
+/// The first n scans, then stop().
+void feedAndStop(ActorHarness& h, const test::SimScans& sim, std::size_t n) {
+  feedScans(h, sim, 0, n);
   h.stop();
 }
 
@@ -174,16 +179,6 @@ TEST_CASE("interpolate_updates spreads the correction found at an update over th
 }
 
 namespace {
-
-/// Feeds scans [from, to) of the room loop, one at a time.
-void feedScans(ActorHarness& h, const test::SimScans& sim, std::size_t from, std::size_t to) {
-  for (std::size_t k = from; k < to; ++k) {
-    const Nanos t = stampOf(sim.scans[k].stamp_s);
-    pushOdometry(h, t, sim.scans[k].odometry);
-    pushScan(h, t, sim, sim.scans[k].ranges);
-    h.runUntilIdle();
-  }
-}
 
 void pushSubmapPoses(ActorHarness& h, const std::vector<std::pair<int, Pose2>>& poses) {
   h.push<msg::SubmapPoses>("submap_poses", [&](auto& b) {

@@ -167,28 +167,21 @@ void SubmapBuilderActor::publishPose(Nanos stamp, const tessera::Pose2& odometry
   }
   last_live_origin_ = origin;
   last_live_submap_ = rbpf_.submapId();
+  // The particle spread, once per scan: it walks every particle.
+  const Eigen::Matrix3d spread = rbpf_.poseWithCovariance().covariance;
+  const auto send = [&](Publisher<msg::PoseStamped>& pub, const tessera::Pose2& pose,
+                        const Eigen::Matrix3d* cov) {
+    auto loan = pub.loan();
+    setHeader(loan->initHeader(), stamp, options_.frame_id, pub.nextSeq());
+    writePose(loan->initPose(), pose, cov);
+    pub.publish(std::move(loan));
+  };
   const tessera::Pose2 global = origin * local;
-  const Eigen::Matrix3d cov = rotateCovariance(rbpf_.poseWithCovariance().covariance, origin);
-  {
-    auto loan = pose_pub_.loan();
-    setHeader(loan->initHeader(), stamp, options_.frame_id, pose_pub_.nextSeq());
-    writePose(loan->initPose(), global, &cov);
-    pose_pub_.publish(std::move(loan));
-  }
-  {
-    auto loan = chained_pub_.loan();
-    setHeader(loan->initHeader(), stamp, options_.frame_id, chained_pub_.nextSeq());
-    const Eigen::Matrix3d chained_cov =
-        rotateCovariance(rbpf_.poseWithCovariance().covariance, submap_origin_);
-    writePose(loan->initPose(), submap_origin_ * local, &chained_cov);
-    chained_pub_.publish(std::move(loan));
-  }
-  {
-    auto loan = correction_pub_.loan();
-    setHeader(loan->initHeader(), stamp, options_.frame_id, correction_pub_.nextSeq());
-    writePose(loan->initPose(), global * odometry.inverse());
-    correction_pub_.publish(std::move(loan));
-  }
+  const Eigen::Matrix3d cov = rotateCovariance(spread, origin);
+  send(pose_pub_, global, &cov);
+  const Eigen::Matrix3d chained_cov = rotateCovariance(spread, submap_origin_);
+  send(chained_pub_, submap_origin_ * local, &chained_cov);
+  send(correction_pub_, global * odometry.inverse(), nullptr);
 }
 
 void SubmapBuilderActor::handOver(Nanos stamp) {
