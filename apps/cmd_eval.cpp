@@ -2,7 +2,8 @@
 // against a reference. Without --json the summary goes to stdout; with --json stdout holds exactly
 // one JSON object and the summary goes to stderr, so the output can be piped into other tools. Exit
 // codes: 0 ok; 2 usage errors (bad option values, an input file that does not exist); 1 bad input
-// contents (malformed line: the message names file:line) or nothing to compare.
+// contents (malformed line: the message names file:line), nothing to compare, or an output file
+// (--plot) that cannot be written.
 #include "cli_inputs.hpp"
 #include "commands.hpp"
 
@@ -10,6 +11,7 @@
 #include <tessera/evaluation/landmark_io.hpp>
 #include <tessera/evaluation/loop_metrics.hpp>
 #include <tessera/evaluation/trajectory_metrics.hpp>
+#include <tessera/io/atomic_file.hpp>
 #include <tessera/mapping/trajectory_io.hpp>
 #include <tessera/pose_graph/pose_graph_io.hpp>
 #include <tessera/runtime/options.hpp>
@@ -21,6 +23,7 @@
 #include <filesystem>
 #include <iomanip>
 #include <iostream>
+#include <iterator>
 #include <map>
 #include <memory>
 #include <sstream>
@@ -69,6 +72,8 @@ class Summary {
     o << std::fixed << std::setprecision(digits) << v;
     return o.str();
   }
+  /// A line as it is (tables).
+  void line(const std::string& text) { out_ << text << "\n"; }
   void print(bool json) const { (json ? std::cerr : std::cout) << out_.str(); }
 
  private:
@@ -83,17 +88,185 @@ Dimension dimensionOf(bool planar, bool spatial) {
   return planar ? Dimension::kPlanar : spatial ? Dimension::kSpatial : Dimension::kAuto;
 }
 
+// `eval relations --plot`: an SVG chart of the mean translation error per time bin.
+namespace eval_relations_plot {
+
+struct Series {
+  std::string label;  ///< the trajectory file as given on the command line
+  std::vector<RelationsBin> bins;
+  RelationsResult result;
+};
+
+std::string xmlEscape(const std::string& text) {
+  std::string out;
+  for (char c : text) {
+    switch (c) {
+      case '&':
+        out += "&amp;";
+        break;
+      case '<':
+        out += "&lt;";
+        break;
+      case '>':
+        out += "&gt;";
+        break;
+      case '"':
+        out += "&quot;";
+        break;
+      case '\'':
+        out += "&apos;";
+        break;
+      default:
+        out += c;
+    }
+  }
+  return out;
+}
+
+/// A round tick spacing (1, 2 or 5 × 10^k) giving about `ticks` intervals over [0, range].
+double tickStep(double range, int ticks) {
+  const double raw = range / ticks;
+  const double magnitude = std::pow(10.0, std::floor(std::log10(raw)));
+  for (double m : {1.0, 2.0, 5.0})
+    if (raw <= m * magnitude) return m * magnitude;
+  return 10.0 * magnitude;
+}
+
+std::string tickLabel(double v, double step) {
+  const int digits = std::max(0, static_cast<int>(-std::floor(std::log10(step) + 1e-9)));
+  return Summary::num(v, digits);
+}
+
+/// The chart as SVG text: one <path class="series"> (and its dots) per series.
+std::string svg(const std::vector<Series>& series, double width_s, const std::string& relations,
+                std::size_t relation_count) {
+  static const char* const kColours[] = {"#1f77b4", "#d62728", "#2ca02c", "#ff7f0e", "#9467bd",
+                                         "#8c564b", "#e377c2", "#7f7f7f", "#bcbd22", "#17becf"};
+  constexpr double kWidth = 960, kLeft = 80, kRight = 30, kTop = 70, kPlotHeight = 360;
+  constexpr double kPlotWidth = kWidth - kLeft - kRight;
+  constexpr double kLegendLine = 20;
+  const double height = kTop + kPlotHeight + 70 + kLegendLine * static_cast<double>(series.size());
+
+  std::size_t bin_count = 0;
+  double y_max = 0;
+  for (const Series& s : series) {
+    bin_count = std::max(bin_count, s.bins.size());
+    for (const RelationsBin& b : s.bins)
+      if (b.count > 0) y_max = std::max(y_max, b.translation_mean);
+  }
+  const double x_max = std::max(1.0, static_cast<double>(bin_count)) * width_s;
+  const double y_step = tickStep(y_max > 0 ? y_max * 1.05 : 1.0, 6);
+  const double y_top = y_step * std::ceil((y_max > 0 ? y_max * 1.05 : 1.0) / y_step);
+  const double x_step = tickStep(x_max, 10);
+  const auto px = [&](double t) { return kLeft + t / x_max * kPlotWidth; };
+  const auto py = [&](double m) { return kTop + kPlotHeight - m / y_top * kPlotHeight; };
+  const auto f1 = [](double v) { return Summary::num(v, 1); };
+
+  std::ostringstream o;
+  o << "<?xml version=\"1.0\" encoding=\"UTF-8\"?>\n"
+    << "<svg xmlns=\"http://www.w3.org/2000/svg\" width=\"" << kWidth << "\" height=\""
+    << f1(height) << "\" viewBox=\"0 0 " << kWidth << ' ' << f1(height)
+    << "\" font-family=\"sans-serif\" font-size=\"12\">\n"
+    << "<rect width=\"100%\" height=\"100%\" fill=\"white\"/>\n"
+    << "<text x=\"" << kWidth / 2 << "\" y=\"26\" text-anchor=\"middle\" font-size=\"16\">"
+    << "Relations error over time: mean translation error per " << width_s << " s bin</text>\n"
+    << "<text x=\"" << kWidth / 2 << "\" y=\"46\" text-anchor=\"middle\" fill=\"#555\">"
+    << xmlEscape(relations) << " (" << relation_count
+    << " relations, binned by t1; Kümmerle et al. 2009)</text>\n";
+  // Grid and y ticks [m].
+  const int y_ticks = static_cast<int>(std::lround(y_top / y_step));
+  for (int i = 0; i <= y_ticks; ++i) {
+    const double v = i * y_step;
+    o << "<line x1=\"" << kLeft << "\" y1=\"" << f1(py(v)) << "\" x2=\"" << kLeft + kPlotWidth
+      << "\" y2=\"" << f1(py(v)) << "\" stroke=\"#e5e5e5\"/>\n"
+      << "<text x=\"" << kLeft - 8 << "\" y=\"" << f1(py(v) + 4) << "\" text-anchor=\"end\">"
+      << tickLabel(v, y_step) << "</text>\n";
+  }
+  // x ticks [s].
+  const int x_ticks = static_cast<int>(std::floor(x_max / x_step + 1e-9));
+  for (int i = 0; i <= x_ticks; ++i) {
+    const double t = i * x_step;
+    o << "<line x1=\"" << f1(px(t)) << "\" y1=\"" << kTop + kPlotHeight << "\" x2=\"" << f1(px(t))
+      << "\" y2=\"" << kTop + kPlotHeight + 5 << "\" stroke=\"black\"/>\n"
+      << "<text x=\"" << f1(px(t)) << "\" y=\"" << kTop + kPlotHeight + 19
+      << "\" text-anchor=\"middle\">" << tickLabel(t, x_step) << "</text>\n";
+  }
+  // Axes and their titles.
+  o << "<line x1=\"" << kLeft << "\" y1=\"" << kTop << "\" x2=\"" << kLeft << "\" y2=\""
+    << kTop + kPlotHeight << "\" stroke=\"black\"/>\n"
+    << "<line x1=\"" << kLeft << "\" y1=\"" << kTop + kPlotHeight << "\" x2=\""
+    << kLeft + kPlotWidth << "\" y2=\"" << kTop + kPlotHeight << "\" stroke=\"black\"/>\n"
+    << "<text x=\"" << kLeft + kPlotWidth / 2 << "\" y=\"" << kTop + kPlotHeight + 40
+    << "\" text-anchor=\"middle\">time since the first relation [s]</text>\n"
+    << "<text x=\"20\" y=\"" << kTop + kPlotHeight / 2
+    << "\" text-anchor=\"middle\" transform=\"rotate(-90 20 " << kTop + kPlotHeight / 2
+    << ")\">mean translation error [m]</text>\n";
+  // One line per trajectory through its bin centres, broken at empty bins.
+  for (std::size_t k = 0; k < series.size(); ++k) {
+    const char* colour = kColours[k % std::size(kColours)];
+    std::ostringstream path, dots;
+    bool pen_down = false;
+    for (const RelationsBin& b : series[k].bins) {
+      if (b.count == 0) {
+        pen_down = false;
+        continue;
+      }
+      const std::string x = f1(px(b.start_s + width_s / 2)), y = f1(py(b.translation_mean));
+      path << (pen_down ? " L" : (path.tellp() > 0 ? " M" : "M")) << x << ' ' << y;
+      pen_down = true;
+      dots << "<circle cx=\"" << x << "\" cy=\"" << y << "\" r=\"3\"/>";
+    }
+    o << "<g fill=\"" << colour << "\">\n<path class=\"series\" d=\"" << path.str()
+      << "\" fill=\"none\" stroke=\"" << colour << "\" stroke-width=\"2\"/>\n"
+      << dots.str() << "\n</g>\n";
+    const RelationsResult& r = series[k].result;
+    const double y = kTop + kPlotHeight + 62 + kLegendLine * static_cast<double>(k);
+    o << "<line x1=\"" << kLeft << "\" y1=\"" << f1(y - 4) << "\" x2=\"" << kLeft + 24 << "\" y2=\""
+      << f1(y - 4) << "\" stroke=\"" << colour << "\" stroke-width=\"2\"/>\n"
+      << "<text x=\"" << kLeft + 32 << "\" y=\"" << f1(y) << "\">"
+      << xmlEscape(series[k].label + ": mean " + Summary::num(r.translation.mean, 4) + " ± " +
+                   Summary::num(r.translation.std, 4) + " m, " +
+                   Summary::num(r.rotation_deg.mean, 2) + "° (" + std::to_string(r.matched) +
+                   " relations)")
+      << "</text>\n";
+  }
+  o << "</svg>\n";
+  return o.str();
+}
+
+/// Fails early, as a usage error, when `path` cannot be a new file: its folder is missing.
+void requireWritableTarget(const std::string& path, const char* option) {
+  if (path.empty()) throw ConfigError(std::string(option) + ": empty file name");
+  std::error_code ec;
+  const fs::path target(path);
+  const fs::path folder = target.parent_path().empty() ? fs::path(".") : target.parent_path();
+  if (!fs::is_directory(folder, ec))
+    throw ConfigError(std::string(option) + " " + path + ": the folder " + folder.string() +
+                      (fs::exists(folder, ec) ? " is not a folder" : " does not exist"));
+  if (fs::is_directory(target, ec))
+    throw ConfigError(std::string(option) + " " + path + ": is a folder, not a file");
+}
+
+}  // namespace eval_relations_plot
+
 void addRelations(CLI::App& eval, int& result) {
   auto* cmd = eval.add_subcommand(
       "relations", "Kümmerle et al. 2009 relations metric of a trajectory (TUM file)");
   struct Args {
-    std::string trajectory, relations;
+    std::vector<std::string> trajectories;
+    std::string relations, plot;
     double max_gap_s = RelationsOptions{}.max_gap_s;
     double time_offset_s = 0;
+    double max_speed = 0;
+    double bins_s = 0;
     bool json = false;
   };
+  constexpr double kDefaultPlotBinS = 300;
   auto a = std::make_shared<Args>();
-  cmd->add_option("--trajectory", a->trajectory, "estimated trajectory, TUM format")->required();
+  cmd->add_option("--trajectory", a->trajectories,
+                  "estimated trajectory, TUM format; repeat it to add trajectories to --plot "
+                  "(the summary and JSON are for the first)")
+      ->required();
   cmd->add_option("--relations", a->relations, "relations file 't1 t2 dx dy dz roll pitch yaw'")
       ->required();
   cmd->add_option("--max-gap", a->max_gap_s,
@@ -103,19 +276,65 @@ void addRelations(CLI::App& eval, int& result) {
   cmd->add_option("--time-offset", a->time_offset_s,
                   "[s] added to the trajectory stamps to bring them to the relations' time base")
       ->capture_default_str();
+  auto* max_speed = cmd->add_option(
+      "--max-speed", a->max_speed,
+      "[m/s] also report the relations whose true displacement over |t2 - t1| is at most this "
+      "(faster ones are inconsistent with their timestamps); 0: off");
+  auto* bins = cmd->add_option("--bins", a->bins_s,
+                               "[s] also report the mean error per bin of this width, by t1");
+  auto* plot = cmd->add_option(
+      "--plot", a->plot,
+      "write an SVG chart of the mean translation error per bin (--bins, default 300 s) "
+      "against time, one line per --trajectory");
   cmd->add_flag("--json", a->json, "print one JSON object on stdout");
-  cmd->callback([a, &result] {
+  cmd->callback([a, &result, max_speed, bins, plot] {
+    namespace rp = eval_relations_plot;
     if (!(a->max_gap_s >= 0)) throw ConfigError("--max-gap must be a number >= 0");
     requireFinite(a->time_offset_s, "--time-offset");
-    const auto trajectory = loadTrajectory(a->trajectory, "--trajectory");
+    const bool split = max_speed->count() > 0 && a->max_speed != 0;
+    if (max_speed->count() > 0 && (!(a->max_speed >= 0) || !std::isfinite(a->max_speed)))
+      throw ConfigError("--max-speed must be a number >= 0 (m/s; 0: off)");
+    const bool binned = bins->count() > 0;
+    if (binned && (!(a->bins_s > 0) || !std::isfinite(a->bins_s)))
+      throw ConfigError("--bins must be a positive number of seconds");
+    const bool plotted = plot->count() > 0;
+    if (plotted) rp::requireWritableTarget(a->plot, "--plot");
+    const double bin_s = binned ? a->bins_s : kDefaultPlotBinS;
+
+    std::vector<std::vector<TumPose>> trajectories;
+    for (const std::string& path : a->trajectories)
+      trajectories.push_back(loadTrajectory(path, "--trajectory"));
     const std::vector<PoseRelation> relations = loadPoseRelations(a->relations, "--relations");
     RelationsOptions options;
     options.max_gap_s = a->max_gap_s;
     options.time_offset_s = a->time_offset_s;
-    const RelationsResult r = computeRelationsError(trajectory, relations, options);
+    options.max_speed = split ? a->max_speed : 0.0;
+    std::vector<rp::Series> series;
+    for (std::size_t k = 0; k < trajectories.size(); ++k) {
+      rp::Series& s = series.emplace_back();
+      s.label = a->trajectories[k];
+      s.result = computeRelationsError(trajectories[k], relations, options);
+      if (binned || plotted) {
+        try {
+          s.bins = binRelationErrors(s.result.errors, bin_s);
+        } catch (const MetricError& e) {
+          std::ostringstream width;
+          width << bin_s;
+          throw ConfigError("--bins " + width.str() + ": " + e.what());
+        }
+      }
+    }
+    if (plotted) {
+      // Atomic: a temporary file beside the target, renamed over it once complete. Errors
+      // (io::FileWriteError) name the file and the reason.
+      tessera::io::writeFileAtomically(a->plot,
+                                       rp::svg(series, bin_s, a->relations, relations.size()));
+    }
+    const RelationsResult& r = series.front().result;
 
     Summary s("relations metric (Kümmerle et al. 2009)");
-    s.row("trajectory", a->trajectory + " (" + std::to_string(trajectory.size()) + " poses)");
+    s.row("trajectory",
+          a->trajectories.front() + " (" + std::to_string(trajectories.front().size()) + " poses)");
     s.row("relations", a->relations + " (" + std::to_string(r.relations) + ")");
     s.row("matched", std::to_string(r.matched) + " of " + std::to_string(r.relations) + " (" +
                          std::to_string(r.outside) + " outside the trajectory, " +
@@ -125,6 +344,37 @@ void addRelations(CLI::App& eval, int& result) {
     s.meanStd("translation²", r.translation_squared, "m²", 4);
     s.meanStd("rotation", r.rotation_deg, "deg", 3);
     s.meanStd("rotation²", r.rotation_squared_deg, "deg²", 3);
+    if (split) {
+      s.row("consistent",
+            std::to_string(r.matched - r.inconsistent) + " of " + std::to_string(r.matched) +
+                " matched (" + std::to_string(r.inconsistent) + " faster than " +
+                Summary::num(a->max_speed, 2) + " m/s: inconsistent with their timestamps)");
+      s.meanStd("  translation", r.consistent_translation, "m", 4);
+      s.meanStd("  rotation", r.consistent_rotation_deg, "deg", 3);
+    }
+    for (std::size_t k = 1; k < series.size(); ++k) {
+      const RelationsResult& o = series[k].result;
+      s.row("also", series[k].label + ": " + Summary::num(o.translation.mean, 4) + " ± " +
+                        Summary::num(o.translation.std, 4) + " m, " +
+                        Summary::num(o.rotation_deg.mean, 3) + " ± " +
+                        Summary::num(o.rotation_deg.std, 3) + " deg (" + std::to_string(o.matched) +
+                        " matched)");
+    }
+    if (binned) {
+      s.line("  error by t1, " + Summary::num(bin_s, 1) + " s bins from the first relation:");
+      std::ostringstream table;
+      table << "  " << std::setw(12) << "start s" << std::setw(8) << "count" << std::setw(10)
+            << "mean m" << std::setw(10) << "mean deg";
+      s.line(table.str());
+      for (const RelationsBin& b : series.front().bins) {
+        std::ostringstream row;
+        row << "  " << std::setw(12) << Summary::num(b.start_s, 1) << std::setw(8) << b.count
+            << std::setw(10) << (b.count ? Summary::num(b.translation_mean, 4) : "-")
+            << std::setw(10) << (b.count ? Summary::num(b.rotation_mean_deg, 3) : "-");
+        s.line(row.str());
+      }
+    }
+    if (plotted) s.row("plot", a->plot + " (" + Summary::num(bin_s, 1) + " s bins)");
     s.print(a->json);
     if (a->json) {
       nlohmann::json j;
@@ -132,14 +382,48 @@ void addRelations(CLI::App& eval, int& result) {
       j["matched"] = r.matched;
       j["outside"] = r.outside;
       j["in_gap"] = r.in_gap;
-      j["trans_mean_m"] = r.translation.mean;
-      j["trans_std_m"] = r.translation.std;
-      j["trans2_mean"] = r.translation_squared.mean;
-      j["trans2_std"] = r.translation_squared.std;
-      j["rot_mean_deg"] = r.rotation_deg.mean;
-      j["rot_std_deg"] = r.rotation_deg.std;
-      j["rot2_mean"] = r.rotation_squared_deg.mean;
-      j["rot2_std"] = r.rotation_squared_deg.std;
+      // The four statistics under the same keys for all relations and the consistent ones.
+      const auto put = [](nlohmann::json& o, const ErrorStats& t, const ErrorStats& t2,
+                          const ErrorStats& rot, const ErrorStats& rot2) {
+        o["trans_mean_m"] = t.mean;
+        o["trans_std_m"] = t.std;
+        o["trans2_mean"] = t2.mean;
+        o["trans2_std"] = t2.std;
+        o["rot_mean_deg"] = rot.mean;
+        o["rot_std_deg"] = rot.std;
+        o["rot2_mean"] = rot2.mean;
+        o["rot2_std"] = rot2.std;
+      };
+      put(j, r.translation, r.translation_squared, r.rotation_deg, r.rotation_squared_deg);
+      if (split) {
+        j["inconsistent_count"] = r.inconsistent;
+        nlohmann::json c{{"max_speed", a->max_speed}, {"count", r.consistent_translation.count}};
+        put(c, r.consistent_translation, r.consistent_translation_squared,
+            r.consistent_rotation_deg, r.consistent_rotation_squared_deg);
+        j["consistent"] = c;
+      }
+      if (binned) {
+        j["bin_s"] = bin_s;
+        j["bins"] = nlohmann::json::array();
+        for (const RelationsBin& b : series.front().bins)
+          j["bins"].push_back({{"start_s", b.start_s},
+                               {"count", b.count},
+                               {"trans_mean_m", b.translation_mean},
+                               {"rot_mean_deg", b.rotation_mean_deg}});
+      }
+      if (series.size() > 1) {
+        j["other_trajectories"] = nlohmann::json::array();
+        for (std::size_t k = 1; k < series.size(); ++k) {
+          const RelationsResult& o = series[k].result;
+          j["other_trajectories"].push_back({{"trajectory", series[k].label},
+                                             {"matched", o.matched},
+                                             {"trans_mean_m", o.translation.mean},
+                                             {"trans_std_m", o.translation.std},
+                                             {"rot_mean_deg", o.rotation_deg.mean},
+                                             {"rot_std_deg", o.rotation_deg.std}});
+        }
+      }
+      if (plotted) j["plot"] = a->plot;
       std::cout << j.dump(2) << "\n";
     }
     result = 0;

@@ -1,5 +1,6 @@
 // `tessera eval ...` end to end: runs the built CLI on files written here and reads its JSON.
 #include <tessera/evaluation/landmark_io.hpp>
+#include <tessera/geometry/pose2.hpp>
 #include <tessera/mapping/trajectory_io.hpp>
 #include <tessera/pose_graph/pose_graph_io.hpp>
 
@@ -114,6 +115,149 @@ TEST_CASE("tessera eval relations and landmarks report their keys", "[eval][cli]
   CHECK(l["pairs"] == 3);
   CHECK(l["rmse_m"].get<double>() < 1e-9);
   CHECK(l.contains("median_m"));
+}
+
+TEST_CASE("tessera eval relations --max-speed and --bins report the split and the bins",
+          "[eval][cli]") {
+  const auto dir = tessera::test::scratchDir("eval_cli_bins");
+  writeTum(dir / "traj.tum", square(4, 40));  // 1 m/s along the first side (0-4 s)
+  {
+    std::ofstream rel(dir / "r.relations");
+    rel << "0.0 1.0 1.0 0 0 0 0 0\n"     // exact
+        << "0.5 1.5 1.5 0 0 0 0 0\n"     // 1.5 m/s: too fast; 0.5 m off
+        << "2.0 3.0 1.0 0 0 0 0 0\n"     // exact
+        << "2.5 3.5 1.0 0 0 0 0 0.1\n";  // 0.1 rad off, no translation error
+  }
+  const std::string base = "eval relations --trajectory " + (dir / "traj.tum").string() +
+                           " --relations " + (dir / "r.relations").string();
+  const CliRun plain = runCli(base + " --json", dir);
+  REQUIRE(plain.exit_code == 0);
+  const auto p = nlohmann::json::parse(plain.out);
+  CHECK_FALSE(p.contains("consistent"));
+  CHECK_FALSE(p.contains("bins"));
+
+  const CliRun run = runCli(base + " --json --max-speed 1.2 --bins 2", dir);
+  INFO(run.err);
+  REQUIRE(run.exit_code == 0);
+  const auto j = nlohmann::json::parse(run.out);
+  // The headline is unchanged by the options.
+  for (const char* key : {"matched", "trans_mean_m", "trans_std_m", "rot_mean_deg", "rot2_mean"})
+    CHECK(j[key] == p[key]);
+  CHECK(j["trans_mean_m"].get<double>() == Approx(0.125));
+  CHECK(j["inconsistent_count"] == 1);
+  const auto& c = j["consistent"];
+  CHECK(c["max_speed"].get<double>() == 1.2);
+  CHECK(c["count"] == 3);
+  CHECK(c["trans_mean_m"].get<double>() == Approx(0).margin(1e-9));
+  CHECK(c["rot_mean_deg"].get<double>() == Approx(0.1 * 180 / std::numbers::pi / 3));
+  for (const char* key : {"trans_std_m", "trans2_mean", "rot_std_deg", "rot2_mean"})
+    CHECK(c.contains(key));
+  CHECK(j["bin_s"].get<double>() == 2);
+  REQUIRE(j["bins"].size() == 2);
+  CHECK(j["bins"][0]["start_s"].get<double>() == 0);
+  CHECK(j["bins"][0]["count"] == 2);
+  CHECK(j["bins"][0]["trans_mean_m"].get<double>() == Approx(0.25));
+  CHECK(j["bins"][0]["rot_mean_deg"].get<double>() == Approx(0).margin(1e-9));
+  CHECK(j["bins"][1]["start_s"].get<double>() == 2);
+  CHECK(j["bins"][1]["count"] == 2);
+  CHECK(j["bins"][1]["trans_mean_m"].get<double>() == Approx(0).margin(1e-9));
+  CHECK(j["bins"][1]["rot_mean_deg"].get<double>() == Approx(0.05 * 180 / std::numbers::pi));
+
+  // The human summary: the split as extra rows, and the table.
+  const CliRun human = runCli(base + " --max-speed 1.2 --bins 2", dir);
+  REQUIRE(human.exit_code == 0);
+  CHECK_THAT(human.out, Catch::Contains("3 of 4 matched (1 faster than 1.20 m/s") &&
+                            Catch::Contains("start s") && Catch::Contains("0.2500"));
+
+  // Bad values are usage errors naming the option.
+  for (const char* bad : {" --bins -1", " --bins 0", " --bins nan", " --bins 1e-12",
+                          " --max-speed -1", " --max-speed nan"}) {
+    const CliRun e = runCli(base + bad, dir);
+    INFO(bad << ": " << e.err);
+    CHECK(e.exit_code == 2);
+    CHECK_THAT(e.err,
+               Catch::Contains(std::string(bad).substr(1, std::string(bad).find(' ', 1) - 1)));
+  }
+}
+
+TEST_CASE("tessera eval relations --plot writes an SVG with a line per trajectory", "[eval][cli]") {
+  const auto dir = tessera::test::scratchDir("eval_cli_plot");
+  const auto traj = square(4, 40);
+  writeTum(dir / "a.tum", traj);
+  auto shifted = traj;  // 0.2 m off sideways from 8 s on
+  for (auto& p : shifted)
+    if (p.stamp_ns > 8'000'000'000) p.position.y() += 0.2;
+  writeTum(dir / "b&c.tum", shifted);  // a name to escape in XML
+  {
+    std::ofstream rel(dir / "r.relations");
+    for (int k = 0; k < 15; ++k) {
+      // 1 s relations along the square, from the trajectory itself.
+      const auto& p1 = traj[static_cast<std::size_t>(k) * 10];
+      const auto& p2 = traj[static_cast<std::size_t>(k) * 10 + 10];
+      const Pose2 d = between(p1.planar(), p2.planar());
+      rel << k << " " << k + 1 << " " << d.x << " " << d.y << " 0 0 0 " << d.theta << "\n";
+    }
+  }
+  const std::string rel = " --relations " + (dir / "r.relations").string();
+  const std::string a = " --trajectory " + (dir / "a.tum").string();
+  const std::string b = " --trajectory '" + (dir / "b&c.tum").string() + "'";
+  const fs::path svg = dir / "plot.svg";
+  auto read = [](const fs::path& path) {
+    std::ifstream in(path);
+    std::ostringstream s;
+    s << in.rdbuf();
+    return s.str();
+  };
+  auto count = [](const std::string& text, const std::string& what) {
+    std::size_t n = 0;
+    for (auto at = text.find(what); at != std::string::npos; at = text.find(what, at + 1)) ++n;
+    return n;
+  };
+
+  const CliRun single = runCli("eval relations" + a + rel + " --json", dir);
+  REQUIRE(single.exit_code == 0);
+  const CliRun two =
+      runCli("eval relations" + a + b + rel + " --plot " + svg.string() + " --bins 5 --json", dir);
+  INFO(two.err);
+  REQUIRE(two.exit_code == 0);
+  const auto j1 = nlohmann::json::parse(single.out);
+  const auto j2 = nlohmann::json::parse(two.out);
+  // The headline is the first trajectory's, as with one.
+  for (const char* key : {"matched", "trans_mean_m", "trans_std_m", "rot_mean_deg"})
+    CHECK(j2[key] == j1[key]);
+  REQUIRE(j2["other_trajectories"].size() == 1);
+  CHECK(j2["other_trajectories"][0]["trans_mean_m"].get<double>() > 0.01);
+  CHECK(j2["plot"] == svg.string());
+
+  const std::string text = read(svg);
+  CHECK_THAT(text,
+             Catch::StartsWith("<?xml") && Catch::Contains("<svg") && Catch::EndsWith("</svg>\n"));
+  CHECK(count(text, "class=\"series\"") == 2);
+  CHECK_THAT(text, Catch::Contains("a.tum: mean") && Catch::Contains("b&amp;c.tum: mean") &&
+                       Catch::Contains("per 5 s bin"));
+  CHECK(count(text, "&c.tum") == 0);
+  // Written atomically: no temporary file is left beside it.
+  std::size_t files = 0;
+  for (const auto& e : fs::directory_iterator(dir)) {
+    const std::string name = e.path().filename().string();
+    files += name.ends_with(".svg") || name.find(".tmp") != std::string::npos;
+  }
+  CHECK(files == 1);
+
+  // One trajectory, default 300 s bins: one line.
+  const CliRun one = runCli("eval relations" + a + rel + " --plot " + svg.string(), dir);
+  REQUIRE(one.exit_code == 0);
+  CHECK(count(read(svg), "class=\"series\"") == 1);
+  CHECK_THAT(read(svg), Catch::Contains("per 300 s bin"));
+
+  // An output folder that does not exist: a usage error naming the file; nothing is computed.
+  const CliRun missing = runCli("eval relations" + a + rel + " --plot /nonexistent/dir/x.svg", dir);
+  CHECK(missing.exit_code == 2);
+  CHECK_THAT(missing.err,
+             Catch::Contains("/nonexistent/dir/x.svg") && Catch::Contains("does not exist"));
+  const CliRun folder = runCli("eval relations" + a + rel + " --plot " + dir.string(), dir);
+  CHECK(folder.exit_code == 2);
+  CHECK_THAT(folder.err, Catch::Contains("is a folder"));
 }
 
 TEST_CASE("tessera eval: missing files are usage errors, bad lines name file:line", "[eval][cli]") {

@@ -7,6 +7,7 @@
 #include <limits>
 #include <numbers>
 #include <numeric>
+#include <sstream>
 #include <string>
 #include <tuple>
 #include <unordered_map>
@@ -324,13 +325,28 @@ PlanarTrajectory::Lookup PlanarTrajectory::at(std::int64_t t, std::int64_t max_g
 RelationsResult computeRelationsError(const std::vector<mapping::TumPose>& trajectory,
                                       const std::vector<PoseRelation>& relations,
                                       const RelationsOptions& options) {
+  if (!(options.max_speed >= 0))
+    throw MetricError("relations: max_speed must be a number >= 0 (0: off)");
   const PlanarTrajectory traj(trajectory);
   const std::int64_t offset = secondsToNs(options.time_offset_s);
   const std::int64_t max_gap = options.max_gap_s > 0 ? secondsToNs(options.max_gap_s) : 0;
   RelationsResult r;
   r.relations = relations.size();
+  r.errors.reserve(relations.size());
   std::vector<double> trans, trans_sq, rot, rot_sq;
+  std::vector<double> ok_trans, ok_trans_sq, ok_rot, ok_rot_sq;  // consistent with the stamps
   for (const PoseRelation& rel : relations) {
+    RelationError& out = r.errors.emplace_back();
+    out.t1_ns = rel.t1_ns;
+    out.t2_ns = rel.t2_ns;
+    const double distance = std::hypot(rel.delta.x, rel.delta.y);
+    const double dt = std::abs(static_cast<double>(rel.t2_ns - rel.t1_ns)) * 1e-9;
+    out.speed = distance == 0 ? 0.0
+                : dt > 0      ? distance / dt
+                              : std::numeric_limits<double>::infinity();
+    // A NaN displacement is never "consistent": it cannot be shown to fit its stamps.
+    out.consistent = options.max_speed == 0 || out.speed <= options.max_speed;
+
     Pose2 x1, x2;
     // Relation times are in the relations' time base; the trajectory's is offset from it.
     const auto l1 = traj.at(rel.t1_ns - offset, max_gap, x1);
@@ -346,10 +362,21 @@ RelationsResult computeRelationsError(const std::vector<mapping::TumPose>& traje
     const Pose2 e = between(rel.delta, between(x1, x2));
     const double t = std::hypot(e.x, e.y);
     const double a = std::abs(e.theta) * kRadToDeg;
+    out.matched = true;
+    out.translation = t;
+    out.rotation_rad = std::abs(e.theta);
     trans.push_back(t);
     trans_sq.push_back(t * t);
     rot.push_back(a);
     rot_sq.push_back(a * a);
+    if (out.consistent) {
+      ok_trans.push_back(t);
+      ok_trans_sq.push_back(t * t);
+      ok_rot.push_back(a);
+      ok_rot_sq.push_back(a * a);
+    } else {
+      ++r.inconsistent;
+    }
   }
   r.matched = trans.size();
   if (r.matched == 0)
@@ -361,7 +388,52 @@ RelationsResult computeRelationsError(const std::vector<mapping::TumPose>& traje
   r.translation_squared = summarize(std::move(trans_sq));
   r.rotation_deg = summarize(std::move(rot));
   r.rotation_squared_deg = summarize(std::move(rot_sq));
+  r.consistent_translation = summarize(std::move(ok_trans));
+  r.consistent_translation_squared = summarize(std::move(ok_trans_sq));
+  r.consistent_rotation_deg = summarize(std::move(ok_rot));
+  r.consistent_rotation_squared_deg = summarize(std::move(ok_rot_sq));
   return r;
+}
+
+std::vector<RelationsBin> binRelationErrors(const std::vector<RelationError>& errors,
+                                            double width_s) {
+  if (!(width_s > 0) || !std::isfinite(width_s))
+    throw MetricError("relation bins: the width must be a positive number of seconds");
+  std::vector<RelationsBin> bins;
+  if (errors.empty()) return bins;
+  const auto [first, last] = std::minmax_element(
+      errors.begin(), errors.end(),
+      [](const RelationError& a, const RelationError& b) { return a.t1_ns < b.t1_ns; });
+  const std::int64_t t0 = first->t1_ns;
+  const auto binOf = [&](std::int64_t t1_ns) {
+    return std::floor(static_cast<double>(t1_ns - t0) * 1e-9 / width_s);
+  };
+  constexpr double kMaxBins = 1'000'000;
+  const double last_bin = binOf(last->t1_ns);
+  if (!(last_bin < kMaxBins)) {
+    std::ostringstream message;
+    message << "relation bins: " << width_s << " s bins over "
+            << static_cast<double>(last->t1_ns - t0) * 1e-9
+            << " s would make more than 1000000 bins";
+    throw MetricError(message.str());
+  }
+  bins.resize(static_cast<std::size_t>(last_bin) + 1);
+  std::vector<double> rot_sum(bins.size(), 0.0);
+  for (std::size_t k = 0; k < bins.size(); ++k) bins[k].start_s = static_cast<double>(k) * width_s;
+  for (const RelationError& e : errors) {
+    if (!e.matched) continue;
+    const std::size_t k = static_cast<std::size_t>(binOf(e.t1_ns));
+    ++bins[k].count;
+    bins[k].translation_mean += e.translation;
+    rot_sum[k] += e.rotation_rad;
+  }
+  for (std::size_t k = 0; k < bins.size(); ++k) {
+    if (bins[k].count == 0) continue;
+    const double n = static_cast<double>(bins[k].count);
+    bins[k].translation_mean /= n;
+    bins[k].rotation_mean_deg = rot_sum[k] / n * kRadToDeg;
+  }
+  return bins;
 }
 
 LandmarkResult computeLandmarkError(const std::vector<Landmark>& estimate,

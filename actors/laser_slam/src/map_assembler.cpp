@@ -37,7 +37,7 @@ void MapAssembler::setSubmap(int id, tessera::grid::OccupancyMap grid) {
     throw std::invalid_argument("map_assembler: submap " + std::to_string(id) +
                                 " has an inconsistent grid (resolution, origin, width x height "
                                 "= cells expected)");
-  submaps_[id].grid = std::move(grid);
+  submaps_[id].grid = tessera::grid::PackedOccupancyMap(grid);
 }
 
 void MapAssembler::setPose(int id, const tessera::Pose2& global_pose) {
@@ -59,9 +59,16 @@ tessera::Pose2 MapAssembler::pose(int id) const {
   return it == submaps_.end() ? tessera::Pose2{} : it->second.pose;
 }
 
-const tessera::grid::OccupancyMap* MapAssembler::grid(int id) const {
+std::optional<tessera::grid::OccupancyMap> MapAssembler::grid(int id) const {
   const auto it = submaps_.find(id);
-  return it == submaps_.end() || it->second.grid.empty() ? nullptr : &it->second.grid;
+  if (it == submaps_.end() || it->second.grid.empty()) return std::nullopt;
+  return it->second.grid.unpack();
+}
+
+std::size_t MapAssembler::bytes() const {
+  std::size_t total = 0;
+  for (const auto& [id, e] : submaps_) total += e.grid.bytes();
+  return total;
 }
 
 tessera::grid::OccupancyMap MapAssembler::assemble() const {
@@ -73,12 +80,12 @@ tessera::grid::OccupancyMap MapAssembler::assemble() const {
   for (const auto& [id, e] : submaps_) {
     if (!e.placed || e.grid.empty()) continue;
     drawn.push_back(&e);
-    if (resolution_ == 0) res = res == 0 ? e.grid.resolution : std::min(res, e.grid.resolution);
-    const tessera::Pose2 to_map = e.pose * e.grid.origin;
+    if (resolution_ == 0) res = res == 0 ? e.grid.resolution() : std::min(res, e.grid.resolution());
+    const tessera::Pose2 to_map = e.pose * e.grid.origin();
     for (const auto& corner :
-         {Eigen::Vector2d(0, 0), Eigen::Vector2d(e.grid.width, 0),
-          Eigen::Vector2d(0, e.grid.height), Eigen::Vector2d(e.grid.width, e.grid.height)}) {
-      const Eigen::Vector2d p = to_map * (corner * e.grid.resolution);
+         {Eigen::Vector2d(0, 0), Eigen::Vector2d(e.grid.width(), 0),
+          Eigen::Vector2d(0, e.grid.height()), Eigen::Vector2d(e.grid.width(), e.grid.height())}) {
+      const Eigen::Vector2d p = to_map * (corner * e.grid.resolution());
       lo = lo.cwiseMin(p);
       hi = hi.cwiseMax(p);
     }
@@ -96,16 +103,18 @@ tessera::grid::OccupancyMap MapAssembler::assemble() const {
   for (int v = 0; v <= 100; ++v)
     log_odds[static_cast<std::size_t>(v)] = logOddsOf(static_cast<std::int8_t>(v));
   for (const Entry* e : drawn) {
+    // One submap unpacked at a time.
+    const tessera::grid::OccupancyMap grid = e->grid.unpack();
     // Walk the global cells under this submap's footprint; sample the submap at each centre.
-    const tessera::Pose2 to_map = e->pose * e->grid.origin;
+    const tessera::Pose2 to_map = e->pose * grid.origin;
     const tessera::Pose2 to_grid = to_map.inverse();
     Eigen::Vector2d a(std::numeric_limits<double>::infinity(),
                       std::numeric_limits<double>::infinity());
     Eigen::Vector2d b = -a;
     for (const auto& c :
-         {Eigen::Vector2d(0, 0), Eigen::Vector2d(e->grid.width, 0),
-          Eigen::Vector2d(0, e->grid.height), Eigen::Vector2d(e->grid.width, e->grid.height)}) {
-      const Eigen::Vector2d p = to_map * (c * e->grid.resolution);
+         {Eigen::Vector2d(0, 0), Eigen::Vector2d(grid.width, 0), Eigen::Vector2d(0, grid.height),
+          Eigen::Vector2d(grid.width, grid.height)}) {
+      const Eigen::Vector2d p = to_map * (c * grid.resolution);
       a = a.cwiseMin(p);
       b = b.cwiseMax(p);
     }
@@ -115,15 +124,15 @@ tessera::grid::OccupancyMap MapAssembler::assemble() const {
         std::min(out.width - 1, static_cast<int>(std::floor((b.x() - corner.x()) / res)));
     const int r1 =
         std::min(out.height - 1, static_cast<int>(std::floor((b.y() - corner.y()) / res)));
-    const double inv = 1.0 / e->grid.resolution;
+    const double inv = 1.0 / grid.resolution;
     for (int r = r0; r <= r1; ++r) {
       for (int c = c0; c <= c1; ++c) {
         const Eigen::Vector2d local =
             to_grid * Eigen::Vector2d(corner.x() + (c + 0.5) * res, corner.y() + (r + 0.5) * res);
         const int gc = static_cast<int>(std::floor(local.x() * inv));
         const int gr = static_cast<int>(std::floor(local.y() * inv));
-        if (!e->grid.contains(gc, gr)) continue;
-        const std::int8_t v = e->grid.at(gc, gr);
+        if (!grid.contains(gc, gr)) continue;
+        const std::int8_t v = grid.at(gc, gr);
         if (v < 0) continue;
         const std::size_t k = static_cast<std::size_t>(r) * out.width + c;
         const int add = log_odds[static_cast<std::size_t>(std::min<int>(v, 100))];

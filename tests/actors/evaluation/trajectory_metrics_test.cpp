@@ -7,6 +7,7 @@
 #include <Eigen/Geometry>
 
 #include <cmath>
+#include <limits>
 #include <numbers>
 
 #include "../../shared_data.hpp"
@@ -333,6 +334,101 @@ TEST_CASE("relations metric counts relations outside the trajectory or in its ga
   CHECK_THROWS_AS(computeRelationsError(late, relations), MetricError);
   options.time_offset_s = 1000;
   CHECK(computeRelationsError(late, relations, options).matched == 3);
+}
+
+TEST_CASE("relations metric keeps every relation's error and splits off too fast relations",
+          "[eval][relations]") {
+  // Straight along x at 1 m/s, a pose a second: interpolation is exact.
+  std::vector<TumPose> traj;
+  for (int k = 0; k <= 10; ++k) traj.push_back(TumPose::fromPlanar(k * kSec, Pose2(k, 0, 0)));
+  const std::vector<PoseRelation> relations{
+      {1 * kSec, 2 * kSec, Pose2(1, 0, 0)},                 // 1 m/s (the limit: consistent), e = 0
+      {2 * kSec, 4 * kSec, Pose2(2.5, 0, 0)},               // 1.25 m/s: inconsistent, e = 0.5 m
+      {5 * kSec, 5 * kSec + kSec / 2, Pose2(0.5, 0, 0.1)},  // 1 m/s, e = 0.1 rad only
+      {6 * kSec, 6 * kSec, Pose2(0.3, 0, 0)},               // no time: infinitely fast, e = 0.3 m
+      {20 * kSec, 21 * kSec, Pose2(1, 0, 0)},               // after the trajectory: not matched
+      {7 * kSec, 8 * kSec, Pose2(0, 0, 0)},                 // standing still, e = 1 m
+  };
+  RelationsOptions options;
+  const RelationsResult off = computeRelationsError(traj, relations, options);
+  CHECK(off.matched == 5);
+  CHECK(off.inconsistent == 0);
+  CHECK(off.translation.mean == Approx(0.36));
+  CHECK(off.consistent_translation.count == 5);
+  CHECK(off.consistent_translation.mean == Approx(0.36));
+  CHECK(off.consistent_rotation_deg.mean == Approx(off.rotation_deg.mean));
+
+  REQUIRE(off.errors.size() == 6);
+  CHECK(off.errors[1].t1_ns == 2 * kSec);
+  CHECK(off.errors[1].t2_ns == 4 * kSec);
+  CHECK(off.errors[1].matched);
+  CHECK(off.errors[1].translation == Approx(0.5));
+  CHECK(off.errors[1].speed == Approx(1.25));
+  CHECK(off.errors[2].translation == Approx(0).margin(1e-12));
+  CHECK(off.errors[2].rotation_rad == Approx(0.1));
+  CHECK(std::isinf(off.errors[3].speed));
+  CHECK(off.errors[3].translation == Approx(0.3));
+  CHECK_FALSE(off.errors[4].matched);
+  CHECK(off.errors[4].translation == 0);
+  CHECK(off.errors[5].speed == 0);
+  for (const RelationError& e : off.errors) CHECK(e.consistent);
+
+  options.max_speed = 1.0;
+  const RelationsResult r = computeRelationsError(traj, relations, options);
+  // The headline figures stay over all matched relations.
+  CHECK(r.matched == 5);
+  CHECK(r.translation.mean == off.translation.mean);
+  CHECK(r.translation.std == off.translation.std);
+  CHECK(r.rotation_deg.mean == off.rotation_deg.mean);
+  CHECK(r.translation_squared.mean == off.translation_squared.mean);
+  // Relations 1 and 3 are inconsistent; 0, 2 and 5 remain: |e_xy| = 0, 0, 1 and e_θ = 0, 0.1, 0.
+  CHECK(r.inconsistent == 2);
+  CHECK_FALSE(r.errors[1].consistent);
+  CHECK_FALSE(r.errors[3].consistent);
+  CHECK(r.errors[0].consistent);
+  CHECK(r.errors[4].consistent);  // unmatched, but 1 m/s
+  CHECK(r.consistent_translation.count == 3);
+  CHECK(r.consistent_translation.mean == Approx(1.0 / 3));
+  CHECK(r.consistent_translation.std == Approx(std::sqrt(1.0 / 3)));
+  CHECK(r.consistent_translation_squared.mean == Approx(1.0 / 3));
+  CHECK(r.consistent_rotation_deg.mean == Approx(0.1 * 180 / pi / 3));
+  CHECK(r.consistent_rotation_squared_deg.mean == Approx(std::pow(0.1 * 180 / pi, 2) / 3));
+
+  options.max_speed = -1;
+  CHECK_THROWS_AS(computeRelationsError(traj, relations, options), MetricError);
+  options.max_speed = std::nan("");
+  CHECK_THROWS_AS(computeRelationsError(traj, relations, options), MetricError);
+
+  // Bins of 2 s from the earliest t1 (1 s), matched relations only; the unmatched relation at
+  // 20 s still extends the bins (to line up with other trajectories on the same relations).
+  const std::vector<RelationsBin> bins = binRelationErrors(r.errors, 2.0);
+  REQUIRE(bins.size() == 10);  // t1 − 1 s = 0, 1 | - | 4, 5 | 6 | - ... | 19
+  for (std::size_t k = 0; k < bins.size(); ++k) CHECK(bins[k].start_s == Approx(2.0 * k));
+  CHECK(bins[0].count == 2);
+  CHECK(bins[0].translation_mean == Approx(0.25));
+  CHECK(bins[0].rotation_mean_deg == Approx(0).margin(1e-12));
+  CHECK(bins[1].count == 0);
+  CHECK(bins[1].translation_mean == 0);
+  CHECK(bins[2].count == 2);
+  CHECK(bins[2].translation_mean == Approx(0.15));
+  CHECK(bins[2].rotation_mean_deg == Approx(0.05 * 180 / pi));
+  CHECK(bins[3].count == 1);
+  CHECK(bins[3].translation_mean == Approx(1.0));
+  for (std::size_t k = 4; k < bins.size(); ++k) CHECK(bins[k].count == 0);
+  // One bin wider than the span holds every matched relation.
+  const auto one = binRelationErrors(r.errors, 100);
+  REQUIRE(one.size() == 1);
+  CHECK(one[0].count == 5);
+  CHECK(one[0].translation_mean == Approx(r.translation.mean));
+  CHECK(one[0].rotation_mean_deg == Approx(r.rotation_deg.mean));
+
+  CHECK(binRelationErrors({}, 1.0).empty());
+  CHECK_THROWS_AS(binRelationErrors(r.errors, 0), MetricError);
+  CHECK_THROWS_AS(binRelationErrors(r.errors, -1), MetricError);
+  CHECK_THROWS_AS(binRelationErrors(r.errors, std::nan("")), MetricError);
+  CHECK_THROWS_AS(binRelationErrors(r.errors, std::numeric_limits<double>::infinity()),
+                  MetricError);
+  CHECK_THROWS_AS(binRelationErrors(r.errors, 1e-9), MetricError);  // 1.9e10 bins
 }
 
 TEST_CASE("landmark error after rigid alignment, associated by id", "[eval][landmarks]") {

@@ -317,7 +317,7 @@ TEST_CASE("pyramids rebuilt from a submap's cells give the same closures as cach
   CHECK(big.builds == 2);               // each submap's pyramid once
   CHECK(one.builds > 2);                // rebuilt as the searches alternate
   CHECK(one.builds + one.hits == big.builds + big.hits);
-  // Held: the cells of the three submaps plus the cached pyramids (~16 bytes per cell each).
+  // Held: the cells of the three submaps plus the cached pyramids (~9 bytes per cell each).
   CHECK(one.memory_mb > 0);
   CHECK(one.memory_mb < big.memory_mb);
   CHECK(big.memory_peak_mb >= big.memory_mb);

@@ -418,6 +418,46 @@ TEST_CASE("map assembler draws submaps at their global poses", "[map_assembler]"
   CHECK(assembler.pose(1).x == 5.0);  // unchanged
 }
 
+TEST_CASE("map assembler keeps submaps packed and gives back their exact cells",
+          "[map_assembler]") {
+  // Mostly unknown, a free strip and a wall: compresses well, and every value must come back.
+  tessera::grid::OccupancyMap grid;
+  grid.resolution = 0.05;
+  grid.width = 200;
+  grid.height = 150;
+  grid.origin = Pose2(-1.0, 2.0, 0.25);
+  grid.cells.assign(200 * 150, tessera::grid::OccupancyMap::kUnknown);
+  for (int r = 40; r < 90; ++r)
+    for (int c = 0; c < 200; ++c) grid.at(c, r) = static_cast<std::int8_t>(r == 89 ? 100 : c % 7);
+  MapAssembler assembler;
+  CHECK(assembler.bytes() == 0);
+  CHECK_FALSE(assembler.grid(0).has_value());  // no such submap
+  assembler.setSubmap(0, grid);
+  CHECK(assembler.bytes() > 0);
+  CHECK(assembler.bytes() * 10 < grid.cells.size());
+  const auto back = assembler.grid(0);
+  REQUIRE(back.has_value());
+  CHECK(back->width == grid.width);
+  CHECK(back->height == grid.height);
+  CHECK(back->resolution == grid.resolution);
+  CHECK(back->origin.x == grid.origin.x);
+  CHECK(back->origin.theta == grid.origin.theta);
+  CHECK(back->cells == grid.cells);
+  assembler.setPose(1, Pose2{});  // a pose without cells: no grid, not drawn
+  CHECK_FALSE(assembler.grid(1).has_value());
+  assembler.setPose(0, Pose2(1.0, -0.5, 0.1));
+  const auto map = assembler.assemble();  // drawn from the packed cells
+  REQUIRE_FALSE(map.empty());
+  const auto valueAt = [&](int col, int row) {
+    const auto c = map.cellOf(Pose2(1.0, -0.5, 0.1) * grid.cellCenter(col, row));
+    REQUIRE(map.contains(c.x(), c.y()));
+    return map.at(c.x(), c.y());
+  };
+  CHECK(valueAt(100, 89) > 90);  // the wall
+  CHECK(valueAt(100, 60) < 10);  // the free strip
+  CHECK(valueAt(100, 10) == -1);
+}
+
 TEST_CASE("map assembler actor chains hand-over constraints", "[map_assembler]") {
   ActorHarness h(
       std::make_unique<laser_slam::MapAssemblerActor>(laser_slam::MapAssemblerOptions{}));

@@ -482,14 +482,15 @@ TEST_CASE("MatchGrid reports the bytes it holds; check() tells a bad view withou
   for (const int depth : {0, 3, 7}) {
     const MatchGrid grid(GridView::of(map), depth, 0.1);
     REQUIRE(grid.depth() == depth);
-    // Level h is padded by 2^h − 1 cells per axis; each cell is 2 bytes.
+    // Level h is padded by 2^h − 1 cells per axis; each cell is 1 byte (it was 2 with the
+    // earlier 16-bit cells).
     std::size_t cells = 0;
     for (int h = 0; h <= depth; ++h)
       cells += static_cast<std::size_t>(map.width + (1 << h) - 1) *
                static_cast<std::size_t>(map.height + (1 << h) - 1);
-    CHECK(grid.bytes() >= static_cast<std::size_t>(map.width * map.height * 2 * (depth + 1)));
-    CHECK(grid.bytes() >= 2 * cells);
-    CHECK(grid.bytes() < 2 * cells + 1024);  // the small overhead: object and level table
+    CHECK(grid.bytes() >= static_cast<std::size_t>(map.width * map.height * (depth + 1)));
+    CHECK(grid.bytes() >= cells);
+    CHECK(grid.bytes() < cells + 1024);  // the small overhead: object and level table
   }
   const MatchGrid none(GridView{}, 7, 0.1);
   CHECK(none.bytes() < 1024);
@@ -500,4 +501,58 @@ TEST_CASE("MatchGrid reports the bytes it holds; check() tells a bad view withou
   bad = GridView::of(map);
   bad.percent = bad.percent.first(10);
   CHECK(MatchGrid::check(bad) == "grid cell count does not match width x height");
+}
+
+TEST_CASE("MatchGrid stores percent cells exactly as 2p and unknown as its probability in 1/200",
+          "[correlative_matcher]") {
+  STATIC_REQUIRE(MatchGrid::kScale == 200);
+  OccupancyMap map;
+  map.width = 400;
+  map.height = 400;
+  map.resolution = 0.05;
+  map.cells.resize(static_cast<std::size_t>(map.width * map.height));
+  // Every ROS value −1..100 (and −128, another unknown) somewhere in the grid.
+  for (std::size_t i = 0; i < map.cells.size(); ++i)
+    map.cells[i] = static_cast<std::int8_t>(static_cast<int>(i % 103) - 2);
+  map.cells[5] = -128;
+  for (const double unknown : {0.1, 0.0, 1.0, 0.333}) {
+    const MatchGrid grid(GridView::of(map), 7, unknown);
+    REQUIRE(grid.depth() == 7);
+    const int u = static_cast<int>(std::lround(unknown * MatchGrid::kScale));
+    CHECK(static_cast<int>(grid.unknownValue()) == u);
+    if (unknown == 0.1) CHECK(static_cast<int>(grid.unknownValue()) == 20);
+    for (int y = 0; y < map.height; ++y)
+      for (int x = 0; x < map.width; ++x) {
+        const int p = map.at(x, y);
+        const int want = p < 0 ? u : 2 * p;
+        if (static_cast<int>(grid.at(0, x, y)) != want) {
+          FAIL_CHECK("cell (" << x << ", " << y << ") = " << p << " % stores "
+                              << static_cast<int>(grid.at(0, x, y)) << ", not " << want);
+          return;
+        }
+      }
+    CHECK(static_cast<int>(grid.at(0, -1, 0)) == u);  // outside the grid
+    CHECK(static_cast<int>(grid.at(7, map.width, 0)) == u);
+    // A score is the mean of stored values over kScale: exactly p / 100 on a p % cell.
+    const CorrelativeMatcher matcher;
+    const std::vector<Eigen::Vector2d> one{{0.0, 0.0}};
+    const Pose2 on_50(map.origin.x + (52 + 0.5) * map.resolution,
+                      map.origin.y + 0.5 * map.resolution, 0.0);  // cell (52, 0) holds 50 %
+    REQUIRE(map.at(52, 0) == 50);
+    CHECK(matcher.score(grid, one, on_50) == 0.5);
+  }
+
+  // Depth 7 costs under 10 bytes per grid cell (8 levels of 1 byte plus padding).
+  const MatchGrid grid(GridView::of(map), 7, 0.1);
+  CHECK(grid.bytes() < static_cast<std::size_t>(10 * map.width * map.height));
+  CHECK(grid.bytes() > static_cast<std::size_t>(8 * map.width * map.height));
+
+  // Float probabilities are rounded to the nearest 1/200; NaN is unknown.
+  std::vector<float> prob = {0.0f,    1.0f,  0.5f, 0.1234f,
+                             0.9976f, -0.5f, 2.0f, std::numeric_limits<float>::quiet_NaN()};
+  const GridView fview{static_cast<int>(prob.size()), 1, 0.05, Pose2(), {}, prob};
+  const MatchGrid fgrid(fview, 0, 0.1);
+  const int want[] = {0, 200, 100, 25, 200, 0, 200, 20};
+  for (int x = 0; x < static_cast<int>(prob.size()); ++x)
+    CHECK(static_cast<int>(fgrid.at(0, x, 0)) == want[x]);
 }

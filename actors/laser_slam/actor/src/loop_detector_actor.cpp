@@ -285,14 +285,16 @@ void LoopDetectorActor::onSubmap(const Message<msg::Submap>& m) {
   const auto g = m->getGrid();
   FinishedSubmap s;
   s.id = id;
-  s.cells.width = static_cast<int>(g.getWidth());
-  s.cells.height = static_cast<int>(g.getHeight());
-  s.cells.resolution = g.getResolution();
-  s.cells.origin = toPose2(g.getOrigin());
+  // The grid as received, checked here; kept packed (s.cells) once the submap is accepted.
+  tessera::grid::OccupancyMap grid;
+  grid.width = static_cast<int>(g.getWidth());
+  grid.height = static_cast<int>(g.getHeight());
+  grid.resolution = g.getResolution();
+  grid.origin = toPose2(g.getOrigin());
   const auto cells = viewInt8(g.getCells());
-  s.cells.cells.assign(cells.begin(), cells.end());
+  grid.cells.assign(cells.begin(), cells.end());
   s.chained = toPose2(m->getGlobalPose());
-  const tessera::scan_matching::GridView view = tessera::scan_matching::GridView::of(s.cells);
+  const tessera::scan_matching::GridView view = tessera::scan_matching::GridView::of(grid);
   // Checked now, built when first searched (pyramidFor).
   const std::string grid_error = tessera::scan_matching::MatchGrid::check(view);
   if (s.chained.isFinite()) chained_origins_[id] = s.chained;
@@ -346,6 +348,7 @@ void LoopDetectorActor::onSubmap(const Message<msg::Submap>& m) {
   current_optimized_.erase(current_optimized_.begin(), current_optimized_.upper_bound(id));
   s.start = start;
   s.end = end;
+  s.cells = tessera::grid::PackedOccupancyMap(grid);  // consistent: checked above
   submaps_.push_back(std::move(s));
   notePeak();
 }
@@ -371,7 +374,11 @@ const tessera::scan_matching::MatchGrid& LoopDetectorActor::pyramidFor(const Fin
     slot->grid.reset();
   }
   const auto start = std::chrono::steady_clock::now();
-  slot->grid.emplace(matcher_.precompute(tessera::scan_matching::GridView::of(s.cells)));
+  {
+    // Unpacked for the build only (counted in pyramid_build_s): one submap's cells at a time.
+    const tessera::grid::OccupancyMap cells = s.cells.unpack();
+    slot->grid.emplace(matcher_.precompute(tessera::scan_matching::GridView::of(cells)));
+  }
   pyramid_build_seconds_ +=
       std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   ++pyramid_builds_;
@@ -383,7 +390,7 @@ const tessera::scan_matching::MatchGrid& LoopDetectorActor::pyramidFor(const Fin
 
 std::size_t LoopDetectorActor::memoryBytes() const {
   std::size_t total = 0;
-  for (const auto& s : submaps_) total += s.cells.cells.capacity();
+  for (const auto& s : submaps_) total += s.cells.bytes();
   for (const auto& p : pyramids_)
     if (p.grid) total += p.grid->bytes();
   return total;

@@ -12,7 +12,9 @@
 #include <cstring>
 #include <filesystem>
 #include <iostream>
+#include <optional>
 #include <stdexcept>
+#include <utility>
 
 namespace tessera::laser_slam {
 namespace {
@@ -65,11 +67,7 @@ void MapAssemblerActor::loadState() {
 }
 
 std::size_t MapAssemblerActor::gridBytes() const {
-  std::size_t total = 0;
-  for (const auto& [id, finished] : finished_)
-    if (const tessera::grid::OccupancyMap* grid = assembler_.grid(id))
-      total += grid->cells.capacity();
-  return total;
+  return assembler_.bytes();
 }
 
 void MapAssemblerActor::configure(ActorContext& ctx) {
@@ -228,9 +226,10 @@ void MapAssemblerActor::writeState() {
   state.frame_id = options_.frame_id;
   std::set<int> ids;
   for (const auto& [id, finished] : finished_) {
-    const tessera::grid::OccupancyMap* grid = assembler_.grid(id);
-    if (grid == nullptr || !assembler_.hasPose(id)) continue;
-    state.submaps.push_back({id, assembler_.pose(id), *grid, finished});
+    if (!assembler_.hasPose(id)) continue;
+    std::optional<tessera::grid::OccupancyMap> grid = assembler_.grid(id);  // unpacked
+    if (!grid) continue;
+    state.submaps.push_back({id, assembler_.pose(id), std::move(*grid), finished});
     ids.insert(id);
   }
   if (state.submaps.empty()) return;

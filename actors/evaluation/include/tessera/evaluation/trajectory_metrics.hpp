@@ -14,7 +14,11 @@
 //   estimate interpolated on SE(2) at t. Reported, as in the paper's tables: mean ± std of the
 //   absolute translational error |e_xy| [m], of its square [m²], of the absolute rotational error
 //   |e_θ| [deg] and of its square [deg²]. (|e| is the same for e⁻¹, so the order of the
-//   composition does not matter; the frame convention of δ does.)
+//   composition does not matter; the frame convention of δ does.) The result also keeps every
+//   relation's error, for analysis over time (binRelationErrors), and, with max_speed set,
+//   separate statistics of the relations whose true displacement fits their time stamps (a log
+//   with rebuilt stamps holds relations no robot could have driven: their error is a floor that
+//   no trajectory can go under).
 // - Heading drift (odometry): estimate and reference associated by time as for ATE, no
 //   alignment; the heading error e_k = (θ_est,k − θ_est,0) − (θ_ref,k − θ_ref,0) of every pair
 //   relative to the first, unwrapped (accumulated from wrapped per-pair increments, so a drift
@@ -169,20 +173,58 @@ struct RelationsOptions {
   double max_gap_s = 30.0;
   /// [s] added to the trajectory stamps, for trajectories in another time base.
   double time_offset_s = 0.0;
+  /// [m/s] a relation whose true displacement |(dx, dy)| / |t2 − t1| exceeds this is
+  /// inconsistent with its time stamps (no robot of the log drives that fast: its stamps are
+  /// wrong) and is left out of the `consistent_*` statistics. It stays in the headline figures.
+  /// 0: off (every relation is consistent). Negative or not a number: MetricError.
+  double max_speed = 0.0;
+};
+/// One relation's outcome, in the order of the relations set.
+struct RelationError {
+  std::int64_t t1_ns = 0, t2_ns = 0;  ///< the relation's times (relations' time base)
+  bool matched = false;               ///< evaluated; else the errors below are 0
+  bool consistent = true;             ///< speed ≤ max_speed, or max_speed off
+  double translation = 0;             ///< |e_xy| [m]
+  double rotation_rad = 0;            ///< |e_θ| [rad]
+  double speed = 0;  ///< [m/s] |(dx, dy)| / |t2 − t1| of the true relation (∞ if t1 = t2)
 };
 struct RelationsResult {
   std::size_t relations = 0;        ///< in the relations set
   std::size_t matched = 0;          ///< evaluated
   std::size_t outside = 0;          ///< not matched: a time before/after the trajectory
   std::size_t in_gap = 0;           ///< not matched: a time inside a gap longer than max_gap_s
-  ErrorStats translation;           ///< |e_xy| [m]
+  ErrorStats translation;           ///< |e_xy| [m], over all matched relations
   ErrorStats translation_squared;   ///< |e_xy|² [m²]
   ErrorStats rotation_deg;          ///< |e_θ| [deg]
   ErrorStats rotation_squared_deg;  ///< |e_θ|² [deg²]
+  /// Matched relations faster than options.max_speed (0 when it is off).
+  std::size_t inconsistent = 0;
+  /// The same four figures over the matched relations that are consistent with their time
+  /// stamps (count = matched − inconsistent; equal to the headline when max_speed is off).
+  ErrorStats consistent_translation;           ///< [m]
+  ErrorStats consistent_translation_squared;   ///< [m²]
+  ErrorStats consistent_rotation_deg;          ///< [deg]
+  ErrorStats consistent_rotation_squared_deg;  ///< [deg²]
+  std::vector<RelationError> errors;           ///< every relation, matched or not, in input order
 };
 RelationsResult computeRelationsError(const std::vector<mapping::TumPose>& trajectory,
                                       const std::vector<PoseRelation>& relations,
                                       const RelationsOptions& options = {});
+
+/// The mean error of the matched relations whose t1 falls in [start_s, start_s + width).
+struct RelationsBin {
+  double start_s = 0;            ///< [s] since the earliest t1 of all relations (matched or not)
+  std::size_t count = 0;         ///< matched relations in the bin (0: the means are 0)
+  double translation_mean = 0;   ///< mean |e_xy| [m]
+  double rotation_mean_deg = 0;  ///< mean |e_θ| [deg]
+};
+/// Bins `errors` (RelationsResult::errors) by t1, measured from the earliest t1 among them, into
+/// consecutive bins of width_s seconds from 0 up to the bin holding the latest t1; empty bins are
+/// kept (count 0) so that bins line up across trajectories scored on the same relations. Throws
+/// MetricError for a width that is not a positive finite number, for more than 1 000 000 bins,
+/// and returns no bins for no errors.
+std::vector<RelationsBin> binRelationErrors(const std::vector<RelationError>& errors,
+                                            double width_s);
 
 struct LandmarkResult {
   std::size_t estimate_landmarks = 0, reference_landmarks = 0, pairs = 0;

@@ -9,8 +9,11 @@
 //
 // Score. A candidate pose puts every point into a cell (floor of its coordinates); the score is
 // the mean occupancy probability of those cells, in [0, 1]. Unknown cells and cells outside the
-// grid count as `unknown_probability`. Probabilities are stored as 16-bit fixed point, so scores
-// are exact integer sums and branch and bound returns the same maximum as exhaustive search.
+// grid count as `unknown_probability`. Probabilities are stored as 8-bit fixed point in units of
+// 1/200 (MatchGrid::kScale): ROS percent cells p map exactly to 2p and the default
+// unknown_probability 0.1 to 20; float probabilities and other unknown_probability values are
+// rounded to the nearest 1/200. Scores are therefore exact integer sums, and branch and bound
+// returns the same maximum as exhaustive search.
 //
 // Candidates. Translations are the initial translation plus whole cells (the grid resolution);
 // headings are the initial heading plus whole angular steps, by default the step that moves the
@@ -40,8 +43,9 @@
 //
 // Ownership and threads: GridView borrows cells; MatchGrid owns its pyramid and is immutable
 // once built, so one MatchGrid (e.g. per finished submap) can serve concurrent match() calls.
-// Memory: a pyramid holds depth()+1 levels of 16-bit cells (levels above 0 padded by 2^h − 1
-// per axis), about 2·(depth+1) bytes per grid cell — 16 times the int8 grid at depth 7. A user
+// Memory: a pyramid holds depth()+1 levels of 8-bit cells (levels above 0 padded by 2^h − 1
+// per axis), about depth+1 bytes per grid cell — 8 times the int8 grid at depth 7, plus the
+// padding (9.4 bytes per cell in all for a 400 × 400 grid at depth 7). A user
 // matching against many grids can keep their int8 cells and rebuild pyramids on demand: the
 // build is deterministic, so the same cells give the same pyramid and the same matches.
 // CorrelativeMatcher holds only options. LoopClosureVerifier counts its decisions and is not
@@ -85,7 +89,7 @@ struct SearchWindow {
 
 struct CorrelativeMatcherOptions {
   /// Pyramid levels above full resolution; the coarsest blocks are 2^depth cells wide. 7 (6.4 m
-  /// blocks at 5 cm) suits windows of a few metres. 0..15.
+  /// blocks at 5 cm) suits windows of a few metres. 0..10.
   int pyramid_depth = 7;
   /// [rad] angular step; 0 = from the scan: acos(1 − r²/2d²), d = the farthest point's range.
   double angular_step = 0.0;
@@ -120,7 +124,7 @@ struct CorrelativeMatcherOptions {
   /// The options a profile sets (search is for tests and benchmarks).
   template <class V>
   void visit(V& v) {
-    v("pyramid_depth", pyramid_depth, "branch-and-bound pyramid levels (0..15)");
+    v("pyramid_depth", pyramid_depth, "branch-and-bound pyramid levels (0..10)");
     v("angular_step", angular_step, "[rad] heading step; 0 = from the scan's farthest point");
     v("max_angular_steps", max_angular_steps, "most headings tried on each side");
     v("max_range", max_range, "[m] scan points farther than this are not matched");
@@ -142,13 +146,15 @@ struct CorrelativeMatcherOptions {
 /// Fixed-point occupancy pyramid of one grid, built once and matched against many times.
 class MatchGrid {
  public:
-  /// Fixed-point scale: a stored value v is probability v / kScale.
-  static constexpr int kScale = 65535;
+  /// Fixed-point scale: a stored value v (0..kScale) is probability v / kScale. 200 makes ROS
+  /// percent cells exact (p % is 2p) and fits a byte; float probabilities are rounded to the
+  /// nearest 1/200.
+  static constexpr int kScale = 200;
 
   /// Never throws on bad data: a zero-size grid, non-positive or non-finite resolution, a
   /// non-finite origin or cell spans not matching width·height (none or both given) give an
   /// empty() grid with error() saying why. Throws std::invalid_argument for a depth outside
-  /// 0..15 or unknown_probability outside [0, 1].
+  /// 0..10 or unknown_probability outside [0, 1].
   MatchGrid(const GridView& view, int depth, double unknown_probability);
 
   /// Why `view` gives an empty() grid (the error() MatchGrid would report), or "" when a
@@ -158,18 +164,21 @@ class MatchGrid {
   bool empty() const { return levels_.empty(); }
   /// Why the grid is empty; "" when it is not.
   const std::string& error() const { return error_; }
-  /// Bytes the grid holds: every level's cells (capacity × 2) plus the object and level table.
+  /// Bytes the grid holds: every level's cells (capacity, 1 byte each) plus the object and
+  /// level table.
   std::size_t bytes() const;
   int depth() const { return static_cast<int>(levels_.size()) - 1; }
   int width() const { return width_; }
   int height() const { return height_; }
   double resolution() const { return resolution_; }
   const Pose2& origin() const { return origin_; }
-  std::uint16_t unknownValue() const { return unknown_; }
+  /// The stored value of unknown cells and cells outside the grid:
+  /// round(unknown_probability · kScale).
+  std::uint8_t unknownValue() const { return unknown_; }
 
   /// Level h: the maximum over cells [x, x + 2^h) × [y, y + 2^h) of level 0; any cell index is
   /// allowed (outside the grid reads unknownValue()). Level 0 is the grid itself.
-  std::uint16_t at(int level, int x, int y) const {
+  std::uint8_t at(int level, int x, int y) const {
     const Level& l = levels_[static_cast<std::size_t>(level)];
     const auto u = static_cast<unsigned>(x + l.offset);
     const auto v = static_cast<unsigned>(y + l.offset);
@@ -181,13 +190,13 @@ class MatchGrid {
   struct Level {
     int offset = 0;  // stored column/row 0 is cell −offset
     unsigned width = 0, height = 0;
-    std::vector<std::uint16_t> cells;
+    std::vector<std::uint8_t> cells;
   };
   std::vector<Level> levels_;
   int width_ = 0, height_ = 0;
   double resolution_ = 0.0;
   Pose2 origin_;
-  std::uint16_t unknown_ = 0;
+  std::uint8_t unknown_ = 0;
   std::string error_;
 };
 

@@ -48,17 +48,21 @@
 // chained map frame (builder) or the optimised one; constraint = pose of the matched submap's
 // origin in the current submap's frame.
 //
-// Memory. Each finished submap is kept as its int8 cells (1 byte per cell), so what the actor
-// holds grows with the explored area. The matcher's branch-and-bound pyramid (about 16 bytes per
-// cell at depth 7) is built on demand and kept in an LRU cache of `pyramid_cache` submaps; a
-// miss rebuilds it from the cells. The build is deterministic, so the cache size changes the
-// time spent, never a match. Summary: pyramid_builds, pyramid_cache_hits, pyramid_build_s (not
-// part of loop_match_s), memory_mb (cells + cached pyramids at stop) and memory_peak_mb.
+// Memory. Each finished submap's int8 cells are kept zstd-compressed (grid::PackedOccupancyMap,
+// lossless; ~14x smaller on the Intel submaps, 0.5 MB instead of 6.8 MB), which still grows with
+// the explored area. The matcher's branch-and-bound pyramid (about 9 bytes per
+// cell at depth 7: 8 levels of 1 byte plus padding) is built on demand and kept in an LRU cache
+// of `pyramid_cache` submaps; a miss unpacks that one submap's cells into a temporary and
+// rebuilds the pyramid from them. The build is deterministic, so the cache size changes the
+// time spent, never a match. Summary: pyramid_builds, pyramid_cache_hits, pyramid_build_s
+// (unpacking included; not part of loop_match_s), memory_mb (packed cells + cached pyramids at
+// stop) and memory_peak_mb.
 #pragma once
 
 #include <tessera/msg/sensor.capnp.h>
 #include <tessera/msg/submap.capnp.h>
 #include <tessera/grid/occupancy_map.hpp>
+#include <tessera/grid/packed_occupancy_map.hpp>
 #include <tessera/runtime/actor.hpp>
 #include <tessera/runtime/options.hpp>
 #include <tessera/scan_matching/correlative_matcher.hpp>
@@ -148,10 +152,10 @@ struct LoopDetectorOptions {
     v("pose_queue", pose_queue, "pose mailbox size");
     v("pyramid_cache", pyramid_cache,
       "matcher pyramids kept, least recently used evicted (>= 1); the others are rebuilt from "
-      "the submap's cells when searched: same matches, ~16 bytes per cell each. 4 by "
+      "the submap's cells when searched: same matches, ~9 bytes per cell each. 4 by "
       "measurement on the Intel log (carmen_global, up to 3 submaps per scan): 61 builds (20 "
-      "if every pyramid were kept, 92 with 3, 393 with 2), +0.2 s beside ~2.4 s of matching, "
-      "30 MB at most; 8 saves 17 builds for 20 MB more");
+      "if every pyramid were kept, 92 with 3, 393 with 2), +0.1 s beside ~2.1 s of matching, "
+      "13 MB at most (packed cells and pyramids); 8 saves 17 builds for 10 MB more");
   }
 
   /// The flat keys of earlier versions, now inside the matcher and verifier groups.
@@ -176,9 +180,10 @@ class LoopDetectorActor final : public Actor {
  private:
   struct FinishedSubmap {
     int id = 0;
-    tessera::grid::OccupancyMap cells;  // as received (int8, 1 byte per cell); pyramids from it
-    tessera::Pose2 chained;             // origin in the chained map frame (as published)
-    tessera::Pose2 optimized;           // origin in the optimised frame (= chained until told)
+    // The grid as received, its cells compressed; pyramids are built from it.
+    tessera::grid::PackedOccupancyMap cells;
+    tessera::Pose2 chained;    // origin in the chained map frame (as published)
+    tessera::Pose2 optimized;  // origin in the optimised frame (= chained until told)
     Eigen::Vector2d centre = Eigen::Vector2d::Zero();  // grid centre in the submap frame
     double radius = 0.0;                               // [m] half-diagonal of the grid
     double driven_at_finish = 0.0;                     // [m] robot path length then
@@ -218,7 +223,7 @@ class LoopDetectorActor final : public Actor {
   /// The matcher pyramid of `s`, from the cache or built from its cells (evicting the least
   /// recently used one when the cache is full). Valid until the next call.
   const tessera::scan_matching::MatchGrid& pyramidFor(const FinishedSubmap& s);
-  /// Bytes held now: submap cells and cached pyramids.
+  /// Bytes held now: packed submap cells and cached pyramids.
   std::size_t memoryBytes() const;
   void notePeak() { memory_peak_ = std::max(memory_peak_, memoryBytes()); }
 
