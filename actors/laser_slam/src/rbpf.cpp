@@ -166,6 +166,8 @@ Rbpf::Rbpf(RbpfOptions options)
   require(std::isfinite(o.handover_sigma_linear) && o.handover_sigma_linear >= 0 &&
               std::isfinite(o.handover_sigma_angular) && o.handover_sigma_angular >= 0,
           "handover_sigma_linear and handover_sigma_angular must be >= 0");
+  require(std::isfinite(o.carry_over_distance) && o.carry_over_distance >= 0,
+          "carry_over_distance must be a finite number of metres >= 0 (0: the last scan only)");
   require(o.coarse_kernel_radius >= 0, "coarse_kernel_radius must be >= 0 (0 disables)");
   require(o.coarse_beam_step >= 1, "coarse_beam_step must be >= 1");
   require(std::isfinite(o.recovery_sigma) && o.recovery_sigma >= 0,
@@ -270,6 +272,14 @@ RbpfStep Rbpf::addScan(double stamp_s, const tessera::grid::RangeScan& scan, con
     ++stats_.resamples;
   }
   insertScan(scan, mount);
+  if (options_.carry_over_distance > 0) {
+    kept_.push_back(
+        {stamp_s, {scan.ranges.begin(), scan.ranges.end()}, scan, mount, submap_travelled_});
+    const auto old = std::find_if(kept_.begin(), kept_.end(), [&](const KeptScan& k) {
+      return submap_travelled_ - k.path_m <= options_.carry_over_distance;
+    });
+    kept_.erase(kept_.begin(), old);
+  }
   for (auto& p : particles_)
     p.node = std::make_shared<TrajectoryNode>(TrajectoryNode{stamp_s, p.pose, std::move(p.node)});
   best_ = bestIndex();
@@ -646,9 +656,21 @@ FinishedSubmap Rbpf::startSubmap() {
   submap_scans_ = 0;
   submap_travelled_ = 0.0;
   auto map = std::make_shared<tessera::grid::TiledGrid>(options_.grid);
+  // The last metres' update scans at the best particle's poses, seen from the new origin.
+  const Pose2 to_new = done.next_in_this.pose.inverse();
+  const TrajectoryNode* node_at = particles_[static_cast<std::size_t>(best_)].node.get();
+  for (auto k = kept_.rbegin(); k != kept_.rend(); ++k) {
+    while (node_at && node_at->stamp_s > k->stamp_s) node_at = node_at->parent.get();
+    if (!node_at) break;
+    if (node_at->stamp_s != k->stamp_s || k->stamp_s == last_stamp_s_) continue;
+    k->scan.ranges = k->ranges;
+    map->insertScan(k->scan, to_new * node_at->pose * k->mount, options_.insert);
+    ++submap_scans_;
+  }
+  kept_.clear();
   if (last_scan_usable_) {
     map->insertScan(last_scan_, last_mount_, options_.insert);
-    submap_scans_ = 1;
+    ++submap_scans_;
   }
   auto node =
       std::make_shared<const TrajectoryNode>(TrajectoryNode{last_stamp_s_, Pose2{}, nullptr});

@@ -6,6 +6,7 @@
 
 #include <cmath>
 #include <limits>
+#include <memory>
 #include <numbers>
 #include <numeric>
 #include <vector>
@@ -450,7 +451,9 @@ TEST_CASE("copies of one particle are matched once and still draw their own pose
 
 TEST_CASE("a submap hand-over publishes the robot pose in the old submap", "[rbpf]") {
   const auto sim = test::simulateRoomLoop();
-  Rbpf rbpf(fastOptions(8));
+  RbpfOptions o = fastOptions(8);
+  o.carry_over_distance = 0;  // the new submap starts with the last scan only
+  Rbpf rbpf(o);
   CHECK_THROWS_AS(rbpf.startSubmap(), std::logic_error);
   for (std::size_t k = 0; k < 60; ++k)
     rbpf.addScan(sim.scans[k].stamp_s, sim.range(sim.scans[k]), Pose2{}, sim.scans[k].odometry);
@@ -477,6 +480,67 @@ TEST_CASE("a submap hand-over publishes the robot pose in the old submap", "[rbp
     rbpf.addScan(sim.scans[k].stamp_s, sim.range(sim.scans[k]), Pose2{}, sim.scans[k].odometry);
   const Pose2 chained = done.next_in_this.pose * rbpf.pose();
   CHECK(translationError(chained, tessera::between(start, sim.scans[119].truth)) < 0.1);
+}
+
+TEST_CASE(
+    "a new submap starts with the last metres' update scans, placed where the old one had them",
+    "[rbpf]") {
+  const auto sim = test::simulateRoomLoop();
+  const auto runTo60 = [&](double carry) {
+    RbpfOptions o = fastOptions(8);
+    o.carry_over_distance = carry;
+    auto rbpf = std::make_unique<Rbpf>(o);
+    for (std::size_t k = 0; k < 60; ++k)
+      rbpf->addScan(sim.scans[k].stamp_s, sim.range(sim.scans[k]), Pose2{}, sim.scans[k].odometry);
+    return rbpf;
+  };
+  auto last_only = runTo60(0.0);
+  auto carried = runTo60(1.0);
+  // Same filter up to the hand-over: the option only acts there.
+  CHECK(carried->pose().x == last_only->pose().x);
+  const auto done_last = last_only->startSubmap();
+  const auto done = carried->startSubmap();
+  CHECK(last_only->submapScans() == 1);
+  // 1 m of path (updates every 0.3 m or 0.3 rad): more than the last scan, fewer than all of
+  // the submap's, which a longer distance carries (each once: the last one is not doubled).
+  auto all = runTo60(100.0);
+  const auto done_all = all->startSubmap();
+  CHECK(carried->submapScans() > 1);
+  CHECK(carried->submapScans() < all->submapScans());
+  CHECK(all->submapScans() == done_all.scans_inserted);
+  CHECK(carried->bestMap().knownCount() > last_only->bestMap().knownCount());
+  CHECK(done.scans_inserted == done_last.scans_inserted);
+  // Every occupied cell of the new submap, moved into the old submap's frame, lies on an
+  // occupied cell of the old one (within a cell): the carried scans are where the filter had
+  // them.
+  const tessera::grid::OccupancyMap now = carried->bestMap().toOccupancyMap();
+  const tessera::grid::OccupancyMap old = done.grid.toOccupancyMap();
+  int occupied = 0, agree = 0;
+  for (int r = 0; r < now.height; ++r)
+    for (int c = 0; c < now.width; ++c) {
+      if (now.at(c, r) < 65) continue;
+      ++occupied;
+      const Eigen::Vector2d in_old =
+          done.next_in_this.pose *
+          (now.origin * Eigen::Vector2d((c + 0.5) * now.resolution, (r + 0.5) * now.resolution));
+      const Eigen::Vector2d g = old.origin.inverse() * in_old / old.resolution;
+      bool hit = false;
+      for (int dr = -1; dr <= 1 && !hit; ++dr)
+        for (int dc = -1; dc <= 1 && !hit; ++dc) {
+          const int oc = static_cast<int>(std::floor(g.x())) + dc;
+          const int orow = static_cast<int>(std::floor(g.y())) + dr;
+          hit = old.contains(oc, orow) && old.at(oc, orow) >= 50;
+        }
+      agree += hit ? 1 : 0;
+    }
+  REQUIRE(occupied > 50);
+  CHECK(agree >= 0.95 * occupied);
+  // And the filter goes on from there.
+  for (std::size_t k = 60; k < 120; ++k)
+    carried->addScan(sim.scans[k].stamp_s, sim.range(sim.scans[k]), Pose2{}, sim.scans[k].odometry);
+  const Pose2 chained = done.next_in_this.pose * carried->pose();
+  CHECK(translationError(chained, tessera::between(sim.scans.front().truth, sim.scans[119].truth)) <
+        0.1);
 }
 
 TEST_CASE("rbpf ignores empty, NaN and all-max-range scans and bad odometry", "[rbpf]") {
@@ -574,4 +638,10 @@ TEST_CASE("rbpf rejects invalid options with the option name", "[rbpf]") {
   o = {};
   o.online_mean_angular = -0.1;
   CHECK_THROWS_WITH(Rbpf(o), Catch::Contains("online_mean_angular"));
+  for (double bad :
+       {-1.0, std::numeric_limits<double>::quiet_NaN(), std::numeric_limits<double>::infinity()}) {
+    o = {};
+    o.carry_over_distance = bad;
+    CHECK_THROWS_WITH(Rbpf(o), Catch::Contains("carry_over_distance"));
+  }
 }
