@@ -16,7 +16,9 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <optional>
+#include <tuple>
 #include <vector>
 
 using namespace tessera;
@@ -334,4 +336,91 @@ TEST_CASE("loop_detector pyramid_cache must be at least 1", "[loop_detector][opt
   auto one = o;
   one.pyramid_cache = 1;
   CHECK_NOTHROW(laser_slam::LoopDetectorActor(one));
+}
+
+namespace {
+
+struct AtMatchRun {
+  int before_finish = 0;  // closures published while submap 1 was being built
+  int after_stop = 0;
+  Pose2 relative;  // of the first closure
+};
+
+// Submap 0 holds the room (frame = the first true pose). The builder's hand-overs on
+// `constraints` are `handovers` (from, to, relative); then the robot, in submap 1, sends one scan
+// at the true pose of scan 60 with its chained estimate exact. Submap 1 finishes last, at
+// `origin1` (a 1-cell grid, no trajectory).
+AtMatchRun runAtMatch(const std::vector<std::tuple<int, int, Pose2>>& handovers,
+                      const Pose2& origin1) {
+  const auto sim = test::simulateRoomLoop();
+  const Pose2 frame0 = sim.scans[0].truth;
+  laser_slam::LoopDetectorOptions o;
+  o.skip_recent = 0;
+  o.every_n_scans = 1;
+  o.publish_at_match = true;
+  ActorHarness h(std::make_unique<laser_slam::LoopDetectorActor>(o));
+  pushSubmap(h, 0, 1.0, roomMap(sim), Pose2{});
+  for (const auto& [from, to, rel] : handovers)
+    h.push<msg::SubmapConstraint>("constraints", [&](auto& b) {
+      setHeader(b.initHeader(), test::stampOf(1.5), "map", 0);
+      b.setFromId(static_cast<std::uint32_t>(from));
+      b.setToId(static_cast<std::uint32_t>(to));
+      writePose(b.initRelative(), rel);
+      b.setKind(msg::SubmapConstraint::Kind::HAND_OVER);
+    });
+  h.runUntilIdle();
+  const Pose2 chained = frame0.inverse() * sim.scans[60].truth;
+  const Nanos stamp = test::stampOf(5.0);
+  test::pushScan(h, stamp, sim, sim.scans[60].ranges);
+  h.push<msg::PoseStamped>("chained_pose", [&](auto& b) {
+    setHeader(b.initHeader(), stamp, "map", 0);
+    writePose(b.initPose(), chained);
+  });
+  h.runUntilIdle();
+  AtMatchRun run;
+  run.before_finish =
+      static_cast<int>(h.published<msg::SubmapConstraint>("loop_constraints").size());
+  tessera::grid::OccupancyMap tiny;
+  tiny.resolution = 0.05;
+  tiny.width = tiny.height = 1;
+  tiny.cells = {-1};
+  pushSubmap(h, 1, 6.0, tiny, origin1);
+  h.runUntilIdle();
+  h.stop();
+  const auto out = h.published<msg::SubmapConstraint>("loop_constraints");
+  run.after_stop = static_cast<int>(out.size());
+  if (!out.empty()) {
+    const auto r = out.front()->getRelative();
+    run.relative = Pose2(r.getX(), r.getY(), r.getTheta());
+  }
+  return run;
+}
+
+}  // namespace
+
+TEST_CASE(
+    "publish_at_match sends a closure of the submap being built at once, placed by the "
+    "builder's hand-over",
+    "[loop_detector]") {
+  const Pose2 origin1(1.0, 0.5, 0.2);
+  const AtMatchRun run = runAtMatch({{0, 1, origin1}}, origin1);
+  REQUIRE(run.before_finish == 1);
+  CHECK(run.after_stop == 1);  // not sent again when the submap finishes
+  // The matched submap's origin seen from submap 1: the hand-over's inverse.
+  const Pose2 expected = origin1.inverse();
+  CHECK(apart(run.relative, expected) < 0.1);
+  CHECK(std::abs(tessera::angleDiff(run.relative.theta, expected.theta)) < 0.03);
+}
+
+TEST_CASE("publish_at_match ignores hand-overs from unknown submaps and with NaN poses",
+          "[loop_detector]") {
+  const double nan = std::numeric_limits<double>::quiet_NaN();
+  const Pose2 origin1(1.0, 0.5, 0.2);
+  // Neither places submap 1: the closure waits for submap 1's own message, which does.
+  const AtMatchRun run =
+      runAtMatch({{0, 1, Pose2(nan, 0.5, 0.2)}, {7, 8, Pose2(1.0, 0.0, 0.0)}}, origin1);
+  CHECK(run.before_finish == 0);
+  REQUIRE(run.after_stop == 1);
+  const Pose2 expected = origin1.inverse();
+  CHECK(apart(run.relative, expected) < 0.1);
 }
