@@ -273,8 +273,10 @@ RbpfStep Rbpf::addScan(double stamp_s, const tessera::grid::RangeScan& scan, con
   }
   insertScan(scan, mount);
   if (options_.carry_over_distance > 0) {
-    kept_.push_back(
-        {stamp_s, {scan.ranges.begin(), scan.ranges.end()}, scan, mount, submap_travelled_});
+    KeptScan& kept =
+        kept_.emplace_back(stamp_s, std::vector<float>(scan.ranges.begin(), scan.ranges.end()),
+                           scan, mount, submap_travelled_);
+    kept.scan.ranges = kept.ranges;  // its own copy (a vector's buffer survives moves)
     const auto old = std::find_if(kept_.begin(), kept_.end(), [&](const KeptScan& k) {
       return submap_travelled_ - k.path_m <= options_.carry_over_distance;
     });
@@ -663,7 +665,6 @@ FinishedSubmap Rbpf::startSubmap() {
     while (node_at && node_at->stamp_s > k->stamp_s) node_at = node_at->parent.get();
     if (!node_at) break;
     if (node_at->stamp_s != k->stamp_s || k->stamp_s == last_stamp_s_) continue;
-    k->scan.ranges = k->ranges;
     map->insertScan(k->scan, to_new * node_at->pose * k->mount, options_.insert);
     ++submap_scans_;
   }

@@ -62,21 +62,13 @@ class Search {
   int window() const { return w_; }
 
   /// Sum over the scan at heading index a (0-based) of level `level` at cell offset (x, y).
-  /// Each term is at most kScale (200), so the int64 sum is exact for any scan size.
-  std::int64_t sum(int level, int a, int x, int y) {
-    ++scored_;
-    std::int64_t s = 0;
-    const Eigen::Vector2i* c = cells_.data() + static_cast<std::size_t>(a) * points_;
-    for (std::size_t i = 0; i < points_; ++i) s += grid_.at(level, c[i].x() + x, c[i].y() + y);
-    return s;
-  }
-
-  /// sum(), or any value below `need` once the points left (at most kScale each) cannot lift
-  /// the partial sum to `need`: a block the search would prune anyway is not summed to the end,
-  /// and every kept block has its exact sum, so the result is the same. The bound only bites
-  /// once a block's first points score far below the floor: ~7 % of the loop detector's
-  /// matching time on the Intel log.
-  std::int64_t sumAtLeast(int level, int a, int x, int y, std::int64_t need) {
+  /// Each term is at most kScale (200), so the int64 sum is exact for any scan size. With
+  /// `need`, it stops early with some value below `need` once the points left cannot lift the
+  /// partial sum to it: a block the search would prune anyway is not summed to the end, and a
+  /// kept block has its exact sum, so the result is the same (~7 % of the loop detector's
+  /// matching time on the Intel log).
+  std::int64_t sum(int level, int a, int x, int y,
+                   std::int64_t need = std::numeric_limits<std::int64_t>::min()) {
     ++scored_;
     std::int64_t s = 0;
     const Eigen::Vector2i* c = cells_.data() + static_cast<std::size_t>(a) * points_;
@@ -149,7 +141,7 @@ void descend(Search& search, std::span<Node> nodes, int level, std::int64_t floo
         const int cx = n.x + a * half, cy = n.y + b * half;
         if (cx > search.window() || cy > search.window()) continue;
         if (exclusion && exclusion->block(n.angle, cx, cy, half)) continue;
-        const std::int64_t s = search.sumAtLeast(level - 1, n.angle, cx, cy, need());
+        const std::int64_t s = search.sum(level - 1, n.angle, cx, cy, need());
         if (s >= need()) children[count++] = {n.angle, cx, cy, s};
       }
     descend(search, std::span<Node>(children.data(), count), level - 1, floor, best, exclusion);

@@ -404,7 +404,7 @@ class Rbpf {
   struct KeptScan {
     double stamp_s = 0.0;
     std::vector<float> ranges;
-    tessera::grid::RangeScan scan;  // its ranges view `ranges` only when used
+    tessera::grid::RangeScan scan;  // its ranges view `ranges`
     tessera::Pose2 mount;
     double path_m = 0.0;
   };
