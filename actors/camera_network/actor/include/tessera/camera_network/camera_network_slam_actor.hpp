@@ -1,0 +1,120 @@
+// camera_network_slam actor: the environment cameras as part of the two-level laser SLAM
+// (docs/algorithms.md#camera-network-calibration), around CameraConstraintBuilder.
+//
+// Subscribes:
+//   camera_events      msg::CameraEvent       reliable            enter / leave a camera's view
+//   camera_detections  msg::MarkerDetection   keep_latest(detection_queue)  marker pixels
+//   chained_pose       msg::PoseStamped       keep_latest(pose_queue)  the submap builder's
+//                                             robot pose (chained map frame), for pairing
+//   constraints        msg::SubmapConstraint  reliable   the builder's hand-overs: where each
+//                                             submap starts (other kinds are ignored)
+//   submaps            msg::Submap            reliable   finished submaps' smoothed trajectories
+//                                             (builder.smoothed_poses: visits wait for them)
+//   ground_truth       msg::GroundTruthPose   keep_latest(1000), only with score_ground_truth:
+//                                             scores revisits and camera localisation
+// Publishes:
+//   camera_constraints msg::SubmapConstraint  kind revisit, from the submap the robot is in to
+//                                             the one the camera was calibrated in (pose of the
+//                                             latter's origin in the former's frame), at the end
+//                                             of each visit of a calibrated camera
+// Events and detections are paired with the chained pose at their stamp (interpolated) and
+// handled in arrival order, so a visit ends after its last sighting. Missed detections
+// (detected = false) and non-finite ones are counted and skipped.
+//
+// Writes (with an output directory, in stop()): calibrations_file (YAML): per calibrated camera
+// its submap, floor -> pixel homography (row-major, submap frame), and quality.
+//
+// Summary: calibrations, calibrations_refused (with the last reason), revisits,
+// revisits_refused, checks, sightings, sightings_unpaired, calibration_rms_px (mean over the
+// calibrations in force); with score_ground_truth also revisits_true / revisits_false (against
+// the true relative pose of the two submaps' start poses, within truth_tolerance_*) and
+// camera_localisation_rms_m / camera_localisation_max_m: every sighting of a calibrated camera
+// localised through its homography, against the true marker position in that submap.
+#pragma once
+
+#include <tessera/msg/camera.capnp.h>
+#include <tessera/msg/submap.capnp.h>
+#include <tessera/camera_network/camera_constraint_builder.hpp>
+#include <tessera/geometry/pose_pairing.hpp>
+#include <tessera/messages/types.hpp>
+#include <tessera/runtime/actor.hpp>
+#include <tessera/runtime/options.hpp>
+
+#include <cstdint>
+#include <deque>
+#include <map>
+#include <string>
+
+namespace tessera::camera_network {
+
+struct CameraNetworkSlamOptions {
+  CameraConstraintBuilderOptions builder;
+  std::string calibrations_file = "camera_calibrations.yaml";
+  bool score_ground_truth = false;
+  double truth_tolerance_linear = 0.3;
+  double truth_tolerance_angular = 0.1;
+  int detection_queue = 256;
+  int pose_queue = 256;
+  int pose_history = 512;
+  double max_pose_gap_s = 1.0;
+
+  template <class V>
+  void visit(V& v) {
+    v("builder", builder, "calibration, revisit constraints and the marker's mounting");
+    v("calibrations_file", calibrations_file,
+      "write the calibrations (YAML) to this file in the output folder; empty = none");
+    v("score_ground_truth", score_ground_truth,
+      "subscribe to ground_truth and score revisits and camera localisation (simulation)");
+    v("truth_tolerance_linear", truth_tolerance_linear,
+      "a revisit within this of the truth counts as true [m]");
+    v("truth_tolerance_angular", truth_tolerance_angular,
+      "a revisit within this of the truth counts as true [rad]");
+    v("detection_queue", detection_queue, "detection mailbox size and pairing buffer");
+    v("pose_queue", pose_queue, "chained pose mailbox size (keep-latest)");
+    v("pose_history", pose_history, "chained poses remembered for pairing");
+    v("max_pose_gap_s", max_pose_gap_s, "do not interpolate poses over gaps longer than this [s]");
+  }
+};
+
+class CameraNetworkSlamActor final : public Actor {
+ public:
+  /// Throws ConfigError naming the option.
+  explicit CameraNetworkSlamActor(CameraNetworkSlamOptions options);
+  void configure(ActorContext& ctx) override;
+  void stop() override;
+  void summarize(Summary& out) const override;
+
+  const CameraConstraintBuilder& builder() const { return builder_; }
+
+ private:
+  struct Item {
+    enum class Kind { kEnter, kLeave, kSighting } kind = Kind::kSighting;
+    int camera = 0;
+    Eigen::Vector2d pixel = Eigen::Vector2d::Zero();
+    double pixel_std = 1.0;
+  };
+  void use(const Item& item, std::int64_t stamp, const Pose2& chained);
+  void handle(const std::vector<CameraOutput>& outputs);
+  void publishRevisit(const CameraOutput& o);
+  bool truthAt(std::int64_t stamp, Pose2& out) const;
+  void scoreSighting(const CameraSighting& s);
+
+  CameraNetworkSlamOptions options_;
+  CameraConstraintBuilder builder_;
+  PosePairing<std::pair<Item, std::int64_t>> pairing_;
+  ActorContext* ctx_ = nullptr;
+  Publisher<msg::SubmapConstraint> constraint_pub_;
+  std::map<std::uint32_t, std::int64_t> submap_start_;  // hand-over stamps
+  std::map<std::uint32_t, Pose2> start_truth_;          // true pose at each submap's start
+  std::map<std::uint32_t, Pose2> chained_origins_;
+  std::map<std::int64_t, Pose2> truth_;
+  std::int64_t last_stamp_ = 0;
+  std::int64_t calibrations_ = 0, calibrations_refused_ = 0, revisits_ = 0, revisits_refused_ = 0,
+               checks_ = 0, sightings_ = 0, misses_ = 0, revisits_true_ = 0, revisits_false_ = 0,
+               revisits_unscored_ = 0;
+  std::string last_refusal_;
+  double loc_sq_ = 0, loc_max_ = 0;
+  std::int64_t loc_count_ = 0;
+};
+
+}  // namespace tessera::camera_network

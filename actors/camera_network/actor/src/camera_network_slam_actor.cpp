@@ -1,0 +1,309 @@
+#include <tessera/camera_network/camera_network_slam_actor.hpp>
+#include <tessera/io/atomic_file.hpp>
+#include <tessera/messages/geometry.hpp>
+#include <tessera/runtime/registry.hpp>
+
+#include <cmath>
+#include <filesystem>
+#include <iomanip>
+#include <iostream>
+#include <sstream>
+#include <stdexcept>
+
+namespace tessera::camera_network {
+
+namespace {
+
+constexpr std::int64_t kTruthKeepNs = 120'000'000'000;  // ground truth kept for scoring [ns]
+
+void require(bool ok, const char* key, const std::string& rule) {
+  if (!ok) throw ConfigError(std::string("camera_network_slam: ") + key + " " + rule);
+}
+
+/// The actor's own options, checked before anything is built from them.
+CameraNetworkSlamOptions checked(CameraNetworkSlamOptions o) {
+  require(o.detection_queue >= 1, "detection_queue", "must be >= 1");
+  require(o.pose_queue >= 1, "pose_queue", "must be >= 1");
+  require(o.pose_history >= 2, "pose_history", "must be >= 2");
+  require(std::isfinite(o.max_pose_gap_s) && o.max_pose_gap_s > 0, "max_pose_gap_s",
+          "must be finite and > 0");
+  require(std::isfinite(o.truth_tolerance_linear) && o.truth_tolerance_linear > 0,
+          "truth_tolerance_linear", "must be finite and > 0");
+  require(std::isfinite(o.truth_tolerance_angular) && o.truth_tolerance_angular > 0,
+          "truth_tolerance_angular", "must be finite and > 0");
+  return o;
+}
+
+}  // namespace
+
+CameraNetworkSlamActor::CameraNetworkSlamActor(CameraNetworkSlamOptions options)
+    : options_(checked(std::move(options))),
+      builder_([this] {
+        try {
+          return CameraConstraintBuilder(options_.builder);
+        } catch (const std::invalid_argument& e) {
+          throw ConfigError(std::string("camera_network_slam: builder: ") + e.what());
+        }
+      }()),
+      pairing_(static_cast<std::size_t>(options_.detection_queue),
+               static_cast<std::size_t>(options_.pose_history), options_.max_pose_gap_s) {
+  chained_origins_[0] = Pose2::identity();
+}
+
+void CameraNetworkSlamActor::configure(ActorContext& ctx) {
+  ctx_ = &ctx;
+  constraint_pub_ = ctx.advertise<msg::SubmapConstraint>("camera_constraints");
+  ctx.subscribe<msg::CameraEvent>(
+      "camera_events", MailboxPolicy::reliable(), [this](const Message<msg::CameraEvent>& m) {
+        Item item;
+        item.kind = m->getEntered() ? Item::Kind::kEnter : Item::Kind::kLeave;
+        item.camera = m->getCameraId();
+        const std::int64_t stamp = m->getHeader().getStampNs();
+        pairing_.addItem({item, stamp}, stamp,
+                         [this](const auto& it, const Pose2& p) { use(it.first, it.second, p); });
+      });
+  ctx.subscribe<msg::MarkerDetection>(
+      "camera_detections",
+      MailboxPolicy::keepLatest(static_cast<std::size_t>(options_.detection_queue)),
+      [this](const Message<msg::MarkerDetection>& m) {
+        if (!m->getDetected()) {
+          ++misses_;
+          return;
+        }
+        Item item;
+        item.camera = m->getCameraId();
+        item.pixel = {m->getU(), m->getV()};
+        item.pixel_std = m->getPixelStd();
+        const std::int64_t stamp = m->getHeader().getStampNs();
+        pairing_.addItem({item, stamp}, stamp,
+                         [this](const auto& it, const Pose2& p) { use(it.first, it.second, p); });
+      });
+  ctx.subscribe<msg::PoseStamped>(
+      "chained_pose", MailboxPolicy::keepLatest(static_cast<std::size_t>(options_.pose_queue)),
+      [this](const Message<msg::PoseStamped>& m) {
+        const std::int64_t stamp = m->getHeader().getStampNs();
+        if (!submap_start_.count(0)) {
+          submap_start_[0] = stamp;
+          Pose2 t;
+          if (options_.score_ground_truth && truthAt(stamp, t)) start_truth_[0] = t;
+        }
+        last_stamp_ = std::max(last_stamp_, stamp);
+        pairing_.addPose(stamp, toPose2(m->getPose()),
+                         [this](const auto& it, const Pose2& p) { use(it.first, it.second, p); });
+      });
+  ctx.subscribe<msg::SubmapConstraint>("constraints", MailboxPolicy::reliable(),
+                                       [this](const Message<msg::SubmapConstraint>& m) {
+                                         if (m->getKind() != msg::SubmapConstraint::Kind::HAND_OVER)
+                                           return;
+                                         const auto from = chained_origins_.find(m->getFromId());
+                                         const Pose2 relative = toPose2(m->getRelative());
+                                         if (from == chained_origins_.end() || !relative.isFinite())
+                                           return;
+                                         const std::uint32_t to = m->getToId();
+                                         const Pose2 origin = from->second * relative;
+                                         chained_origins_[to] = origin;
+                                         builder_.addSubmap(to, origin);
+                                         const std::int64_t stamp = m->getHeader().getStampNs();
+                                         submap_start_[to] = stamp;
+                                         Pose2 t;
+                                         if (options_.score_ground_truth && truthAt(stamp, t))
+                                           start_truth_[to] = t;
+                                       });
+  ctx.subscribe<msg::Submap>(
+      "submaps", MailboxPolicy::reliable(), [this](const Message<msg::Submap>& m) {
+        if (!m->getFinished()) return;
+        std::vector<std::pair<std::int64_t, Pose2>> poses;
+        for (const auto p : m->getTrajectory())
+          poses.emplace_back(p.getStampNs(), Pose2(p.getX(), p.getY(), p.getTheta()));
+        handle(builder_.addTrajectory(m->getId(), poses));
+      });
+  if (options_.score_ground_truth)
+    ctx.subscribe<msg::GroundTruthPose>(
+        "ground_truth", MailboxPolicy::keepLatest(1000),
+        [this](const Message<msg::GroundTruthPose>& m) {
+          const Pose2 p = toPose2(m->getPose());
+          const std::int64_t stamp = m->getHeader().getStampNs();
+          if (!p.isFinite()) return;
+          truth_[stamp] = p;
+          while (!truth_.empty() && truth_.begin()->first < stamp - kTruthKeepNs)
+            truth_.erase(truth_.begin());
+        });
+}
+
+void CameraNetworkSlamActor::use(const Item& item, std::int64_t stamp, const Pose2& chained) {
+  switch (item.kind) {
+    case Item::Kind::kEnter:
+      handle(builder_.enter(item.camera, stamp));
+      return;
+    case Item::Kind::kLeave:
+      handle(builder_.leave(item.camera, stamp));
+      return;
+    case Item::Kind::kSighting:
+      break;
+  }
+  CameraSighting s;
+  s.stamp_ns = stamp;
+  s.camera = item.camera;
+  s.pixel = item.pixel;
+  s.pixel_std = item.pixel_std;
+  s.robot = chained;
+  if (builder_.add(s)) ++sightings_;
+  if (options_.score_ground_truth) scoreSighting(s);
+}
+
+void CameraNetworkSlamActor::scoreSighting(const CameraSighting& s) {
+  const auto cal = builder_.calibrations().find(s.camera);
+  if (cal == builder_.calibrations().end()) return;
+  const auto start = start_truth_.find(cal->second.submap);
+  Pose2 now;
+  if (start == start_truth_.end() || !truthAt(s.stamp_ns, now)) return;
+  const auto fix = localizeMarker(cal->second.homography, s.pixel, s.pixel_std);
+  if (!fix) return;
+  const auto& m = options_.builder.marker;
+  const Eigen::Vector2d truth = (start->second.inverse() * now) * Eigen::Vector2d(m[0], m[1]);
+  const double e = (fix->position - truth).norm();
+  loc_sq_ += e * e;
+  loc_max_ = std::max(loc_max_, e);
+  ++loc_count_;
+}
+
+bool CameraNetworkSlamActor::truthAt(std::int64_t stamp, Pose2& out) const {
+  const auto it = truth_.lower_bound(stamp);
+  if (it == truth_.end()) return false;
+  if (it->first == stamp) {
+    out = it->second;
+    return true;
+  }
+  if (it == truth_.begin()) return false;
+  const auto prev = std::prev(it);
+  if (it->first - prev->first > 1'000'000'000) return false;
+  out = interpolate(prev->second, it->second,
+                    double(stamp - prev->first) / double(it->first - prev->first));
+  return true;
+}
+
+void CameraNetworkSlamActor::handle(const std::vector<CameraOutput>& outputs) {
+  for (const auto& o : outputs) {
+    switch (o.kind) {
+      case CameraOutput::Kind::kCalibrated:
+        ++calibrations_;
+        std::cerr << std::fixed << std::setprecision(2) << "[camera_network_slam] camera "
+                  << o.camera << ": calibrated in submap " << o.calibration->submap << " from "
+                  << o.sightings << " sightings, RMS " << o.calibration->homography.quality.rms_px
+                  << " px, " << 100 * o.calibration->homography.quality.coverage
+                  << " % of the image\n";
+        break;
+      case CameraOutput::Kind::kCalibrationRefused:
+        ++calibrations_refused_;
+        last_refusal_ = "camera " + std::to_string(o.camera) + ": " + o.reason;
+        std::cerr << "[camera_network_slam] camera " << o.camera << ": calibration refused ("
+                  << o.reason << "); waiting for more motion\n";
+        break;
+      case CameraOutput::Kind::kRevisit:
+        publishRevisit(o);
+        break;
+      case CameraOutput::Kind::kRevisitRefused:
+        ++revisits_refused_;
+        last_refusal_ = "camera " + std::to_string(o.camera) + ": " + o.reason;
+        std::cerr << "[camera_network_slam] camera " << o.camera << ": no revisit constraint "
+                  << o.from << " -> " << o.to << " (" << o.reason << ")\n";
+        break;
+      case CameraOutput::Kind::kChecked:
+        ++checks_;
+        if (!o.reason.empty())
+          last_refusal_ = "camera " + std::to_string(o.camera) + ": " + o.reason;
+        break;
+    }
+  }
+}
+
+void CameraNetworkSlamActor::publishRevisit(const CameraOutput& o) {
+  auto loan = constraint_pub_.loan();
+  setHeader(loan->initHeader(), o.stamp_ns, "map", constraint_pub_.nextSeq());
+  loan->setFromId(o.from);
+  loan->setToId(o.to);
+  writePose(loan->initRelative(), o.relative, &o.covariance);
+  loan->setKind(msg::SubmapConstraint::Kind::REVISIT);
+  constraint_pub_.publish(std::move(loan));
+  ++revisits_;
+  std::cerr << std::fixed << std::setprecision(3) << "[camera_network_slam] camera " << o.camera
+            << ": revisit " << o.from << " -> " << o.to << " from " << o.sightings
+            << " sightings, RMS " << o.rms_m << " m\n";
+  if (!options_.score_ground_truth) return;
+  const auto a = start_truth_.find(o.from), b = start_truth_.find(o.to);
+  if (a == start_truth_.end() || b == start_truth_.end()) {
+    ++revisits_unscored_;
+    return;
+  }
+  const Pose2 truth = a->second.inverse() * b->second;
+  const bool ok =
+      std::hypot(truth.x - o.relative.x, truth.y - o.relative.y) <=
+          options_.truth_tolerance_linear &&
+      std::abs(angleDiff(truth.theta, o.relative.theta)) <= options_.truth_tolerance_angular;
+  ++(ok ? revisits_true_ : revisits_false_);
+  if (!ok)
+    std::cerr << std::fixed << std::setprecision(3) << "[camera_network_slam] camera " << o.camera
+              << ": revisit " << o.from << " -> " << o.to << " is off the truth by "
+              << std::hypot(truth.x - o.relative.x, truth.y - o.relative.y) << " m, "
+              << angleDiff(truth.theta, o.relative.theta) << " rad\n";
+}
+
+void CameraNetworkSlamActor::stop() {
+  pairing_.finish();
+  handle(builder_.finish(last_stamp_));
+  if (options_.calibrations_file.empty() || ctx_->outputDir().empty()) return;
+  std::ostringstream out;
+  out << std::setprecision(12)
+      << "# Environment cameras calibrated from the robot's motion (docs/algorithms.md"
+         "#camera-network-calibration):\n# floor (submap frame, m) -> pixel homography, "
+         "row-major, h22 = 1.\ncameras:\n";
+  for (const auto& [id, c] : builder_.calibrations()) {
+    const auto& q = c.homography.quality;
+    out << "  - id: " << id << "\n    submap: " << c.submap << "\n    stamp_ns: " << c.stamp_ns
+        << "\n    homography: [";
+    for (int k = 0; k < 9; ++k) out << (k ? ", " : "") << c.homography.h(k / 3, k % 3);
+    out << "]\n    rms_px: " << q.rms_px << "\n    coverage: " << q.coverage
+        << "\n    condition: " << q.condition << "\n    pairs: " << q.pairs
+        << "\n    inliers: " << q.inliers << "\n";
+  }
+  const auto path = std::filesystem::path(ctx_->outputDir()) / options_.calibrations_file;
+  try {
+    io::writeFileAtomically(path, out.str());
+  } catch (const io::FileWriteError& e) {
+    throw std::runtime_error(std::string("camera_network_slam: ") + e.what());
+  }
+}
+
+void CameraNetworkSlamActor::summarize(Summary& out) const {
+  out["calibrations"] = calibrations_;
+  out["calibrations_refused"] = calibrations_refused_;
+  out["revisits"] = revisits_;
+  out["revisits_refused"] = revisits_refused_;
+  out["checks"] = checks_;
+  out["sightings"] = sightings_;
+  out["misses"] = misses_;
+  out["sightings_unpaired"] = static_cast<std::int64_t>(pairing_.unpaired());
+  out["sightings_ignored"] = static_cast<std::int64_t>(builder_.ignoredSightings());
+  out["cameras_calibrated"] = static_cast<std::int64_t>(builder_.calibrations().size());
+  double rms = 0;
+  for (const auto& [id, c] : builder_.calibrations()) rms += c.homography.quality.rms_px;
+  if (!builder_.calibrations().empty())
+    out["calibration_rms_px"] = rms / static_cast<double>(builder_.calibrations().size());
+  if (!last_refusal_.empty()) out["last_refusal"] = last_refusal_;
+  if (options_.score_ground_truth) {
+    out["revisits_true"] = revisits_true_;
+    out["revisits_false"] = revisits_false_;
+    out["revisits_unscored"] = revisits_unscored_;
+    if (loc_count_ > 0) {
+      out["camera_localisation_rms_m"] = std::sqrt(loc_sq_ / static_cast<double>(loc_count_));
+      out["camera_localisation_max_m"] = loc_max_;
+      out["camera_localisation_sightings"] = loc_count_;
+    }
+  }
+}
+
+TESSERA_REGISTER_ACTOR("camera_network_slam", CameraNetworkSlamActor, CameraNetworkSlamOptions,
+                       "environment cameras in the two-level laser SLAM (seed 000): calibration "
+                       "from the robot's motion, camera localisation, revisit constraints");
+
+}  // namespace tessera::camera_network

@@ -1,0 +1,179 @@
+// CameraConstraintBuilder: the camera network's part of the two-level laser SLAM
+// (docs/algorithms.md#camera-network-calibration). Fed the cameras' enter/leave events, their
+// marker sightings paired with the SLAM's robot pose at the same time, and the submap hand-overs,
+// it calibrates each camera from the robot's motion and turns later visits into revisit
+// constraints between submaps.
+//
+// Frames. Robot poses come in the submap builder's chained map frame (the first submap's frame,
+// later submaps placed by chaining hand-overs); hand-overs say where each submap starts in it.
+// A pose in submap s is origin_s⁻¹ ⊕ chained pose, consistent across a hand-over because the
+// chain is. The marker sits at `marker` in base_link.
+//
+// A camera's life:
+//  * Uncalibrated: every visit collects (marker position, pixel) pairs; at the end of the visit
+//    (leave, or finish()) they are converted into the submap current then (with a camera trigger,
+//    the one started when the robot entered) and calibrated (estimateFloorHomography). Accepted:
+//    the camera is calibrated in that submap. Refused: the reason is reported and the next visit
+//    tries again.
+//  * Calibrated in submap j: a visit while the robot is in another submap i gives, at its end,
+//    the marker's positions in j (camera localisation through the homography) beside the SLAM's
+//    in i; their rigid fit (fitMapTransform) is the revisit constraint i -> j (pose of j's origin
+//    in i), its covariance that of the fit plus the calibration's, propagated to first order. A
+//    visit while still in j checks the calibration: its positions against the SLAM's.
+//  * Stale: a visit whose camera positions disagree with the SLAM (fit RMS above
+//    revisit.max_rms_m, i.e. the camera moved or its calibration was poor) gives no constraint;
+//    `stale_visits` such visits in a row drop the calibration, and that visit's pairs calibrate
+//    it again in the current submap.
+// Smoothed poses (smoothed_poses, the default): the SLAM's online pose of a sighting is replaced by
+// its smoothed pose from the finished submap's trajectory (addTrajectory; the submap builder's
+// final best particle, which is more accurate than the online estimate), so a visit is held
+// until every submap its sightings fall in has finished (or finish()). A stamp between two
+// trajectories keeps its online pose.
+// Nothing throws for bad data: non-finite sightings and sightings of unknown cameras are counted
+// and ignored.
+#pragma once
+
+#include <tessera/camera_network/camera_localization.hpp>
+#include <tessera/camera_network/floor_homography.hpp>
+#include <tessera/config/config_check.hpp>
+#include <tessera/geometry/pose2.hpp>
+
+#include <Eigen/Core>
+
+#include <cstdint>
+#include <limits>
+#include <map>
+#include <optional>
+#include <string>
+#include <vector>
+
+namespace tessera::camera_network {
+
+struct CameraConstraintBuilderOptions {
+  FloorHomographyOptions calibration;
+  MapTransformOptions revisit;
+  std::vector<double> marker = {0, 0};  ///< marker in base_link [x m, y m]
+  int image_width_px = 640;
+  int image_height_px = 480;
+  /// Position std [m] of the SLAM's robot pose within its submap, per axis, used in the revisit
+  /// fit (a fresh submap's particle spread is a few cm).
+  double slam_position_std_m = 0.03;
+  bool smoothed_poses = true;
+  int stale_visits = 2;
+  int max_visit_sightings = 3000;  ///< a visit keeps at most this many (later ones are dropped)
+
+  template <class V>
+  void visit(V& v) {
+    v("calibration", calibration, "floor-plane homography estimation and its refusals");
+    v("revisit", revisit, "revisit constraints from a calibrated camera");
+    v("marker", marker, "marker position in base_link [x m, y m]");
+    v("image_width_px", image_width_px, "camera image width [px] (coverage)");
+    v("image_height_px", image_height_px, "camera image height [px]");
+    v("slam_position_std_m", slam_position_std_m,
+      "std of the SLAM's robot position in its submap, per axis, in revisit fits [m]");
+    v("smoothed_poses", smoothed_poses,
+      "hold each visit until its submaps have finished and use their smoothed trajectories "
+      "instead of the online poses");
+    v("stale_visits", stale_visits,
+      "drop a calibration after this many visits in a row disagree with the SLAM");
+    v("max_visit_sightings", max_visit_sightings, "sightings kept per visit");
+  }
+  ConfigCheck check() const;
+};
+
+/// A sighting of the marker by one camera at one time, with the SLAM's robot pose then.
+struct CameraSighting {
+  std::int64_t stamp_ns = 0;
+  int camera = 0;
+  Eigen::Vector2d pixel = Eigen::Vector2d::Zero();  ///< [px]
+  double pixel_std = 1.0;                           ///< [px]
+  Pose2 robot;                                      ///< chained map frame
+};
+
+struct CameraCalibration {
+  int camera = 0;
+  std::uint32_t submap = 0;  ///< the frame of the floor points
+  std::int64_t stamp_ns = 0;
+  FloorHomography homography;
+};
+
+/// What one event produced.
+struct CameraOutput {
+  enum class Kind { kCalibrated, kCalibrationRefused, kRevisit, kRevisitRefused, kChecked };
+  Kind kind = Kind::kCalibrated;
+  int camera = 0;
+  std::int64_t stamp_ns = 0;
+  std::string reason;                            ///< refusals
+  std::optional<CameraCalibration> calibration;  ///< kCalibrated
+  // kRevisit: pose of submap `to`'s origin in submap `from`'s frame, covariance in from's frame.
+  std::uint32_t from = 0, to = 0;
+  Pose2 relative;
+  Eigen::Matrix3d covariance = Eigen::Matrix3d::Zero();
+  double rms_m = 0;  ///< kRevisit / kRevisitRefused / kChecked: camera vs SLAM positions
+  int sightings = 0;
+  /// kRevisit: the robot's pose in submap `to` at the last sighting (camera localisation).
+  Pose2 robot_in_to;
+};
+
+class CameraConstraintBuilder {
+ public:
+  /// Throws std::invalid_argument naming the bad option.
+  explicit CameraConstraintBuilder(CameraConstraintBuilderOptions options);
+
+  /// Submap `id` starts at `origin` (chained frame). Submap 0 starts at the identity unless
+  /// told otherwise. False (ignored) for a non-finite origin.
+  bool addSubmap(std::uint32_t id, const Pose2& origin);
+  /// The smoothed robot poses [stamp ns, pose in the submap's frame] of finished submap `id`,
+  /// by increasing stamp; releases the visits they complete (smoothed_poses). Non-finite poses
+  /// are skipped.
+  std::vector<CameraOutput> addTrajectory(std::uint32_t id,
+                                          const std::vector<std::pair<std::int64_t, Pose2>>& poses);
+  /// The robot entered / left camera `camera`'s view. Leaving ends the visit.
+  std::vector<CameraOutput> enter(int camera, std::int64_t stamp_ns);
+  std::vector<CameraOutput> leave(int camera, std::int64_t stamp_ns);
+  /// A sighting during a visit (one without an enter starts a visit). False when ignored
+  /// (non-finite, or the visit is full).
+  bool add(const CameraSighting& sighting);
+  /// Ends every open visit and releases every held one (end of the run).
+  std::vector<CameraOutput> finish(std::int64_t stamp_ns);
+
+  /// Calibrations in force, by camera.
+  const std::map<int, CameraCalibration>& calibrations() const { return calibrations_; }
+  std::uint32_t currentSubmap() const { return current_; }
+  std::uint64_t ignoredSightings() const { return ignored_; }
+  /// Visits ended but held for their submaps' smoothed trajectories.
+  std::size_t heldVisits() const { return held_.size(); }
+
+ private:
+  struct Visit {
+    std::vector<CameraSighting> sightings;
+  };
+  struct HeldVisit {
+    int camera = 0;
+    std::uint32_t submap = 0;  // current when the visit ended
+    std::int64_t stamp_ns = 0;
+    std::vector<CameraSighting> sightings;
+  };
+  std::vector<CameraOutput> endVisit(int camera, std::int64_t stamp_ns);
+  std::vector<CameraOutput> release(bool all);
+  std::vector<CameraOutput> process(HeldVisit visit);
+  std::optional<CameraOutput> calibrate(int camera, const std::vector<CameraSighting>& s,
+                                        std::uint32_t submap, std::int64_t stamp_ns);
+  /// The chained pose at `stamp` from the smoothed trajectories, or `online` when none holds it.
+  Pose2 smoothed(std::int64_t stamp, const Pose2& online) const;
+  Eigen::Vector2d markerIn(std::uint32_t submap, const Pose2& chained_robot) const;
+
+  CameraConstraintBuilderOptions options_;
+  Eigen::Vector2d marker_;
+  std::map<std::uint32_t, Pose2> origins_;
+  std::uint32_t current_ = 0;
+  std::map<int, Visit> visits_;
+  std::vector<HeldVisit> held_;
+  std::map<std::uint32_t, std::vector<std::pair<std::int64_t, Pose2>>> trajectories_;
+  std::int64_t smoothed_until_ = std::numeric_limits<std::int64_t>::min();
+  std::map<int, CameraCalibration> calibrations_;
+  std::map<int, int> strikes_;
+  std::uint64_t ignored_ = 0;
+};
+
+}  // namespace tessera::camera_network

@@ -1,0 +1,278 @@
+// The camera network's calibrations and revisit constraints: see camera_constraint_builder.hpp.
+#include <tessera/camera_network/camera_constraint_builder.hpp>
+
+#include <algorithm>
+#include <cmath>
+#include <iterator>
+#include <stdexcept>
+#include <utility>
+
+namespace tessera::camera_network {
+
+ConfigCheck CameraConstraintBuilderOptions::check() const {
+  ConfigCheck c;
+  if (auto p = calibration.check().problem(); p) return calibration.check();
+  if (auto p = revisit.check().problem(); p) return revisit.check();
+  c.require(marker.size() == 2 && std::isfinite(marker[0]) && std::isfinite(marker[1]), "marker",
+            "must be [x, y] with finite values, got size", static_cast<double>(marker.size()))
+      .require(image_width_px > 0, "image_width_px", "must be > 0", image_width_px)
+      .require(image_height_px > 0, "image_height_px", "must be > 0", image_height_px)
+      .positive("slam_position_std_m", slam_position_std_m)
+      .require(stale_visits >= 1, "stale_visits", "must be >= 1", stale_visits)
+      .require(max_visit_sightings >= 1, "max_visit_sightings", "must be >= 1",
+               max_visit_sightings);
+  return c;
+}
+
+CameraConstraintBuilder::CameraConstraintBuilder(CameraConstraintBuilderOptions options)
+    : options_(std::move(options)) {
+  options_.check().throwIfBad("camera constraint builder");
+  marker_ = {options_.marker[0], options_.marker[1]};
+  origins_[0] = Pose2::identity();
+}
+
+bool CameraConstraintBuilder::addSubmap(std::uint32_t id, const Pose2& origin) {
+  if (!origin.isFinite()) return false;
+  origins_[id] = origin;
+  current_ = std::max(current_, id);
+  return true;
+}
+
+Eigen::Vector2d CameraConstraintBuilder::markerIn(std::uint32_t submap,
+                                                  const Pose2& chained_robot) const {
+  const auto it = origins_.find(submap);
+  const Pose2 origin = it == origins_.end() ? Pose2::identity() : it->second;
+  return (origin.inverse() * chained_robot) * marker_;
+}
+
+std::vector<CameraOutput> CameraConstraintBuilder::enter(int camera, std::int64_t stamp_ns) {
+  // A new visit; an unfinished one (a missed leave) ends first.
+  std::vector<CameraOutput> out;
+  if (visits_.count(camera)) out = endVisit(camera, stamp_ns);
+  visits_[camera] = Visit{};
+  return out;
+}
+
+std::vector<CameraOutput> CameraConstraintBuilder::leave(int camera, std::int64_t stamp_ns) {
+  if (!visits_.count(camera)) return {};
+  return endVisit(camera, stamp_ns);
+}
+
+bool CameraConstraintBuilder::add(const CameraSighting& s) {
+  if (!s.pixel.allFinite() || !s.robot.isFinite() || !std::isfinite(s.pixel_std) ||
+      !(s.pixel_std > 0)) {
+    ++ignored_;
+    return false;
+  }
+  auto& v = visits_[s.camera];
+  if (static_cast<int>(v.sightings.size()) >= options_.max_visit_sightings) {
+    ++ignored_;
+    return false;
+  }
+  v.sightings.push_back(s);
+  return true;
+}
+
+std::vector<CameraOutput> CameraConstraintBuilder::finish(std::int64_t stamp_ns) {
+  std::vector<CameraOutput> out;
+  while (!visits_.empty()) {
+    auto more = endVisit(visits_.begin()->first, stamp_ns);
+    out.insert(out.end(), more.begin(), more.end());
+  }
+  auto more = release(true);
+  out.insert(out.end(), more.begin(), more.end());
+  return out;
+}
+
+std::vector<CameraOutput> CameraConstraintBuilder::addTrajectory(
+    std::uint32_t id, const std::vector<std::pair<std::int64_t, Pose2>>& poses) {
+  auto& t = trajectories_[id];
+  t.clear();
+  for (const auto& p : poses)
+    if (p.second.isFinite() && (t.empty() || p.first > t.back().first)) t.push_back(p);
+  if (!t.empty()) smoothed_until_ = std::max(smoothed_until_, t.back().first);
+  return release(false);
+}
+
+Pose2 CameraConstraintBuilder::smoothed(std::int64_t stamp, const Pose2& online) const {
+  for (const auto& [id, t] : trajectories_) {
+    if (t.empty() || stamp < t.front().first || stamp > t.back().first) continue;
+    const auto origin = origins_.find(id);
+    if (origin == origins_.end()) return online;
+    const auto it = std::lower_bound(t.begin(), t.end(), stamp,
+                                     [](const auto& a, std::int64_t s) { return a.first < s; });
+    if (it->first == stamp) return origin->second * it->second;
+    const auto prev = std::prev(it);
+    const double f = double(stamp - prev->first) / double(it->first - prev->first);
+    return origin->second * interpolate(prev->second, it->second, f);
+  }
+  return online;
+}
+
+std::vector<CameraOutput> CameraConstraintBuilder::release(bool all) {
+  std::vector<CameraOutput> out;
+  std::size_t n = 0;
+  for (; n < held_.size(); ++n) {
+    const auto& v = held_[n];
+    if (!all && v.sightings.back().stamp_ns > smoothed_until_) break;
+  }
+  std::vector<HeldVisit> ready(std::make_move_iterator(held_.begin()),
+                               std::make_move_iterator(held_.begin() + static_cast<long>(n)));
+  held_.erase(held_.begin(), held_.begin() + static_cast<long>(n));
+  for (auto& v : ready) {
+    for (auto& s : v.sightings) s.robot = smoothed(s.stamp_ns, s.robot);
+    auto more = process(std::move(v));
+    out.insert(out.end(), more.begin(), more.end());
+  }
+  return out;
+}
+
+std::optional<CameraOutput> CameraConstraintBuilder::calibrate(
+    int camera, const std::vector<CameraSighting>& sightings, std::uint32_t submap,
+    std::int64_t stamp_ns) {
+  std::vector<FloorPixelPair> pairs;
+  double pixel_std = 0;
+  for (const auto& s : sightings) {
+    pairs.push_back({markerIn(submap, s.robot), s.pixel});
+    pixel_std = std::max(pixel_std, s.pixel_std);
+  }
+  CameraOutput o;
+  o.camera = camera;
+  o.stamp_ns = stamp_ns;
+  o.sightings = static_cast<int>(sightings.size());
+  if (pairs.empty()) {
+    o.kind = CameraOutput::Kind::kCalibrationRefused;
+    o.reason = "no sightings";
+    return o;
+  }
+  const auto r = estimateFloorHomography(pairs, options_.image_width_px, options_.image_height_px,
+                                         pixel_std, options_.calibration);
+  if (!r.homography) {
+    o.kind = CameraOutput::Kind::kCalibrationRefused;
+    o.reason = r.refusal;
+    return o;
+  }
+  o.kind = CameraOutput::Kind::kCalibrated;
+  o.calibration = CameraCalibration{camera, submap, stamp_ns, *r.homography};
+  calibrations_[camera] = *o.calibration;
+  strikes_[camera] = 0;
+  return o;
+}
+
+std::vector<CameraOutput> CameraConstraintBuilder::endVisit(int camera, std::int64_t stamp_ns) {
+  HeldVisit v{camera, current_, stamp_ns, std::move(visits_[camera].sightings)};
+  visits_.erase(camera);
+  if (v.sightings.empty()) return {};
+  held_.push_back(std::move(v));
+  return release(!options_.smoothed_poses);
+}
+
+std::vector<CameraOutput> CameraConstraintBuilder::process(HeldVisit visit) {
+  std::vector<CameraOutput> out;
+  const int camera = visit.camera;
+  const std::int64_t stamp_ns = visit.stamp_ns;
+  const std::vector<CameraSighting>& sightings = visit.sightings;
+
+  const auto cal = calibrations_.find(camera);
+  if (cal == calibrations_.end()) {
+    if (auto o = calibrate(camera, sightings, visit.submap, stamp_ns)) out.push_back(std::move(*o));
+    return out;
+  }
+  const CameraCalibration calibration = cal->second;
+  const std::uint32_t i = visit.submap, j = calibration.submap;
+  // Camera positions in j (pixel noise only: the calibration's error is shared by all sightings
+  // and enters below), SLAM positions in i.
+  FloorHomography pixel_only = calibration.homography;
+  pixel_only.covariance.setZero();
+  const double slam_var = options_.slam_position_std_m * options_.slam_position_std_m;
+  std::vector<PointCorrespondence> points;
+  std::vector<Eigen::Vector2d> pixels;
+  std::vector<const CameraSighting*> used;
+  for (const auto& s : sightings) {
+    const auto fix = localizeMarker(pixel_only, s.pixel, s.pixel_std);
+    if (!fix) continue;
+    points.push_back({markerIn(i, s.robot), slam_var * Eigen::Matrix2d::Identity(), fix->position,
+                      fix->covariance});
+    used.push_back(&s);
+  }
+  CameraOutput o;
+  o.camera = camera;
+  o.stamp_ns = stamp_ns;
+  o.from = i;
+  o.to = j;
+  o.sightings = static_cast<int>(points.size());
+  if (i == j) {
+    // Still in the calibration's submap: the positions must agree as they are.
+    double sse = 0;
+    for (const auto& p : points) sse += (p.parent - p.child).squaredNorm();
+    o.kind = CameraOutput::Kind::kChecked;
+    o.rms_m = points.empty() ? 0 : std::sqrt(sse / points.size());
+    const bool disagrees = !points.empty() && o.rms_m > options_.revisit.max_rms_m;
+    if (disagrees) o.reason = "calibration disagrees with the SLAM in its own submap";
+    out.push_back(o);
+    if (disagrees && ++strikes_[camera] >= options_.stale_visits) {
+      calibrations_.erase(camera);
+      if (auto c = calibrate(camera, sightings, visit.submap, stamp_ns))
+        out.push_back(std::move(*c));
+    } else if (!disagrees) {
+      strikes_[camera] = 0;
+    }
+    return out;
+  }
+  const auto fit = fitMapTransform(points, options_.revisit);
+  o.rms_m = fit.measured.rms_m;
+  if (!fit.fit) {
+    o.kind = CameraOutput::Kind::kRevisitRefused;
+    o.reason = fit.refusal;
+    out.push_back(o);
+    const bool disagrees = fit.measured.points >= options_.revisit.min_points &&
+                           fit.measured.extent_m >= options_.revisit.min_extent_m;
+    if (disagrees && ++strikes_[camera] >= options_.stale_visits) {
+      calibrations_.erase(camera);
+      if (auto c = calibrate(camera, sightings, visit.submap, stamp_ns))
+        out.push_back(std::move(*c));
+    }
+    return out;
+  }
+  strikes_[camera] = 0;
+  // The calibration's uncertainty, shared by every sighting: refit with Hn moved along each of
+  // its 8 parameters (central differences) and propagate.
+  Eigen::Matrix<double, 3, 8> jh = Eigen::Matrix<double, 3, 8>::Zero();
+  const auto& h = calibration.homography;
+  for (int k = 0; k < 8; ++k) {
+    const double step = 1e-5 * std::max(1.0, std::abs(h.hn(k / 3, k % 3)));
+    Eigen::Vector3d side[2];
+    bool ok = true;
+    for (int sgn = 0; sgn < 2 && ok; ++sgn) {
+      Eigen::Matrix<double, 8, 1> d = Eigen::Matrix<double, 8, 1>::Zero();
+      d(k) = sgn == 0 ? step : -step;
+      const FloorHomography moved = pixel_only.perturbed(d);
+      std::vector<PointCorrespondence> pts = points;
+      for (std::size_t n = 0; n < pts.size() && ok; ++n) {
+        const auto p = moved.floorPoint(used[n]->pixel);
+        if (!p)
+          ok = false;
+        else
+          pts[n].child = *p;
+      }
+      if (!ok) break;
+      const auto f = fitMapTransform(pts, options_.revisit);
+      const Pose2& t = f.measured.transform;
+      side[sgn] = Eigen::Vector3d(t.x, t.y, t.theta);
+    }
+    if (!ok) continue;
+    Eigen::Vector3d diff = side[0] - side[1];
+    diff(2) = angleDiff(side[0](2), side[1](2));
+    jh.col(k) = diff / (2 * step);
+  }
+  o.kind = CameraOutput::Kind::kRevisit;
+  o.relative = fit.fit->transform;
+  o.covariance = fit.fit->covariance + jh * h.covariance * jh.transpose();
+  o.covariance = 0.5 * (o.covariance + o.covariance.transpose()).eval();
+  o.robot_in_to = o.relative.inverse() * (origins_.count(i) ? origins_.at(i).inverse() : Pose2()) *
+                  used.back()->robot;
+  out.push_back(o);
+  return out;
+}
+
+}  // namespace tessera::camera_network

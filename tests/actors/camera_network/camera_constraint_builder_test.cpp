@@ -1,0 +1,279 @@
+// Revisit constraints from a calibrated camera: the transform fit (camera_localization.hpp)
+// against a hand computation, and CameraConstraintBuilder's visits (calibrate, revisit, stale).
+#include <tessera/camera_network/camera_constraint_builder.hpp>
+#include <tessera/camera_network/camera_localization.hpp>
+#include <tessera/sim/camera_network.hpp>
+
+#include <catch2/catch.hpp>
+
+#include <cmath>
+#include <limits>
+#include <random>
+#include <vector>
+
+namespace camera_constraint_builder_test {
+
+using tessera::Pose2;
+using namespace tessera::camera_network;
+
+TEST_CASE("the revisit transform between two maps matches a hand computation",
+          "[camera_network][revisit]") {
+  // Robot at (2, 1, 0.5) in map i and at (1, -1, -0.3) in map j. Map j's origin in map i:
+  // θ = 0.5 - (-0.3) = 0.8; t = (2, 1) - R(0.8) (1, -1)
+  //   = (2 - (cos 0.8 + sin 0.8), 1 - (sin 0.8 - cos 0.8))
+  //   = (2 - (0.6967067 + 0.7173561), 1 - (0.7173561 - 0.6967067)) = (0.5859372, 0.9793506).
+  const Pose2 t = mapTransformFromPoses({2, 1, 0.5}, {1, -1, -0.3});
+  CHECK(t.x == Approx(0.5859372).margin(1e-6));
+  CHECK(t.y == Approx(0.9793506).margin(1e-6));
+  CHECK(t.theta == Approx(0.8).margin(1e-12));
+  // And it does what it says: the robot's pose in j, moved by t, is its pose in i.
+  const Pose2 back = t * Pose2(1, -1, -0.3);
+  CHECK(back.x == Approx(2).margin(1e-12));
+  CHECK(back.y == Approx(1).margin(1e-12));
+  CHECK(back.theta == Approx(0.5).margin(1e-12));
+}
+
+TEST_CASE("the transform fit recovers a known transform and refuses what cannot give one",
+          "[camera_network][revisit]") {
+  const Pose2 truth(3.0, -2.0, 1.1);
+  std::mt19937_64 rng(2);
+  std::normal_distribution<double> n(0.0, 0.01);
+  std::vector<PointCorrespondence> pts;
+  for (double a = 0; a < 3.0; a += 0.05) {
+    const Eigen::Vector2d child(std::cos(a) * 1.2, std::sin(a) * 0.8 + 0.3 * a);
+    PointCorrespondence p;
+    p.child = child + Eigen::Vector2d(n(rng), n(rng));
+    p.child_covariance = 1e-4 * Eigen::Matrix2d::Identity();
+    p.parent = truth * child;
+    p.parent_covariance = Eigen::Matrix2d::Zero();
+    pts.push_back(p);
+  }
+  MapTransformOptions options;
+  options.min_point_std_m = 1e-4;
+  const auto r = fitMapTransform(pts, options);
+  INFO(r.refusal);
+  REQUIRE(r.fit);
+  const Eigen::Vector3d e(r.fit->transform.x - truth.x, r.fit->transform.y - truth.y,
+                          tessera::angleDiff(r.fit->transform.theta, truth.theta));
+  CHECK(e.dot(r.fit->covariance.inverse() * e) < 16.3);  // chi-square(3) 99.9 %
+  CHECK(r.fit->rms_m < 0.02);
+
+  // A robot standing still: no heading.
+  std::vector<PointCorrespondence> still(30, pts.front());
+  auto bad = fitMapTransform(still, options);
+  CHECK_FALSE(bad.fit);
+  CHECK(bad.refusal.find("need 0.50 m of motion") != std::string::npos);
+  // Too few, and NaN ones do not count.
+  std::vector<PointCorrespondence> few(pts.begin(), pts.begin() + 5);
+  few.push_back(pts[6]);
+  few.back().child.x() = std::numeric_limits<double>::quiet_NaN();
+  bad = fitMapTransform(few, options);
+  CHECK(bad.refusal == "too few sightings: 5 (need 10)");
+  // Positions that disagree (the camera moved): refused with the RMS.
+  auto moved = pts;
+  for (std::size_t k = 0; k < moved.size(); k += 2) moved[k].child.x() += 0.6;
+  bad = fitMapTransform(moved, options);
+  CHECK_FALSE(bad.fit);
+  CHECK(bad.refusal.find("disagree") != std::string::npos);
+}
+
+/// Visits handled at their end with the poses given (no smoothed trajectories).
+CameraConstraintBuilderOptions onlineOptions() {
+  CameraConstraintBuilderOptions o;
+  o.smoothed_poses = false;
+  return o;
+}
+
+/// A robot that drives under one camera: its true poses, and what the SLAM reports in its
+/// chained frame (exact within a submap, the submap placed wrongly by `placement_error`).
+struct CameraWorld {
+  tessera::sim::EnvironmentCamera camera{[] {
+                                           tessera::sim::CameraSite s;
+                                           s.id = 2;
+                                           s.position = {5.0, 1.0};
+                                           s.yaw = 0.4;
+                                           s.roll = 0.05;
+                                           return s;
+                                         }(),
+                                         tessera::sim::CameraIntrinsics{}};
+  std::mt19937_64 rng{9};
+  std::int64_t t = 0;
+
+  /// A loop of radius r around the site starting at heading `start` [rad], then a straight
+  /// exit; each pose (true) goes to `sighting` with the chained pose `chain * true`.
+  template <class F>
+  void drive(double r, double start, bool loop, const Pose2& chain, F&& sighting) {
+    std::normal_distribution<double> n(0.0, 1.0);
+    const double step = 0.03;
+    auto emit = [&](const Pose2& truth) {
+      t += 100'000'000;
+      const auto px = camera.project(truth.translation());
+      if (!px || !camera.inView(truth.translation())) return;
+      CameraSighting s;
+      s.stamp_ns = t;
+      s.camera = camera.id();
+      s.pixel = *px + Eigen::Vector2d(n(rng), n(rng));
+      s.robot = chain * truth;
+      sighting(s);
+    };
+    const Eigen::Vector2d c = camera.site().position;
+    if (loop) {
+      for (double a = 0; a < 2 * M_PI; a += step / r)
+        emit(Pose2(c + r * Eigen::Vector2d(std::cos(start + a), std::sin(start + a)),
+                   start + a + M_PI / 2));
+    } else {
+      // A straight pass through the view, heading `start`, passing r from the site.
+      const Eigen::Vector2d dir(std::cos(start), std::sin(start));
+      const Eigen::Vector2d side(-dir.y(), dir.x());
+      for (double s = -4; s <= 4; s += step) emit(Pose2(c + r * side + s * dir, start));
+    }
+  }
+
+  /// One visit: enter, drive as drive() does with every sighting given to `b`, leave.
+  std::vector<CameraOutput> visit(CameraConstraintBuilder& b, double r, double start, bool loop,
+                                  const Pose2& chain = Pose2()) {
+    b.enter(camera.id(), t);
+    drive(r, start, loop, chain, [&](const CameraSighting& s) { b.add(s); });
+    return b.leave(camera.id(), t);
+  }
+};
+
+TEST_CASE("a camera calibrated at its first visit gives the true revisit constraint later",
+          "[camera_network][revisit]") {
+  CameraWorld w;
+  CameraConstraintBuilder b(onlineOptions());
+  // First visit, in submap 0 (chained frame = world): a calibration loop.
+  auto out = w.visit(b, 1.0, 0.0, true);
+  REQUIRE(out.size() == 1);
+  INFO(out[0].reason);
+  REQUIRE(out[0].kind == CameraOutput::Kind::kCalibrated);
+  CHECK(out[0].calibration->submap == 0);
+  CHECK(out[0].calibration->homography.quality.rms_px < 1.5);
+
+  // Much later, submap 7 starts at the true pose o7 but the chain placed it 0.8 m and 0.1 rad
+  // off (drift); the SLAM is exact inside submap 7.
+  const Pose2 o7_true(9.0, 4.0, 2.0);
+  const Pose2 drift(0.5, -0.6, 0.1);
+  const Pose2 o7_chained = drift * o7_true;
+  REQUIRE(b.addSubmap(7, o7_chained));
+  out = w.visit(b, 0.4, 2.5, false, drift);
+  REQUIRE(out.size() == 1);
+  INFO(out[0].reason);
+  REQUIRE(out[0].kind == CameraOutput::Kind::kRevisit);
+  CHECK(out[0].from == 7);
+  CHECK(out[0].to == 0);
+  // Submap 0's origin (the world origin) in submap 7's frame is o7_true⁻¹.
+  const Pose2 truth = o7_true.inverse();
+  const Eigen::Vector3d e(out[0].relative.x - truth.x, out[0].relative.y - truth.y,
+                          tessera::angleDiff(out[0].relative.theta, truth.theta));
+  CHECK(e.head<2>().norm() < 0.05);
+  CHECK(std::abs(e(2)) < 0.02);
+  CHECK(e.dot(out[0].covariance.inverse() * e) < 16.3);
+  // The camera localisation: the robot's pose in submap 0 (the world) at the last sighting.
+  CHECK(out[0].robot_in_to.isFinite());
+}
+
+TEST_CASE("a straight first pass is refused, the next visit's loop calibrates",
+          "[camera_network][revisit]") {
+  CameraWorld w;
+  CameraConstraintBuilder b(onlineOptions());
+  const int cam = w.camera.id();
+  auto out = w.visit(b, 0.2, 0.3, false);
+  REQUIRE(out.size() == 1);
+  CHECK(out[0].kind == CameraOutput::Kind::kCalibrationRefused);
+  CHECK(out[0].reason.find("on a line") != std::string::npos);
+  CHECK(b.calibrations().empty());
+  // NaN sightings are counted and ignored.
+  CameraSighting nan;
+  nan.camera = cam;
+  nan.pixel = {std::nan(""), 1};
+  CHECK_FALSE(b.add(nan));
+  CHECK(b.ignoredSightings() == 1);
+  out = w.visit(b, 1.2, 1.0, true);
+  REQUIRE(out.size() == 1);
+  CHECK(out[0].kind == CameraOutput::Kind::kCalibrated);
+  CHECK(b.calibrations().count(cam) == 1);
+}
+
+TEST_CASE("a camera whose optics changed gives no constraint and is recalibrated after two visits",
+          "[camera_network][revisit]") {
+  CameraWorld w;
+  CameraConstraintBuilder b(onlineOptions());
+  const int cam = w.camera.id();
+  REQUIRE(w.visit(b, 1.0, 0.0, true).at(0).kind == CameraOutput::Kind::kCalibrated);
+  // Someone zoomed the camera in by 30 %: every later visit in another submap disagrees with
+  // the SLAM. (Turning or shifting a camera that looks straight down moves its floor picture
+  // almost rigidly, which one revisit cannot tell from a submap's drift: the graph's other
+  // constraints have to.)
+  const Eigen::Vector2d centre(320, 240);
+  auto knocked = [&](CameraSighting s) {
+    s.pixel = centre + 1.3 * (s.pixel - centre);
+    b.add(s);
+  };
+  REQUIRE(b.addSubmap(1, Pose2(20, 0, 0)));
+  b.enter(cam, w.t);
+  w.drive(1.0, 0.5, true, Pose2(), knocked);
+  auto out = b.leave(cam, w.t);
+  REQUIRE(out.size() == 1);
+  CHECK(out[0].kind == CameraOutput::Kind::kRevisitRefused);
+  CHECK(b.calibrations().at(cam).submap == 0);
+  REQUIRE(b.addSubmap(2, Pose2(-3, 2, 0.5)));
+  b.enter(cam, w.t);
+  w.drive(1.0, 1.5, true, Pose2(), knocked);
+  out = b.leave(cam, w.t);
+  REQUIRE(out.size() == 2);
+  CHECK(out[0].kind == CameraOutput::Kind::kRevisitRefused);
+  CHECK(out[1].kind == CameraOutput::Kind::kCalibrated);
+  CHECK(b.calibrations().at(cam).submap == 2);
+}
+
+TEST_CASE("visits wait for the smoothed trajectory of their submap and calibrate from it",
+          "[camera_network][revisit]") {
+  // The online poses wobble by 5 cm (a particle filter between updates); the finished submap's
+  // smoothed trajectory is exact. The calibration waits for it and fits to the pixel noise.
+  CameraWorld w;
+  CameraConstraintBuilder b(CameraConstraintBuilderOptions{});
+  const int cam = w.camera.id();
+  std::normal_distribution<double> wobble(0.0, 0.05);
+  std::vector<std::pair<std::int64_t, Pose2>> smoothed;
+  b.enter(cam, w.t);
+  w.drive(1.0, 0.0, true, Pose2(), [&](CameraSighting s) {
+    smoothed.emplace_back(s.stamp_ns, s.robot);
+    s.robot = Pose2(s.robot.x + wobble(w.rng), s.robot.y + wobble(w.rng), s.robot.theta);
+    b.add(s);
+  });
+  CHECK(b.leave(cam, w.t).empty());
+  CHECK(b.heldVisits() == 1);
+  // A trajectory that ends before the visit does not release it.
+  CHECK(b.addTrajectory(0, {smoothed.begin(), smoothed.begin() + 10}).empty());
+  CHECK(b.heldVisits() == 1);
+  const auto out = b.addTrajectory(0, smoothed);
+  REQUIRE(out.size() == 1);
+  INFO(out[0].reason);
+  REQUIRE(out[0].kind == CameraOutput::Kind::kCalibrated);
+  CHECK(out[0].calibration->homography.quality.rms_px < 1.5);  // √2 px for 1 px per axis
+  CHECK(b.heldVisits() == 0);
+
+  // Without its trajectory a visit is released by finish(), with the online poses.
+  CameraConstraintBuilder c(CameraConstraintBuilderOptions{});
+  c.enter(cam, w.t);
+  w.drive(1.0, 0.0, true, Pose2(), [&](const CameraSighting& s) { c.add(s); });
+  CHECK(c.leave(cam, w.t).empty());
+  const auto end = c.finish(w.t);
+  REQUIRE(end.size() == 1);
+  CHECK(end[0].kind == CameraOutput::Kind::kCalibrated);
+}
+
+TEST_CASE("camera constraint builder options are checked", "[camera_network][revisit]") {
+  CameraConstraintBuilderOptions o;
+  o.marker = {0.1};
+  CHECK_THROWS_WITH(CameraConstraintBuilder(o), Catch::Contains("marker"));
+  o = {};
+  o.calibration.min_pairs = 3;
+  CHECK_THROWS_WITH(CameraConstraintBuilder(o), Catch::Contains("min_pairs"));
+  o = {};
+  o.revisit.max_rms_m = std::nan("");
+  CHECK_THROWS_WITH(CameraConstraintBuilder(o), Catch::Contains("max_rms_m"));
+}
+
+}  // namespace camera_constraint_builder_test

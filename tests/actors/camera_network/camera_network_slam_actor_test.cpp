@@ -1,0 +1,190 @@
+// camera_network_slam through the mock-mailbox harness: calibration at a first visit (held for
+// the submap's smoothed trajectory), a revisit constraint from a later submap, bad input.
+#include <tessera/msg/camera.capnp.h>
+#include <tessera/msg/submap.capnp.h>
+#include <tessera/camera_network/camera_network_slam_actor.hpp>
+#include <tessera/messages/geometry.hpp>
+#include <tessera/messages/types.hpp>
+#include <tessera/runtime/harness.hpp>
+#include <tessera/sim/camera_network.hpp>
+
+#include <catch2/catch.hpp>
+
+#include "../laser_slam/submap_messages.hpp"
+
+#include <cmath>
+#include <random>
+#include <vector>
+
+namespace camera_network_slam_actor_test {
+
+using namespace tessera;
+using tessera::camera_network::CameraNetworkSlamActor;
+using tessera::camera_network::CameraNetworkSlamOptions;
+
+struct Drive {
+  Drive(ActorHarness& harness, sim::EnvironmentCamera cam) : h(harness), camera(std::move(cam)) {}
+  ActorHarness& h;
+  sim::EnvironmentCamera camera;
+  std::mt19937_64 rng{4};
+  std::int64_t t = 0;
+  std::uint32_t seq = 0;
+  Pose2 origin;  // current submap's origin in the chained frame (= world here)
+  std::vector<std::pair<std::int64_t, Pose2>> trajectory;  // current submap's, its own frame
+
+  /// One frame at 10 Hz: the chained pose, and the camera's detection when in view.
+  void frame(const Pose2& truth, bool nan_pixel = false) {
+    t += 100'000'000;
+    ++seq;
+    h.push<msg::PoseStamped>("chained_pose", [&](msg::PoseStamped::Builder b) {
+      setHeader(b.initHeader(), t, "map", seq);
+      writePose(b.initPose(), truth);
+    });
+    trajectory.emplace_back(t, origin.inverse() * truth);
+    if (camera.inView(truth.translation())) {
+      std::normal_distribution<double> n(0.0, 1.0);
+      const Eigen::Vector2d px = *camera.project(truth.translation());
+      h.push<msg::MarkerDetection>("camera_detections", [&](msg::MarkerDetection::Builder b) {
+        setHeader(b.initHeader(), t, "camera_0", seq);
+        b.setCameraId(camera.id());
+        b.setDetected(true);
+        b.setU(nan_pixel ? std::nan("") : px.x() + n(rng));
+        b.setV(px.y() + n(rng));
+        b.setPixelStd(1.0);
+      });
+    }
+    h.runUntilIdle();
+  }
+  void event(bool entered) {
+    h.push<msg::CameraEvent>("camera_events", [&](msg::CameraEvent::Builder b) {
+      setHeader(b.initHeader(), t, "camera_0", seq);
+      b.setCameraId(camera.id());
+      b.setEntered(entered);
+    });
+    h.runUntilIdle();
+  }
+  /// The builder finishes the current submap (with its smoothed trajectory) and starts `id` at
+  /// the robot's pose `start`.
+  void handOver(std::uint32_t from, std::uint32_t id, const Pose2& start) {
+    h.push<msg::Submap>("submaps", [&](msg::Submap::Builder b) {
+      test::fillSubmap(b, static_cast<int>(from), origin, t);
+      auto list = b.initTrajectory(static_cast<unsigned>(trajectory.size()));
+      for (unsigned k = 0; k < trajectory.size(); ++k) {
+        list[k].setStampNs(trajectory[k].first);
+        list[k].setX(trajectory[k].second.x);
+        list[k].setY(trajectory[k].second.y);
+        list[k].setTheta(trajectory[k].second.theta);
+      }
+    });
+    h.push<msg::SubmapConstraint>("constraints", [&](msg::SubmapConstraint::Builder b) {
+      setHeader(b.initHeader(), t, "map", seq);
+      b.setFromId(from);
+      b.setToId(id);
+      writePose(b.initRelative(), origin.inverse() * start);
+      b.setKind(msg::SubmapConstraint::Kind::HAND_OVER);
+    });
+    h.runUntilIdle();
+    origin = start;
+    trajectory.clear();
+  }
+};
+
+sim::EnvironmentCamera camera() {
+  sim::CameraSite s;
+  s.id = 0;
+  s.position = {4.0, 0.0};
+  s.yaw = 0.3;
+  s.pitch = 0.06;
+  return {s, sim::CameraIntrinsics{}};
+}
+
+TEST_CASE("camera_network_slam calibrates at a first visit and sends a revisit constraint later",
+          "[camera_network][actor]") {
+  CameraNetworkSlamOptions o;
+  ActorHarness h(std::make_unique<CameraNetworkSlamActor>(o));
+  Drive d(h, camera());
+  const Eigen::Vector2d c = d.camera.site().position;
+  // Submap 0: a loop of 1 m radius under the camera.
+  d.event(true);
+  for (double a = 0; a < 2 * M_PI; a += 0.03)
+    d.frame(Pose2(c + Eigen::Vector2d(std::cos(a), std::sin(a)), a + M_PI / 2));
+  d.frame(Pose2(c + Eigen::Vector2d(1.0, 0.0), M_PI / 2), /*nan_pixel=*/true);
+  d.event(false);
+  auto summary = [&] {
+    Summary s;
+    h.actor().summarize(s);
+    return s;
+  };
+  // Held until submap 0 finishes.
+  CHECK(std::get<std::int64_t>(summary()["calibrations"]) == 0);
+  const Pose2 start1(12, 5, 2.0);
+  d.handOver(0, 1, start1);
+  CHECK(std::get<std::int64_t>(summary()["calibrations"]) == 1);
+  CHECK(std::get<double>(summary()["calibration_rms_px"]) < 1.5);
+  CHECK(std::get<std::int64_t>(summary()["sightings_ignored"]) == 1);  // the NaN pixel
+
+  // Submap 1: a straight pass through the view.
+  d.event(true);
+  for (double s = -3; s <= 3; s += 0.03) d.frame(Pose2(c + Eigen::Vector2d(s, 0.3), 0.0));
+  d.event(false);
+  CHECK(h.published<msg::SubmapConstraint>("camera_constraints").empty());
+  d.handOver(1, 2, Pose2(20, 0, 0));
+  const auto out = h.published<msg::SubmapConstraint>("camera_constraints");
+  REQUIRE(out.size() == 1);
+  CHECK(out[0]->getKind() == msg::SubmapConstraint::Kind::REVISIT);
+  CHECK(out[0]->getFromId() == 1);
+  CHECK(out[0]->getToId() == 0);
+  const Pose2 rel = toPose2(out[0]->getRelative());
+  const Pose2 truth = start1.inverse();  // submap 0's origin (the world origin) in submap 1
+  CHECK(std::hypot(rel.x - truth.x, rel.y - truth.y) < 0.05);
+  CHECK(std::abs(angleDiff(rel.theta, truth.theta)) < 0.02);
+  Eigen::Matrix3d cov;
+  REQUIRE(readCovariance(out[0]->getRelative(), cov));
+  CHECK(cov.allFinite());
+  CHECK(cov.determinant() > 0);
+  CHECK(std::get<std::int64_t>(summary()["revisits"]) == 1);
+}
+
+TEST_CASE("camera_network_slam ignores bad input and counts it", "[camera_network][actor]") {
+  const CameraNetworkSlamOptions o;
+  ActorHarness h(std::make_unique<CameraNetworkSlamActor>(o));
+  Drive d(h, camera());
+  // A hand-over from a submap nobody started, with a NaN pose: ignored.
+  h.push<msg::SubmapConstraint>("constraints", [&](msg::SubmapConstraint::Builder b) {
+    setHeader(b.initHeader(), 0, "map", 0);
+    b.setFromId(9);
+    b.setToId(10);
+    writePose(b.initRelative(), Pose2(std::nan(""), 0, 0));
+    b.setKind(msg::SubmapConstraint::Kind::HAND_OVER);
+  });
+  // A missed detection.
+  h.push<msg::MarkerDetection>("camera_detections", [&](msg::MarkerDetection::Builder b) {
+    setHeader(b.initHeader(), 0, "camera_0", 0);
+    b.setCameraId(0);
+    b.setDetected(false);
+  });
+  h.runUntilIdle();
+  // A short visit: refused calibration at the end of the run, never a crash.
+  d.event(true);
+  for (int k = 0; k < 10; ++k) d.frame(Pose2(4.0 + 0.03 * k, 0.0, 0.0));
+  d.event(false);
+  h.stop();
+  Summary s;
+  h.actor().summarize(s);
+  CHECK(std::get<std::int64_t>(s["misses"]) == 1);
+  CHECK(std::get<std::int64_t>(s["calibrations"]) == 0);
+  CHECK(std::get<std::int64_t>(s["calibrations_refused"]) == 1);
+  CHECK(std::get<std::string>(s["last_refusal"]).find("too few pairs") != std::string::npos);
+  CHECK(h.published<msg::SubmapConstraint>("camera_constraints").empty());
+}
+
+TEST_CASE("camera_network_slam options are checked", "[camera_network][actor]") {
+  CameraNetworkSlamOptions gap;
+  gap.max_pose_gap_s = -1;
+  CHECK_THROWS_AS(CameraNetworkSlamActor(gap), ConfigError);
+  CameraNetworkSlamOptions pairs;
+  pairs.builder.calibration.min_pairs = 2;
+  CHECK_THROWS_WITH(CameraNetworkSlamActor(pairs), Catch::Contains("min_pairs"));
+}
+
+}  // namespace camera_network_slam_actor_test
