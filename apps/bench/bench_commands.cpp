@@ -11,6 +11,7 @@ void addBenchCommands(CLI::App& app, int& result) {
   addBenchRuntimeCommand(*bench, result);
   addBenchIpcCommand(*bench, result);
   addBenchRbpfCommand(*bench, result);
+  addBenchCameraNetworkCommand(*bench, result);
   addBenchGraphCommand(*bench, result);
   addBenchLandmarksCommand(*bench, result);
   addBenchMatcherCommand(*bench, result);

@@ -12,6 +12,8 @@ void addBenchRuntimeCommand(CLI::App& bench, int& result);
 void addBenchIpcCommand(CLI::App& bench, int& result);
 /// Adds `tessera bench rbpf` (laser SLAM accuracy, CPU and memory on a CARMEN log).
 void addBenchRbpfCommand(CLI::App& bench, int& result);
+/// Adds `tessera bench camera_network` (seed 000's four-way comparison, with and without cameras).
+void addBenchCameraNetworkCommand(CLI::App& bench, int& result);
 /// Adds `tessera bench graph` (pose-graph solvers against g2o's figures).
 void addBenchGraphCommand(CLI::App& bench, int& result);
 /// Adds `tessera bench landmarks` (landmark SLAM accuracy over seeds, cost vs map size).

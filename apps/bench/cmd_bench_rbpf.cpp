@@ -5,6 +5,7 @@
 // with the relations metric. Runs are interleaved across profiles so that machine noise falls
 // on all of them alike.
 #include "bench_commands.hpp"
+#include "child_run.hpp"
 #include "cli_inputs.hpp"
 
 #include <tessera/evaluation/trajectory_metrics.hpp>
@@ -13,9 +14,6 @@
 #include <tessera/runtime/process_stats.hpp>
 
 #include <nlohmann/json.hpp>
-
-#include <sys/wait.h>
-#include <unistd.h>
 
 #include <algorithm>
 #include <filesystem>
@@ -68,27 +66,6 @@ nlohmann::json scoreTrajectory(const fs::path& file,
           {"trans_std_m", r.translation.std},
           {"rot_mean_deg", r.rotation_deg.mean},
           {"rot_std_deg", r.rotation_deg.std}};
-}
-
-/// Runs `tessera run` in a child process; stdout/stderr go to log_path. Returns its exit code.
-int runChild(const std::vector<std::string>& args, const fs::path& log_path) {
-  std::vector<char*> argv;
-  for (const auto& a : args) argv.push_back(const_cast<char*>(a.c_str()));
-  argv.push_back(nullptr);
-  const pid_t pid = ::fork();
-  if (pid < 0) throw std::runtime_error("bench rbpf: fork failed");
-  if (pid == 0) {
-    std::FILE* log = std::fopen(log_path.c_str(), "w");
-    if (log) {
-      ::dup2(::fileno(log), 1);
-      ::dup2(::fileno(log), 2);
-    }
-    ::execv("/proc/self/exe", argv.data());
-    std::_Exit(127);
-  }
-  int status = 0;
-  ::waitpid(pid, &status, 0);
-  return WIFEXITED(status) ? WEXITSTATUS(status) : 128;
 }
 
 }  // namespace
@@ -160,7 +137,7 @@ void addBenchRbpfCommand(CLI::App& bench, int& result) {
             ++done;
             if (!o->json)
               std::cerr << "[bench rbpf] " << done << "/" << total << " " << name << " ...\n";
-            const int code = runChild(args, dir / "run.log");
+            const int code = runTesseraChild(args, dir / "run.log");
             if (code != 0)
               throw std::runtime_error("bench rbpf: run " + name + " failed (exit " +
                                        std::to_string(code) + "), see " +
