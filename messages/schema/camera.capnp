@@ -15,6 +15,11 @@ struct MarkerDetection {
   u @3 :Float64;              # [px] marker image position (column); valid when detected
   v @4 :Float64;              # [px] (row)
   pixelStd @5 :Float64;       # [px] 1-sigma noise the camera claims
+  markerId @6 :Int32 = -1;    # the marker's id as detected; -1 when the source reports no id
+                              # (simulated detections)
+  corners @7 :List(Float64);  # [px] the marker's corners u0, v0, ..., u3, v3 in ArUco's order
+                              # (top-left, top-right, bottom-right, bottom-left of the marker
+                              # image); empty when not measured
 }
 
 # The robot entered or left a camera's floor footprint.

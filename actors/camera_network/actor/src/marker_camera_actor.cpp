@@ -1,0 +1,322 @@
+#include <tessera/camera_network/marker_camera_actor.hpp>
+#include <tessera/messages/types.hpp>
+#include <tessera/runtime/registry.hpp>
+
+#include <opencv2/imgcodecs.hpp>
+#include <opencv2/videoio.hpp>
+
+#include <algorithm>
+#include <cctype>
+#include <cmath>
+#include <filesystem>
+#include <iostream>
+#include <sstream>
+#include <stdexcept>
+#include <system_error>
+
+namespace tessera::camera_network {
+
+namespace marker_camera_detail {
+
+namespace fs = std::filesystem;
+
+void require(bool ok, const char* key, const std::string& rule) {
+  if (!ok) throw ConfigError(std::string("marker_camera: ") + key + " " + rule);
+}
+
+MarkerCameraOptions checked(MarkerCameraOptions o) {
+  require(!o.source.empty(), "source",
+          "is required (a device, camera index, URL, video file or image folder)");
+  require(o.camera_id >= 0, "camera_id", "must be >= 0");
+  require(std::isfinite(o.fps) && o.fps > 0 && o.fps <= 1000, "fps", "must be in (0, 1000] Hz");
+  require(o.marker_id >= 0, "marker_id", "must be >= 0");
+  require(std::isfinite(o.pixel_std) && o.pixel_std > 0, "pixel_std", "must be finite and > 0");
+  require(o.leave_after_misses >= 1, "leave_after_misses", "must be >= 1");
+  require(std::isfinite(o.retry_initial_s) && o.retry_initial_s > 0, "retry_initial_s",
+          "must be finite and > 0");
+  require(std::isfinite(o.retry_max_s) && o.retry_max_s >= o.retry_initial_s, "retry_max_s",
+          "must be finite and >= retry_initial_s");
+  return o;
+}
+
+MarkerDetector detectorFor(const MarkerDetectorOptions& o) {
+  try {
+    return MarkerDetector(o);
+  } catch (const std::invalid_argument& e) {
+    throw ConfigError(std::string("marker_camera: detector: ") + e.what());
+  }
+}
+
+Nanos toNanos(double seconds) {
+  return std::max<Nanos>(1, static_cast<Nanos>(std::llround(std::min(seconds, 1e9) * 1e9)));
+}
+
+bool isIndex(const std::string& s) {
+  return !s.empty() && s.size() < 6 &&
+         std::all_of(s.begin(), s.end(), [](unsigned char c) { return std::isdigit(c) != 0; });
+}
+
+bool isUrl(const std::string& s) {
+  return s.find("://") != std::string::npos;
+}
+
+bool isImageFile(const fs::path& p) {
+  std::string ext = p.extension().string();
+  std::transform(ext.begin(), ext.end(), ext.begin(),
+                 [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
+  return ext == ".png" || ext == ".jpg" || ext == ".jpeg" || ext == ".pgm" || ext == ".bmp";
+}
+
+/// The image files of `dir`, sorted by name.
+std::vector<fs::path> listImages(const fs::path& dir) {
+  std::vector<fs::path> files;
+  std::error_code ec;
+  for (fs::directory_iterator it(dir, ec), end; !ec && it != end; it.increment(ec))
+    if (it->is_regular_file(ec) && isImageFile(it->path())) files.push_back(it->path());
+  std::sort(files.begin(), files.end());
+  return files;
+}
+
+/// The next frame; false at the end, on a failed read or a backend error.
+bool readFrame(cv::VideoCapture& capture, cv::Mat& image) {
+  try {
+    return capture.read(image) && !image.empty();
+  } catch (const cv::Exception&) {
+    return false;
+  }
+}
+
+std::string seconds(double s) {
+  std::ostringstream out;
+  out << s;
+  return out.str();
+}
+
+}  // namespace marker_camera_detail
+
+/// The open source: a folder's image list, or a cv::VideoCapture.
+struct MarkerCameraActor::Source {
+  bool folder = false;
+  bool file = false;  ///< a video file: its end is the end of the source
+  std::vector<std::filesystem::path> images;
+  std::size_t next = 0;
+  cv::VideoCapture capture;
+};
+
+MarkerCameraActor::MarkerCameraActor(MarkerCameraOptions options)
+    : options_(marker_camera_detail::checked(std::move(options))),
+      detector_(marker_camera_detail::detectorFor(options_.detector)),
+      source_(std::make_unique<Source>()),
+      frame_id_("camera_" + std::to_string(options_.camera_id)),
+      retry_delay_s_(options_.retry_initial_s) {}
+
+MarkerCameraActor::~MarkerCameraActor() = default;
+
+void MarkerCameraActor::configure(ActorContext& ctx) {
+  ctx_ = &ctx;
+  event_pub_ = ctx.advertise<msg::CameraEvent>("camera_events");
+  detection_pub_ = ctx.advertise<msg::MarkerDetection>("camera_detections");
+  ctx.addTimer(marker_camera_detail::toNanos(1.0 / options_.fps), [this] { tick(); });
+}
+
+void MarkerCameraActor::start() {
+  namespace fs = std::filesystem;
+  std::error_code ec;
+  const fs::path path(options_.source);
+  if (fs::is_directory(path, ec) && marker_camera_detail::listImages(path).empty())
+    throw std::runtime_error("marker_camera: camera " + std::to_string(options_.camera_id) +
+                             ": folder '" + options_.source +
+                             "' holds no images (.png .jpg .jpeg .pgm .bmp)");
+  tryOpen();
+}
+
+void MarkerCameraActor::tryOpen() {
+  namespace fs = std::filesystem;
+  namespace mcd = marker_camera_detail;
+  if (open_ || finished_) return;
+  source_ = std::make_unique<Source>();
+  Source& s = *source_;
+  const std::string& src = options_.source;
+  std::error_code ec;
+  std::string reason = "cannot be opened";
+  if (fs::is_directory(src, ec)) {
+    s.folder = true;
+    s.images = mcd::listImages(src);
+    open_ = !s.images.empty();
+    if (!open_) reason = "holds no images";
+  } else if (!mcd::isIndex(src) && !mcd::isUrl(src) && !fs::exists(src, ec)) {
+    reason = "cannot be opened (no such file, folder or device)";  // spares OpenCV's warnings
+  } else {
+    s.file = fs::is_regular_file(src, ec);
+    try {
+      open_ = mcd::isIndex(src) ? s.capture.open(std::stoi(src)) : s.capture.open(src);
+    } catch (const cv::Exception& e) {  // a backend's error is a failed open, like any other
+      open_ = false;
+      reason = "cannot be opened (" + e.msg + ")";
+    }
+  }
+  if (open_ && !s.folder && !s.file) s.capture.set(cv::CAP_PROP_BUFFERSIZE, 1);  // recent frames
+
+  if (open_) {
+    if (in_outage_) {
+      ++reconnects_;
+      std::cerr << "[marker_camera] camera " << options_.camera_id << ": " << src
+                << " reconnected\n";
+    }
+    in_outage_ = false;
+    retry_delay_s_ = options_.retry_initial_s;
+    return;
+  }
+  ++open_failures_;
+  s.capture.release();
+  sourceFailed(reason, /*finished=*/false);
+}
+
+void MarkerCameraActor::sourceFailed(const std::string& what, bool finished) {
+  open_ = false;
+  if (in_view_) publishEvent(false);  // the camera sees nothing any more
+  if (finished) {
+    finished_ = true;
+    std::cerr << "[marker_camera] camera " << options_.camera_id << ": " << options_.source << " "
+              << what << " after " << frames_ << " frames\n";
+    return;
+  }
+  if (!in_outage_) {
+    std::cerr << "[marker_camera] camera " << options_.camera_id << ": " << options_.source << " "
+              << what << "; retrying in " << marker_camera_detail::seconds(retry_delay_s_)
+              << " s\n";
+    in_outage_ = true;
+  }
+  ctx_->callAt(ctx_->now() + marker_camera_detail::toNanos(retry_delay_s_), [this] { tryOpen(); });
+  retry_delay_s_ = std::min(2 * retry_delay_s_, options_.retry_max_s);
+}
+
+void MarkerCameraActor::tick() {
+  namespace mcd = marker_camera_detail;
+  if (!open_) return;
+  Source& s = *source_;
+  cv::Mat image;
+  if (s.folder) {
+    if (s.next >= s.images.size()) {
+      if (!options_.loop_folder) {
+        sourceFailed("finished", /*finished=*/true);
+        return;
+      }
+      s.next = 0;
+    }
+    const auto& file = s.images[s.next++];
+    image = cv::imread(file.string(), cv::IMREAD_GRAYSCALE);
+    if (image.empty()) {
+      ++read_failures_;
+      if (!skipping_)  // once per run of unreadable images
+        std::cerr << "[marker_camera] camera " << options_.camera_id << ": cannot read "
+                  << file.string() << "; skipped\n";
+      skipping_ = true;
+      return;
+    }
+  } else if (!mcd::readFrame(s.capture, image)) {
+    if (s.file && options_.loop_folder && frames_ > 0) {
+      s.capture.release();  // reopen at the first frame on the next tick
+      open_ = false;
+      tryOpen();
+      return;
+    }
+    if (s.file) {
+      sourceFailed("finished", /*finished=*/true);
+      return;
+    }
+    ++read_failures_;
+    s.capture.release();
+    sourceFailed("read failed", /*finished=*/false);
+    return;
+  }
+  processFrame(image);
+}
+
+void MarkerCameraActor::processFrame(const cv::Mat& image) {
+  std::vector<DetectedMarker> markers;
+  try {
+    markers = detector_.detect(image);
+  } catch (const std::invalid_argument& e) {  // an image type the detector does not take
+    ++read_failures_;
+    if (!skipping_)
+      std::cerr << "[marker_camera] camera " << options_.camera_id
+                << ": frame skipped: " << e.what() << '\n';
+    skipping_ = true;
+    return;
+  }
+  skipping_ = false;
+  ++frames_;
+  const DetectedMarker* robot = nullptr;
+  for (const auto& m : markers) {
+    if (m.id != options_.marker_id)
+      ++other_markers_;
+    else if (!robot)
+      robot = &m;
+  }
+  if (robot) {
+    if (!in_view_) publishEvent(true);
+    misses_in_row_ = 0;
+    publishDetection(robot);
+    return;
+  }
+  if (!in_view_) return;
+  if (++misses_in_row_ >= options_.leave_after_misses) {
+    publishEvent(false);
+    return;
+  }
+  publishDetection(nullptr);
+}
+
+void MarkerCameraActor::publishEvent(bool entered) {
+  auto loan = event_pub_.loan();
+  auto b = loan.builder();
+  setHeader(b.initHeader(), ctx_->now(), frame_id_, event_pub_.nextSeq());
+  b.setCameraId(options_.camera_id);
+  b.setEntered(entered);
+  event_pub_.publish(std::move(loan));
+  ++events_;
+  in_view_ = entered;
+  misses_in_row_ = 0;
+}
+
+void MarkerCameraActor::publishDetection(const DetectedMarker* marker) {
+  auto loan = detection_pub_.loan();
+  auto b = loan.builder();
+  setHeader(b.initHeader(), ctx_->now(), frame_id_, detection_pub_.nextSeq());
+  b.setCameraId(options_.camera_id);
+  b.setDetected(marker != nullptr);
+  b.setPixelStd(options_.pixel_std);
+  if (marker) {
+    b.setU(marker->centre.x());
+    b.setV(marker->centre.y());
+    b.setMarkerId(marker->id);
+    auto corners = b.initCorners(8);
+    for (unsigned k = 0; k < 4; ++k) {
+      corners.set(2 * k, marker->corners[k].x());
+      corners.set(2 * k + 1, marker->corners[k].y());
+    }
+    ++detections_;
+  } else {
+    ++misses_;
+  }
+  detection_pub_.publish(std::move(loan));
+}
+
+void MarkerCameraActor::summarize(Summary& out) const {
+  out["frames"] = frames_;
+  out["detections"] = detections_;
+  out["misses"] = misses_;
+  out["other_markers"] = other_markers_;
+  out["events"] = events_;
+  out["open_failures"] = open_failures_;
+  out["reconnects"] = reconnects_;
+  out["read_failures"] = read_failures_;
+  out["source_finished"] = std::int64_t{finished_ ? 1 : 0};
+}
+
+TESSERA_REGISTER_ACTOR("marker_camera", MarkerCameraActor, MarkerCameraOptions,
+                       "real environment camera (device, stream, video file or image folder): "
+                       "ArUco marker detections and enter/leave events");
+
+}  // namespace tessera::camera_network
