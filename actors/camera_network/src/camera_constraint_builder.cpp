@@ -10,9 +10,9 @@
 namespace tessera::camera_network {
 
 ConfigCheck CameraConstraintBuilderOptions::check() const {
+  if (ConfigCheck c = calibration.check(); c.problem()) return c;
+  if (ConfigCheck c = revisit.check(); c.problem()) return c;
   ConfigCheck c;
-  if (auto p = calibration.check().problem(); p) return calibration.check();
-  if (auto p = revisit.check().problem(); p) return revisit.check();
   c.require(marker.size() == 2 && std::isfinite(marker[0]) && std::isfinite(marker[1]), "marker",
             "must be [x, y] with finite values, got size", static_cast<double>(marker.size()))
       .require(image_width_px > 0, "image_width_px", "must be > 0", image_width_px)

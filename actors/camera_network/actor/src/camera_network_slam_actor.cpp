@@ -14,8 +14,6 @@ namespace tessera::camera_network {
 
 namespace {
 
-constexpr std::int64_t kTruthKeepNs = 120'000'000'000;  // ground truth kept for scoring [ns]
-
 void require(bool ok, const char* key, const std::string& rule) {
   if (!ok) throw ConfigError(std::string("camera_network_slam: ") + key + " " + rule);
 }
@@ -118,16 +116,11 @@ void CameraNetworkSlamActor::configure(ActorContext& ctx) {
         handle(builder_.addTrajectory(m->getId(), poses));
       });
   if (options_.score_ground_truth)
-    ctx.subscribe<msg::GroundTruthPose>(
-        "ground_truth", MailboxPolicy::keepLatest(1000),
-        [this](const Message<msg::GroundTruthPose>& m) {
-          const Pose2 p = toPose2(m->getPose());
-          const std::int64_t stamp = m->getHeader().getStampNs();
-          if (!p.isFinite()) return;
-          truth_[stamp] = p;
-          while (!truth_.empty() && truth_.begin()->first < stamp - kTruthKeepNs)
-            truth_.erase(truth_.begin());
-        });
+    ctx.subscribe<msg::GroundTruthPose>("ground_truth", MailboxPolicy::keepLatest(1000),
+                                        [this](const Message<msg::GroundTruthPose>& m) {
+                                          truth_.add(m->getHeader().getStampNs(),
+                                                     toPose2(m->getPose()));
+                                        });
 }
 
 void CameraNetworkSlamActor::use(const Item& item, std::int64_t stamp, const Pose2& chained) {
@@ -168,18 +161,8 @@ void CameraNetworkSlamActor::scoreSighting(const CameraSighting& s) {
 }
 
 bool CameraNetworkSlamActor::truthAt(std::int64_t stamp, Pose2& out) const {
-  const auto it = truth_.lower_bound(stamp);
-  if (it == truth_.end()) return false;
-  if (it->first == stamp) {
-    out = it->second;
-    return true;
-  }
-  if (it == truth_.begin()) return false;
-  const auto prev = std::prev(it);
-  if (it->first - prev->first > 1'000'000'000) return false;
-  out = interpolate(prev->second, it->second,
-                    double(stamp - prev->first) / double(it->first - prev->first));
-  return true;
+  const auto r = truth_.at(stamp, out);
+  return r == PoseHistory::Lookup::kExact || r == PoseHistory::Lookup::kInterpolated;
 }
 
 void CameraNetworkSlamActor::handle(const std::vector<CameraOutput>& outputs) {

@@ -35,6 +35,7 @@
 #include <tessera/msg/camera.capnp.h>
 #include <tessera/msg/submap.capnp.h>
 #include <tessera/camera_network/camera_constraint_builder.hpp>
+#include <tessera/geometry/pose_history.hpp>
 #include <tessera/geometry/pose_pairing.hpp>
 #include <tessera/messages/types.hpp>
 #include <tessera/runtime/actor.hpp>
@@ -107,7 +108,8 @@ class CameraNetworkSlamActor final : public Actor {
   std::map<std::uint32_t, std::int64_t> submap_start_;  // hand-over stamps
   std::map<std::uint32_t, Pose2> start_truth_;          // true pose at each submap's start
   std::map<std::uint32_t, Pose2> chained_origins_;
-  std::map<std::int64_t, Pose2> truth_;
+  // Ground truth for scoring: the last ~2 min at a simulator's 50 Hz (non-finite poses dropped).
+  PoseHistory truth_{6000, 1.0};
   std::int64_t last_stamp_ = 0;
   std::int64_t calibrations_ = 0, calibrations_refused_ = 0, revisits_ = 0, revisits_refused_ = 0,
                checks_ = 0, sightings_ = 0, misses_ = 0, revisits_true_ = 0, revisits_false_ = 0,
