@@ -67,7 +67,8 @@ void addExport(CLI::App& map, int& result) {
     save.write_png = o->png;
     const mapping::SavedMap saved = mapping::saveMap(map, o->out, save);
     std::cout << "exported " << state.submaps.size() << " submaps (" << state.constraints.size()
-              << " constraints) from " << o->state << "\n"
+              << " constraints, " << state.cameras.size() << " calibrated cameras) from "
+              << o->state << "\n"
               << "map: " << map.width << " x " << map.height << " cells at " << map.resolution
               << " m, origin (" << std::setprecision(6) << map.origin.x << ", " << map.origin.y
               << ") m in frame " << state.frame_id << "\n"

@@ -12,6 +12,7 @@ void addBenchCommands(CLI::App& app, int& result) {
   addBenchIpcCommand(*bench, result);
   addBenchRbpfCommand(*bench, result);
   addBenchCameraNetworkCommand(*bench, result);
+  addBenchMarkerDetectionCommand(*bench, result);
   addBenchGraphCommand(*bench, result);
   addBenchLandmarksCommand(*bench, result);
   addBenchMatcherCommand(*bench, result);

@@ -14,6 +14,9 @@ void addBenchIpcCommand(CLI::App& bench, int& result);
 void addBenchRbpfCommand(CLI::App& bench, int& result);
 /// Adds `tessera bench camera_network` (seed 000's four-way comparison, with and without cameras).
 void addBenchCameraNetworkCommand(CLI::App& bench, int& result);
+/// Adds `tessera bench marker_detection` (ArUco detection rate, pixel errors and ms per frame on
+/// rendered ceiling-camera images, whole-image search and tracking).
+void addBenchMarkerDetectionCommand(CLI::App& bench, int& result);
 /// Adds `tessera bench graph` (pose-graph solvers against g2o's figures).
 void addBenchGraphCommand(CLI::App& bench, int& result);
 /// Adds `tessera bench landmarks` (landmark SLAM accuracy over seeds, cost vs map size).

@@ -41,3 +41,21 @@ struct CameraFootprints {
   header @0 :Common.Header;      # frameId = map
   cameras @1 :List(Footprint);
 }
+
+# One environment camera's floor-plane calibration in a SLAM submap
+# (docs/algorithms.md#camera-network-calibration): camera_network_slam publishes it each time the
+# camera is calibrated, or calibrated again after it went stale; the map assembler keeps the latest
+# per camera and saves it with the map (docs/architecture.md#saved-slam-state).
+struct CameraCalibration {
+  header @0 :Common.Header;       # stamp of the visit's end it was calibrated from;
+                                  # frameId = "submap_<submapId>", the floor points' frame
+  cameraId @1 :Int32;
+  submapId @2 :UInt32;            # the submap whose frame the floor points are in
+  homography @3 :List(Float64);   # 9 values, row-major: floor [m] -> pixel [px],
+                                  # [u v 1]^T ~ H [x y 1]^T, h22 = 1
+  rmsPx @4 :Float64;              # [px] inliers' reprojection RMS after refinement
+  coverage @5 :Float64;           # inlier pixels' convex hull area / image area, 0..1
+  condition @6 :Float64;          # sigma_max / sigma_8 of the normalised DLT matrix
+  pairs @7 :UInt32;               # (marker position, pixel) pairs it was estimated from
+  inliers @8 :UInt32;             # of those, RANSAC's inliers
+}

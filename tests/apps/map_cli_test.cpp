@@ -64,7 +64,7 @@ TEST_CASE("map export writes a saved state as a PGM + YAML map that loadMap read
   INFO(run.err);
   REQUIRE(run.exit_code == 0);
   const auto expected = laser_slam::assembleSlamState(state);
-  CHECK_THAT(run.out, Contains("exported 2 submaps") &&
+  CHECK_THAT(run.out, Contains("exported 2 submaps") && Contains("0 calibrated cameras") &&
                           Contains(std::to_string(expected.width) + " x " +
                                    std::to_string(expected.height) + " cells") &&
                           Contains((dir / "maps/office.yaml").string()));
@@ -107,13 +107,13 @@ TEST_CASE("map export of a bad state fails with the file and field", "[map_cli]"
   {
     std::ifstream in(dir / "state/state.yaml");
     std::string text((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
-    text.replace(text.find("version: 1"), 10, "version: 2");
+    text.replace(text.find("version: 2"), 10, "version: 3");
     std::ofstream(dir / "state/state.yaml", std::ios::trunc) << text;
   }
-  const auto v2 =
+  const auto v3 =
       runCli("map export " + (dir / "state").string() + " --out " + (dir / "m").string(), dir);
-  CHECK(v2.exit_code != 0);
-  CHECK_THAT(v2.err, Contains("state.yaml") && Contains("version: 2 is not supported"));
+  CHECK(v3.exit_code != 0);
+  CHECK_THAT(v3.err, Contains("state.yaml") && Contains("version: 3 is not supported"));
   CHECK_FALSE(fs::exists(dir / "m.yaml"));
   const auto no_out = runCli("map export " + (dir / "state").string(), dir);
   CHECK(no_out.exit_code == 2);

@@ -168,6 +168,13 @@ Rbpf::Rbpf(RbpfOptions options)
           "handover_sigma_linear and handover_sigma_angular must be >= 0");
   require(std::isfinite(o.carry_over_distance) && o.carry_over_distance >= 0,
           "carry_over_distance must be a finite number of metres >= 0 (0: the last scan only)");
+  require(std::isfinite(o.lost_match_fraction) && o.lost_match_fraction >= 0 &&
+              o.lost_match_fraction < 1,
+          "lost_match_fraction must be in [0, 1) (0 disables)");
+  require(o.lost_updates >= 1, "lost_updates must be >= 1");
+  require(std::isfinite(o.lost_sigma_linear) && o.lost_sigma_linear > 0 &&
+              std::isfinite(o.lost_sigma_angular) && o.lost_sigma_angular > 0,
+          "lost_sigma_linear and lost_sigma_angular must be finite and > 0");
   require(o.coarse_kernel_radius >= 0, "coarse_kernel_radius must be >= 0 (0 disables)");
   require(o.coarse_beam_step >= 1, "coarse_beam_step must be >= 1");
   require(std::isfinite(o.recovery_sigma) && o.recovery_sigma >= 0,
@@ -265,14 +272,24 @@ RbpfStep Rbpf::addScan(double stamp_s, const tessera::grid::RangeScan& scan, con
       updateParticles(points, coarse_points, tessera::between(update_odometry_, odometry));
   step.updated = true;
   step.matched = failures < particles_.size();
+  step.match_fraction = last_match_fraction_;
+  stats_.match_fraction_min = std::min(stats_.match_fraction_min, last_match_fraction_);
   step.neff = normalizeWeights();
   if (step.neff < options_.resample_threshold * particleCount()) {
     resample();
     step.resampled = true;
     ++stats_.resamples;
   }
-  insertScan(scan, mount);
-  if (options_.carry_over_distance > 0) {
+  step.suspect = last_match_fraction_ < options_.lost_match_fraction;
+  if (step.suspect) {
+    ++stats_.suspect_updates;
+    step.lost = ++suspect_run_ >= options_.lost_updates;
+    if (step.lost) ++stats_.lost;
+  } else {
+    suspect_run_ = 0;
+    insertScan(scan, mount);
+  }
+  if (options_.carry_over_distance > 0 && !step.suspect) {
     KeptScan& kept =
         kept_.emplace_back(stamp_s, std::vector<float>(scan.ranges.begin(), scan.ranges.end()),
                            scan, mount, submap_travelled_);
@@ -467,6 +484,9 @@ std::size_t Rbpf::updateParticles(const tessera::scan_matching::ScanPoints& poin
     });
   }
   each(n, draw);
+  int best_beams = 0;
+  for (std::size_t i : sources) best_beams = std::max(best_beams, proposals[i].match.matched_beams);
+  last_match_fraction_ = best_beams / static_cast<double>(std::max<std::size_t>(points.size(), 1));
   stats_.particle_updates += n;
   stats_.match_failures += failures.load();
   stats_.coarse_evaluations += coarse_evals.load();
@@ -652,8 +672,18 @@ FinishedSubmap Rbpf::currentSubmap() const {
   return done;
 }
 
+FinishedSubmap Rbpf::startSubmapLost() {
+  if (!initialized_) throw std::logic_error("rbpf: no submap before the first usable scan");
+  kept_.clear();  // views of the place the robot was taken from
+  FinishedSubmap done = startSubmap();
+  const double lin = options_.lost_sigma_linear, ang = options_.lost_sigma_angular;
+  done.next_in_this.covariance = Eigen::Vector3d(lin * lin, lin * lin, ang * ang).asDiagonal();
+  return done;
+}
+
 FinishedSubmap Rbpf::startSubmap() {
   FinishedSubmap done = currentSubmap();
+  suspect_run_ = 0;
   ++submap_id_;
   submap_scans_ = 0;
   submap_travelled_ = 0.0;

@@ -5,6 +5,7 @@
 #include <yaml-cpp/yaml.h>
 
 #include <Eigen/Eigenvalues>
+#include <Eigen/SVD>
 
 #include <algorithm>
 #include <array>
@@ -116,6 +117,20 @@ std::string submapProblem(const SavedSubmap& s) {
     return "cells: value " + std::to_string(g.cells[static_cast<std::size_t>(k)]) + " at index " +
            std::to_string(k) + " is outside -1..100";
   return {};
+}
+
+/// σ_min / σ_max of a camera's homography (0 for the zero matrix); below 1e-12 it is singular.
+double homographyInverseCondition(const Eigen::Matrix3d& h) {
+  const Eigen::JacobiSVD<Eigen::Matrix3d> svd(h);
+  const Eigen::Vector3d sv = svd.singularValues();
+  return sv(0) > 0 ? sv(2) / sv(0) : 0.0;
+}
+
+std::string cameraProblem(const SavedCamera& c, const std::set<int>& ids) {
+  if (c.id < 0) return "id: must be >= 0, got " + std::to_string(c.id);
+  if (!ids.count(c.submap))
+    return "submap: names submap " + std::to_string(c.submap) + ", not saved";
+  return savedCameraProblem(c);
 }
 
 std::string constraintProblem(const SavedConstraint& c, const std::set<int>& ids) {
@@ -241,11 +256,34 @@ void writeCells(const fs::path& path, const std::vector<std::int8_t>& cells) {
 
 }  // namespace
 
+std::string savedCameraProblem(const SavedCamera& c) {
+  const auto nonNegative = [](double v) { return std::isfinite(v) && v >= 0; };
+  if (c.id < 0) return "id: must be >= 0, got " + std::to_string(c.id);
+  if (c.submap < 0) return "submap: must be >= 0, got " + std::to_string(c.submap);
+  if (!c.floor_to_pixel.allFinite()) return "homography: must be 9 finite numbers";
+  if (const double ic = homographyInverseCondition(c.floor_to_pixel); !(ic > 1e-12))
+    return "homography: is singular (sigma_min/sigma_max = " + numberText(ic) +
+           "); expected an invertible floor -> pixel homography";
+  if (!nonNegative(c.rms_px)) return "rms_px: must be finite and >= 0, got " + numberText(c.rms_px);
+  if (!(nonNegative(c.coverage) && c.coverage <= 1))
+    return "coverage: must be in 0..1, got " + numberText(c.coverage);
+  if (!nonNegative(c.condition))
+    return "condition: must be finite and >= 0, got " + numberText(c.condition);
+  if (c.pairs < 0) return "pairs: must be >= 0, got " + std::to_string(c.pairs);
+  if (c.inliers < 0 || c.inliers > c.pairs)
+    return "inliers: must be in 0.." + std::to_string(c.pairs) + " (pairs), got " +
+           std::to_string(c.inliers);
+  return {};
+}
+
 void saveSlamState(const SlamState& state, const fs::path& dir) {
   const fs::path yaml_path = dir / kStateFile;
-  if (state.format_version != SlamState::kFormatVersion)
+  if (state.format_version < SlamState::kOldestFormatVersion ||
+      state.format_version > SlamState::kFormatVersion)
     fail(yaml_path, "version: this build writes version " +
-                        std::to_string(SlamState::kFormatVersion) + ", the state says " +
+                        std::to_string(SlamState::kFormatVersion) + " (from states of versions " +
+                        std::to_string(SlamState::kOldestFormatVersion) + " to " +
+                        std::to_string(SlamState::kFormatVersion) + "), the state says " +
                         std::to_string(state.format_version));
   if (state.frame_id.empty()) fail(yaml_path, "frame_id: must not be empty");
   std::vector<const SavedSubmap*> submaps;
@@ -261,6 +299,18 @@ void saveSlamState(const SlamState& state, const fs::path& dir) {
   for (std::size_t k = 0; k < state.constraints.size(); ++k)
     if (const std::string p = constraintProblem(state.constraints[k], ids); !p.empty())
       fail(yaml_path, "constraints[" + std::to_string(k) + "]: " + p);
+  std::vector<const SavedCamera*> cameras;
+  std::set<int> camera_ids;
+  for (std::size_t k = 0; k < state.cameras.size(); ++k) {
+    const SavedCamera& c = state.cameras[k];
+    const std::string at =
+        "cameras[" + std::to_string(k) + "] (camera " + std::to_string(c.id) + "): ";
+    if (const std::string p = cameraProblem(c, ids); !p.empty()) fail(yaml_path, at + p);
+    if (!camera_ids.insert(c.id).second) fail(yaml_path, at + "id: twice");
+    cameras.push_back(&c);
+  }
+  std::sort(cameras.begin(), cameras.end(),
+            [](const SavedCamera* a, const SavedCamera* b) { return a->id < b->id; });
 
   std::error_code ec;
   fs::create_directories(dir, ec);
@@ -299,6 +349,22 @@ void saveSlamState(const SlamState& state, const fs::path& dir) {
         y << numberText(c.information(r, k)) << (r == 2 && k == 2 ? "" : ", ");
     y << "]\n";
   }
+  y << "cameras:" << (cameras.empty() ? " []" : "") << "\n";
+  for (const SavedCamera* c : cameras) {
+    y << "  - id: " << c->id << "\n"
+      << "    submap: " << c->submap << "\n"
+      << "    stamp_ns: " << c->stamp_ns << "\n"
+      << "    homography: [";
+    for (int r = 0; r < 3; ++r)
+      for (int k = 0; k < 3; ++k)
+        y << numberText(c->floor_to_pixel(r, k)) << (r == 2 && k == 2 ? "" : ", ");
+    y << "]\n"
+      << "    rms_px: " << numberText(c->rms_px) << "\n"
+      << "    coverage: " << numberText(c->coverage) << "\n"
+      << "    condition: " << numberText(c->condition) << "\n"
+      << "    pairs: " << c->pairs << "\n"
+      << "    inliers: " << c->inliers << "\n";
+  }
   // state.yaml appears only once complete: written aside, then renamed over any older one.
   writeStateFile(yaml_path, y.str());
 }
@@ -329,9 +395,10 @@ SlamState loadSlamState(const fs::path& dir) {
   const YAML::Node version = r.key(root, "version", "version");
   const long long v = r.integer(version, "version", std::numeric_limits<int>::min(),
                                 std::numeric_limits<int>::max());
-  if (v != SlamState::kFormatVersion)
+  if (v < SlamState::kOldestFormatVersion || v > SlamState::kFormatVersion)
     r.fail(version, "version",
-           std::to_string(v) + " is not supported: this build reads version " +
+           std::to_string(v) + " is not supported: this build reads versions " +
+               std::to_string(SlamState::kOldestFormatVersion) + " to " +
                std::to_string(SlamState::kFormatVersion));
 
   SlamState state;
@@ -409,6 +476,53 @@ SlamState loadSlamState(const fs::path& dir) {
       r.fail(n, at + "." + p.substr(0, p.find(':')), p.substr(p.find(':') + 2));
     state.constraints.push_back(c);
   }
+
+  // Version 2: the cameras' calibrations, each in a saved submap.
+  const YAML::Node cameras = root["cameras"];
+  if (v < 2) {
+    if (cameras)
+      r.fail(cameras, "cameras",
+             "not part of version " + std::to_string(v) + " (cameras came with version 2)");
+    return state;
+  }
+  if (!cameras)
+    r.fail(root, "cameras", "missing (version 2 lists the camera calibrations, [] for none)");
+  if (!cameras.IsSequence()) r.fail(cameras, "cameras", "must be a list");
+  std::set<int> camera_ids;
+  for (std::size_t k = 0; k < cameras.size(); ++k) {
+    const YAML::Node n = cameras[k];
+    const std::string at = "cameras[" + std::to_string(k) + "]";
+    if (!n.IsMap())
+      r.fail(n, at, "must be a mapping (id, submap, stamp_ns, homography, rms_px, ...)");
+    SavedCamera c;
+    const long long max_int = std::numeric_limits<int>::max();
+    c.id = static_cast<int>(r.integer(r.key(n, "id", at + ".id"), at + ".id", 0, max_int));
+    if (!camera_ids.insert(c.id).second)
+      r.fail(n["id"], at + ".id", "camera " + std::to_string(c.id) + " is listed twice");
+    c.submap =
+        static_cast<int>(r.integer(r.key(n, "submap", at + ".submap"), at + ".submap", 0, max_int));
+    c.stamp_ns =
+        r.integer(r.key(n, "stamp_ns", at + ".stamp_ns"), at + ".stamp_ns",
+                  std::numeric_limits<long long>::min(), std::numeric_limits<long long>::max());
+    const auto h = r.numbers(r.key(n, "homography", at + ".homography"), at + ".homography", 9,
+                             "of 9 values (3x3 floor -> pixel homography, row-major)");
+    for (int i = 0; i < 3; ++i)
+      for (int j = 0; j < 3; ++j) c.floor_to_pixel(i, j) = h[static_cast<std::size_t>(i * 3 + j)];
+    c.rms_px = r.number(r.key(n, "rms_px", at + ".rms_px"), at + ".rms_px");
+    c.coverage = r.number(r.key(n, "coverage", at + ".coverage"), at + ".coverage");
+    c.condition = r.number(r.key(n, "condition", at + ".condition"), at + ".condition");
+    c.pairs =
+        static_cast<int>(r.integer(r.key(n, "pairs", at + ".pairs"), at + ".pairs", 0, max_int));
+    c.inliers = static_cast<int>(
+        r.integer(r.key(n, "inliers", at + ".inliers"), at + ".inliers", 0, max_int));
+    if (const std::string p = cameraProblem(c, ids); !p.empty()) {
+      const std::string field = p.substr(0, p.find(':'));
+      r.fail(n[field], at + "." + field, p.substr(p.find(':') + 2));
+    }
+    state.cameras.push_back(c);
+  }
+  std::sort(state.cameras.begin(), state.cameras.end(),
+            [](const SavedCamera& a, const SavedCamera& b) { return a.id < b.id; });
   return state;
 }
 

@@ -120,6 +120,20 @@ double RouteFollower::progress() const {
   return std::clamp((legs_[leg_].start_s + along_) / total_length_, 0.0, 1.0);
 }
 
+Pose2 RouteFollower::jumpTo(double route_s) {
+  const double s = std::clamp(route_s, 0.0, total_length_);
+  leg_ = 0;
+  while (leg_ + 1 < legs_.size() && legs_[leg_ + 1].start_s <= s) ++leg_;
+  const Leg& leg = legs_[leg_];
+  along_ = std::clamp(s - leg.start_s, 0.0, leg.length);
+  last_ = {};
+  stopping_ = false;
+  done_ = false;
+  const Eigen::Vector2d dir = (leg.b - leg.a) / leg.length;
+  const Eigen::Vector2d p = leg.a + dir * along_;
+  return {p.x(), p.y(), std::atan2(dir.y(), dir.x())};
+}
+
 Twist RouteFollower::command(const Pose2& pose, double dt) {
   if (done_) return {};
   if (stopping_) {

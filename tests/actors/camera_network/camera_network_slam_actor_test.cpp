@@ -1,8 +1,12 @@
 // camera_network_slam through the mock-mailbox harness: calibration at a first visit (held for
-// the submap's smoothed trajectory), a revisit constraint from a later submap, bad input.
+// the submap's smoothed trajectory), a revisit constraint from a later submap, bad input; the
+// published calibration saved with the map by the map assembler, and the calibrations file.
 #include <tessera/msg/camera.capnp.h>
 #include <tessera/msg/submap.capnp.h>
+#include <tessera/camera_network/camera_calibration_file.hpp>
 #include <tessera/camera_network/camera_network_slam_actor.hpp>
+#include <tessera/laser_slam/map_assembler_actor.hpp>
+#include <tessera/laser_slam/slam_state.hpp>
 #include <tessera/messages/geometry.hpp>
 #include <tessera/messages/types.hpp>
 #include <tessera/runtime/harness.hpp>
@@ -10,9 +14,11 @@
 
 #include <catch2/catch.hpp>
 
+#include "../../shared_data.hpp"
 #include "../laser_slam/submap_messages.hpp"
 
 #include <cmath>
+#include <filesystem>
 #include <random>
 #include <vector>
 
@@ -143,6 +149,74 @@ TEST_CASE("camera_network_slam calibrates at a first visit and sends a revisit c
   CHECK(cov.allFinite());
   CHECK(cov.determinant() > 0);
   CHECK(std::get<std::int64_t>(summary()["revisits"]) == 1);
+}
+
+TEST_CASE(
+    "camera_network_slam publishes each calibration, writes the calibrations file, and the map "
+    "assembler saves it with the map",
+    "[camera_network][actor][slam_state]") {
+  namespace fs = std::filesystem;
+  const fs::path out = test::scratchDir("camera_network_slam_calibrations");
+  fs::create_directories(out / "cameras");
+  fs::create_directories(out / "map");
+  const CameraNetworkSlamOptions o;
+  ActorHarness h(std::make_unique<CameraNetworkSlamActor>(o), (out / "cameras").string());
+  Drive d(h, camera());
+  const Eigen::Vector2d c = d.camera.site().position;
+  d.event(true);
+  for (double a = 0; a < 2 * M_PI; a += 0.03)
+    d.frame(Pose2(c + Eigen::Vector2d(std::cos(a), std::sin(a)), a + M_PI / 2));
+  d.event(false);
+  CHECK(h.published<msg::CameraCalibration>("camera_calibrations").empty());  // held
+  d.handOver(0, 1, Pose2(12, 5, 2.0));
+  const auto published = h.published<msg::CameraCalibration>("camera_calibrations");
+  REQUIRE(published.size() == 1);
+  const auto& actor = static_cast<const CameraNetworkSlamActor&>(h.actor());
+  REQUIRE(actor.builder().calibrations().count(0));
+  const auto& cal = actor.builder().calibrations().at(0);
+  const auto& m = published[0];
+  CHECK(m->getCameraId() == 0);
+  CHECK(m->getSubmapId() == 0);
+  CHECK(m->getHeader().getStampNs() == cal.stamp_ns);
+  CHECK(std::string(m->getHeader().getFrameId().cStr()) == "submap_0");
+  REQUIRE(m->getHomography().size() == 9);
+  for (unsigned k = 0; k < 9; ++k) CHECK(m->getHomography()[k] == cal.homography.h(k / 3, k % 3));
+  CHECK(m->getRmsPx() == cal.homography.quality.rms_px);
+  CHECK(m->getCoverage() == cal.homography.quality.coverage);
+  CHECK(m->getCondition() == cal.homography.quality.condition);
+  CHECK(m->getPairs() == static_cast<std::uint32_t>(cal.homography.quality.pairs));
+  CHECK(m->getInliers() == static_cast<std::uint32_t>(cal.homography.quality.inliers));
+  CHECK(m->getInliers() > 30);
+
+  // At stop the calibrations file holds the same calibration, exactly.
+  h.stop();
+  CHECK(h.published<msg::CameraCalibration>("camera_calibrations").size() == 1);  // no new one
+  const auto records =
+      camera_network::readCameraCalibrations(out / "cameras" / "camera_calibrations.yaml");
+  REQUIRE(records.size() == 1);
+  CHECK(records[0] == camera_network::calibrationRecord(cal));
+
+  // The map assembler keeps the published calibration and saves it with submap 0.
+  const laser_slam::MapAssemblerOptions ao;
+  ActorHarness assembler(std::make_unique<laser_slam::MapAssemblerActor>(ao),
+                         (out / "map").string());
+  assembler.push<msg::Submap>(
+      "submaps", [&](msg::Submap::Builder b) { test::fillSubmap(b, 0, Pose2(), 1000); });
+  assembler.push<msg::CameraCalibration>("camera_calibrations", m);
+  assembler.runUntilIdle();
+  assembler.stop();
+  const laser_slam::SlamState state = laser_slam::loadSlamState(out / "map" / "slam_state");
+  REQUIRE(state.cameras.size() == 1);
+  const laser_slam::SavedCamera& saved = state.cameras[0];
+  CHECK(saved.id == 0);
+  CHECK(saved.submap == 0);
+  CHECK(saved.stamp_ns == cal.stamp_ns);
+  CHECK(saved.floor_to_pixel == cal.homography.h);
+  CHECK(saved.rms_px == cal.homography.quality.rms_px);
+  CHECK(saved.coverage == cal.homography.quality.coverage);
+  CHECK(saved.condition == cal.homography.quality.condition);
+  CHECK(saved.pairs == cal.homography.quality.pairs);
+  CHECK(saved.inliers == cal.homography.quality.inliers);
 }
 
 TEST_CASE("camera_network_slam ignores bad input and counts it", "[camera_network][actor]") {

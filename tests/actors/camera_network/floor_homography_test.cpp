@@ -4,6 +4,7 @@
 #include <tessera/camera_network/floor_homography.hpp>
 #include <tessera/sim/camera_network.hpp>
 
+#include <Eigen/LU>
 #include <catch2/catch.hpp>
 
 #include <cmath>

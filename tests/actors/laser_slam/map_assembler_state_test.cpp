@@ -12,6 +12,7 @@
 #include <algorithm>
 #include <filesystem>
 #include <numbers>
+#include <string>
 
 #include "../../shared_data.hpp"
 
@@ -56,6 +57,24 @@ void pushConstraint(ActorHarness& h, int from, int to, const Pose2& relative, bo
     writePose(b.initRelative(), relative, covariance);
     b.setKind(revisit ? msg::SubmapConstraint::Kind::REVISIT
                       : msg::SubmapConstraint::Kind::HAND_OVER);
+  });
+}
+
+/// A camera calibration as camera_network_slam publishes it; `scale` varies the homography.
+void pushCalibration(ActorHarness& h, int camera, int submap, double scale, double rms_px) {
+  h.push<msg::CameraCalibration>("camera_calibrations", [&](auto& b) {
+    setHeader(b.initHeader(), 1500 + camera, "submap_" + std::to_string(submap), 0);
+    b.setCameraId(camera);
+    b.setSubmapId(static_cast<std::uint32_t>(submap));
+    const double h9[9] = {100.0 * scale, 1.0 / 3.0, 320.5, -2.0, 101.0 * scale,
+                          240.25,        1e-3,      2e-3,  1.0};
+    auto list = b.initHomography(9);
+    for (unsigned k = 0; k < 9; ++k) list.set(k, h9[k]);
+    b.setRmsPx(rms_px);
+    b.setCoverage(0.2);
+    b.setCondition(1234.5);
+    b.setPairs(120);
+    b.setInliers(117);
   });
 }
 
@@ -150,6 +169,63 @@ TEST_CASE(
   // It serves the saved map only: nothing to subscribe to.
   CHECK_THROWS_WITH(loaded.push<msg::Submap>("submaps", [](auto&) {}),
                     Contains("does not subscribe"));
+}
+
+TEST_CASE(
+    "map assembler saves each camera's latest calibration with the map, and a loaded state "
+    "keeps them",
+    "[map_assembler][slam_state]") {
+  const fs::path out = test::scratchDir("assembler_cameras");
+  const MapAssemblerOptions o;
+  ActorHarness h(std::make_unique<MapAssemblerActor>(o), out.string());
+  pushSubmap(h, 0, Pose2{});
+  pushSubmap(h, 1, Pose2(3.0, 0.0, 0.0));
+  pushCalibration(h, 4, 0, 1.0, 0.9);
+  pushCalibration(h, 1, 1, 1.0, 1.1);
+  pushCalibration(h, 4, 1, 1.5, 0.7);   // camera 4 calibrated again, in submap 1: replaces
+  pushCalibration(h, 6, 9, 1.0, 0.8);   // submap 9 never arrives: not saved
+  pushCalibration(h, 7, 0, 1.0, -1.0);  // invalid (negative RMS): rejected
+  h.push<msg::CameraCalibration>("camera_calibrations", [&](auto& b) {
+    b.setCameraId(8);
+    b.initHomography(8);  // too few values: rejected
+  });
+  h.runUntilIdle();
+  h.stop();
+  Summary summary;
+  h.actor().summarize(summary);
+  CHECK(std::get<std::int64_t>(summary["camera_calibrations_received"]) == 6);
+  CHECK(std::get<std::int64_t>(summary["camera_calibrations_rejected"]) == 2);
+  CHECK(std::get<std::int64_t>(summary["state_cameras"]) == 2);
+  CHECK(std::get<std::int64_t>(summary["state_cameras_unsaved"]) == 1);
+
+  const fs::path state_dir = out / "slam_state";
+  const laser_slam::SlamState state = laser_slam::loadSlamState(state_dir);
+  REQUIRE(state.cameras.size() == 2);
+  CHECK(state.cameras[0].id == 1);
+  CHECK(state.cameras[0].submap == 1);
+  CHECK(state.cameras[0].rms_px == 1.1);
+  CHECK(state.cameras[1].id == 4);
+  CHECK(state.cameras[1].submap == 1);
+  CHECK(state.cameras[1].stamp_ns == 1504);
+  CHECK(state.cameras[1].rms_px == 0.7);
+  CHECK(state.cameras[1].floor_to_pixel(0, 0) == 150.0);
+  CHECK(state.cameras[1].floor_to_pixel(0, 1) == 1.0 / 3.0);
+  CHECK(state.cameras[1].floor_to_pixel(2, 1) == 2e-3);
+  CHECK(state.cameras[1].coverage == 0.2);
+  CHECK(state.cameras[1].condition == 1234.5);
+  CHECK(state.cameras[1].pairs == 120);
+  CHECK(state.cameras[1].inliers == 117);
+
+  // Loaded and saved again, the cameras are still there, unchanged.
+  MapAssemblerOptions lo;
+  lo.load_state = state_dir.string();
+  ActorHarness loaded(std::make_unique<MapAssemblerActor>(lo), (out / "second").string());
+  loaded.advance(0);
+  loaded.stop();
+  const laser_slam::SlamState again = laser_slam::loadSlamState(out / "second" / "slam_state");
+  REQUIRE(again.cameras.size() == 2);
+  CHECK(again.cameras[1].floor_to_pixel == state.cameras[1].floor_to_pixel);
+  CHECK(again.cameras[0].stamp_ns == state.cameras[0].stamp_ns);
 }
 
 TEST_CASE("map assembler without an output folder or state_dir writes no state",

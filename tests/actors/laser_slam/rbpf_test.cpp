@@ -643,5 +643,83 @@ TEST_CASE("rbpf rejects invalid options with the option name", "[rbpf]") {
     o = {};
     o.carry_over_distance = bad;
     CHECK_THROWS_WITH(Rbpf(o), Catch::Contains("carry_over_distance"));
+    o = {};
+    o.lost_match_fraction = bad;
+    CHECK_THROWS_WITH(Rbpf(o), Catch::Contains("lost_match_fraction"));
+    o = {};
+    o.lost_sigma_linear = bad;
+    CHECK_THROWS_WITH(Rbpf(o), Catch::Contains("lost_sigma_linear"));
+  }
+  o = {};
+  o.lost_match_fraction = 1.0;
+  CHECK_THROWS_WITH(Rbpf(o), Catch::Contains("lost_match_fraction"));
+  o = {};
+  o.lost_updates = 0;
+  CHECK_THROWS_WITH(Rbpf(o), Catch::Contains("lost_updates"));
+}
+
+TEST_CASE("a robot carried away unseen is found lost without drawing the wrong place's walls",
+          "[rbpf]") {
+  // From the first turn on the spot after the 30th scan, odometry is 1.5 m and 90 degrees off:
+  // for the filter the same as a robot picked up and put down elsewhere.
+  const auto sim = roomLoopWithSlip(Pose2(1.5, 0.5, 1.57));
+  RbpfOptions o = fastOptions(8);
+  o.carry_over_distance = 0;
+  std::size_t slip = 0;
+  for (std::size_t k = 31; k < sim.scans.size() && slip == 0; ++k)
+    if (std::abs(tessera::between(sim.scans[k - 1].odometry, sim.scans[k].odometry).theta -
+                 tessera::between(sim.scans[k - 1].truth, sim.scans[k].truth).theta) > 1.0)
+      slip = k;
+  REQUIRE(slip > 0);
+
+  SECTION("without the lost check the filter keeps inserting at the wrong pose") {
+    Rbpf rbpf(o);
+    for (const auto& s : sim.scans) rbpf.addScan(s.stamp_s, sim.range(s), Pose2{}, s.odometry);
+    CHECK(rbpf.stats().lost == 0);
+    CHECK(rbpf.stats().suspect_updates == 0);
+  }
+  SECTION("with it, suspect scans are held back and two in a row declare the robot lost") {
+    o.lost_match_fraction = 0.25;
+    o.lost_updates = 2;
+    Rbpf rbpf(o);
+    std::size_t k = 0;
+    for (; k < slip; ++k) {
+      const auto step = rbpf.addScan(sim.scans[k].stamp_s, sim.range(sim.scans[k]), Pose2{},
+                                     sim.scans[k].odometry);
+      CHECK_FALSE(step.suspect);  // the normal updates put most beams on the map
+    }
+    const auto known = rbpf.bestMap().knownCount();
+    const auto inserted = rbpf.submapScans();
+    bool lost = false;
+    int suspects = 0;
+    for (; k < sim.scans.size() && !lost; ++k) {
+      const auto step = rbpf.addScan(sim.scans[k].stamp_s, sim.range(sim.scans[k]), Pose2{},
+                                     sim.scans[k].odometry);
+      suspects += step.suspect ? 1 : 0;
+      if (step.updated) CHECK(step.match_fraction < 0.25);
+      lost = step.lost;
+      // Nothing of the wrong place reaches the map: the best particle may switch to a sibling's
+      // map a few cells different, where an inserted scan would add hundreds.
+      CHECK(rbpf.bestMap().knownCount() <= known + 10);
+      CHECK(rbpf.submapScans() == inserted);
+    }
+    REQUIRE(lost);
+    CHECK(suspects == 2);
+    CHECK(rbpf.stats().lost == 1);
+    const auto done = rbpf.startSubmapLost();
+    CHECK(done.id == 0);
+    CHECK(done.next_in_this.covariance(0, 0) == Approx(1e4));
+    CHECK(done.next_in_this.covariance(1, 1) == Approx(1e4));
+    CHECK(done.next_in_this.covariance(2, 2) == Approx(9.0));
+    CHECK(done.next_in_this.covariance(0, 1) == 0.0);
+    // The fresh submap maps the new place consistently: its poses follow the true motion.
+    const Pose2 start = sim.scans[k - 1].truth;
+    const std::size_t end = std::min(sim.scans.size(), k + 40);
+    for (; k < end; ++k) {
+      const auto step = rbpf.addScan(sim.scans[k].stamp_s, sim.range(sim.scans[k]), Pose2{},
+                                     sim.scans[k].odometry);
+      CHECK_FALSE(step.suspect);
+    }
+    CHECK(translationError(rbpf.pose(), tessera::between(start, sim.scans[end - 1].truth)) < 0.15);
   }
 }

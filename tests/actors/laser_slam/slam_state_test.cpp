@@ -5,6 +5,7 @@
 #include <Eigen/LU>
 #include <catch2/catch.hpp>
 
+#include <algorithm>
 #include <cmath>
 #include <filesystem>
 #include <fstream>
@@ -18,6 +19,7 @@
 
 using namespace tessera;
 using Catch::Contains;
+using laser_slam::SavedCamera;
 using laser_slam::SavedConstraint;
 using laser_slam::SavedSubmap;
 using laser_slam::SlamState;
@@ -68,7 +70,42 @@ SlamState sampleState() {
   loop.information = Eigen::Vector3d(400.0, 250.0, 1e4 / 3.0).asDiagonal();
   loop.revisit = true;
   state.constraints = {hand, loop};
+  // Two cameras, out of id order: a tilted one calibrated in submap 3, one looking down in 1.
+  SavedCamera tilted;
+  tilted.id = 5;
+  tilted.submap = 3;
+  tilted.stamp_ns = 1'234'567'890'123;
+  tilted.floor_to_pixel << 106.0 + 1.0 / 3.0, -3.25, 320.5, 2.0 / 7.0, 107.3, 240.125, 1e-3 / 3.0,
+      -2e-3, 1.0;
+  tilted.rms_px = 0.1 + 0.2;
+  tilted.coverage = std::numbers::pi / 10;
+  tilted.condition = 3.3e3 / 7;
+  tilted.pairs = 402;
+  tilted.inliers = 398;
+  SavedCamera down;
+  down.id = 2;
+  down.submap = 1;
+  down.stamp_ns = 77;
+  down.floor_to_pixel << -50.0, 0.5, 640.0, 0.25, 49.75, 12.0, 0.0, 0.0, 1.0;
+  down.rms_px = 1.5;
+  down.coverage = 0.75;
+  down.condition = 12.0;
+  down.pairs = 30;
+  down.inliers = 29;
+  state.cameras = {tilted, down};
   return state;
+}
+
+void checkSameCamera(const SavedCamera& a, const SavedCamera& b) {
+  CHECK(b.id == a.id);
+  CHECK(b.submap == a.submap);
+  CHECK(b.stamp_ns == a.stamp_ns);
+  CHECK(b.floor_to_pixel == a.floor_to_pixel);
+  CHECK(b.rms_px == a.rms_px);
+  CHECK(b.coverage == a.coverage);
+  CHECK(b.condition == a.condition);
+  CHECK(b.pairs == a.pairs);
+  CHECK(b.inliers == a.inliers);
 }
 
 std::string readText(const fs::path& path) {
@@ -104,7 +141,7 @@ TEST_CASE("slam state round trip keeps submaps, poses and constraints bit for bi
   CHECK(fs::exists(dir / "submap_0003.cells"));
   CHECK_FALSE(fs::exists(dir / "state.yaml.tmp"));
   const SlamState loaded = laser_slam::loadSlamState(dir);
-  CHECK(loaded.format_version == 1);
+  CHECK(loaded.format_version == 2);
   CHECK(loaded.frame_id == saved.frame_id);
   REQUIRE(loaded.submaps.size() == saved.submaps.size());
   for (std::size_t k = 0; k < saved.submaps.size(); ++k) {
@@ -135,6 +172,10 @@ TEST_CASE("slam state round trip keeps submaps, poses and constraints bit for bi
     CHECK(b.relative.theta == a.relative.theta);
     CHECK(b.information == a.information);
   }
+  // Cameras come back by increasing id.
+  REQUIRE(loaded.cameras.size() == 2);
+  checkSameCamera(saved.cameras[1], loaded.cameras[0]);
+  checkSameCamera(saved.cameras[0], loaded.cameras[1]);
   // The assembled maps agree too, and a second save of the loaded state is the same text.
   const auto map_a = laser_slam::assembleSlamState(saved);
   const auto map_b = laser_slam::assembleSlamState(loaded);
@@ -162,13 +203,51 @@ TEST_CASE("slam state saves submaps by id whatever their order and an empty grap
   CHECK(loaded.constraints.empty());
 }
 
-TEST_CASE("slam state version 2 is rejected naming both versions", "[slam_state]") {
+TEST_CASE("slam state version 3 is rejected naming the versions read", "[slam_state]") {
   const fs::path dir = savedSample("version");
-  replaceInFile(dir / "state.yaml", "version: 1", "version: 2");
+  replaceInFile(dir / "state.yaml", "version: 2", "version: 3");
   CHECK_THROWS_AS(laser_slam::loadSlamState(dir), SlamStateError);
   CHECK_THROWS_WITH(laser_slam::loadSlamState(dir), Contains("state.yaml:3") &&
-                                                        Contains("version: 2 is not supported") &&
-                                                        Contains("reads version 1"));
+                                                        Contains("version: 3 is not supported") &&
+                                                        Contains("reads versions 1 to 2"));
+  SlamState state = sampleState();
+  state.format_version = 3;
+  CHECK_THROWS_WITH(laser_slam::saveSlamState(state, dir.parent_path() / "v3"),
+                    Contains("version: this build writes version 2"));
+}
+
+TEST_CASE("slam state of version 1 (no cameras) still loads and is saved again as version 2",
+          "[slam_state]") {
+  const fs::path dir = savedSample("version1");
+  const fs::path yaml = dir / "state.yaml";
+  // What a version-1 build wrote: the same file without the cameras section.
+  std::string text = readText(yaml);
+  const auto cameras = text.find("cameras:\n");
+  REQUIRE(cameras != std::string::npos);
+  text.erase(cameras);
+  const auto version = text.find("version: 2\n");
+  REQUIRE(version != std::string::npos);
+  text.replace(version, 10, "version: 1");
+  std::ofstream(yaml, std::ios::trunc) << text;
+  const SlamState loaded = laser_slam::loadSlamState(dir);
+  CHECK(loaded.format_version == 1);
+  CHECK(loaded.submaps.size() == 3);
+  CHECK(loaded.constraints.size() == 2);
+  CHECK(loaded.cameras.empty());
+  CHECK(loaded.submaps[1].grid.cells == sampleState().submaps[1].grid.cells);
+  // Saved again, it is a version 2 state with an empty cameras list.
+  const fs::path again = dir.parent_path() / "again";
+  laser_slam::saveSlamState(loaded, again);
+  const std::string saved = readText(again / "state.yaml");
+  CHECK_THAT(saved, Contains("version: 2\n") && Contains("cameras: []\n"));
+  CHECK(laser_slam::loadSlamState(again).format_version == 2);
+  // A version 1 file has no cameras section: one there is an error, as is a version 2 without.
+  std::ofstream(yaml, std::ios::trunc) << text << "cameras: []\n";
+  CHECK_THROWS_WITH(laser_slam::loadSlamState(dir),
+                    Contains("state.yaml:") && Contains("cameras: not part of version 1"));
+  std::ofstream(yaml, std::ios::trunc) << saved.substr(0, saved.find("cameras:"));
+  CHECK_THROWS_WITH(laser_slam::loadSlamState(dir),
+                    Contains("state.yaml:2: cameras: missing (version 2 lists"));
 }
 
 TEST_CASE("slam state of another format is rejected naming the format", "[slam_state]") {
@@ -284,6 +363,21 @@ TEST_CASE("slam state with malformed or inconsistent fields names them", "[slam_
               "constraints[0].information: must be a list of 9 values");
   expectError("frame_id: map", "frame_id: ''", "frame_id: must be a non-empty text");
   expectError("submaps:\n", "submaps: 3\nsubmaps_old:\n", "submaps: must be a list");
+  // Cameras: each in a saved submap, 9 finite homography values, invertible, once per id.
+  expectError("    submap: 1\n", "    submap: 4\n", "cameras[0].submap: names submap 4, not saved");
+  expectError("rms_px: 1.5", "rms_px: .nan", "cameras[0].rms_px: must be finite, got '.nan'");
+  expectError("homography: [-50, ", "homography: [",
+              "cameras[0].homography: must be a list of 9 values (3x3 floor -> pixel homography");
+  expectError("homography: [-50, ", "homography: [.inf, ",
+              "cameras[0].homography: must be a list of 9 values (3x3 floor -> pixel homography, "
+              "row-major) of finite numbers");
+  expectError("homography: [-50, 0.5, 640, 0.25, 49.75, 12, 0, 0, 1]",
+              "homography: [1, 2, 3, 2, 4, 6, 0, 0, 1]", "cameras[0].homography: is singular");
+  expectError("  - id: 5\n", "  - id: 2\n", "cameras[1].id: camera 2 is listed twice");
+  expectError("  - id: 2\n", "  - id: -2\n", "cameras[0].id: must be in 0..");
+  expectError("inliers: 29", "inliers: 31", "cameras[0].inliers: must be in 0..30 (pairs)");
+  expectError("    coverage: 0.75\n", "", "cameras[0].coverage: missing");
+  expectError("cameras:\n", "cameras: {}\nold:\n", "cameras: must be a list");
   // Not YAML at all, and a file cut in half.
   std::ofstream(yaml, std::ios::trunc) << "format: [unclosed\n";
   CHECK_THROWS_WITH(laser_slam::loadSlamState(dir), Contains("state.yaml") && Contains("YAML"));
@@ -291,6 +385,35 @@ TEST_CASE("slam state with malformed or inconsistent fields names them", "[slam_
   CHECK_THROWS_AS(laser_slam::loadSlamState(dir), SlamStateError);
   std::ofstream(yaml, std::ios::trunc) << "";
   CHECK_THROWS_WITH(laser_slam::loadSlamState(dir), Contains("expected a YAML mapping"));
+}
+
+TEST_CASE("slam state with a bad camera names it on save, line and field on load", "[slam_state]") {
+  const fs::path root = test::scratchDir("slam_state_cameras");
+  SlamState state = sampleState();
+  state.cameras[0].submap = 9;
+  CHECK_THROWS_WITH(laser_slam::saveSlamState(state, root / "a"),
+                    Contains("state.yaml") && Contains("cameras[0] (camera 5)") &&
+                        Contains("submap: names submap 9, not saved"));
+  state = sampleState();
+  state.cameras[1].floor_to_pixel(1, 2) = std::numeric_limits<double>::quiet_NaN();
+  CHECK_THROWS_WITH(laser_slam::saveSlamState(state, root / "b"),
+                    Contains("cameras[1] (camera 2): homography: must be 9 finite numbers"));
+  state = sampleState();
+  state.cameras[1].id = 5;
+  CHECK_THROWS_WITH(laser_slam::saveSlamState(state, root / "c"),
+                    Contains("cameras[1] (camera 5): id: twice"));
+  CHECK_FALSE(fs::exists(root / "a" / "state.yaml"));
+  // The line of the field at fault: the first camera (id 2, written first) starts at "  - id: 2".
+  const fs::path dir = savedSample("camera_line");
+  const std::string text = readText(dir / "state.yaml");
+  const auto at = text.find("  - id: 2\n", text.find("cameras:"));
+  REQUIRE(at != std::string::npos);
+  const auto line =
+      std::count(text.begin(), text.begin() + static_cast<std::ptrdiff_t>(at), '\n') + 1;
+  replaceInFile(dir / "state.yaml", "rms_px: 1.5", "rms_px: .nan");
+  CHECK_THROWS_WITH(laser_slam::loadSlamState(dir),
+                    Contains("state.yaml:" + std::to_string(line + 4) + ": cameras[0].rms_px"));
+  CHECK(laser_slam::savedCameraProblem(sampleState().cameras[0]).empty());
 }
 
 TEST_CASE("slam state asymmetric or indefinite information is refused on save", "[slam_state]") {

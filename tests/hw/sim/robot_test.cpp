@@ -225,6 +225,34 @@ TEST_CASE("RouteFollower: laps and progress", "[sim][robot][follower]") {
   CHECK((robot.truePose().translation() - Eigen::Vector2d(3, 3)).norm() < 0.1);
 }
 
+TEST_CASE("RouteFollower: a kidnapped robot goes on from where it was put on the route",
+          "[sim][robot][follower]") {
+  const std::vector<Eigen::Vector2d> square{{0, 0}, {4, 0}, {4, 3}, {0, 3}, {0, 0}};
+  RouteFollower f(square, FollowerConfig{});
+  // 5.5 m along: 1.5 m up the second leg, facing along it.
+  const Pose2 at = f.jumpTo(5.5);
+  CHECK(at.x == Approx(4.0));
+  CHECK(at.y == Approx(1.5));
+  CHECK(at.theta == Approx(std::numbers::pi / 2));
+  CHECK(f.legIndex() == 1);
+  CHECK(f.progress() == Approx(5.5 / 14.0));
+  // Put down turned away from the route, it turns back and finishes the route from there
+  // without going back to the first leg.
+  DiffDriveRobot robot(Pose2(at.x, at.y, at.theta + 2.0), OdometryNoise{0, 0}, 1);
+  double min_y_after = 10;
+  for (int i = 0; i < 20000 && !f.done(); ++i) {
+    robot.step(f.command(robot.truePose(), 0.01), 0.01);
+    if (robot.truePose().x > 3.5) min_y_after = std::min(min_y_after, robot.truePose().y);
+  }
+  CHECK(f.done());
+  CHECK(min_y_after > 1.0);  // never drove the first leg again
+  CHECK((robot.truePose().translation() - Eigen::Vector2d(0, 0)).norm() < 0.2);
+  // Out of range: clamped to the route's ends.
+  CHECK(f.jumpTo(-3).x == Approx(0.0));
+  CHECK(f.jumpTo(99).y == Approx(0.0).margin(1e-9));
+  CHECK_FALSE(f.done());
+}
+
 TEST_CASE("RouteFollower: bad routes and configs", "[sim][robot][follower]") {
   CHECK_THROWS_AS(RouteFollower({}, FollowerConfig{}), std::invalid_argument);
   CHECK_THROWS_AS(RouteFollower({{1, 1}}, FollowerConfig{}), std::invalid_argument);

@@ -334,8 +334,8 @@ TEST_CASE("SimulatorActor: options from YAML and the registry", "[sim][actor][op
   REQUIRE(entry != nullptr);
   const auto rows = entry->options();
   // 32 + base (2) + gyro (6) + encoders (9) + start_pause_s + drive, command_timeout_s,
-  // start_pose and footprint (2), kidnap_at_s and kidnap_pose.
-  CHECK(rows.size() == 57);
+  // start_pose and footprint (2), kidnap_at_s, kidnap_pose, kidnap_route_m and kidnap_turn.
+  CHECK(rows.size() == 59);
   for (const auto& row : rows) CHECK_FALSE(row[2].empty());  // every key documented
   auto actor = ActorRegistry::instance().create(
       "simulator", Params(YAML::Load("{route: [[7.5, 7.5], [12, 7.5]]}"), "test"));
@@ -871,7 +871,36 @@ TEST_CASE("SimulatorActor commands: options from YAML; bad ones are ConfigErrors
              c.kidnap_at_s = 5;
              c.kidnap_pose = {7.5, 7.5, 0};
            }),
-           "option 'kidnap_at_s': is only used with drive: commands");
+           "option 'kidnap_pose': is only used with drive: commands");
+  contains(with([](auto& c) {
+             c.drive = "route";
+             c.start_pose.clear();
+             c.kidnap_at_s = 5;
+           }),
+           "option 'kidnap_route_m': must be the distance along the route");
+  contains(with([](auto& c) {
+             c.drive = "route";
+             c.start_pose.clear();
+             c.kidnap_at_s = 5;
+             c.kidnap_route_m = 1e6;
+           }),
+           "option 'kidnap_route_m': is beyond the route's end");
+  contains(with([](auto& c) {
+             c.drive = "route";
+             c.start_pose.clear();
+             c.kidnap_at_s = 5;
+             c.kidnap_route_m = 3;
+             c.kidnap_turn = std::numeric_limits<double>::quiet_NaN();
+           }),
+           "option 'kidnap_turn': must be finite");
+  contains(with([](auto& c) { c.kidnap_route_m = 3; }),
+           "option 'kidnap_route_m': is only used with kidnap_at_s > 0");
+  contains(with([](auto& c) {
+             c.kidnap_at_s = 5;
+             c.kidnap_pose = {7.5, 7.5, 0};
+             c.kidnap_route_m = 3;
+           }),
+           "option 'kidnap_route_m': is only used with drive: route");
   contains(with([](auto& c) { c.command_timeout_s = 0; }), "option 'command_timeout_s'");
   contains(with([](auto& c) { c.command_timeout_s = std::numeric_limits<double>::quiet_NaN(); }),
            "option 'command_timeout_s'");

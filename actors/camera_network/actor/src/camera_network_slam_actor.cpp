@@ -1,14 +1,15 @@
+#include <tessera/camera_network/camera_calibration_file.hpp>
 #include <tessera/camera_network/camera_network_slam_actor.hpp>
-#include <tessera/io/atomic_file.hpp>
 #include <tessera/messages/geometry.hpp>
 #include <tessera/runtime/registry.hpp>
 
+#include <algorithm>
 #include <cmath>
 #include <filesystem>
 #include <iomanip>
 #include <iostream>
-#include <sstream>
 #include <stdexcept>
+#include <vector>
 
 namespace tessera::camera_network {
 
@@ -51,6 +52,7 @@ CameraNetworkSlamActor::CameraNetworkSlamActor(CameraNetworkSlamOptions options)
 void CameraNetworkSlamActor::configure(ActorContext& ctx) {
   ctx_ = &ctx;
   constraint_pub_ = ctx.advertise<msg::SubmapConstraint>("camera_constraints");
+  calibration_pub_ = ctx.advertise<msg::CameraCalibration>("camera_calibrations");
   ctx.subscribe<msg::CameraEvent>(
       "camera_events", MailboxPolicy::reliable(), [this](const Message<msg::CameraEvent>& m) {
         Item item;
@@ -175,6 +177,7 @@ void CameraNetworkSlamActor::handle(const std::vector<CameraOutput>& outputs) {
                   << o.sightings << " sightings, RMS " << o.calibration->homography.quality.rms_px
                   << " px, " << 100 * o.calibration->homography.quality.coverage
                   << " % of the image\n";
+        publishCalibration(*o.calibration);
         break;
       case CameraOutput::Kind::kCalibrationRefused:
         ++calibrations_refused_;
@@ -231,28 +234,33 @@ void CameraNetworkSlamActor::publishRevisit(const CameraOutput& o) {
               << angleDiff(truth.theta, o.relative.theta) << " rad\n";
 }
 
+void CameraNetworkSlamActor::publishCalibration(const CameraCalibration& c) {
+  auto loan = calibration_pub_.loan();
+  setHeader(loan->initHeader(), c.stamp_ns, "submap_" + std::to_string(c.submap),
+            calibration_pub_.nextSeq());
+  loan->setCameraId(c.camera);
+  loan->setSubmapId(c.submap);
+  auto h = loan->initHomography(9);
+  for (unsigned k = 0; k < 9; ++k) h.set(k, c.homography.h(k / 3, k % 3));
+  const auto& q = c.homography.quality;
+  loan->setRmsPx(q.rms_px);
+  loan->setCoverage(q.coverage);
+  loan->setCondition(q.condition);
+  loan->setPairs(static_cast<std::uint32_t>(std::max(q.pairs, 0)));
+  loan->setInliers(static_cast<std::uint32_t>(std::max(q.inliers, 0)));
+  calibration_pub_.publish(std::move(loan));
+}
+
 void CameraNetworkSlamActor::stop() {
   pairing_.finish();
   handle(builder_.finish(last_stamp_));
   if (options_.calibrations_file.empty() || ctx_->outputDir().empty()) return;
-  std::ostringstream out;
-  out << std::setprecision(12)
-      << "# Environment cameras calibrated from the robot's motion (docs/algorithms.md"
-         "#camera-network-calibration):\n# floor (submap frame, m) -> pixel homography, "
-         "row-major, h22 = 1.\ncameras:\n";
-  for (const auto& [id, c] : builder_.calibrations()) {
-    const auto& q = c.homography.quality;
-    out << "  - id: " << id << "\n    submap: " << c.submap << "\n    stamp_ns: " << c.stamp_ns
-        << "\n    homography: [";
-    for (int k = 0; k < 9; ++k) out << (k ? ", " : "") << c.homography.h(k / 3, k % 3);
-    out << "]\n    rms_px: " << q.rms_px << "\n    coverage: " << q.coverage
-        << "\n    condition: " << q.condition << "\n    pairs: " << q.pairs
-        << "\n    inliers: " << q.inliers << "\n";
-  }
+  std::vector<CameraCalibrationRecord> records;
+  for (const auto& [id, c] : builder_.calibrations()) records.push_back(calibrationRecord(c));
   const auto path = std::filesystem::path(ctx_->outputDir()) / options_.calibrations_file;
   try {
-    io::writeFileAtomically(path, out.str());
-  } catch (const io::FileWriteError& e) {
+    writeCameraCalibrations(path, records);
+  } catch (const CameraCalibrationFileError& e) {
     throw std::runtime_error(std::string("camera_network_slam: ") + e.what());
   }
 }

@@ -10,6 +10,7 @@
 #include <cmath>
 #include <filesystem>
 #include <iostream>
+#include <optional>
 #include <sstream>
 #include <stdexcept>
 #include <system_error>
@@ -94,13 +95,15 @@ std::string seconds(double s) {
 
 }  // namespace marker_camera_detail
 
-/// The open source: a folder's image list, or a cv::VideoCapture.
+/// The open source: a folder's image list, or a cv::VideoCapture; and the robot's marker tracked
+/// through its frames (a new source starts with a whole-image search).
 struct MarkerCameraActor::Source {
   bool folder = false;
   bool file = false;  ///< a video file: its end is the end of the source
   std::vector<std::filesystem::path> images;
   std::size_t next = 0;
   cv::VideoCapture capture;
+  std::optional<MarkerTracker> tracker;
 };
 
 MarkerCameraActor::MarkerCameraActor(MarkerCameraOptions options)
@@ -234,9 +237,13 @@ void MarkerCameraActor::tick() {
 }
 
 void MarkerCameraActor::processFrame(const cv::Mat& image) {
+  // While the robot's marker is in view, only a window around it is searched (detector
+  // track_margin), so markers of other ids elsewhere in the image are counted only while it is not.
+  auto& tracker = source_->tracker;
+  if (!tracker) tracker.emplace(detector_, options_.marker_id);
   std::vector<DetectedMarker> markers;
   try {
-    markers = detector_.detect(image);
+    markers = tracker->detect(image);
   } catch (const std::invalid_argument& e) {  // an image type the detector does not take
     ++read_failures_;
     if (!skipping_)

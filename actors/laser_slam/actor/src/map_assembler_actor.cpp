@@ -12,6 +12,7 @@
 #include <cstring>
 #include <filesystem>
 #include <iostream>
+#include <limits>
 #include <optional>
 #include <stdexcept>
 #include <utility>
@@ -61,6 +62,7 @@ void MapAssemblerActor::loadState() {
     kept_keys_.emplace(c.from, c.to, c.relative.x, c.relative.y, c.relative.theta);
     kept_.push_back(c);
   }
+  for (const SavedCamera& c : state.cameras) cameras_[c.id] = c;
   placeChained();
   noteGridBytes();
   loaded_ = true;
@@ -79,6 +81,10 @@ void MapAssemblerActor::configure(ActorContext& ctx) {
   ctx.subscribe<msg::SubmapConstraint>(
       "constraints", MailboxPolicy::reliable(),
       [this](const Message<msg::SubmapConstraint>& m) { onConstraint(m); });
+  // Optional: most profiles have no cameras, and nothing need publish calibrations.
+  ctx.subscribe<msg::CameraCalibration>(
+      "camera_calibrations", MailboxPolicy::reliable().asOptional(),
+      [this](const Message<msg::CameraCalibration>& m) { onCameraCalibration(m); });
   if (options_.optimized_poses)
     ctx.subscribe<msg::SubmapPoses>(
         "submap_poses", MailboxPolicy::keepLatest(1),
@@ -175,6 +181,36 @@ void MapAssemblerActor::onOptimizedPoses(const Message<msg::SubmapPoses>& m) {
   dirty_ = true;
 }
 
+void MapAssemblerActor::onCameraCalibration(const Message<msg::CameraCalibration>& m) {
+  ++calibrations_received_;
+  SavedCamera c;
+  c.id = m->getCameraId();
+  c.submap = static_cast<int>(std::min<std::uint32_t>(
+      m->getSubmapId(), static_cast<std::uint32_t>(std::numeric_limits<int>::max())));
+  c.stamp_ns = m->getHeader().getStampNs();
+  const auto h = m->getHomography();
+  for (unsigned k = 0; k < std::min(h.size(), 9u); ++k) c.floor_to_pixel(k / 3, k % 3) = h[k];
+  c.rms_px = m->getRmsPx();
+  c.coverage = m->getCoverage();
+  c.condition = m->getCondition();
+  const auto count = [](std::uint32_t v) {
+    return static_cast<int>(std::min<std::uint32_t>(v, std::numeric_limits<int>::max()));
+  };
+  c.pairs = count(m->getPairs());
+  c.inliers = count(m->getInliers());
+  std::string problem = h.size() == 9
+                            ? savedCameraProblem(c)
+                            : "homography: must hold 9 values, got " + std::to_string(h.size());
+  if (!problem.empty()) {
+    // Saving it would fail the whole state: reported and left out (an older one is kept).
+    std::cerr << "[map_assembler] camera " << c.id << " calibration in submap " << c.submap
+              << " ignored: " << problem << "\n";
+    ++calibrations_rejected_;
+    return;
+  }
+  cameras_[c.id] = c;  // a re-calibration replaces the older one
+}
+
 void MapAssemblerActor::placeChained() {
   // Submap poses follow the chain of hand-overs from the first submap; a submap whose chain is
   // broken falls back to the pose its own message carries.
@@ -242,6 +278,15 @@ void MapAssemblerActor::writeState() {
       ++constraints_unsaved_;
     }
   }
+  for (const auto& [id, c] : cameras_) {
+    if (ids.count(c.submap)) {
+      state.cameras.push_back(c);
+    } else {
+      std::cerr << "[map_assembler] camera " << id << " was calibrated in submap " << c.submap
+                << ", which never arrived; not saved\n";
+      ++cameras_unsaved_;
+    }
+  }
   // stop() must not throw: a failed write is logged and reported in the summary.
   const std::filesystem::path dir = std::filesystem::path(output_dir_) / options_.state_dir;
   try {
@@ -249,6 +294,7 @@ void MapAssemblerActor::writeState() {
     state_path_ = dir.string();
     state_submaps_ = state.submaps.size();
     state_constraints_ = state.constraints.size();
+    state_cameras_ = state.cameras.size();
   } catch (const std::exception& e) {
     state_error_ = e.what();
     std::cerr << "[map_assembler] saving the SLAM state failed: " << state_error_ << "\n";
@@ -267,12 +313,17 @@ void MapAssemblerActor::summarize(Summary& out) const {
   out["memory_peak_mb"] = static_cast<double>(grid_bytes_peak_) / (1024.0 * 1024.0);
   if (constraints_rejected_ > 0) out["constraints_rejected"] = i64(constraints_rejected_);
   if (options_.optimized_poses) out["optimized_pose_updates"] = i64(pose_updates_);
+  if (!loaded_) out["camera_calibrations_received"] = i64(calibrations_received_);
+  if (calibrations_rejected_ > 0) out["camera_calibrations_rejected"] = i64(calibrations_rejected_);
+  out["cameras"] = static_cast<std::int64_t>(cameras_.size());
   if (loaded_) out["state_loaded"] = options_.load_state;
   if (!state_path_.empty()) {
     out["state_path"] = state_path_;
     out["state_submaps"] = i64(state_submaps_);
     out["state_constraints"] = i64(state_constraints_);
+    out["state_cameras"] = i64(state_cameras_);
   }
+  if (cameras_unsaved_ > 0) out["state_cameras_unsaved"] = i64(cameras_unsaved_);
   if (constraints_unsaved_ > 0) out["state_constraints_unsaved"] = i64(constraints_unsaved_);
   if (!state_error_.empty()) out["state_write_error"] = state_error_;
 }

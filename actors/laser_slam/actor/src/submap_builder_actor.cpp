@@ -7,6 +7,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <iostream>
 #include <stdexcept>
 #include <string>
 
@@ -146,7 +147,15 @@ void SubmapBuilderActor::process(const Message<msg::LaserScan>& scan, const tess
       options_.submap_distance > 0 && rbpf_.submapTravelled() >= options_.submap_distance;
   const bool by_scans = options_.submap_scans > 0 &&
                         rbpf_.submapScans() >= static_cast<std::uint64_t>(options_.submap_scans);
-  if (handover_requested_ || (step.updated && (by_distance || by_scans))) {
+  if (step.lost) {
+    std::cerr << "[rbpf_submap_builder] lost in submap " << rbpf_.submapId() << ": "
+              << options_.rbpf.lost_updates << " updates in a row matched at most "
+              << static_cast<int>(100 * options_.rbpf.lost_match_fraction)
+              << " % of the beams (last " << static_cast<int>(100 * step.match_fraction)
+              << " %); submap " << rbpf_.submapId() + 1
+              << " starts unanchored, placed by later constraints\n";
+    handOver(stamp, /*lost=*/true);
+  } else if (handover_requested_ || (step.updated && (by_distance || by_scans))) {
     if (handover_requested_) ++camera_handovers_;
     handover_requested_ = false;
     handOver(stamp);
@@ -184,10 +193,10 @@ void SubmapBuilderActor::publishPose(Nanos stamp, const tessera::Pose2& odometry
   send(correction_pub_, global * odometry.inverse(), nullptr);
 }
 
-void SubmapBuilderActor::handOver(Nanos stamp) {
+void SubmapBuilderActor::handOver(Nanos stamp, bool lost) {
   appendBestTrajectory(finished_trajectory_);
   const std::vector<Rbpf::StampedPose> smoothed = densify(rbpf_.bestTrajectory());
-  const FinishedSubmap done = rbpf_.startSubmap();
+  const FinishedSubmap done = lost ? rbpf_.startSubmapLost() : rbpf_.startSubmap();
   publishSubmap(done, stamp, smoothed);
   auto loan = constraint_pub_.loan();
   setHeader(loan->initHeader(), stamp, options_.frame_id, constraint_pub_.nextSeq());
@@ -320,6 +329,11 @@ void SubmapBuilderActor::summarize(Summary& out) const {
   out["scans_unpaired"] = i64(pairing_.unpaired());
   out["scans_unusable"] = i64(s.unusable_scans);
   if (camera_handovers_ > 0) out["camera_handovers"] = i64(camera_handovers_);
+  if (s.updates > 1) out["match_fraction_min"] = s.match_fraction_min;
+  if (options_.rbpf.lost_match_fraction > 0) {
+    out["suspect_updates"] = i64(s.suspect_updates);
+    out["lost"] = i64(s.lost);
+  }
   if (options_.optimized_poses) {
     out["graph_updates"] = i64(graph_updates_);
     out["live_corrections"] = i64(live_corrections_);

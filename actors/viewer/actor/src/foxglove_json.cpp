@@ -102,6 +102,7 @@ const std::map<std::uint64_t, TypeEntry>& types() {
     const auto generic = Kind::kGeneric;
     add(generic, static_cast<msg::MarkerDetection*>(nullptr));
     add(generic, static_cast<msg::CameraEvent*>(nullptr));
+    add(generic, static_cast<msg::CameraCalibration*>(nullptr));
     add(generic, static_cast<msg::Twist*>(nullptr));
     add(generic, static_cast<msg::Blob*>(nullptr));
     add(generic, static_cast<msg::Image*>(nullptr));

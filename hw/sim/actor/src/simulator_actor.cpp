@@ -96,13 +96,31 @@ SimulatorActor::SimulatorActor(SimulatorOptions options, World world)
   };
   if (!(std::isfinite(o.kidnap_at_s) && o.kidnap_at_s >= 0))
     kErrors.fail("kidnap_at_s", "must be finite and >= 0 s, got " + str(o.kidnap_at_s));
+  if (!std::isfinite(o.kidnap_turn))
+    kErrors.fail("kidnap_turn", "must be finite, got " + str(o.kidnap_turn));
   if (o.kidnap_at_s > 0) {
-    if (!commands_) kErrors.fail("kidnap_at_s", "is only used with drive: commands");
-    kidnap_pose_ = poseOption("kidnap_pose", o.kidnap_pose);
+    if (commands_) {
+      kidnap_pose_ = poseOption("kidnap_pose", o.kidnap_pose);
+      if (o.kidnap_route_m >= 0 || o.kidnap_turn != 0)
+        kErrors.fail("kidnap_route_m",
+                     "is only used with drive: route (commands mode uses kidnap_pose)");
+    } else {
+      if (!o.kidnap_pose.empty())
+        kErrors.fail("kidnap_pose",
+                     "is only used with drive: commands (route mode uses kidnap_route_m)");
+      if (!(std::isfinite(o.kidnap_route_m) && o.kidnap_route_m >= 0))
+        kErrors.fail("kidnap_route_m",
+                     "must be the distance along the route [m] the kidnapping puts the robot, "
+                     ">= 0, got " +
+                         str(o.kidnap_route_m));
+    }
     kidnap_step_ = std::max<std::uint64_t>(
         1, static_cast<std::uint64_t>(std::llround(o.kidnap_at_s * o.step_hz)));
   } else if (!o.kidnap_pose.empty()) {
     kErrors.fail("kidnap_pose", "is only used with kidnap_at_s > 0");
+  } else if (o.kidnap_route_m >= 0 || o.kidnap_turn != 0) {
+    kErrors.fail(o.kidnap_route_m >= 0 ? "kidnap_route_m" : "kidnap_turn",
+                 "is only used with kidnap_at_s > 0");
   }
 
   if (!o.start_pose.empty()) {
@@ -123,6 +141,9 @@ SimulatorActor::SimulatorActor(SimulatorOptions options, World world)
     }
     start_ = follower_->startPose();
     if (commands_) follower_.reset();
+    if (follower_ && kidnap_step_ > 0 && options_.kidnap_route_m > follower_->totalLength())
+      kErrors.fail("kidnap_route_m", "is beyond the route's end (" + str(follower_->totalLength()) +
+                                         " m), got " + str(options_.kidnap_route_m));
   }
   robot_.emplace(start_, o.odometry, o.seed, o.base);
 }
@@ -196,6 +217,10 @@ void SimulatorActor::tick() {
       cmd = commands_ ? currentCommand() : follower_->command(robot_->truePose(), dt_);
     robot_->step(cmd, dt_);
     if (step_ == kidnap_step_) {
+      if (follower_) {
+        kidnap_pose_ = follower_->jumpTo(options_.kidnap_route_m);
+        kidnap_pose_.theta = normalizeAngle(kidnap_pose_.theta + options_.kidnap_turn);
+      }
       robot_->teleport(kidnap_pose_);
       kidnapped_ = true;
       std::cerr << "[simulator] kidnapped: the robot is carried to (" << kidnap_pose_.x << ", "
@@ -339,8 +364,8 @@ void SimulatorActor::summarize(Summary& out) const {
     out["bad_commands"] = bad_commands_;
     out["clamped_commands"] = clamped_commands_;
     out["watchdog_stops"] = watchdog_stops_;
-    if (kidnap_step_ > 0) out["kidnapped"] = kidnapped_ ? 1 : 0;
   }
+  if (kidnap_step_ > 0) out["kidnapped"] = kidnapped_ ? 1 : 0;
   out["sim_time_s"] = step_ > 0 ? static_cast<double>(step_ - 1) * dt_ : 0.0;
   out["scans_published"] = scans_published_;
   out["odom_published"] = odom_published_;

@@ -162,6 +162,17 @@ struct RbpfOptions {
   /// 0.125 m (seeds 4-12), final +0.0008 m; simulated office live ATE 0.26 -> 0.13 m and final
   /// 0.098 -> 0.086 m (seeds 1-3); 2-3 m and 10 m were worse.
   double carry_over_distance = 5.0;
+  /// Lost (kidnapped, or the odometry slipped beyond the matcher's reach): an update whose best
+  /// match puts fewer than this fraction of the scan's beams on the map is suspect, and its scan
+  /// is not inserted (a wrong pose would draw walls where there are none). `lost_updates`
+  /// suspect updates in a row declare the robot lost (RbpfStep::lost); the caller then starts a
+  /// fresh submap with startSubmapLost(). 0 disables (every scan is inserted).
+  double lost_match_fraction = 0.0;
+  int lost_updates = 3;
+  /// Standard deviations of the lost hand-over: where the odometry says the robot went, with
+  /// no more confidence than this (the graph places the new submap by later constraints).
+  double lost_sigma_linear = 100.0;  ///< [m]
+  double lost_sigma_angular = 3.0;   ///< [rad]
 
   template <class V>
   void visit(V& v) {
@@ -218,6 +229,14 @@ struct RbpfOptions {
     v("carry_over_distance", carry_over_distance,
       "[m] a new submap starts with the best particle's update scans of this much of its path "
       "(0: the last scan only)");
+    v("lost_match_fraction", lost_match_fraction,
+      "an update whose best match puts fewer than this fraction of the beams on the map is "
+      "suspect (its scan is not inserted); lost_updates of them in a row: lost, a fresh submap "
+      "starts; 0 disables");
+    v("lost_updates", lost_updates, "suspect updates in a row that declare the robot lost");
+    v("lost_sigma_linear", lost_sigma_linear,
+      "[m] standard deviation of the hand-over into the submap started when lost (x, y)");
+    v("lost_sigma_angular", lost_sigma_angular, "[rad] the same for the heading");
   }
 };
 
@@ -243,6 +262,11 @@ struct RbpfStep {
   bool matched = false;        ///< at least one particle's scan match succeeded
   bool scan_unusable = false;  ///< no valid beam (NaN, empty, all no-return): odometry only
   double neff = 0.0;           ///< N_eff before resampling (valid when updated)
+  /// Fraction of the scan's beams on the map at the best particle match (valid when updated
+  /// after the first scan of a submap).
+  double match_fraction = 0.0;
+  bool suspect = false;  ///< below lost_match_fraction: the scan was not inserted
+  bool lost = false;     ///< lost_updates suspect updates in a row: call startSubmapLost()
 };
 
 struct RbpfStats {
@@ -260,6 +284,9 @@ struct RbpfStats {
   std::uint64_t tracking_failures = 0;     ///< of those, left on odometry (no better match)
   std::uint64_t tracking_evaluations = 0;  ///< scan scores computed by tracking
   std::uint64_t invalid_odometry = 0;      ///< non-finite odometry poses ignored
+  std::uint64_t suspect_updates = 0;       ///< updates whose scan was not inserted (lost_*)
+  std::uint64_t lost = 0;                  ///< times the filter declared itself lost
+  double match_fraction_min = 1.0;         ///< lowest RbpfStep::match_fraction seen
 };
 
 /// Systematic (low-variance) resampling: n = weights.size() draws at u0 + k/n, k = 0..n-1, on
@@ -307,6 +334,10 @@ class Rbpf {
   /// (if usable) is inserted into the new submap so consecutive submaps overlap.
   /// Precondition: initialized().
   FinishedSubmap startSubmap();
+  /// startSubmap() for a robot that is lost (RbpfStep::lost): the hand-over is the odometry's
+  /// guess with the lost_sigma_* covariance, and the new submap starts from the last scan alone
+  /// (the kept scans are of the place the robot was taken from). Precondition: initialized().
+  FinishedSubmap startSubmapLost();
   /// The current submap as startSubmap() would close it now, without closing it (e.g. the last
   /// submap at the end of a run). Precondition: initialized().
   FinishedSubmap currentSubmap() const;
@@ -391,7 +422,9 @@ class Rbpf {
   // update_odometry_ when tracking is off or nothing was tracked since the update).
   tessera::Pose2 tracked_;
   tessera::Pose2 tracked_odometry_;
-  std::uint64_t update_index_ = 0;  // seeds the per-particle random streams
+  std::uint64_t update_index_ = 0;    // seeds the per-particle random streams
+  double last_match_fraction_ = 0.0;  // best match of the last update (updateParticles)
+  int suspect_run_ = 0;               // suspect updates in a row (lost_match_fraction)
 
   // The last usable scan, kept so startSubmap() can seed the next submap with it.
   std::vector<float> last_ranges_;

@@ -1,22 +1,26 @@
 // SlamState: what the two-level laser SLAM built, kept on disk so that a later run reloads the
 // map without running SLAM again: the submaps (occupancy grids, each in its own frame, with the
-// submap frame's optimised pose in the map frame) and the submap pose graph's constraints.
+// submap frame's optimised pose in the map frame), the submap pose graph's constraints, and the
+// environment cameras' calibrations, each in the submap it was made in.
 //
-// On disk (format "tessera-slam-state", version 1; docs/architecture.md#saved-slam-state): a
+// On disk (format "tessera-slam-state", version 2; docs/architecture.md#saved-slam-state): a
 // directory holding state.yaml (frame id, every submap's id, origin, grid geometry, file and
-// checksum; every constraint) and one raw cell file per submap (submap_<id>.cells: width*height
-// int8 ROS cell values, row-major from grid row 0), so a save -> load round trip is exact
-// (numbers are written in their shortest round-trip form).
+// checksum; every constraint; every camera calibration) and one raw cell file per submap
+// (submap_<id>.cells: width*height int8 ROS cell values, row-major from grid row 0), so a save ->
+// load round trip is exact (numbers are written in their shortest round-trip form). Version 1
+// (no cameras) still loads, with no cameras; a state is always saved as version 2.
 //
 // Frames and units: `origin` = pose of the submap frame in the map frame `frame_id`; the grid's
 // own `origin` = outer corner of cell (0,0) in the submap frame; a constraint from -> to = pose
 // of `to`'s frame in `from`'s frame with its information matrix over (x [m], y [m], θ [rad]) in
-// `from`'s frame. Metres, radians. Values own their data; plain C++, no runtime or messages.
+// `from`'s frame; a camera's homography maps floor points [m] in its submap's frame to pixels
+// [px]. Metres, radians. Values own their data; plain C++, no runtime or messages.
 //
 // Errors: loadSlamState() and saveSlamState() throw SlamStateError naming the file (and line)
 // and the field or value at fault: a missing directory or file, a wrong `format`, a version
-// other than 1, malformed or non-finite fields, duplicate ids, cell files of the wrong size or
-// checksum.
+// other than 1 or 2, malformed or non-finite fields, duplicate ids, cell files of the wrong size
+// or checksum, cameras naming an unsaved submap or with a homography that is not 9 finite
+// numbers or is singular.
 #pragma once
 
 #include <tessera/geometry/pose2.hpp>
@@ -24,6 +28,7 @@
 
 #include <Eigen/Core>
 
+#include <cstdint>
 #include <filesystem>
 #include <stdexcept>
 #include <string>
@@ -51,22 +56,45 @@ struct SavedConstraint {
   bool revisit = false;  ///< false: the hand-over from `from` to the new submap `to`
 };
 
+/// An environment camera's floor-plane calibration (docs/algorithms.md#camera-network-calibration).
+struct SavedCamera {
+  int id = 0;                 ///< camera id, >= 0, unique in a state
+  int submap = 0;             ///< a saved submap: the frame of the floor points
+  std::int64_t stamp_ns = 0;  ///< end of the visit it was calibrated from
+  /// floor [m, submap frame] -> pixel [px], [u v 1]ᵀ ~ H [x y 1]ᵀ; finite, non-singular
+  Eigen::Matrix3d floor_to_pixel = Eigen::Matrix3d::Identity();
+  double rms_px = 0;     ///< inliers' reprojection RMS [px], >= 0
+  double coverage = 0;   ///< inlier pixels' convex hull / image area, 0..1
+  double condition = 0;  ///< σ_max / σ_8 of the normalised DLT matrix, >= 0
+  int pairs = 0;         ///< (marker position, pixel) pairs, >= 0
+  int inliers = 0;       ///< 0..pairs
+};
+
 struct SlamState {
-  static constexpr int kFormatVersion = 1;
+  static constexpr int kFormatVersion = 2;        ///< the version saveSlamState() writes
+  static constexpr int kOldestFormatVersion = 1;  ///< the oldest loadSlamState() reads
   static constexpr const char* kFormatName = "tessera-slam-state";
 
+  /// The version it was loaded from (kFormatVersion for a new state); saving always writes
+  /// kFormatVersion and accepts any version this build reads.
   int format_version = kFormatVersion;
   std::string frame_id = "map";
   std::vector<SavedSubmap> submaps;          ///< any order; written by increasing id
   std::vector<SavedConstraint> constraints;  ///< each names two saved submaps
+  std::vector<SavedCamera> cameras;          ///< each names a saved submap; written by id
 };
+
+/// Empty when `camera` is valid on its own (saving also needs its submap saved), else
+/// "field: problem", e.g. "homography: is singular (...)".
+std::string savedCameraProblem(const SavedCamera& camera);
 
 /// Writes `state` into directory `dir` (created if needed): the cell files first, state.yaml
 /// last, so an interrupted save leaves no state.yaml that names missing files. Checks the state
 /// as loadSlamState() would first. Throws SlamStateError.
 void saveSlamState(const SlamState& state, const std::filesystem::path& dir);
 
-/// Reads a state written by saveSlamState(); submaps by increasing id. Throws SlamStateError.
+/// Reads a state written by saveSlamState() (version 1 or 2); submaps and cameras by increasing
+/// id. Throws SlamStateError.
 SlamState loadSlamState(const std::filesystem::path& dir);
 
 /// The global map of a state: every submap drawn at its origin (MapAssembler, same rule as the

@@ -142,6 +142,10 @@ class RouteFollower {
   std::size_t legCount() const { return legs_.size(); }
   /// The start pose: on the first waypoint, facing the second.
   Pose2 startPose() const;
+  /// Continues the route from `route_s` metres along it (clamped to [0, totalLength()]), as
+  /// after a kidnapping: returns the pose there, facing along its leg; the follower starts from
+  /// standstill.
+  Pose2 jumpTo(double route_s);
 
  private:
   struct Leg {

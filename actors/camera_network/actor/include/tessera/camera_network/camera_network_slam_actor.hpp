@@ -17,12 +17,17 @@
 //                                             the one the camera was calibrated in (pose of the
 //                                             latter's origin in the former's frame), at the end
 //                                             of each visit of a calibrated camera
+//   camera_calibrations msg::CameraCalibration  reliable: each time a camera is calibrated, or
+//                                             calibrated again (the calibration in force then:
+//                                             its submap, floor -> pixel homography, quality);
+//                                             the map assembler saves them with the map
 // Events and detections are paired with the chained pose at their stamp (interpolated) and
 // handled in arrival order, so a visit ends after its last sighting. Missed detections
 // (detected = false) and non-finite ones are counted and skipped.
 //
-// Writes (with an output directory, in stop()): calibrations_file (YAML): per calibrated camera
-// its submap, floor -> pixel homography (row-major, submap frame), and quality.
+// Writes (with an output directory, in stop()): calibrations_file (YAML, written atomically and
+// read back by readCameraCalibrations, camera_calibration_file.hpp): per calibrated camera its
+// submap, floor -> pixel homography (row-major, submap frame), and quality.
 //
 // Summary: calibrations, calibrations_refused (with the last reason), revisits,
 // revisits_refused, checks, sightings, sightings_unpaired, calibration_rms_px (mean over the
@@ -97,6 +102,7 @@ class CameraNetworkSlamActor final : public Actor {
   void use(const Item& item, std::int64_t stamp, const Pose2& chained);
   void handle(const std::vector<CameraOutput>& outputs);
   void publishRevisit(const CameraOutput& o);
+  void publishCalibration(const CameraCalibration& c);
   bool truthAt(std::int64_t stamp, Pose2& out) const;
   void scoreSighting(const CameraSighting& s);
 
@@ -105,6 +111,7 @@ class CameraNetworkSlamActor final : public Actor {
   PosePairing<std::pair<Item, std::int64_t>> pairing_;
   ActorContext* ctx_ = nullptr;
   Publisher<msg::SubmapConstraint> constraint_pub_;
+  Publisher<msg::CameraCalibration> calibration_pub_;
   std::map<std::uint32_t, std::int64_t> submap_start_;  // hand-over stamps
   std::map<std::uint32_t, Pose2> start_truth_;          // true pose at each submap's start
   std::map<std::uint32_t, Pose2> chained_origins_;

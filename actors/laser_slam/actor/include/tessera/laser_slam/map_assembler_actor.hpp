@@ -6,6 +6,11 @@
 //                                                  relative to the previous one (chained)
 //   submap_poses msg::SubmapPoses       keep_latest(1), only with optimized_poses: true — the
 //                                       graph optimiser's poses, which win over chaining
+//   camera_calibrations msg::CameraCalibration  reliable, optional (none need be published):
+//                                       environment cameras' calibrations (camera_network_slam);
+//                                       the latest per camera id is kept for the saved state, an
+//                                       invalid one (homography not 9 finite numbers or singular,
+//                                       bad quality figures) is reported and counted
 // Publishes:
 //   map          msg::OccupancyGrid     every publish_period_s when a submap arrived, and in
 //                                       stop() (the final map)
@@ -21,12 +26,15 @@
 //   state_dir   at stop, with an output folder, writes what it holds there (relative to the
 //               output folder): every placed submap at the pose it was drawn with, and every
 //               distinct constraint received with a valid covariance (not fused), information
-//               = covariance⁻¹.
+//               = covariance⁻¹, and each camera's latest calibration whose submap is saved
+//               (others are reported and counted in state_cameras_unsaved).
 //   load_state  a state directory read at construction (ConfigError naming the path and field
 //               on failure); the actor then serves that map: it subscribes to nothing, publishes
 //               the assembled map in start() and again in stop(), so a profile needs no SLAM.
+//               Its constraints and cameras are kept, so a state_dir saves them again.
 #pragma once
 
+#include <tessera/msg/camera.capnp.h>
 #include <tessera/msg/submap.capnp.h>
 #include <tessera/laser_slam/map_assembler.hpp>
 #include <tessera/laser_slam/slam_state.hpp>
@@ -84,6 +92,7 @@ class MapAssemblerActor final : public Actor {
   void onConstraint(const Message<msg::SubmapConstraint>& m);
   void keepConstraint(const Message<msg::SubmapConstraint>& m, const tessera::Pose2& relative);
   void onOptimizedPoses(const Message<msg::SubmapPoses>& m);
+  void onCameraCalibration(const Message<msg::CameraCalibration>& m);
   void placeChained();
   void publishMap();
   void loadState();
@@ -101,9 +110,12 @@ class MapAssemblerActor final : public Actor {
   std::map<int, bool> finished_;                            // each submap's finished flag
   std::vector<SavedConstraint> kept_;  // distinct constraints with a valid covariance, in order
   std::set<std::tuple<int, int, double, double, double>> kept_keys_;
+  std::map<int, SavedCamera> cameras_;  // latest calibration per camera id
   std::string output_dir_, state_path_, state_error_;
   bool loaded_ = false;
   std::uint64_t constraints_unsaved_ = 0, state_submaps_ = 0, state_constraints_ = 0;
+  std::uint64_t calibrations_received_ = 0, calibrations_rejected_ = 0, cameras_unsaved_ = 0,
+                state_cameras_ = 0;
   Nanos last_stamp_ = 0;
   bool dirty_ = false;
   std::uint64_t submaps_ = 0, constraints_ = 0, maps_published_ = 0, submaps_rejected_ = 0;

@@ -26,6 +26,9 @@
 //                                       one (finished) in stop(), with the smoothed pose of
 //                                       every scan in it (submap frame, as final_poses)
 //   constraints  msg::SubmapConstraint  at each hand-over: the new submap's origin in the old one
+//                                       (when the filter is lost, rbpf.lost_match_fraction: the
+//                                       odometry's guess with the lost_sigma_* covariance, so
+//                                       later constraints place the new submap)
 //   final_poses  msg::PoseStamped       in stop(): one per scan, the best particle's pose at the
 //                                       filter update before it (trajectory tree, submap by
 //                                       submap, map frame) moved by the odometry since (with
@@ -174,7 +177,8 @@ class SubmapBuilderActor final : public Actor {
   /// Runs a scan, paired with the odometry pose at its stamp, through the filter.
   void process(const Message<msg::LaserScan>& scan, const tessera::Pose2& odom);
   void publishPose(Nanos stamp, const tessera::Pose2& odometry);
-  void handOver(Nanos stamp);
+  /// lost: the filter lost the map (RbpfStep::lost); the new submap is unanchored.
+  void handOver(Nanos stamp, bool lost = false);
   /// `trajectory`: the submap's smoothed scan poses, in its own frame.
   void publishSubmap(const FinishedSubmap& submap, Nanos stamp,
                      const std::vector<Rbpf::StampedPose>& trajectory);

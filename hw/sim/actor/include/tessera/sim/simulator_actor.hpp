@@ -35,8 +35,10 @@
 // bias at stops; commands are not followed before then). The base follows the route follower's
 // or cmd_vel's commands under `base` acceleration limits (none by default).
 //
-// Kidnapping (commands mode, kidnap_at_s > 0): at that simulated time the true robot is carried
-// to kidnap_pose and stopped; odometry does not see it (a localiser has to notice on its own).
+// Kidnapping (kidnap_at_s > 0): at that simulated time the true robot is carried away and
+// stopped; odometry does not see it (a localiser has to notice on its own). Commands mode: to
+// kidnap_pose. Route mode: to kidnap_route_m metres along the route, turned by kidnap_turn, and
+// the follower drives on from there.
 //
 // Collisions (both modes): every step the body (`footprint`, a vertical cylinder) is checked
 // against the true 3D world with footprintClearance() (collision.hpp): walls, the map border and
@@ -88,6 +90,8 @@ struct SimulatorOptions {
   FootprintOptions footprint;
   double kidnap_at_s = 0;
   std::vector<double> kidnap_pose;
+  double kidnap_route_m = -1;
+  double kidnap_turn = 0;
 
   template <class V>
   void visit(V& v) {
@@ -125,7 +129,12 @@ struct SimulatorOptions {
     v("kidnap_at_s", kidnap_at_s,
       "commands mode: carry the robot to kidnap_pose at this simulated time, unseen by its "
       "odometry [s]; 0 = never");
-    v("kidnap_pose", kidnap_pose, "where the kidnapping puts the robot: [x, y, theta] [m, m, rad]");
+    v("kidnap_pose", kidnap_pose,
+      "commands mode: where the kidnapping puts the robot: [x, y, theta] [m, m, rad]");
+    v("kidnap_route_m", kidnap_route_m,
+      "route mode: the kidnapping puts the robot this far along its route [m], facing along it "
+      "(turned by kidnap_turn), and the route goes on from there");
+    v("kidnap_turn", kidnap_turn, "route mode: the kidnapped robot's heading off the route [rad]");
   }
 
   /// The flat keys of earlier versions, now inside the follower, odometry and laser groups
@@ -168,8 +177,8 @@ class SimulatorActor final : public Actor {
   /// collision_steps, min_clearance_m (smallest clearance minus radius, negative = overlap).
   /// route_length_m and route_completed in route mode only; in commands mode
   /// commands_received, bad_commands (non-finite, ignored), clamped_commands and
-  /// watchdog_stops (times the watchdog stopped a commanded base); kidnapped (0/1) with
-  /// kidnap_at_s.
+  /// watchdog_stops (times the watchdog stopped a commanded base); in both, kidnapped (0/1)
+  /// with kidnap_at_s.
   void summarize(Summary& out) const override;
 
   const World& world() const { return world_; }
