@@ -31,10 +31,11 @@ CameraConstraintBuilder::CameraConstraintBuilder(CameraConstraintBuilderOptions 
   origins_[0] = Pose2::identity();
 }
 
-bool CameraConstraintBuilder::addSubmap(std::uint32_t id, const Pose2& origin) {
+bool CameraConstraintBuilder::addSubmap(std::uint32_t id, const Pose2& origin, bool anchored) {
   if (!origin.isFinite()) return false;
   origins_[id] = origin;
   current_ = std::max(current_, id);
+  if (!anchored && !unanchored_since_) unanchored_since_ = id;
   return true;
 }
 
@@ -163,6 +164,16 @@ std::vector<CameraOutput> CameraConstraintBuilder::endVisit(int camera, std::int
   HeldVisit v{camera, current_, stamp_ns, std::move(visits_[camera].sightings)};
   visits_.erase(camera);
   if (v.sightings.empty()) return {};
+  const auto cal = calibrations_.find(camera);
+  if (unanchored_since_ && current_ >= *unanchored_since_ && cal != calibrations_.end() &&
+      cal->second.submap < *unanchored_since_) {
+    // The relocalisation: the robot's online poses in the unanchored submap, now.
+    v.relocalisation = true;
+    auto out = process(std::move(v));
+    for (const auto& o : out)
+      if (o.kind == CameraOutput::Kind::kRevisit) unanchored_since_.reset();
+    return out;
+  }
   held_.push_back(std::move(v));
   return release(!options_.smoothed_poses);
 }
@@ -201,6 +212,7 @@ std::vector<CameraOutput> CameraConstraintBuilder::process(HeldVisit visit) {
   o.from = i;
   o.to = j;
   o.sightings = static_cast<int>(points.size());
+  o.relocalisation = visit.relocalisation;
   if (i == j) {
     // Still in the calibration's submap: the positions must agree as they are.
     double sse = 0;

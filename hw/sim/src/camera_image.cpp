@@ -162,6 +162,27 @@ void drawMarkerPatch(const EnvironmentCamera& camera, const Pose2& pose,
   blended.copyTo(patch);
 }
 
+/// Draws the marker over `image` (CV_32F, the floor; changed), blurs it, adds the noise (one draw
+/// from `rng`, the noise field in `noise`) and writes the CV_8UC1 result to `out`.
+void finishImage(const EnvironmentCamera& camera, const Pose2& marker_pose,
+                 const CameraImageOptions& options, std::mt19937_64& rng, cv::Mat& image,
+                 cv::Mat& noise, cv::Mat& out) {
+  if (!allFinite(marker_pose))
+    throw std::invalid_argument("camera image: marker pose is not finite");
+  drawMarkerPatch(camera, marker_pose, options, image);
+  if (options.blur_px > 0)
+    cv::GaussianBlur(image, image, cv::Size(0, 0), options.blur_px, options.blur_px,
+                     cv::BORDER_REPLICATE);
+  // One draw from the caller's generator seeds the per-pixel noise.
+  cv::RNG noise_rng(static_cast<std::uint64_t>(rng()));
+  if (options.noise_std > 0) {
+    noise.create(image.size(), CV_32F);
+    noise_rng.fill(noise, cv::RNG::NORMAL, 0.0, options.noise_std);
+    image += noise;
+  }
+  image.convertTo(out, CV_8U);  // rounds and saturates to 0..255
+}
+
 }  // namespace camera_image_detail
 
 ConfigCheck CameraImageOptions::check() const {
@@ -181,20 +202,22 @@ cv::Mat renderCameraImage(const EnvironmentCamera& camera, const Pose2& marker_p
   if (!allFinite(marker_pose))
     throw std::invalid_argument("camera image: marker pose is not finite");
   cv::Mat image = d::renderFloor(camera, d::cachedFloorTexture(options.floor_texture_seed));
-  d::drawMarkerPatch(camera, marker_pose, options, image);
-  if (options.blur_px > 0)
-    cv::GaussianBlur(image, image, cv::Size(0, 0), options.blur_px, options.blur_px,
-                     cv::BORDER_REPLICATE);
-  // One draw from the caller's generator seeds the per-pixel noise.
-  cv::RNG noise_rng(static_cast<std::uint64_t>(rng()));
-  if (options.noise_std > 0) {
-    cv::Mat noise(image.size(), CV_32F);
-    noise_rng.fill(noise, cv::RNG::NORMAL, 0.0, options.noise_std);
-    image += noise;
-  }
-  cv::Mat out;
-  image.convertTo(out, CV_8U);  // rounds and saturates to 0..255
+  cv::Mat noise, out;
+  d::finishImage(camera, marker_pose, options, rng, image, noise, out);
   return out;
+}
+
+CameraImageRenderer::CameraImageRenderer(const EnvironmentCamera& camera,
+                                         const CameraImageOptions& options)
+    : camera_(camera), options_(options) {
+  namespace d = camera_image_detail;
+  options_.validate();
+  floor_ = d::renderFloor(camera_, d::cachedFloorTexture(options_.floor_texture_seed));
+}
+
+void CameraImageRenderer::render(const Pose2& marker_pose, std::mt19937_64& rng, cv::Mat& out) {
+  floor_.copyTo(work_);  // reuses work_'s buffer
+  camera_image_detail::finishImage(camera_, marker_pose, options_, rng, work_, noise_, out);
 }
 
 std::optional<std::array<Eigen::Vector2d, 4>> markerCornerPixels(const EnvironmentCamera& camera,

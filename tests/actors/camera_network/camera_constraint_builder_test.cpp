@@ -265,6 +265,40 @@ TEST_CASE("visits wait for the smoothed trajectory of their submap and calibrate
   CHECK(end[0].kind == CameraOutput::Kind::kCalibrated);
 }
 
+TEST_CASE("after an unanchored submap the next calibrated camera relocalises at once",
+          "[camera_network][revisit]") {
+  // Smoothed poses on: visits normally wait for their submaps' trajectories.
+  CameraWorld w;
+  CameraConstraintBuilder b(CameraConstraintBuilderOptions{});
+  CHECK(w.visit(b, 1.0, 0.0, true).empty());
+  const auto cal = b.finish(w.t);  // calibrated in submap 0 from the online poses
+  REQUIRE(cal.size() == 1);
+  REQUIRE(cal[0].kind == CameraOutput::Kind::kCalibrated);
+
+  // A kidnapping: the SLAM loses the map and starts submap 3, which its chain puts 30 m and
+  // 2 rad from where it is; submap 4 follows it (anchored to 3, as at a camera entry).
+  const Pose2 o4_true(6.0, -1.0, 0.7);
+  const Pose2 wrong(30.0, -12.0, 2.0);
+  REQUIRE(b.addSubmap(3, wrong * Pose2(4.0, 0.0, 0.0), /*anchored=*/false));
+  CHECK(b.unanchoredSince() == 3u);
+  REQUIRE(b.addSubmap(4, wrong * o4_true));
+  auto out = w.visit(b, 0.4, 2.5, false, wrong);
+  REQUIRE(out.size() == 1);  // at the visit's end, without waiting for smoothed trajectories
+  INFO(out[0].reason);
+  REQUIRE(out[0].kind == CameraOutput::Kind::kRevisit);
+  CHECK(out[0].relocalisation);
+  CHECK(out[0].from == 4);
+  CHECK(out[0].to == 0);
+  const Pose2 truth = o4_true.inverse();
+  CHECK(std::hypot(out[0].relative.x - truth.x, out[0].relative.y - truth.y) < 0.05);
+  CHECK(std::abs(tessera::angleDiff(out[0].relative.theta, truth.theta)) < 0.02);
+  CHECK_FALSE(b.unanchoredSince());
+  CHECK(b.heldVisits() == 0);
+  // Anchored again: the next visit waits for the smoothed poses as usual.
+  CHECK(w.visit(b, 0.4, 1.0, false, wrong).empty());
+  CHECK(b.heldVisits() == 1);
+}
+
 TEST_CASE("camera constraint builder options are checked", "[camera_network][revisit]") {
   CameraConstraintBuilderOptions o;
   o.marker = {0.1};

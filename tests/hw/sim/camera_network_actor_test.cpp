@@ -1,12 +1,16 @@
 #include <tessera/msg/camera.capnp.h>
+#include <tessera/msg/image.capnp.h>
+#include <tessera/camera_network/marker_detector.hpp>
 #include <tessera/messages/types.hpp>
 #include <tessera/runtime/harness.hpp>
 #include <tessera/runtime/registry.hpp>
+#include <tessera/sim/camera_image.hpp>
 #include <tessera/sim/camera_network_actor.hpp>
 
 #include <yaml-cpp/yaml.h>
 
 #include <catch2/catch.hpp>
+#include <opencv2/core.hpp>
 
 #include "../../shared_data.hpp"
 #include "polygon_margin.hpp"
@@ -261,4 +265,155 @@ TEST_CASE("CameraNetworkActor: footprint_period_s = 0 publishes the footprints o
   CHECK(configErrorOf(o).find("footprint_period_s") != std::string::npos);
   o.footprint_period_s = std::numeric_limits<double>::quiet_NaN();
   CHECK(configErrorOf(o).find("footprint_period_s") != std::string::npos);
+}
+
+namespace camera_images_test {
+
+/// The pixels of an image message (mono8) as a Mat over its bytes.
+cv::Mat pixelsOf(const Message<msg::Image>& m) {
+  return cv::Mat(static_cast<int>(m->getHeight()), static_cast<int>(m->getWidth()), CV_8UC1,
+                 const_cast<std::uint8_t*>(m->getData().begin()), m->getStep());
+}
+
+std::int64_t figure(ActorHarness& h, const char* key) {
+  Summary s;
+  h.actor().summarize(s);
+  return std::get<std::int64_t>(s.at(key));
+}
+
+}  // namespace camera_images_test
+
+TEST_CASE("CameraNetworkActor: render_images publishes each camera's image near its view",
+          "[sim][actor][camera][camera_images]") {
+  using camera_images_test::figure;
+  using camera_images_test::pixelsOf;
+  CameraNetworkOptions o = oneCamera();  // footprint x in [9, 15): images for x in [8, 16]
+  o.render_images = true;
+  ActorHarness h(std::make_unique<CameraNetworkActor>(o));
+  drive(h);  // x = 0.5 t
+
+  const auto images = h.published<msg::Image>("camera_images");
+  REQUIRE(images.size() >= 159);  // t = 16 .. 32 s at 10 Hz (the ends are on the margin)
+  REQUIRE(images.size() <= 161);
+  CHECK(figure(h, "images") == static_cast<std::int64_t>(images.size()));
+  const auto cam = static_cast<CameraNetworkActor&>(h.actor()).network().cameras()[0];
+  const tessera::camera_network::MarkerDetector detector;
+  int in_view = 0, found = 0;
+  for (const auto& m : images) {
+    const std::int64_t t = m->getHeader().getStampNs();
+    const double x = 0.5 * static_cast<double>(t) * 1e-9;
+    CAPTURE(x);
+    CHECK(t % 100'000'000 == 0);
+    CHECK(x >= 8.0 - 1e-9);
+    CHECK(x <= 16.0 + 1e-9);
+    CHECK(std::string(m->getHeader().getFrameId().cStr()) == "camera_0");
+    CHECK(std::string(m->getEncoding().cStr()) == "mono8");
+    REQUIRE(m->getWidth() == 640);
+    REQUIRE(m->getHeight() == 480);
+    REQUIRE(m->getStep() == 640);
+    REQUIRE(m->getData().size() == 640u * 480u);
+    const auto markers = detector.detect(pixelsOf(m));
+    if (x > 9.5 && x < 14.5) {  // the whole marker well inside the image
+      ++in_view;
+      REQUIRE(markers.size() == 1);
+      CHECK(markers[0].id == 7);
+      const Eigen::Vector2d truth = *cam.project({x, 0.0});
+      CHECK((markers[0].centre - truth).norm() < 1.0);
+      ++found;
+    } else if (x < 8.8 || x > 15.2) {  // the marker and its quiet zone outside: only floor
+      CHECK(markers.empty());
+    }
+  }
+  CHECK(in_view > 90);
+  CHECK(found == in_view);
+  // The geometric detections are still published, and the images do not change them.
+  CHECK(h.publishedCount("camera_events") == 2);
+  CHECK(h.publishedCount("camera_detections") == 120);
+  ActorHarness plain(std::make_unique<CameraNetworkActor>(oneCamera()));
+  drive(plain);
+  const auto a = h.published<msg::MarkerDetection>("camera_detections");
+  const auto b = plain.published<msg::MarkerDetection>("camera_detections");
+  REQUIRE(a.size() == b.size());
+  for (std::size_t i = 0; i < a.size(); ++i) {
+    CHECK(a[i]->getDetected() == b[i]->getDetected());
+    CHECK(a[i]->getU() == b[i]->getU());
+    CHECK(a[i]->getV() == b[i]->getV());
+  }
+  CHECK(plain.publishedCount("camera_images") == 0);
+}
+
+TEST_CASE("CameraNetworkActor: publish_detections = false leaves only images and footprints",
+          "[sim][actor][camera][camera_images]") {
+  CameraNetworkOptions o;  // builtin:camera_floor: 7 cameras
+  o.render_images = true;
+  o.publish_detections = false;
+  ActorHarness h(std::make_unique<CameraNetworkActor>(o));
+  const auto& network = static_cast<CameraNetworkActor&>(h.actor()).network();
+  // Under camera 0, then far from every camera.
+  const Eigen::Vector2d under0 = network.cameras()[0].site().position;
+  camera_footprints_test::pushPose(h, 0, under0.x(), under0.y());
+  camera_footprints_test::pushPose(h, 100'000'000, -100, -100);
+  CHECK(h.publishedCount("camera_events") == 0);
+  CHECK(h.publishedCount("camera_detections") == 0);
+  CHECK(h.publishedCount("camera_footprints") == 1);
+  const auto images = h.published<msg::Image>("camera_images");
+  REQUIRE(!images.empty());  // camera 0, and any neighbour whose margin holds the site
+  CHECK(std::string(images[0]->getHeader().getFrameId().cStr()) == "camera_0");
+  for (const auto& m : images) CHECK(m->getHeader().getStampNs() == 0);
+  const auto markers =
+      tessera::camera_network::MarkerDetector().detect(camera_images_test::pixelsOf(images[0]));
+  REQUIRE(markers.size() == 1);
+  CHECK(markers[0].id == 7);
+  CHECK((markers[0].centre - *network.cameras()[0].project(under0)).norm() < 1.0);
+  Summary s;
+  h.actor().summarize(s);
+  CHECK(std::get<std::int64_t>(s.at("frames")) == 2);
+  CHECK(std::get<std::int64_t>(s.at("detections")) == 0);
+  CHECK(std::get<std::int64_t>(s.at("images")) == static_cast<std::int64_t>(images.size()));
+}
+
+TEST_CASE("CameraNetworkActor: bad image options are ConfigErrors naming them",
+          "[sim][actor][camera][camera_images]") {
+  CameraNetworkOptions o = oneCamera();
+  o.image_margin_m = -1;
+  CHECK(configErrorOf(o).find("image_margin_m") != std::string::npos);
+  o = oneCamera();
+  o.image.blur_px = -1;
+  CHECK(configErrorOf(o).find("option 'image.blur_px'") != std::string::npos);
+  o = oneCamera();
+  o.image.marker_id = 50;
+  CHECK(configErrorOf(o).find("option 'image.marker_id'") != std::string::npos);
+}
+
+TEST_CASE("CameraImageRenderer: renderCameraImage's pixels, the floor made once",
+          "[sim][camera_images]") {
+  sim::CameraSite site;
+  site.id = 2;
+  site.position = {4.0, 1.0};
+  site.yaw = 0.4;
+  site.roll = -0.05;
+  site.pitch = 0.03;
+  const sim::EnvironmentCamera cam(site, sim::CameraIntrinsics{});
+  sim::CameraImageOptions options;
+  options.floor_texture_seed = 3;
+  sim::CameraImageRenderer renderer(cam, options);
+  std::mt19937_64 a(9), b(9);
+  std::vector<std::uint8_t> buffer(640 * 480);
+  cv::Mat wrapped(480, 640, CV_8UC1, buffer.data());  // memory the renderer does not own
+  for (const tessera::Pose2& pose : {tessera::Pose2{4.2, 1.1, 0.3}, tessera::Pose2{3.1, 0.2, -2.0},
+                                     tessera::Pose2{40.0, 40.0, 0.0}}) {
+    const cv::Mat expected = sim::renderCameraImage(cam, pose, options, a);
+    cv::Mat own;
+    renderer.render(pose, b, own);
+    REQUIRE(own.type() == CV_8UC1);
+    REQUIRE(own.size() == expected.size());
+    CHECK(cv::countNonZero(own != expected) == 0);
+    // In place: the same pixels, written where the Mat points.
+    const cv::Mat again = sim::renderCameraImage(cam, pose, options, a);
+    renderer.render(pose, b, wrapped);
+    CHECK(wrapped.data == buffer.data());
+    CHECK(cv::countNonZero(wrapped != again) == 0);
+  }
+  CHECK_THROWS_AS(renderer.render(tessera::Pose2{std::nan(""), 0, 0}, b, wrapped),
+                  std::invalid_argument);
 }

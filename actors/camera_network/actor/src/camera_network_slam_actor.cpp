@@ -28,6 +28,8 @@ CameraNetworkSlamOptions checked(CameraNetworkSlamOptions o) {
           "must be finite and > 0");
   require(std::isfinite(o.truth_tolerance_linear) && o.truth_tolerance_linear > 0,
           "truth_tolerance_linear", "must be finite and > 0");
+  require(std::isfinite(o.unanchored_std_m) && o.unanchored_std_m > 0, "unanchored_std_m",
+          "must be finite and > 0");
   require(std::isfinite(o.truth_tolerance_angular) && o.truth_tolerance_angular > 0,
           "truth_tolerance_angular", "must be finite and > 0");
   return o;
@@ -91,24 +93,32 @@ void CameraNetworkSlamActor::configure(ActorContext& ctx) {
         pairing_.addPose(stamp, toPose2(m->getPose()),
                          [this](const auto& it, const Pose2& p) { use(it.first, it.second, p); });
       });
-  ctx.subscribe<msg::SubmapConstraint>("constraints", MailboxPolicy::reliable(),
-                                       [this](const Message<msg::SubmapConstraint>& m) {
-                                         if (m->getKind() != msg::SubmapConstraint::Kind::HAND_OVER)
-                                           return;
-                                         const auto from = chained_origins_.find(m->getFromId());
-                                         const Pose2 relative = toPose2(m->getRelative());
-                                         if (from == chained_origins_.end() || !relative.isFinite())
-                                           return;
-                                         const std::uint32_t to = m->getToId();
-                                         const Pose2 origin = from->second * relative;
-                                         chained_origins_[to] = origin;
-                                         builder_.addSubmap(to, origin);
-                                         const std::int64_t stamp = m->getHeader().getStampNs();
-                                         submap_start_[to] = stamp;
-                                         Pose2 t;
-                                         if (options_.score_ground_truth && truthAt(stamp, t))
-                                           start_truth_[to] = t;
-                                       });
+  ctx.subscribe<msg::SubmapConstraint>(
+      "constraints", MailboxPolicy::reliable(), [this](const Message<msg::SubmapConstraint>& m) {
+        if (m->getKind() != msg::SubmapConstraint::Kind::HAND_OVER) return;
+        const auto from = chained_origins_.find(m->getFromId());
+        const Pose2 relative = toPose2(m->getRelative());
+        if (from == chained_origins_.end() || !relative.isFinite()) return;
+        const std::uint32_t to = m->getToId();
+        const Pose2 origin = from->second * relative;
+        chained_origins_[to] = origin;
+        Eigen::Matrix3d cov;
+        const double std_m =
+            readCovariance(m->getRelative(), cov) ? std::sqrt(std::max(cov(0, 0), cov(1, 1))) : 0.0;
+        const bool anchored = !(std_m > options_.unanchored_std_m);
+        if (!anchored) {
+          ++unanchored_handovers_;
+          std::cerr << "[camera_network_slam] submap " << to << " is unanchored (hand-over std "
+                    << std_m
+                    << " m): the next calibrated camera "
+                       "relocalises it\n";
+        }
+        builder_.addSubmap(to, origin, anchored);
+        const std::int64_t stamp = m->getHeader().getStampNs();
+        submap_start_[to] = stamp;
+        Pose2 t;
+        if (options_.score_ground_truth && truthAt(stamp, t)) start_truth_[to] = t;
+      });
   ctx.subscribe<msg::Submap>(
       "submaps", MailboxPolicy::reliable(), [this](const Message<msg::Submap>& m) {
         if (!m->getFinished()) return;
@@ -212,6 +222,11 @@ void CameraNetworkSlamActor::publishRevisit(const CameraOutput& o) {
   loan->setKind(msg::SubmapConstraint::Kind::REVISIT);
   constraint_pub_.publish(std::move(loan));
   ++revisits_;
+  if (o.relocalisation) {
+    ++relocalisations_;
+    std::cerr << "[camera_network_slam] camera " << o.camera << ": relocalised the robot in submap "
+              << o.to << " (unanchored submap " << o.from << ", online poses)\n";
+  }
   std::cerr << std::fixed << std::setprecision(3) << "[camera_network_slam] camera " << o.camera
             << ": revisit " << o.from << " -> " << o.to << " from " << o.sightings
             << " sightings, RMS " << o.rms_m << " m\n";
@@ -270,6 +285,8 @@ void CameraNetworkSlamActor::summarize(Summary& out) const {
   out["calibrations_refused"] = calibrations_refused_;
   out["revisits"] = revisits_;
   out["revisits_refused"] = revisits_refused_;
+  out["relocalisations"] = relocalisations_;
+  out["unanchored_handovers"] = unanchored_handovers_;
   out["checks"] = checks_;
   out["sightings"] = sightings_;
   out["misses"] = misses_;

@@ -3,6 +3,7 @@
 #include <tessera/runtime/registry.hpp>
 
 #include <opencv2/imgcodecs.hpp>
+#include <opencv2/imgproc.hpp>
 #include <opencv2/videoio.hpp>
 
 #include <algorithm>
@@ -13,6 +14,7 @@
 #include <optional>
 #include <sstream>
 #include <stdexcept>
+#include <string_view>
 #include <system_error>
 
 namespace tessera::camera_network {
@@ -21,6 +23,13 @@ namespace marker_camera_detail {
 
 namespace fs = std::filesystem;
 
+constexpr std::string_view kTopicPrefix = "topic:";
+
+/// The topic of a "topic:NAME" source, or "" for any other source.
+std::string topicOf(const std::string& source) {
+  return source.starts_with(kTopicPrefix) ? source.substr(kTopicPrefix.size()) : std::string();
+}
+
 void require(bool ok, const char* key, const std::string& rule) {
   if (!ok) throw ConfigError(std::string("marker_camera: ") + key + " " + rule);
 }
@@ -28,6 +37,7 @@ void require(bool ok, const char* key, const std::string& rule) {
 MarkerCameraOptions checked(MarkerCameraOptions o) {
   require(!o.source.empty(), "source",
           "is required (a device, camera index, URL, video file or image folder)");
+  require(o.source != kTopicPrefix, "source", "'topic:' needs a topic name (topic:NAME)");
   require(o.camera_id >= 0, "camera_id", "must be >= 0");
   require(std::isfinite(o.fps) && o.fps > 0 && o.fps <= 1000, "fps", "must be in (0, 1000] Hz");
   require(o.marker_id >= 0, "marker_id", "must be >= 0");
@@ -37,6 +47,7 @@ MarkerCameraOptions checked(MarkerCameraOptions o) {
           "must be finite and > 0");
   require(std::isfinite(o.retry_max_s) && o.retry_max_s >= o.retry_initial_s, "retry_max_s",
           "must be finite and >= retry_initial_s");
+  require(o.image_queue >= 1, "image_queue", "must be >= 1");
   return o;
 }
 
@@ -87,6 +98,38 @@ bool readFrame(cv::VideoCapture& capture, cv::Mat& image) {
   }
 }
 
+/// The pixels of an image message as a Mat (grey or BGR, over the message's bytes where the
+/// detector takes them as they are; rgb8 is converted to grey in `converted`), or an empty Mat
+/// with the reason in `error`.
+cv::Mat pixelsOf(msg::Image::Reader im, cv::Mat& converted, std::string& error) {
+  const std::string_view encoding(im.getEncoding().cStr());
+  int type = 0;
+  if (encoding == "mono8") {
+    type = CV_8UC1;
+  } else if (encoding == "bgr8" || encoding == "rgb8") {
+    type = CV_8UC3;
+  } else {
+    error = "encoding '" + std::string(encoding) + "' (expected mono8, bgr8 or rgb8)";
+    return {};
+  }
+  const std::size_t w = im.getWidth(), h = im.getHeight(), step = im.getStep();
+  const std::size_t bpp = type == CV_8UC1 ? 1 : 3;
+  if (w == 0 || h == 0 || w > 1u << 15 || h > 1u << 15) {
+    error = "image size " + std::to_string(w) + " x " + std::to_string(h);
+    return {};
+  }
+  if (step < w * bpp || im.getData().size() < h * step) {
+    error = "pixel data shorter than height x step";
+    return {};
+  }
+  // The detector only reads the pixels, and the message outlives the call.
+  auto* data = const_cast<std::uint8_t*>(im.getData().begin());
+  const cv::Mat pixels(static_cast<int>(h), static_cast<int>(w), type, data, step);
+  if (encoding != "rgb8") return pixels;
+  cv::cvtColor(pixels, converted, cv::COLOR_RGB2GRAY);
+  return converted;
+}
+
 std::string seconds(double s) {
   std::ostringstream out;
   out << s;
@@ -111,6 +154,8 @@ MarkerCameraActor::MarkerCameraActor(MarkerCameraOptions options)
       detector_(marker_camera_detail::detectorFor(options_.detector)),
       source_(std::make_unique<Source>()),
       frame_id_("camera_" + std::to_string(options_.camera_id)),
+      topic_(marker_camera_detail::topicOf(options_.source)),
+      period_(marker_camera_detail::toNanos(1.0 / options_.fps)),
       retry_delay_s_(options_.retry_initial_s) {}
 
 MarkerCameraActor::~MarkerCameraActor() = default;
@@ -119,11 +164,19 @@ void MarkerCameraActor::configure(ActorContext& ctx) {
   ctx_ = &ctx;
   event_pub_ = ctx.advertise<msg::CameraEvent>("camera_events");
   detection_pub_ = ctx.advertise<msg::MarkerDetection>("camera_detections");
-  ctx.addTimer(marker_camera_detail::toNanos(1.0 / options_.fps), [this] { tick(); });
+  if (!topic_.empty()) {
+    ctx.subscribe<msg::Image>(
+        topic_, MailboxPolicy::keepLatest(static_cast<std::size_t>(options_.image_queue)),
+        [this](const Message<msg::Image>& m) { onImage(m); });
+    ctx.addTimer(period_, [this] { checkSilence(); });
+    return;
+  }
+  ctx.addTimer(period_, [this] { tick(); });
 }
 
 void MarkerCameraActor::start() {
   namespace fs = std::filesystem;
+  if (!topic_.empty()) return;  // frames come by themselves
   std::error_code ec;
   const fs::path path(options_.source);
   if (fs::is_directory(path, ec) && marker_camera_detail::listImages(path).empty())
@@ -177,7 +230,7 @@ void MarkerCameraActor::tryOpen() {
 
 void MarkerCameraActor::sourceFailed(const std::string& what, bool finished) {
   open_ = false;
-  if (in_view_) publishEvent(false);  // the camera sees nothing any more
+  if (in_view_) publishEvent(false, ctx_->now());  // the camera sees nothing any more
   if (finished) {
     finished_ = true;
     std::cerr << "[marker_camera] camera " << options_.camera_id << ": " << options_.source << " "
@@ -210,11 +263,7 @@ void MarkerCameraActor::tick() {
     const auto& file = s.images[s.next++];
     image = cv::imread(file.string(), cv::IMREAD_GRAYSCALE);
     if (image.empty()) {
-      ++read_failures_;
-      if (!skipping_)  // once per run of unreadable images
-        std::cerr << "[marker_camera] camera " << options_.camera_id << ": cannot read "
-                  << file.string() << "; skipped\n";
-      skipping_ = true;
+      skipFrame("cannot read " + file.string());
       return;
     }
   } else if (!mcd::readFrame(s.capture, image)) {
@@ -233,10 +282,47 @@ void MarkerCameraActor::tick() {
     sourceFailed("read failed", /*finished=*/false);
     return;
   }
-  processFrame(image);
+  processFrame(image, ctx_->now());
 }
 
-void MarkerCameraActor::processFrame(const cv::Mat& image) {
+void MarkerCameraActor::onImage(const Message<msg::Image>& m) {
+  const auto header = m->getHeader();
+  if (std::string_view(header.getFrameId().cStr()) != frame_id_) return;  // another camera's
+  const Nanos stamp = header.getStampNs();
+  if (last_stamp_ && stamp <= *last_stamp_) {
+    ++late_frames_;
+    return;
+  }
+  cv::Mat converted;
+  std::string error;
+  const cv::Mat image = marker_camera_detail::pixelsOf(*m, converted, error);
+  if (image.empty()) {
+    skipFrame("frame skipped: " + error);
+    return;
+  }
+  last_stamp_ = stamp;
+  processFrame(image, stamp);
+}
+
+void MarkerCameraActor::checkSilence() {
+  if (!in_view_ || !last_stamp_) return;
+  // The frames that did not come are misses: the leave is due where the leave_after_misses-th
+  // would have been, and published one period after that, when any such frame would be here.
+  const Nanos due = *last_stamp_ + (options_.leave_after_misses - misses_in_row_) * period_;
+  if (ctx_->now() < due + period_) return;
+  publishEvent(false, due);
+  last_stamp_ = due;  // a frame from before the leave would be late now
+  ++silent_leaves_;
+}
+
+void MarkerCameraActor::skipFrame(const std::string& why) {
+  ++read_failures_;
+  if (!skipping_)  // once per run of unreadable frames
+    std::cerr << "[marker_camera] camera " << options_.camera_id << ": " << why << "\n";
+  skipping_ = true;
+}
+
+void MarkerCameraActor::processFrame(const cv::Mat& image, Nanos stamp) {
   // While the robot's marker is in view, only a window around it is searched (detector
   // track_margin), so markers of other ids elsewhere in the image are counted only while it is not.
   auto& tracker = source_->tracker;
@@ -245,11 +331,7 @@ void MarkerCameraActor::processFrame(const cv::Mat& image) {
   try {
     markers = tracker->detect(image);
   } catch (const std::invalid_argument& e) {  // an image type the detector does not take
-    ++read_failures_;
-    if (!skipping_)
-      std::cerr << "[marker_camera] camera " << options_.camera_id
-                << ": frame skipped: " << e.what() << '\n';
-    skipping_ = true;
+    skipFrame(std::string("frame skipped: ") + e.what());
     return;
   }
   skipping_ = false;
@@ -262,23 +344,23 @@ void MarkerCameraActor::processFrame(const cv::Mat& image) {
       robot = &m;
   }
   if (robot) {
-    if (!in_view_) publishEvent(true);
+    if (!in_view_) publishEvent(true, stamp);
     misses_in_row_ = 0;
-    publishDetection(robot);
+    publishDetection(robot, stamp);
     return;
   }
   if (!in_view_) return;
   if (++misses_in_row_ >= options_.leave_after_misses) {
-    publishEvent(false);
+    publishEvent(false, stamp);
     return;
   }
-  publishDetection(nullptr);
+  publishDetection(nullptr, stamp);
 }
 
-void MarkerCameraActor::publishEvent(bool entered) {
+void MarkerCameraActor::publishEvent(bool entered, Nanos stamp) {
   auto loan = event_pub_.loan();
   auto b = loan.builder();
-  setHeader(b.initHeader(), ctx_->now(), frame_id_, event_pub_.nextSeq());
+  setHeader(b.initHeader(), stamp, frame_id_, event_pub_.nextSeq());
   b.setCameraId(options_.camera_id);
   b.setEntered(entered);
   event_pub_.publish(std::move(loan));
@@ -287,10 +369,10 @@ void MarkerCameraActor::publishEvent(bool entered) {
   misses_in_row_ = 0;
 }
 
-void MarkerCameraActor::publishDetection(const DetectedMarker* marker) {
+void MarkerCameraActor::publishDetection(const DetectedMarker* marker, Nanos stamp) {
   auto loan = detection_pub_.loan();
   auto b = loan.builder();
-  setHeader(b.initHeader(), ctx_->now(), frame_id_, detection_pub_.nextSeq());
+  setHeader(b.initHeader(), stamp, frame_id_, detection_pub_.nextSeq());
   b.setCameraId(options_.camera_id);
   b.setDetected(marker != nullptr);
   b.setPixelStd(options_.pixel_std);
@@ -320,10 +402,14 @@ void MarkerCameraActor::summarize(Summary& out) const {
   out["reconnects"] = reconnects_;
   out["read_failures"] = read_failures_;
   out["source_finished"] = std::int64_t{finished_ ? 1 : 0};
+  if (!topic_.empty()) {
+    out["late_frames"] = late_frames_;
+    out["leaves_without_frames"] = silent_leaves_;
+  }
 }
 
 TESSERA_REGISTER_ACTOR("marker_camera", MarkerCameraActor, MarkerCameraOptions,
-                       "real environment camera (device, stream, video file or image folder): "
-                       "ArUco marker detections and enter/leave events");
+                       "real environment camera (device, stream, video file, image folder or "
+                       "image topic): ArUco marker detections and enter/leave events");
 
 }  // namespace tessera::camera_network

@@ -7,10 +7,12 @@
 #include "option_checks.hpp"
 
 #include <algorithm>
+#include <chrono>
 #include <cmath>
 #include <filesystem>
 #include <fstream>
 #include <iomanip>
+#include <limits>
 #include <sstream>
 #include <stdexcept>
 
@@ -41,11 +43,28 @@ std::vector<CameraSite> sitesOf(const CameraNetworkOptions& o) {
   return sites;
 }
 
+/// Distance [m] from `p` to the convex polygon `poly` (counter-clockwise); 0 inside.
+double distanceToPolygon(const std::vector<Eigen::Vector2d>& poly, const Eigen::Vector2d& p) {
+  bool inside = true;
+  double best = std::numeric_limits<double>::infinity();
+  for (std::size_t i = 0; i < poly.size(); ++i) {
+    const Eigen::Vector2d& a = poly[i];
+    const Eigen::Vector2d& b = poly[(i + 1) % poly.size()];
+    const Eigen::Vector2d ab = b - a, ap = p - a;
+    if (ab.x() * ap.y() - ab.y() * ap.x() < 0) inside = false;  // right of a CCW edge
+    const double len2 = ab.squaredNorm();
+    const double t = len2 > 0 ? std::clamp(ap.dot(ab) / len2, 0.0, 1.0) : 0.0;
+    best = std::min(best, (ap - t * ab).norm());
+  }
+  return inside ? 0.0 : best;
+}
+
 }  // namespace
 
 CameraNetworkActor::CameraNetworkActor(CameraNetworkOptions options)
     : options_(std::move(options)),
-      rng_(detail::seededStream(options_.seed, detail::NoiseStream::kCameras)) {
+      rng_(detail::seededStream(options_.seed, detail::NoiseStream::kCameras)),
+      image_rng_(detail::seededStream(options_.seed, detail::NoiseStream::kCameraImages)) {
   const auto& o = options_;
   if (o.camera_hz <= 0) kErrors.fail("camera_hz", "must be positive, got " + str(o.camera_hz));
   period_ = kNanosPerSecond / o.camera_hz;
@@ -57,17 +76,30 @@ CameraNetworkActor::CameraNetworkActor(CameraNetworkOptions options)
     kErrors.fail("footprint_period_s",
                  "must be finite and >= 0 (0 = only once), got " + str(o.footprint_period_s));
   kErrors.check(o.camera.check(), "camera");
+  if (!std::isfinite(o.image_margin_m) || o.image_margin_m < 0)
+    kErrors.fail("image_margin_m", "must be finite and >= 0, got " + str(o.image_margin_m));
+  kErrors.check(o.image.check(), "image");
   try {
     network_.emplace(sitesOf(o), o.camera);
   } catch (const std::invalid_argument& e) {
     kErrors.fail("camera_sites", e.what());
   }
+  if (o.render_images) {
+    for (const EnvironmentCamera& cam : network_->cameras()) {
+      renderers_.emplace_back(cam, o.image);  // the camera's floor, rendered once
+      footprints_.push_back(
+          cam.footprintPolygon(kFootprintRange * cam.intrinsics().ceiling_height));
+    }
+  }
 }
 
 void CameraNetworkActor::configure(ActorContext& ctx) {
   ctx_ = &ctx;
-  event_pub_ = ctx.advertise<msg::CameraEvent>("camera_events");
-  detection_pub_ = ctx.advertise<msg::MarkerDetection>("camera_detections");
+  if (options_.publish_detections) {
+    event_pub_ = ctx.advertise<msg::CameraEvent>("camera_events");
+    detection_pub_ = ctx.advertise<msg::MarkerDetection>("camera_detections");
+  }
+  if (options_.render_images) image_pub_ = ctx.advertise<msg::Image>("camera_images");
   footprint_pub_ = ctx.advertise<msg::CameraFootprints>("camera_footprints");
   if (options_.footprint_period_s > 0) {
     // At most ~30 years: a huge period must not overflow the nanoseconds.
@@ -120,8 +152,13 @@ void CameraNetworkActor::onPose(Nanos stamp, double x, double y, double theta) {
     publishFootprints();
   }
   const Pose2 marker = compose({x, y, theta}, {options_.marker[0], options_.marker[1], 0});
-  const CameraNetwork::Frame frame = network_->observe(marker.translation(), rng_);
   ++frames_;
+  if (options_.publish_detections) publishDetections(stamp, marker);
+  if (options_.render_images) publishImages(stamp, marker);
+}
+
+void CameraNetworkActor::publishDetections(Nanos stamp, const Pose2& marker) {
+  const CameraNetwork::Frame frame = network_->observe(marker.translation(), rng_);
   for (const CameraTransition& t : frame.transitions) {
     auto loan = event_pub_.loan();
     auto b = loan.builder();
@@ -147,6 +184,34 @@ void CameraNetworkActor::onPose(Nanos stamp, double x, double y, double theta) {
     }
     b.setPixelStd(options_.camera.pixel_noise);
     detection_pub_.publish(std::move(loan));
+  }
+}
+
+void CameraNetworkActor::publishImages(Nanos stamp, const Pose2& marker) {
+  if (!allFinite(marker)) return;  // nothing to render
+  for (std::size_t i = 0; i < renderers_.size(); ++i) {
+    if (distanceToPolygon(footprints_[i], marker.translation()) > options_.image_margin_m) continue;
+    CameraImageRenderer& renderer = renderers_[i];
+    const int w = renderer.camera().intrinsics().width_px;
+    const int h = renderer.camera().intrinsics().height_px;
+    const std::size_t bytes = static_cast<std::size_t>(w) * static_cast<std::size_t>(h);
+    // The pixels go in a blob: the renderer writes every one, in place.
+    auto loan = image_pub_.loanWithBlob(bytes, 256);
+    auto b = loan.builder();
+    setHeader(b.initHeader(), stamp, "camera_" + std::to_string(renderer.camera().id()),
+              image_pub_.nextSeq());
+    b.setWidth(static_cast<std::uint32_t>(w));
+    b.setHeight(static_cast<std::uint32_t>(h));
+    b.setEncoding("mono8");
+    b.setStep(static_cast<std::uint32_t>(w));
+    cv::Mat pixels(h, w, CV_8UC1, loan.blob().data());
+    const auto t0 = std::chrono::steady_clock::now();
+    renderer.render(marker, image_rng_, pixels);
+    render_ms_total_ +=
+        std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+    b.adoptData(loan.blobData());
+    image_pub_.publish(std::move(loan));
+    ++images_;
   }
 }
 
@@ -178,10 +243,15 @@ void CameraNetworkActor::summarize(Summary& out) const {
   out["misses"] = misses_;
   out["events"] = events_;
   out["footprint_messages"] = footprint_messages_;
+  if (options_.render_images) {
+    out["images"] = images_;
+    out["image_render_ms_mean"] = images_ > 0 ? render_ms_total_ / static_cast<double>(images_) : 0;
+  }
 }
 
 TESSERA_REGISTER_ACTOR("camera_network", CameraNetworkActor, CameraNetworkOptions,
                        "ceiling camera network (seed 000): marker pixels through floor "
-                       "homographies, misses, enter/leave events, from ground-truth poses");
+                       "homographies, misses, enter/leave events, from ground-truth poses; "
+                       "optionally each camera's rendered image of the robot's ArUco marker");
 
 }  // namespace tessera::sim

@@ -40,6 +40,7 @@ enum class NoiseStream : std::uint32_t {
   kLaser = 0x6c617372u,           // "lasr"
   kLandmarkSensor = 0x6c6d6b73u,  // "lmks"
   kCameras = 0x63616d73u,         // "cams"
+  kCameraImages = 0x63696d67u,    // "cimg"
   kRgbdCamera = 0x72676264u,      // "rgbd"
   kGyro = 0x6779726fu,            // "gyro"
   kEncoders = 0x656e6373u,        // "encs"

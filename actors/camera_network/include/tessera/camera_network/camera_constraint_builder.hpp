@@ -29,6 +29,11 @@
 // final best particle, which is more accurate than the online estimate), so a visit is held
 // until every submap its sightings fall in has finished (or finish()). A stamp between two
 // trajectories keeps its online pose.
+// Unanchored submaps (addSubmap with anchored = false: the SLAM lost the map and started a
+// submap it could not place, e.g. a kidnapped robot): from that submap on, the first visit of a
+// calibrated camera is the relocalisation. It is processed at its end with the online poses
+// instead of waiting for smoothed ones, so the graph places the robot again within seconds; its
+// revisit (CameraOutput::relocalisation) anchors the chain and later visits are held as usual.
 // Nothing throws for bad data: non-finite sightings and sightings of unknown cameras are counted
 // and ignored.
 #pragma once
@@ -113,6 +118,9 @@ struct CameraOutput {
   int sightings = 0;
   /// kRevisit: the robot's pose in submap `to` at the last sighting (camera localisation).
   Pose2 robot_in_to;
+  /// kRevisit / kRevisitRefused: the first visit of a calibrated camera after an unanchored
+  /// submap, processed with online poses.
+  bool relocalisation = false;
 };
 
 class CameraConstraintBuilder {
@@ -121,8 +129,11 @@ class CameraConstraintBuilder {
   explicit CameraConstraintBuilder(CameraConstraintBuilderOptions options);
 
   /// Submap `id` starts at `origin` (chained frame). Submap 0 starts at the identity unless
-  /// told otherwise. False (ignored) for a non-finite origin.
-  bool addSubmap(std::uint32_t id, const Pose2& origin);
+  /// told otherwise. `anchored` false: the SLAM could not place it (lost); see above. False
+  /// (ignored) for a non-finite origin.
+  bool addSubmap(std::uint32_t id, const Pose2& origin, bool anchored = true);
+  /// The first unanchored submap not yet placed by a relocalisation, if any.
+  std::optional<std::uint32_t> unanchoredSince() const { return unanchored_since_; }
   /// The smoothed robot poses [stamp ns, pose in the submap's frame] of finished submap `id`,
   /// by increasing stamp; releases the visits they complete (smoothed_poses). Non-finite poses
   /// are skipped.
@@ -153,6 +164,7 @@ class CameraConstraintBuilder {
     std::uint32_t submap = 0;  // current when the visit ended
     std::int64_t stamp_ns = 0;
     std::vector<CameraSighting> sightings;
+    bool relocalisation = false;
   };
   std::vector<CameraOutput> endVisit(int camera, std::int64_t stamp_ns);
   std::vector<CameraOutput> release(bool all);
@@ -174,6 +186,7 @@ class CameraConstraintBuilder {
   std::map<int, CameraCalibration> calibrations_;
   std::map<int, int> strikes_;
   std::uint64_t ignored_ = 0;
+  std::optional<std::uint32_t> unanchored_since_;
 };
 
 }  // namespace tessera::camera_network

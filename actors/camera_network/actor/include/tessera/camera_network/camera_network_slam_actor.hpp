@@ -7,7 +7,10 @@
 //   chained_pose       msg::PoseStamped       keep_latest(pose_queue)  the submap builder's
 //                                             robot pose (chained map frame), for pairing
 //   constraints        msg::SubmapConstraint  reliable   the builder's hand-overs: where each
-//                                             submap starts (other kinds are ignored)
+//                                             submap starts (other kinds are ignored); one with a
+//                                             position std above unanchored_std_m (the SLAM was
+//                                             lost) starts an unanchored submap, which the next
+//                                             calibrated camera relocalises at once
 //   submaps            msg::Submap            reliable   finished submaps' smoothed trajectories
 //                                             (builder.smoothed_poses: visits wait for them)
 //   ground_truth       msg::GroundTruthPose   keep_latest(1000), only with score_ground_truth:
@@ -30,6 +33,7 @@
 // submap, floor -> pixel homography (row-major, submap frame), and quality.
 //
 // Summary: calibrations, calibrations_refused (with the last reason), revisits,
+// relocalisations (revisits that placed unanchored submaps), unanchored_handovers,
 // revisits_refused, checks, sightings, sightings_unpaired, calibration_rms_px (mean over the
 // calibrations in force); with score_ground_truth also revisits_true / revisits_false (against
 // the true relative pose of the two submaps' start poses, within truth_tolerance_*) and
@@ -59,6 +63,7 @@ struct CameraNetworkSlamOptions {
   bool score_ground_truth = false;
   double truth_tolerance_linear = 0.3;
   double truth_tolerance_angular = 0.1;
+  double unanchored_std_m = 10.0;
   int detection_queue = 256;
   int pose_queue = 256;
   int pose_history = 512;
@@ -75,6 +80,9 @@ struct CameraNetworkSlamOptions {
       "a revisit within this of the truth counts as true [m]");
     v("truth_tolerance_angular", truth_tolerance_angular,
       "a revisit within this of the truth counts as true [rad]");
+    v("unanchored_std_m", unanchored_std_m,
+      "a hand-over whose position std exceeds this [m] (the SLAM was lost) starts an unanchored "
+      "submap: the next calibrated camera's visit relocalises it at once, with online poses");
     v("detection_queue", detection_queue, "detection mailbox size and pairing buffer");
     v("pose_queue", pose_queue, "chained pose mailbox size (keep-latest)");
     v("pose_history", pose_history, "chained poses remembered for pairing");
@@ -120,7 +128,7 @@ class CameraNetworkSlamActor final : public Actor {
   std::int64_t last_stamp_ = 0;
   std::int64_t calibrations_ = 0, calibrations_refused_ = 0, revisits_ = 0, revisits_refused_ = 0,
                checks_ = 0, sightings_ = 0, misses_ = 0, revisits_true_ = 0, revisits_false_ = 0,
-               revisits_unscored_ = 0;
+               revisits_unscored_ = 0, relocalisations_ = 0, unanchored_handovers_ = 0;
   std::string last_refusal_;
   double loc_sq_ = 0, loc_max_ = 0;
   std::int64_t loc_count_ = 0;
