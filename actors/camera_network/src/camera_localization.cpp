@@ -54,6 +54,67 @@ std::optional<MarkerFix> localizeMarker(const FloorHomography& calibration,
   return fix;
 }
 
+namespace camera_localization_detail {
+
+/// Marker pose (x, y, θ) from the corners' floor points under `h`; nullopt as localizeMarkerPose.
+std::optional<Eigen::Vector3d> markerPose(const FloorHomography& h,
+                                          const std::array<Eigen::Vector2d, 4>& corners) {
+  std::array<Eigen::Vector2d, 4> f;
+  for (std::size_t k = 0; k < 4; ++k) {
+    const auto p = h.floorPoint(corners[k]);
+    if (!p) return std::nullopt;
+    f[k] = *p;
+  }
+  const Eigen::Vector2d centre = 0.25 * (f[0] + f[1] + f[2] + f[3]);
+  const Eigen::Vector2d forward = 0.5 * (f[0] + f[1]) - 0.5 * (f[2] + f[3]);
+  if (!(forward.norm() > 1e-6)) return std::nullopt;
+  return Eigen::Vector3d(centre.x(), centre.y(), std::atan2(forward.y(), forward.x()));
+}
+
+Eigen::Vector3d difference(const Eigen::Vector3d& a, const Eigen::Vector3d& b) {
+  return {a.x() - b.x(), a.y() - b.y(), angleDiff(a.z(), b.z())};
+}
+
+}  // namespace camera_localization_detail
+
+std::optional<MarkerPoseFix> localizeMarkerPose(const FloorHomography& calibration,
+                                                const std::array<Eigen::Vector2d, 4>& corners,
+                                                double pixel_std) {
+  namespace d = camera_localization_detail;
+  if (!std::isfinite(pixel_std) || pixel_std < 0) return std::nullopt;
+  for (const auto& c : corners)
+    if (!c.allFinite()) return std::nullopt;
+  const auto mid = d::markerPose(calibration, corners);
+  if (!mid) return std::nullopt;
+  // Pixel noise: each corner coordinate moved half a pixel either side.
+  Eigen::Matrix<double, 3, 8> ju;
+  for (int k = 0; k < 8; ++k) {
+    auto plus = corners, minus = corners;
+    plus[k / 2](k % 2) += 0.5;
+    minus[k / 2](k % 2) -= 0.5;
+    const auto a = d::markerPose(calibration, plus), b = d::markerPose(calibration, minus);
+    if (!a || !b) return std::nullopt;
+    ju.col(k) = d::difference(*a, *b);
+  }
+  // Calibration uncertainty: derivative with respect to Hn's 8 entries.
+  Eigen::Matrix<double, 3, 8> jh;
+  for (int k = 0; k < 8; ++k) {
+    const double step = 1e-6 * std::max(1.0, std::abs(calibration.hn(k / 3, k % 3)));
+    Eigen::Matrix<double, 8, 1> delta = Eigen::Matrix<double, 8, 1>::Zero();
+    delta(k) = step;
+    const auto a = d::markerPose(calibration.perturbed(delta), corners);
+    const auto b = d::markerPose(calibration.perturbed(-delta), corners);
+    if (!a || !b) return std::nullopt;
+    jh.col(k) = d::difference(*a, *b) / (2 * step);
+  }
+  MarkerPoseFix fix;
+  fix.pose = Pose2(mid->x(), mid->y(), mid->z());
+  fix.covariance =
+      pixel_std * pixel_std * ju * ju.transpose() + jh * calibration.covariance * jh.transpose();
+  fix.covariance = 0.5 * (fix.covariance + fix.covariance.transpose()).eval();
+  return fix;
+}
+
 MapTransformResult fitMapTransform(const std::vector<PointCorrespondence>& input,
                                    const MapTransformOptions& options) {
   options.check().throwIfBad("map transform fit");

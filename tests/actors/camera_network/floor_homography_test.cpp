@@ -7,6 +7,7 @@
 #include <Eigen/LU>
 #include <catch2/catch.hpp>
 
+#include <array>
 #include <cmath>
 #include <limits>
 #include <random>
@@ -168,6 +169,57 @@ TEST_CASE("camera localisation's covariance is consistent with its error (NEES)"
                                          FloorHomographyOptions{});
   REQUIRE(r.homography);
   CHECK_FALSE(localizeMarker(*r.homography, {std::nan(""), 0.0}, 1.0));
+}
+
+TEST_CASE("the marker's corners give the robot's heading, with a consistent covariance (NEES)",
+          "[camera_network][camera_localization]") {
+  // A 0.2 m marker (about 21 px at 3 m), corners with 1 px noise, calibrations from independent
+  // noise: the pose error's NEES over (x, y, θ) is chi-square(3), mean 3.
+  const auto cam = tiltedCamera();
+  std::mt19937_64 rng(13);
+  std::normal_distribution<double> n(0.0, 1.0);
+  std::uniform_real_distribution<double> heading(-M_PI, M_PI);
+  const double hs = 0.1;
+  const std::array<Eigen::Vector2d, 4> local = {Eigen::Vector2d(hs, hs), Eigen::Vector2d(hs, -hs),
+                                                Eigen::Vector2d(-hs, -hs),
+                                                Eigen::Vector2d(-hs, hs)};
+  const std::vector<Eigen::Vector2d> probes = {{0.0, 0.0}, {0.6, -0.4}, {-0.9, 0.5}};
+  double nees = 0, sq_heading = 0;
+  int count = 0;
+  for (int trial = 0; trial < 100; ++trial) {
+    const auto r = estimateFloorHomography(loopPairs(cam, 1.0, 1.0, rng), 640, 480, 1.0,
+                                           FloorHomographyOptions{});
+    REQUIRE(r.homography);
+    for (const auto& d : probes) {
+      const Pose2 marker(cam.site().position + d, heading(rng));
+      std::array<Eigen::Vector2d, 4> corners;
+      for (std::size_t k = 0; k < 4; ++k)
+        corners[k] = *cam.project(marker.translation() + marker.rotation() * local[k]) +
+                     Eigen::Vector2d(n(rng), n(rng));
+      const auto fix = localizeMarkerPose(*r.homography, corners, 1.0);
+      REQUIRE(fix);
+      const Eigen::Vector3d e(fix->pose.x - marker.x, fix->pose.y - marker.y,
+                              tessera::angleDiff(fix->pose.theta, marker.theta));
+      nees += e.dot(fix->covariance.inverse() * e);
+      sq_heading += e(2) * e(2);
+      ++count;
+    }
+  }
+  nees /= count;
+  INFO("NEES " << nees << ", heading RMS " << std::sqrt(sq_heading / count) << " rad");
+  CHECK(nees > 2.4);
+  CHECK(nees < 3.6);
+  CHECK(std::sqrt(sq_heading / count) < 0.06);
+
+  const auto r = estimateFloorHomography(loopPairs(cam, 1.0, 1.0, rng), 640, 480, 1.0,
+                                         FloorHomographyOptions{});
+  REQUIRE(r.homography);
+  // A corner at NaN, or all four at one pixel (no size), gives nothing.
+  std::array<Eigen::Vector2d, 4> bad;
+  bad.fill(Eigen::Vector2d(320, 240));
+  CHECK_FALSE(localizeMarkerPose(*r.homography, bad, 1.0));
+  bad[2] = {std::nan(""), 1.0};
+  CHECK_FALSE(localizeMarkerPose(*r.homography, bad, 1.0));
 }
 
 }  // namespace camera_network_homography_test

@@ -3,6 +3,8 @@
 #include <tessera/messages/geometry.hpp>
 #include <tessera/runtime/registry.hpp>
 
+#include <Eigen/LU>
+
 #include <algorithm>
 #include <cmath>
 #include <filesystem>
@@ -76,6 +78,11 @@ void CameraNetworkSlamActor::configure(ActorContext& ctx) {
         item.camera = m->getCameraId();
         item.pixel = {m->getU(), m->getV()};
         item.pixel_std = m->getPixelStd();
+        if (const auto c = m->getCorners(); c.size() == 8) {
+          std::array<Eigen::Vector2d, 4> corners;
+          for (unsigned k = 0; k < 4; ++k) corners[k] = {c[2 * k], c[2 * k + 1]};
+          item.corners = corners;
+        }
         const std::int64_t stamp = m->getHeader().getStampNs();
         pairing_.addItem({item, stamp}, stamp,
                          [this](const auto& it, const Pose2& p) { use(it.first, it.second, p); });
@@ -153,10 +160,11 @@ void CameraNetworkSlamActor::use(const Item& item, std::int64_t stamp, const Pos
   s.pixel_std = item.pixel_std;
   s.robot = chained;
   if (builder_.add(s)) ++sightings_;
-  if (options_.score_ground_truth) scoreSighting(s);
+  if (options_.score_ground_truth) scoreSighting(s, item.corners);
 }
 
-void CameraNetworkSlamActor::scoreSighting(const CameraSighting& s) {
+void CameraNetworkSlamActor::scoreSighting(
+    const CameraSighting& s, const std::optional<std::array<Eigen::Vector2d, 4>>& corners) {
   const auto cal = builder_.calibrations().find(s.camera);
   if (cal == builder_.calibrations().end()) return;
   const auto start = start_truth_.find(cal->second.submap);
@@ -170,6 +178,16 @@ void CameraNetworkSlamActor::scoreSighting(const CameraSighting& s) {
   loc_sq_ += e * e;
   loc_max_ = std::max(loc_max_, e);
   ++loc_count_;
+  if (!corners) return;
+  const auto pose = localizeMarkerPose(cal->second.homography, *corners, s.pixel_std);
+  if (!pose) return;
+  const Pose2 robot_truth = start->second.inverse() * now;
+  const Eigen::Vector3d err(pose->pose.x - truth.x(), pose->pose.y - truth.y(),
+                            angleDiff(pose->pose.theta, robot_truth.theta));
+  heading_sq_ += err(2) * err(2);
+  const Eigen::Matrix3d cov = pose->covariance;
+  if (cov.allFinite() && cov.determinant() > 0) heading_nees_ += err.dot(cov.inverse() * err);
+  ++heading_count_;
 }
 
 bool CameraNetworkSlamActor::truthAt(std::int64_t stamp, Pose2& out) const {
@@ -306,6 +324,10 @@ void CameraNetworkSlamActor::summarize(Summary& out) const {
       out["camera_localisation_rms_m"] = std::sqrt(loc_sq_ / static_cast<double>(loc_count_));
       out["camera_localisation_max_m"] = loc_max_;
       out["camera_localisation_sightings"] = loc_count_;
+    }
+    if (heading_count_ > 0) {
+      out["camera_heading_rms_rad"] = std::sqrt(heading_sq_ / static_cast<double>(heading_count_));
+      out["camera_pose_nees"] = heading_nees_ / static_cast<double>(heading_count_);
     }
   }
 }

@@ -5,6 +5,13 @@
 // pixel_std per axis) through the inverse homography plus the calibration's own uncertainty
 // (FloorHomography::covariance), both to first order.
 //
+// localizeMarkerPose: the marker's full pose from its four corners (ArUco order: 0 front-left,
+// 1 front-right, 2 rear-right, 3 rear-left, the marker image's top edge facing the robot's
+// forward direction, as the simulator renders it): position = the centre of the four corners'
+// floor points (a square's centre), heading = direction from the rear edge's midpoint to the
+// front edge's. Covariance over (x, y, θ) from the corners' pixel noise and the calibration's
+// uncertainty, to first order. The robot's pose is this ⊕ (−marker offset).
+//
 // fitMapTransform: the rigid transform between two frames from the same marker positions seen in
 // both, weighted by their covariances: T = pose of the child frame in the parent frame, with
 // parent point ≈ T · child point. With the camera's points as the child (a submap j) and the
@@ -23,6 +30,7 @@
 
 #include <Eigen/Core>
 
+#include <array>
 #include <optional>
 #include <string>
 #include <vector>
@@ -37,6 +45,17 @@ struct MarkerFix {
 /// Nullopt when the pixel's ray misses the floor or the inputs are not finite.
 std::optional<MarkerFix> localizeMarker(const FloorHomography& calibration,
                                         const Eigen::Vector2d& pixel, double pixel_std);
+
+struct MarkerPoseFix {
+  Pose2 pose;  ///< marker frame in the calibration's frame: centre [m], forward heading [rad]
+  Eigen::Matrix3d covariance = Eigen::Matrix3d::Zero();  ///< over (x, y, θ)
+};
+
+/// Nullopt when a corner's ray misses the floor, the inputs are not finite, or the corners do
+/// not form a marker of positive size on the floor.
+std::optional<MarkerPoseFix> localizeMarkerPose(const FloorHomography& calibration,
+                                                const std::array<Eigen::Vector2d, 4>& corners,
+                                                double pixel_std);
 
 /// One marker position seen in both frames.
 struct PointCorrespondence {

@@ -38,7 +38,9 @@
 // calibrations in force); with score_ground_truth also revisits_true / revisits_false (against
 // the true relative pose of the two submaps' start poses, within truth_tolerance_*) and
 // camera_localisation_rms_m / camera_localisation_max_m: every sighting of a calibrated camera
-// localised through its homography, against the true marker position in that submap.
+// localised through its homography, against the true marker position in that submap; for
+// detections with corners (marker_camera) also camera_heading_rms_rad and camera_pose_nees
+// (the full pose from the corners, localizeMarkerPose, against the truth; 3 when consistent).
 #pragma once
 
 #include <tessera/msg/camera.capnp.h>
@@ -50,9 +52,11 @@
 #include <tessera/runtime/actor.hpp>
 #include <tessera/runtime/options.hpp>
 
+#include <array>
 #include <cstdint>
 #include <deque>
 #include <map>
+#include <optional>
 #include <string>
 
 namespace tessera::camera_network {
@@ -106,13 +110,15 @@ class CameraNetworkSlamActor final : public Actor {
     int camera = 0;
     Eigen::Vector2d pixel = Eigen::Vector2d::Zero();
     double pixel_std = 1.0;
+    std::optional<std::array<Eigen::Vector2d, 4>> corners;  // when the camera sent them
   };
   void use(const Item& item, std::int64_t stamp, const Pose2& chained);
   void handle(const std::vector<CameraOutput>& outputs);
   void publishRevisit(const CameraOutput& o);
   void publishCalibration(const CameraCalibration& c);
   bool truthAt(std::int64_t stamp, Pose2& out) const;
-  void scoreSighting(const CameraSighting& s);
+  void scoreSighting(const CameraSighting& s,
+                     const std::optional<std::array<Eigen::Vector2d, 4>>& corners);
 
   CameraNetworkSlamOptions options_;
   CameraConstraintBuilder builder_;
@@ -132,6 +138,8 @@ class CameraNetworkSlamActor final : public Actor {
   std::string last_refusal_;
   double loc_sq_ = 0, loc_max_ = 0;
   std::int64_t loc_count_ = 0;
+  double heading_sq_ = 0, heading_nees_ = 0;
+  std::int64_t heading_count_ = 0;
 };
 
 }  // namespace tessera::camera_network

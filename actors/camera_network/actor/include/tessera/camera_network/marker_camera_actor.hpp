@@ -19,7 +19,8 @@
 // Grabbed frames are stamped with the runtime clock at grab time (ctx.now()), topic frames with
 // their image's stamp; frame id "camera_<id>"; pixels in OpenCV's convention ((u, v) = (column,
 // row), integers at pixel centres). A frame's event comes before its detection. Markers of other
-// ids are counted and ignored.
+// ids are counted and ignored; while the robot's marker is tracked (detector.track_margin > 0)
+// only the window around it is searched, so others elsewhere in the image are not counted then.
 //
 // Frames: a timer at `fps` grabs one frame (live sources are asked for a one-frame buffer, so it
 // is recent where the backend honours that). A folder is read in file-name order (.png .jpg .jpeg
