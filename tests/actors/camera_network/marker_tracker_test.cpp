@@ -10,6 +10,7 @@
 #include <opencv2/imgproc.hpp>
 
 #include <cmath>
+#include <optional>
 #include <random>
 #include <stdexcept>
 #include <string>
@@ -47,10 +48,11 @@ cv::Mat render(const EnvironmentCamera& cam, const Pose2& pose, std::mt19937_64&
   return tessera::sim::renderCameraImage(cam, pose, CameraImageOptions{}, rng);
 }
 
-const DetectedMarker* robotIn(const std::vector<DetectedMarker>& markers) {
+/// The robot's marker, by value: callers pass temporaries (a pointer into them would dangle).
+std::optional<DetectedMarker> robotIn(const std::vector<DetectedMarker>& markers) {
   for (const auto& m : markers)
-    if (m.id == kRobotId) return &m;
-  return nullptr;
+    if (m.id == kRobotId) return m;
+  return std::nullopt;
 }
 
 double centreError(const EnvironmentCamera& cam, const Pose2& pose, const DetectedMarker& m) {
@@ -81,8 +83,8 @@ TEST_CASE("the tracker follows a driving robot's marker from windows, as the who
     INFO("frame " << k);
     const cv::Mat image = render(cam, pose, rng);
     const auto markers = tracker.detect(image);
-    const DetectedMarker* m = robotIn(markers);
-    REQUIRE(m != nullptr);
+    std::optional<DetectedMarker> m = robotIn(markers);
+    REQUIRE(m.has_value());
     CHECK(centreError(cam, pose, *m) < 1.0);
     REQUIRE(tracker.last());
     CHECK(tracker.last()->centre == m->centre);
@@ -97,8 +99,8 @@ TEST_CASE("the tracker follows a driving robot's marker from windows, as the who
     }
     from_window += tracker.answeredFromWindow();
     // The window's answer is the whole image's.
-    const DetectedMarker* whole = robotIn(detector.detect(image));
-    REQUIRE(whole != nullptr);
+    const std::optional<DetectedMarker> whole = robotIn(detector.detect(image));
+    REQUIRE(whole.has_value());
     for (std::size_t c = 0; c < 4; ++c) CHECK((whole->corners[c] - m->corners[c]).norm() < 0.01);
     pose = Pose2(
         pose.translation() + 0.03 * Eigen::Vector2d(std::cos(pose.theta), std::sin(pose.theta)),
@@ -120,15 +122,15 @@ TEST_CASE("after a jump or a loss the tracker searches the whole image",
   // The marker jumps across the image: the window around the old place is tried and misses, the
   // whole image finds it.
   const Pose2 jumped = poseAtPixel(cam, 480, 380, -1.0);
-  const DetectedMarker* m = robotIn(tracker.detect(render(cam, jumped, rng)));
-  REQUIRE(m != nullptr);
+  std::optional<DetectedMarker> m = robotIn(tracker.detect(render(cam, jumped, rng)));
+  REQUIRE(m.has_value());
   CHECK(centreError(cam, jumped, *m) < 1.0);
   CHECK_FALSE(tracker.answeredFromWindow());
   CHECK(tracker.lastWindow().contains(cv::Point(200, 150)));  // around the old place
   CHECK_FALSE(inside(tracker.lastWindow(), *m));
   // The next frame is answered from a window around the new place.
   m = robotIn(tracker.detect(render(cam, jumped, rng)));
-  REQUIRE(m != nullptr);
+  REQUIRE(m.has_value());
   CHECK(tracker.answeredFromWindow());
   CHECK(inside(tracker.lastWindow(), *m));
 
@@ -160,8 +162,8 @@ TEST_CASE("windows are clipped at the image's borders and corners",
     const Pose2 pose = poseAtPixel(cam, u, v, 0.0);
     MarkerTracker tracker(MarkerDetector{}, kRobotId);
     REQUIRE(robotIn(tracker.detect(render(cam, pose, rng))));
-    const DetectedMarker* m = robotIn(tracker.detect(render(cam, pose, rng)));
-    REQUIRE(m != nullptr);
+    std::optional<DetectedMarker> m = robotIn(tracker.detect(render(cam, pose, rng)));
+    REQUIRE(m.has_value());
     CHECK(tracker.answeredFromWindow());
     CHECK(centreError(cam, pose, *m) < 1.0);
     const cv::Rect window = tracker.lastWindow();
