@@ -3,8 +3,6 @@
 
 #include <yaml-cpp/yaml.h>
 
-#include <Eigen/SVD>
-
 #include <algorithm>
 #include <array>
 #include <cctype>
@@ -38,18 +36,8 @@ std::string numberText(double v) {
   return std::string(buf.data(), res.ptr);
 }
 
-/// σ_min / σ_max of the homography (0 for the zero matrix).
-double inverseCondition(const Eigen::Matrix3d& h) {
-  const Eigen::JacobiSVD<Eigen::Matrix3d> svd(h);
-  const Eigen::Vector3d s = svd.singularValues();
-  return s(0) > 0 ? s(2) / s(0) : 0.0;
-}
-
-/// Below this σ_min / σ_max a homography counts as singular (no pixel -> floor mapping).
-constexpr double kMinInverseCondition = 1e-12;
-
 std::string singularProblem(const Eigen::Matrix3d& h) {
-  return "is singular (σ_min/σ_max = " + numberText(inverseCondition(h)) +
+  return "is singular (σ_min/σ_max = " + numberText(homographyInverseCondition(h)) +
          "); expected an invertible floor -> pixel homography";
 }
 
@@ -134,7 +122,8 @@ class Reader {
              "must be finite numbers, element " + std::to_string(k) + " is " + nodeText(e));
       h(static_cast<Eigen::Index>(k / 3), static_cast<Eigen::Index>(k % 3)) = v;
     }
-    if (!(inverseCondition(h) > kMinInverseCondition)) fail(n, field, singularProblem(h));
+    if (!(homographyInverseCondition(h) > kMinHomographyInverseCondition))
+      fail(n, field, singularProblem(h));
     return h;
   }
 
@@ -216,27 +205,6 @@ CameraCalibrationRecord calibrationRecord(const CameraCalibration& c) {
   return r;
 }
 
-std::string calibrationRecordProblem(const CameraCalibrationRecord& r) {
-  using detail_ccf::numberText;
-  const auto nonNegative = [](double v) { return std::isfinite(v) && v >= 0; };
-  if (r.camera < 0) return "id: must be >= 0, got " + std::to_string(r.camera);
-  if (r.submap < 0) return "submap: must be >= 0, got " + std::to_string(r.submap);
-  if (!r.floor_to_pixel.allFinite()) return "homography: must be 9 finite numbers";
-  if (!(detail_ccf::inverseCondition(r.floor_to_pixel) > detail_ccf::kMinInverseCondition))
-    return "homography: " + detail_ccf::singularProblem(r.floor_to_pixel);
-  if (!nonNegative(r.rms_px))
-    return "rms_px: must be a finite number >= 0, got " + numberText(r.rms_px);
-  if (!(nonNegative(r.coverage) && r.coverage <= 1))
-    return "coverage: must be in 0..1, got " + numberText(r.coverage);
-  if (!nonNegative(r.condition))
-    return "condition: must be a finite number >= 0, got " + numberText(r.condition);
-  if (r.pairs < 0) return "pairs: must be >= 0, got " + std::to_string(r.pairs);
-  if (r.inliers < 0 || r.inliers > r.pairs)
-    return "inliers: must be in 0..pairs (" + std::to_string(r.pairs) + "), got " +
-           std::to_string(r.inliers);
-  return {};
-}
-
 void writeCameraCalibrations(const std::filesystem::path& path,
                              const std::vector<CameraCalibrationRecord>& records) {
   using detail_ccf::numberText;
@@ -245,7 +213,7 @@ void writeCameraCalibrations(const std::filesystem::path& path,
     const CameraCalibrationRecord& r = records[k];
     const std::string at =
         "records[" + std::to_string(k) + "] (camera " + std::to_string(r.camera) + ")";
-    if (const std::string p = calibrationRecordProblem(r); !p.empty()) {
+    if (const std::string p = floorCameraCalibrationProblem(r); !p.empty()) {
       const auto [field, what] = detail_ccf::splitProblem(p);
       throw CameraCalibrationFileError(path, 0, at + ": " + field, what);
     }

@@ -119,18 +119,11 @@ std::string submapProblem(const SavedSubmap& s) {
   return {};
 }
 
-/// σ_min / σ_max of a camera's homography (0 for the zero matrix); below 1e-12 it is singular.
-double homographyInverseCondition(const Eigen::Matrix3d& h) {
-  const Eigen::JacobiSVD<Eigen::Matrix3d> svd(h);
-  const Eigen::Vector3d sv = svd.singularValues();
-  return sv(0) > 0 ? sv(2) / sv(0) : 0.0;
-}
-
 std::string cameraProblem(const SavedCamera& c, const std::set<int>& ids) {
-  if (c.id < 0) return "id: must be >= 0, got " + std::to_string(c.id);
+  if (const std::string p = floorCameraCalibrationProblem(c); !p.empty()) return p;
   if (!ids.count(c.submap))
     return "submap: names submap " + std::to_string(c.submap) + ", not saved";
-  return savedCameraProblem(c);
+  return {};
 }
 
 std::string constraintProblem(const SavedConstraint& c, const std::set<int>& ids) {
@@ -256,26 +249,6 @@ void writeCells(const fs::path& path, const std::vector<std::int8_t>& cells) {
 
 }  // namespace
 
-std::string savedCameraProblem(const SavedCamera& c) {
-  const auto nonNegative = [](double v) { return std::isfinite(v) && v >= 0; };
-  if (c.id < 0) return "id: must be >= 0, got " + std::to_string(c.id);
-  if (c.submap < 0) return "submap: must be >= 0, got " + std::to_string(c.submap);
-  if (!c.floor_to_pixel.allFinite()) return "homography: must be 9 finite numbers";
-  if (const double ic = homographyInverseCondition(c.floor_to_pixel); !(ic > 1e-12))
-    return "homography: is singular (sigma_min/sigma_max = " + numberText(ic) +
-           "); expected an invertible floor -> pixel homography";
-  if (!nonNegative(c.rms_px)) return "rms_px: must be finite and >= 0, got " + numberText(c.rms_px);
-  if (!(nonNegative(c.coverage) && c.coverage <= 1))
-    return "coverage: must be in 0..1, got " + numberText(c.coverage);
-  if (!nonNegative(c.condition))
-    return "condition: must be finite and >= 0, got " + numberText(c.condition);
-  if (c.pairs < 0) return "pairs: must be >= 0, got " + std::to_string(c.pairs);
-  if (c.inliers < 0 || c.inliers > c.pairs)
-    return "inliers: must be in 0.." + std::to_string(c.pairs) + " (pairs), got " +
-           std::to_string(c.inliers);
-  return {};
-}
-
 void saveSlamState(const SlamState& state, const fs::path& dir) {
   const fs::path yaml_path = dir / kStateFile;
   if (state.format_version < SlamState::kOldestFormatVersion ||
@@ -304,13 +277,13 @@ void saveSlamState(const SlamState& state, const fs::path& dir) {
   for (std::size_t k = 0; k < state.cameras.size(); ++k) {
     const SavedCamera& c = state.cameras[k];
     const std::string at =
-        "cameras[" + std::to_string(k) + "] (camera " + std::to_string(c.id) + "): ";
+        "cameras[" + std::to_string(k) + "] (camera " + std::to_string(c.camera) + "): ";
     if (const std::string p = cameraProblem(c, ids); !p.empty()) fail(yaml_path, at + p);
-    if (!camera_ids.insert(c.id).second) fail(yaml_path, at + "id: twice");
+    if (!camera_ids.insert(c.camera).second) fail(yaml_path, at + "id: twice");
     cameras.push_back(&c);
   }
   std::sort(cameras.begin(), cameras.end(),
-            [](const SavedCamera* a, const SavedCamera* b) { return a->id < b->id; });
+            [](const SavedCamera* a, const SavedCamera* b) { return a->camera < b->camera; });
 
   std::error_code ec;
   fs::create_directories(dir, ec);
@@ -351,7 +324,7 @@ void saveSlamState(const SlamState& state, const fs::path& dir) {
   }
   y << "cameras:" << (cameras.empty() ? " []" : "") << "\n";
   for (const SavedCamera* c : cameras) {
-    y << "  - id: " << c->id << "\n"
+    y << "  - id: " << c->camera << "\n"
       << "    submap: " << c->submap << "\n"
       << "    stamp_ns: " << c->stamp_ns << "\n"
       << "    homography: [";
@@ -496,9 +469,9 @@ SlamState loadSlamState(const fs::path& dir) {
       r.fail(n, at, "must be a mapping (id, submap, stamp_ns, homography, rms_px, ...)");
     SavedCamera c;
     const long long max_int = std::numeric_limits<int>::max();
-    c.id = static_cast<int>(r.integer(r.key(n, "id", at + ".id"), at + ".id", 0, max_int));
-    if (!camera_ids.insert(c.id).second)
-      r.fail(n["id"], at + ".id", "camera " + std::to_string(c.id) + " is listed twice");
+    c.camera = static_cast<int>(r.integer(r.key(n, "id", at + ".id"), at + ".id", 0, max_int));
+    if (!camera_ids.insert(c.camera).second)
+      r.fail(n["id"], at + ".id", "camera " + std::to_string(c.camera) + " is listed twice");
     c.submap =
         static_cast<int>(r.integer(r.key(n, "submap", at + ".submap"), at + ".submap", 0, max_int));
     c.stamp_ns =
@@ -522,7 +495,7 @@ SlamState loadSlamState(const fs::path& dir) {
     state.cameras.push_back(c);
   }
   std::sort(state.cameras.begin(), state.cameras.end(),
-            [](const SavedCamera& a, const SavedCamera& b) { return a.id < b.id; });
+            [](const SavedCamera& a, const SavedCamera& b) { return a.camera < b.camera; });
   return state;
 }
 

@@ -123,7 +123,7 @@ TEST_CASE("camera calibrations from the builder keep homography and quality",
   CHECK(r.condition == 1e3);
   CHECK(r.pairs == 50);
   CHECK(r.inliers == 48);
-  CHECK(camera_network::calibrationRecordProblem(r).empty());
+  CHECK(floorCameraCalibrationProblem(r).empty());
 }
 
 TEST_CASE("camera calibrations file that is missing, empty or not YAML names the file",

@@ -208,7 +208,7 @@ TEST_CASE(
   const laser_slam::SlamState state = laser_slam::loadSlamState(out / "map" / "slam_state");
   REQUIRE(state.cameras.size() == 1);
   const laser_slam::SavedCamera& saved = state.cameras[0];
-  CHECK(saved.id == 0);
+  CHECK(saved.camera == 0);
   CHECK(saved.submap == 0);
   CHECK(saved.stamp_ns == cal.stamp_ns);
   CHECK(saved.floor_to_pixel == cal.homography.h);

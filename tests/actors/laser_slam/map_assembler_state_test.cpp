@@ -201,10 +201,10 @@ TEST_CASE(
   const fs::path state_dir = out / "slam_state";
   const laser_slam::SlamState state = laser_slam::loadSlamState(state_dir);
   REQUIRE(state.cameras.size() == 2);
-  CHECK(state.cameras[0].id == 1);
+  CHECK(state.cameras[0].camera == 1);
   CHECK(state.cameras[0].submap == 1);
   CHECK(state.cameras[0].rms_px == 1.1);
-  CHECK(state.cameras[1].id == 4);
+  CHECK(state.cameras[1].camera == 4);
   CHECK(state.cameras[1].submap == 1);
   CHECK(state.cameras[1].stamp_ns == 1504);
   CHECK(state.cameras[1].rms_px == 0.7);

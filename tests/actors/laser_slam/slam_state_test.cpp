@@ -72,7 +72,7 @@ SlamState sampleState() {
   state.constraints = {hand, loop};
   // Two cameras, out of id order: a tilted one calibrated in submap 3, one looking down in 1.
   SavedCamera tilted;
-  tilted.id = 5;
+  tilted.camera = 5;
   tilted.submap = 3;
   tilted.stamp_ns = 1'234'567'890'123;
   tilted.floor_to_pixel << 106.0 + 1.0 / 3.0, -3.25, 320.5, 2.0 / 7.0, 107.3, 240.125, 1e-3 / 3.0,
@@ -83,7 +83,7 @@ SlamState sampleState() {
   tilted.pairs = 402;
   tilted.inliers = 398;
   SavedCamera down;
-  down.id = 2;
+  down.camera = 2;
   down.submap = 1;
   down.stamp_ns = 77;
   down.floor_to_pixel << -50.0, 0.5, 640.0, 0.25, 49.75, 12.0, 0.0, 0.0, 1.0;
@@ -97,7 +97,7 @@ SlamState sampleState() {
 }
 
 void checkSameCamera(const SavedCamera& a, const SavedCamera& b) {
-  CHECK(b.id == a.id);
+  CHECK(b.camera == a.camera);
   CHECK(b.submap == a.submap);
   CHECK(b.stamp_ns == a.stamp_ns);
   CHECK(b.floor_to_pixel == a.floor_to_pixel);
@@ -375,7 +375,7 @@ TEST_CASE("slam state with malformed or inconsistent fields names them", "[slam_
               "homography: [1, 2, 3, 2, 4, 6, 0, 0, 1]", "cameras[0].homography: is singular");
   expectError("  - id: 5\n", "  - id: 2\n", "cameras[1].id: camera 2 is listed twice");
   expectError("  - id: 2\n", "  - id: -2\n", "cameras[0].id: must be in 0..");
-  expectError("inliers: 29", "inliers: 31", "cameras[0].inliers: must be in 0..30 (pairs)");
+  expectError("inliers: 29", "inliers: 31", "cameras[0].inliers: must be in 0..pairs (30), got 31");
   expectError("    coverage: 0.75\n", "", "cameras[0].coverage: missing");
   expectError("cameras:\n", "cameras: {}\nold:\n", "cameras: must be a list");
   // Not YAML at all, and a file cut in half.
@@ -399,7 +399,7 @@ TEST_CASE("slam state with a bad camera names it on save, line and field on load
   CHECK_THROWS_WITH(laser_slam::saveSlamState(state, root / "b"),
                     Contains("cameras[1] (camera 2): homography: must be 9 finite numbers"));
   state = sampleState();
-  state.cameras[1].id = 5;
+  state.cameras[1].camera = 5;
   CHECK_THROWS_WITH(laser_slam::saveSlamState(state, root / "c"),
                     Contains("cameras[1] (camera 5): id: twice"));
   CHECK_FALSE(fs::exists(root / "a" / "state.yaml"));
@@ -413,7 +413,7 @@ TEST_CASE("slam state with a bad camera names it on save, line and field on load
   replaceInFile(dir / "state.yaml", "rms_px: 1.5", "rms_px: .nan");
   CHECK_THROWS_WITH(laser_slam::loadSlamState(dir),
                     Contains("state.yaml:" + std::to_string(line + 4) + ": cameras[0].rms_px"));
-  CHECK(laser_slam::savedCameraProblem(sampleState().cameras[0]).empty());
+  CHECK(floorCameraCalibrationProblem(sampleState().cameras[0]).empty());
 }
 
 TEST_CASE("slam state asymmetric or indefinite information is refused on save", "[slam_state]") {

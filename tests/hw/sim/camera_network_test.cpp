@@ -29,7 +29,7 @@ CameraSite site(int id, double x, double y, double yaw = 0, double roll = 0, dou
 }  // namespace
 
 TEST_CASE("EnvironmentCamera: an untilted camera projects as computed by hand", "[sim][camera]") {
-  CameraIntrinsics in;  // h 3 m, f 320 px, 640 x 480
+  sim::CameraIntrinsics in;  // h 3 m, f 320 px, 640 x 480
   const EnvironmentCamera cam(site(3, 10, 20), in);
   // u = f (x - cx) / h + W/2, v = -f (y - cy) / h + H/2 (image v points to -y for yaw 0).
   for (const Eigen::Vector2d& p :
@@ -52,7 +52,7 @@ TEST_CASE("EnvironmentCamera: an untilted camera projects as computed by hand", 
 }
 
 TEST_CASE("EnvironmentCamera: yaw turns the image, tilt shifts the optical axis", "[sim][camera]") {
-  CameraIntrinsics in;
+  sim::CameraIntrinsics in;
   // Yaw 90 deg: image u runs along +y, v along +x.
   const EnvironmentCamera turned(site(0, 0, 0, M_PI / 2), in);
   const auto px = turned.project({0, 1.5});
@@ -74,7 +74,7 @@ TEST_CASE("EnvironmentCamera: yaw turns the image, tilt shifts the optical axis"
 
 TEST_CASE("EnvironmentCamera: project and floorPoint round-trip for tilted cameras",
           "[sim][camera]") {
-  CameraIntrinsics in;
+  sim::CameraIntrinsics in;
   std::mt19937_64 rng(7);
   std::uniform_real_distribution<double> tilt(-0.1, 0.1), off(-3, 3), yaw(-M_PI, M_PI);
   for (int i = 0; i < 50; ++i) {
@@ -95,19 +95,19 @@ TEST_CASE("EnvironmentCamera: project and floorPoint round-trip for tilted camer
 }
 
 TEST_CASE("EnvironmentCamera: bad intrinsics and tilts are rejected", "[sim][camera]") {
-  CameraIntrinsics in;
+  sim::CameraIntrinsics in;
   CHECK_THROWS_AS(EnvironmentCamera(site(0, 0, 0, 0, 0.6, 0), in), std::invalid_argument);
   in.focal_px = 0;
   CHECK_THROWS_AS(EnvironmentCamera(site(0, 0, 0), in), std::invalid_argument);
-  in = CameraIntrinsics{};
+  in = sim::CameraIntrinsics{};
   in.miss_probability = 1.5;
   CHECK_THROWS_AS(EnvironmentCamera(site(0, 0, 0), in), std::invalid_argument);
-  in = CameraIntrinsics{};
+  in = sim::CameraIntrinsics{};
   CHECK_THROWS_AS(CameraNetwork({site(1, 0, 0), site(1, 10, 0)}, in), std::invalid_argument);
 }
 
 TEST_CASE("CameraNetwork: miss rate and pixel noise follow the configuration", "[sim][camera]") {
-  CameraIntrinsics in;
+  sim::CameraIntrinsics in;
   in.miss_probability = 0.2;
   in.pixel_noise = 2.0;
   CameraNetwork net({site(0, 0, 0)}, in);
@@ -144,7 +144,7 @@ TEST_CASE("CameraNetwork: miss rate and pixel noise follow the configuration", "
 
 TEST_CASE("CameraNetwork: one enter and one leave event on a straight pass under a camera",
           "[sim][camera]") {
-  CameraIntrinsics in;
+  sim::CameraIntrinsics in;
   in.miss_probability = 0.3;  // misses must not cause spurious leave events
   CameraNetwork net({site(5, 10, 0), site(6, 30, 0)}, in);
   std::mt19937_64 rng(11);
@@ -216,7 +216,7 @@ TEST_CASE("EnvironmentCamera: the footprint polygon is the image border on the f
   using footprint_polygon_test::insideMargin;
   using footprint_polygon_test::requireAgrees;
   using footprint_polygon_test::signedArea;
-  CameraIntrinsics in;
+  sim::CameraIntrinsics in;
   SECTION("untilted: the four corners, counter-clockwise") {
     const EnvironmentCamera cam(site(3, 10, 20), in);
     const auto poly = cam.footprintPolygon(30);
@@ -243,7 +243,7 @@ TEST_CASE("EnvironmentCamera: the footprint polygon is the image border on the f
     }
   }
   SECTION("a wide view tilted past the horizon is cut at max_distance") {
-    CameraIntrinsics wide = in;
+    sim::CameraIntrinsics wide = in;
     wide.focal_px = 120;  // 2 x 69 deg across the width
     const EnvironmentCamera cam(site(4, 5, 5, 0.3, 0.45, 0.45), wide);
     // Some image corner's ray misses the floor: its floor point lies behind the camera.

@@ -52,7 +52,7 @@ TEST_CASE("World: the seed 000 camera floor", "[sim][worlds]") {
   CHECK(worst >= 0.45);
 
   // Every camera's footprint is entered by the route, and more than once (revisits).
-  CameraNetwork net(w.cameraSites(), CameraIntrinsics{});
+  CameraNetwork net(w.cameraSites(), sim::CameraIntrinsics{});
   std::vector<int> entries(7, 0);
   std::mt19937_64 rng(1);
   for (std::size_t i = 1; i < route.size(); ++i) {

@@ -62,7 +62,7 @@ void MapAssemblerActor::loadState() {
     kept_keys_.emplace(c.from, c.to, c.relative.x, c.relative.y, c.relative.theta);
     kept_.push_back(c);
   }
-  for (const SavedCamera& c : state.cameras) cameras_[c.id] = c;
+  for (const SavedCamera& c : state.cameras) cameras_[c.camera] = c;
   placeChained();
   noteGridBytes();
   loaded_ = true;
@@ -184,7 +184,7 @@ void MapAssemblerActor::onOptimizedPoses(const Message<msg::SubmapPoses>& m) {
 void MapAssemblerActor::onCameraCalibration(const Message<msg::CameraCalibration>& m) {
   ++calibrations_received_;
   SavedCamera c;
-  c.id = m->getCameraId();
+  c.camera = m->getCameraId();
   c.submap = static_cast<int>(std::min<std::uint32_t>(
       m->getSubmapId(), static_cast<std::uint32_t>(std::numeric_limits<int>::max())));
   c.stamp_ns = m->getHeader().getStampNs();
@@ -199,16 +199,16 @@ void MapAssemblerActor::onCameraCalibration(const Message<msg::CameraCalibration
   c.pairs = count(m->getPairs());
   c.inliers = count(m->getInliers());
   std::string problem = h.size() == 9
-                            ? savedCameraProblem(c)
+                            ? floorCameraCalibrationProblem(c)
                             : "homography: must hold 9 values, got " + std::to_string(h.size());
   if (!problem.empty()) {
     // Saving it would fail the whole state: reported and left out (an older one is kept).
-    std::cerr << "[map_assembler] camera " << c.id << " calibration in submap " << c.submap
+    std::cerr << "[map_assembler] camera " << c.camera << " calibration in submap " << c.submap
               << " ignored: " << problem << "\n";
     ++calibrations_rejected_;
     return;
   }
-  cameras_[c.id] = c;  // a re-calibration replaces the older one
+  cameras_[c.camera] = c;  // a re-calibration replaces the older one
 }
 
 void MapAssemblerActor::placeChained() {

@@ -19,7 +19,8 @@
 //       inliers: 398          # 0..pairs
 //
 // The writer puts the cameras by increasing id and numbers in their shortest round-trip form, so
-// write -> read is exact. It checks the records as the reader does and writes atomically
+// write -> read is exact. It checks the records as the reader does
+// (tessera::floorCameraCalibrationProblem) and writes atomically
 // (tessera/io/atomic_file.hpp): the file is either the previous one or the complete new one.
 //
 // Errors: CameraCalibrationFileError, whose message names the file (and line, when known), the
@@ -33,6 +34,7 @@
 #pragma once
 
 #include <tessera/camera_network/camera_constraint_builder.hpp>
+#include <tessera/geometry/floor_camera_calibration.hpp>
 
 #include <Eigen/Core>
 
@@ -60,27 +62,12 @@ class CameraCalibrationFileError : public std::runtime_error {
   std::string field_;
 };
 
-/// One camera's calibration as stored in the file.
-struct CameraCalibrationRecord {
-  int camera = 0;             ///< camera id, >= 0
-  int submap = 0;             ///< frame of the floor points, >= 0
-  std::int64_t stamp_ns = 0;  ///< end of the visit it was calibrated from
-  /// floor [m, submap frame] -> pixel [px]: [u v 1]ᵀ ~ H [x y 1]ᵀ
-  Eigen::Matrix3d floor_to_pixel = Eigen::Matrix3d::Identity();
-  double rms_px = 0;
-  double coverage = 0;
-  double condition = 0;
-  int pairs = 0;
-  int inliers = 0;
-
-  bool operator==(const CameraCalibrationRecord&) const = default;
-};
+/// One camera's calibration as stored in the file: the same record (and validity check,
+/// tessera::floorCameraCalibrationProblem) that saved SLAM states hold.
+using CameraCalibrationRecord = tessera::FloorCameraCalibration;
 
 /// The record of a calibration the builder holds.
 CameraCalibrationRecord calibrationRecord(const CameraCalibration& calibration);
-
-/// Empty when `r` may be written, else "field: problem" (the rules the reader applies).
-std::string calibrationRecordProblem(const CameraCalibrationRecord& r);
 
 /// Writes `records` to `path` (its folder must exist), by increasing camera id. Throws
 /// CameraCalibrationFileError for an invalid record, a camera id given twice, or a failed write.

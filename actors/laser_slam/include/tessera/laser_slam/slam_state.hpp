@@ -23,6 +23,7 @@
 // numbers or is singular.
 #pragma once
 
+#include <tessera/geometry/floor_camera_calibration.hpp>
 #include <tessera/geometry/pose2.hpp>
 #include <tessera/grid/occupancy_map.hpp>
 
@@ -56,19 +57,10 @@ struct SavedConstraint {
   bool revisit = false;  ///< false: the hand-over from `from` to the new submap `to`
 };
 
-/// An environment camera's floor-plane calibration (docs/algorithms.md#camera-network-calibration).
-struct SavedCamera {
-  int id = 0;                 ///< camera id, >= 0, unique in a state
-  int submap = 0;             ///< a saved submap: the frame of the floor points
-  std::int64_t stamp_ns = 0;  ///< end of the visit it was calibrated from
-  /// floor [m, submap frame] -> pixel [px], [u v 1]ᵀ ~ H [x y 1]ᵀ; finite, non-singular
-  Eigen::Matrix3d floor_to_pixel = Eigen::Matrix3d::Identity();
-  double rms_px = 0;     ///< inliers' reprojection RMS [px], >= 0
-  double coverage = 0;   ///< inlier pixels' convex hull / image area, 0..1
-  double condition = 0;  ///< σ_max / σ_8 of the normalised DLT matrix, >= 0
-  int pairs = 0;         ///< (marker position, pixel) pairs, >= 0
-  int inliers = 0;       ///< 0..pairs
-};
+/// An environment camera's floor-plane calibration (docs/algorithms.md#camera-network-calibration):
+/// the record camera calibration files hold too, checked by tessera::floorCameraCalibrationProblem;
+/// a saved one must also name a saved submap.
+using SavedCamera = tessera::FloorCameraCalibration;
 
 struct SlamState {
   static constexpr int kFormatVersion = 2;        ///< the version saveSlamState() writes
@@ -83,10 +75,6 @@ struct SlamState {
   std::vector<SavedConstraint> constraints;  ///< each names two saved submaps
   std::vector<SavedCamera> cameras;          ///< each names a saved submap; written by id
 };
-
-/// Empty when `camera` is valid on its own (saving also needs its submap saved), else
-/// "field: problem", e.g. "homography: is singular (...)".
-std::string savedCameraProblem(const SavedCamera& camera);
 
 /// Writes `state` into directory `dir` (created if needed): the cell files first, state.yaml
 /// last, so an interrupted save leaves no state.yaml that names missing files. Checks the state
