@@ -45,6 +45,10 @@ struct SubmapConstraint {
   # A scan-level graph attaches that scan to submap j with it. Unset for hand-overs and for
   # revisits not made from a scan.
   scanInTo @5 :Common.Pose2D;
+  # Hand-overs only: the builder was lost when it started j (its scan matching collapsed,
+  # docs/algorithms.md#camera-network-calibration), so j is placed by odometry alone, with a wide
+  # covariance, and is not anchored to i until a revisit (a camera or a loop closure) places it.
+  lost @6 :Bool;
 }
 
 # The global level's answer: every submap's optimised origin in the map frame (docs/algorithms.md#submap-hand-over-and-loop-detection).

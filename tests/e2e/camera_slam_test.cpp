@@ -37,6 +37,12 @@ TEST_CASE("sim_camera_slam calibrates the cameras and sends only true revisit co
   CHECK(revisits >= 1);
   CHECK(std::get<std::int64_t>(cams.at("revisits_false")) == 0);
   CHECK(loc < 0.08);
+  // Each visit's path is the odometry's placed on the SLAM (odometry_shape): the calibrations'
+  // reprojection RMS is then near the pixel noise's √2 px (2.5-3 px from the SLAM's path).
+  CHECK(test::summaryInt(report, "camera_slam", "visits_odometry_shaped") >= calibrations);
+  const double rms_px = std::get<double>(cams.at("calibration_rms_px"));
+  INFO("calibration RMS " << rms_px << " px");
+  CHECK(rms_px < 1.8);
   CHECK(test::summaryInt(report, "optimizer", "constraints_unresolved") == 0);
   // The calibrations file names each camera's submap and homography.
   const YAML::Node file = YAML::LoadFile((out / "camera_calibrations.yaml").string());
@@ -94,6 +100,8 @@ TEST_CASE("a robot kidnapped on the camera floor is found lost and relocalised b
   // it agrees with the smoothed trajectory.
   CHECK(test::summaryInt(report, "camera_slam", "unanchored_handovers") == 1);
   CHECK(test::summaryInt(report, "camera_slam", "relocalisations") == 1);
+  // ... and refined once its submap's smoothed trajectory came.
+  CHECK(test::summaryInt(report, "camera_slam", "relocalisations_refined") == 1);
   const auto live = tessera::mapping::readTum(out / "trajectory.tum");
   const auto live_at = std::find_if(live.begin(), live.end(),
                                     [](const auto& p) { return p.stamp_ns >= 700'000'000'000; });

@@ -19,8 +19,12 @@ ConfigCheck CameraConstraintBuilderOptions::check() const {
       .require(image_height_px > 0, "image_height_px", "must be > 0", image_height_px)
       .positive("slam_position_std_m", slam_position_std_m)
       .require(stale_visits >= 1, "stale_visits", "must be >= 1", stale_visits)
-      .require(max_visit_sightings >= 1, "max_visit_sightings", "must be >= 1",
-               max_visit_sightings);
+      .require(max_visit_sightings >= 1, "max_visit_sightings", "must be >= 1", max_visit_sightings)
+      .positive("odometry_shape_max_s", odometry_shape_max_s)
+      .require(
+          std::isfinite(relocalisation_covariance_scale) && relocalisation_covariance_scale >= 1,
+          "relocalisation_covariance_scale", "must be finite and >= 1",
+          relocalisation_covariance_scale);
   return c;
 }
 
@@ -61,7 +65,7 @@ std::vector<CameraOutput> CameraConstraintBuilder::leave(int camera, std::int64_
 
 bool CameraConstraintBuilder::add(const CameraSighting& s) {
   if (!s.pixel.allFinite() || !s.robot.isFinite() || !std::isfinite(s.pixel_std) ||
-      !(s.pixel_std > 0)) {
+      !(s.pixel_std > 0) || (s.odometry && !s.odometry->isFinite())) {
     ++ignored_;
     return false;
   }
@@ -88,26 +92,33 @@ std::vector<CameraOutput> CameraConstraintBuilder::finish(std::int64_t stamp_ns)
 std::vector<CameraOutput> CameraConstraintBuilder::addTrajectory(
     std::uint32_t id, const std::vector<std::pair<std::int64_t, Pose2>>& poses) {
   auto& t = trajectories_[id];
+  if (!t.empty()) {
+    const auto end = trajectory_ends_.find(t.back().first);
+    if (end != trajectory_ends_.end() && end->second == id) trajectory_ends_.erase(end);
+  }
   t.clear();
   for (const auto& p : poses)
     if (p.second.isFinite() && (t.empty() || p.first > t.back().first)) t.push_back(p);
-  if (!t.empty()) smoothed_until_ = std::max(smoothed_until_, t.back().first);
+  if (!t.empty()) {
+    smoothed_until_ = std::max(smoothed_until_, t.back().first);
+    trajectory_ends_.emplace(t.back().first, id);  // an equal end keeps the earlier submap
+  }
   return release(false);
 }
 
 Pose2 CameraConstraintBuilder::smoothed(std::int64_t stamp, const Pose2& online) const {
-  for (const auto& [id, t] : trajectories_) {
-    if (t.empty() || stamp < t.front().first || stamp > t.back().first) continue;
-    const auto origin = origins_.find(id);
-    if (origin == origins_.end()) return online;
-    const auto it = std::lower_bound(t.begin(), t.end(), stamp,
-                                     [](const auto& a, std::int64_t s) { return a.first < s; });
-    if (it->first == stamp) return origin->second * it->second;
-    const auto prev = std::prev(it);
-    const double f = double(stamp - prev->first) / double(it->first - prev->first);
-    return origin->second * interpolate(prev->second, it->second, f);
-  }
-  return online;
+  const auto end = trajectory_ends_.lower_bound(stamp);
+  if (end == trajectory_ends_.end()) return online;
+  const auto& t = trajectories_.at(end->second);
+  if (stamp < t.front().first) return online;
+  const auto origin = origins_.find(end->second);
+  if (origin == origins_.end()) return online;
+  const auto it = std::lower_bound(t.begin(), t.end(), stamp,
+                                   [](const auto& a, std::int64_t s) { return a.first < s; });
+  if (it->first == stamp) return origin->second * it->second;
+  const auto prev = std::prev(it);
+  const double f = double(stamp - prev->first) / double(it->first - prev->first);
+  return origin->second * interpolate(prev->second, it->second, f);
 }
 
 std::vector<CameraOutput> CameraConstraintBuilder::release(bool all) {
@@ -167,19 +178,69 @@ std::vector<CameraOutput> CameraConstraintBuilder::endVisit(int camera, std::int
   const auto cal = calibrations_.find(camera);
   if (unanchored_since_ && current_ >= *unanchored_since_ && cal != calibrations_.end() &&
       cal->second.submap < *unanchored_since_) {
-    // The relocalisation: the robot's online poses in the unanchored submap, now.
+    // The relocalisation: the robot's online poses in the unanchored submap, now. Provisional:
+    // the same visit on smoothed poses follows.
+    HeldVisit refine = v;
     v.relocalisation = true;
     auto out = process(std::move(v));
-    for (const auto& o : out)
-      if (o.kind == CameraOutput::Kind::kRevisit) unanchored_since_.reset();
+    bool placed = false;
+    for (auto& o : out)
+      if (o.kind == CameraOutput::Kind::kRevisit) {
+        placed = true;
+        o.covariance *= options_.relocalisation_covariance_scale;
+      }
+    if (placed) {
+      unanchored_since_.reset();
+      if (options_.smoothed_poses) {
+        refine.refines_relocalisation = true;
+        held_.push_back(std::move(refine));
+      }
+    }
     return out;
   }
   held_.push_back(std::move(v));
   return release(!options_.smoothed_poses);
 }
 
+bool CameraConstraintBuilder::placeOdometryShape(std::vector<CameraSighting>& sightings) const {
+  std::vector<CameraSighting*> with;
+  for (auto& s : sightings)
+    if (s.odometry) with.push_back(&s);
+  if (with.size() < 2) return false;
+  const double span_s = 1e-9 * double(with.back()->stamp_ns - with.front()->stamp_ns);
+  if (span_s > options_.odometry_shape_max_s) return false;
+  // The rigid transform T minimising Σ |T(odometry_k) - slam_k|² over the robot positions
+  // (2D Procrustes); a robot that hardly moved gives no rotation from positions, so then its
+  // headings give it.
+  Eigen::Vector2d mo = Eigen::Vector2d::Zero(), ms = Eigen::Vector2d::Zero();
+  for (const auto* s : with) {
+    mo += s->odometry->translation();
+    ms += s->robot.translation();
+  }
+  mo /= double(with.size());
+  ms /= double(with.size());
+  double dot = 0, cross = 0, extent = 0, sin_sum = 0, cos_sum = 0;
+  for (const auto* s : with) {
+    const Eigen::Vector2d a = s->odometry->translation() - mo, b = s->robot.translation() - ms;
+    dot += a.dot(b);
+    cross += a.x() * b.y() - a.y() * b.x();
+    extent = std::max(extent, a.norm());
+    const double d = angleDiff(s->robot.theta, s->odometry->theta);
+    sin_sum += std::sin(d);
+    cos_sum += std::cos(d);
+  }
+  const double theta = extent >= 0.1 ? std::atan2(cross, dot) : std::atan2(sin_sum, cos_sum);
+  const double c = std::cos(theta), sn = std::sin(theta);
+  const Eigen::Vector2d t =
+      ms - Eigen::Vector2d(c * mo.x() - sn * mo.y(), sn * mo.x() + c * mo.y());
+  const Pose2 place(t.x(), t.y(), theta);
+  for (auto* s : with) s->robot = place * *s->odometry;
+  return true;
+}
+
 std::vector<CameraOutput> CameraConstraintBuilder::process(HeldVisit visit) {
   std::vector<CameraOutput> out;
+  if (options_.odometry_shape && placeOdometryShape(visit.sightings)) ++odometry_shaped_;
   const int camera = visit.camera;
   const std::int64_t stamp_ns = visit.stamp_ns;
   const std::vector<CameraSighting>& sightings = visit.sightings;
@@ -213,6 +274,7 @@ std::vector<CameraOutput> CameraConstraintBuilder::process(HeldVisit visit) {
   o.to = j;
   o.sightings = static_cast<int>(points.size());
   o.relocalisation = visit.relocalisation;
+  o.refines_relocalisation = visit.refines_relocalisation;
   if (i == j) {
     // Still in the calibration's submap: the positions must agree as they are.
     double sse = 0;

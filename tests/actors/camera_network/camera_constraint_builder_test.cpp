@@ -293,10 +293,151 @@ TEST_CASE("after an unanchored submap the next calibrated camera relocalises at 
   CHECK(std::hypot(out[0].relative.x - truth.x, out[0].relative.y - truth.y) < 0.05);
   CHECK(std::abs(tessera::angleDiff(out[0].relative.theta, truth.theta)) < 0.02);
   CHECK_FALSE(b.unanchoredSince());
-  CHECK(b.heldVisits() == 0);
+  // Provisional: the same visit is held to be refit on smoothed poses.
+  CHECK(b.heldVisits() == 1);
   // Anchored again: the next visit waits for the smoothed poses as usual.
   CHECK(w.visit(b, 0.4, 1.0, false, wrong).empty());
-  CHECK(b.heldVisits() == 1);
+  CHECK(b.heldVisits() == 2);
+  // No trajectory ever comes here, so finish() refits the relocalisation's visit on the same
+  // (online) poses: the same constraint, with the covariance not scaled up.
+  const auto later = b.finish(w.t);
+  REQUIRE(later.size() == 2);
+  REQUIRE(later[0].kind == CameraOutput::Kind::kRevisit);
+  CHECK(later[0].refines_relocalisation);
+  CHECK_FALSE(later[0].relocalisation);
+  CHECK(later[0].from == 4);
+  CHECK(later[0].to == 0);
+  CHECK(later[0].relative.x == out[0].relative.x);
+  CHECK(later[0].relative.theta == out[0].relative.theta);
+  const double scale = CameraConstraintBuilderOptions{}.relocalisation_covariance_scale;
+  CHECK(out[0].covariance.isApprox(scale * later[0].covariance, 1e-9));
+  CHECK_FALSE(later[1].refines_relocalisation);
+  CHECK(b.heldVisits() == 0);
+}
+
+TEST_CASE("a relocalisation is refined on the smoothed trajectory of its submap",
+          "[camera_network][revisit]") {
+  CameraWorld w;
+  CameraConstraintBuilder b(CameraConstraintBuilderOptions{});
+  CHECK(w.visit(b, 1.0, 0.0, true).empty());
+  REQUIRE(b.finish(w.t).size() == 1);
+  const Pose2 o4_true(6.0, -1.0, 0.7);
+  const Pose2 wrong(30.0, -12.0, 2.0);
+  REQUIRE(b.addSubmap(4, wrong * o4_true, /*anchored=*/false));
+  // The online poses drift sideways at 1 cm/s; the smoothed trajectory is the truth.
+  std::vector<std::pair<std::int64_t, Pose2>> smoothed;
+  const std::int64_t t0 = w.t;
+  b.enter(w.camera.id(), w.t);
+  w.drive(0.4, 2.5, false, wrong, [&](CameraSighting s) {
+    const double f = double(s.stamp_ns - t0) / 1e9;
+    smoothed.emplace_back(s.stamp_ns, (wrong * o4_true).inverse() * s.robot);
+    s.robot = s.robot * Pose2(0.0, 0.01 * f, 0.0);
+    b.add(s);
+  });
+  const auto out = b.leave(w.camera.id(), w.t);
+  REQUIRE(out.size() == 1);
+  REQUIRE(out[0].kind == CameraOutput::Kind::kRevisit);
+  CHECK(out[0].relocalisation);
+  const auto later = b.addTrajectory(4, smoothed);
+  REQUIRE(later.size() == 1);
+  REQUIRE(later[0].kind == CameraOutput::Kind::kRevisit);
+  CHECK(later[0].refines_relocalisation);
+  const Pose2 truth = o4_true.inverse();
+  const double err_online = std::hypot(out[0].relative.x - truth.x, out[0].relative.y - truth.y);
+  const double err_smoothed =
+      std::hypot(later[0].relative.x - truth.x, later[0].relative.y - truth.y);
+  INFO("online " << err_online << " m, smoothed " << err_smoothed << " m");
+  CHECK(err_smoothed < 0.02);
+  CHECK(err_smoothed < 0.5 * err_online);
+  // The provisional one weighs far less.
+  CHECK(out[0].covariance.trace() > 20 * later[0].covariance.trace());
+}
+
+TEST_CASE("a visit's path is the odometry's, placed on the SLAM's wandering poses",
+          "[camera_network][revisit]") {
+  // The SLAM's poses wander by a few centimetres over the calibration loop (slowly, as scan
+  // matching against a 5 cm grid does); the odometry, in its own frame, keeps the path's shape.
+  const Pose2 odom_frame(-40.0, 7.0, 1.1);  // world -> odom frame, arbitrary
+  const auto calibrate = [&](bool shape, bool with_odometry) {
+    CameraWorld w;
+    CameraConstraintBuilderOptions o = onlineOptions();
+    o.odometry_shape = shape;
+    CameraConstraintBuilder b(o);
+    b.enter(w.camera.id(), w.t);
+    w.drive(1.0, 0.0, true, Pose2(), [&](CameraSighting s) {
+      const double t = 1e-9 * double(s.stamp_ns);
+      if (with_odometry) s.odometry = odom_frame * s.robot;
+      s.robot = s.robot * Pose2(0.03 * std::sin(1.3 * t), 0.03 * std::cos(1.1 * t), 0.0);
+      b.add(s);
+    });
+    const auto out = b.leave(w.camera.id(), w.t);
+    REQUIRE(out.size() == 1);
+    REQUIRE(out[0].kind == CameraOutput::Kind::kCalibrated);
+    return std::make_pair(out[0].calibration->homography.quality.rms_px, b.odometryShapedVisits());
+  };
+  const auto [slam_rms, slam_shaped] = calibrate(false, true);
+  const auto [odom_rms, odom_shaped] = calibrate(true, true);
+  const auto [none_rms, none_shaped] = calibrate(true, false);
+  INFO("RMS with the SLAM's path " << slam_rms << " px, with the odometry's " << odom_rms
+                                   << " px, without odometry " << none_rms << " px");
+  CHECK(slam_shaped == 0);
+  CHECK(odom_shaped == 1);
+  CHECK(none_shaped == 0);
+  CHECK(odom_rms < 1.6);  // √2 px for 1 px per axis: the pixel noise alone
+  CHECK(slam_rms > odom_rms + 0.5);
+  CHECK(none_rms == slam_rms);  // without odometry nothing changes
+}
+
+TEST_CASE("odometry that is not finite is ignored and long visits keep the SLAM's path",
+          "[camera_network][revisit]") {
+  CameraWorld w;
+  CameraConstraintBuilderOptions o = onlineOptions();
+  o.odometry_shape_max_s = 5.0;  // shorter than the loop
+  CameraConstraintBuilder b(o);
+  b.enter(w.camera.id(), w.t);
+  int refused = 0;
+  w.drive(1.0, 0.0, true, Pose2(), [&](CameraSighting s) {
+    s.odometry = s.robot;
+    if (!b.add(s)) ++refused;
+    s.odometry = Pose2(std::nan(""), 0.0, 0.0);
+    if (!b.add(s)) ++refused;
+  });
+  CHECK(refused > 50);
+  CHECK(static_cast<std::uint64_t>(refused) == b.ignoredSightings());
+  const auto out = b.leave(w.camera.id(), w.t);
+  REQUIRE(out.size() == 1);
+  CHECK(out[0].kind == CameraOutput::Kind::kCalibrated);
+  CHECK(b.odometryShapedVisits() == 0);
+}
+
+TEST_CASE("the odometry path is placed where the SLAM's is", "[camera_network][revisit]") {
+  // Exact SLAM and exact odometry in another frame: the calibration and the revisit after it are
+  // the same as from the SLAM alone.
+  const Pose2 odom_frame(3.0, -2.0, -0.6);
+  const auto run = [&](bool shape) {
+    CameraWorld w;
+    CameraConstraintBuilderOptions o = onlineOptions();
+    o.odometry_shape = shape;
+    CameraConstraintBuilder b(o);
+    const auto withOdometry = [&](CameraSighting s) {
+      s.odometry = odom_frame * s.robot;
+      b.add(s);
+    };
+    b.enter(w.camera.id(), w.t);
+    w.drive(1.0, 0.0, true, Pose2(), withOdometry);
+    REQUIRE(b.leave(w.camera.id(), w.t).size() == 1);
+    const Pose2 o7_true(9.0, 4.0, 2.0), drift(0.5, -0.6, 0.1);
+    REQUIRE(b.addSubmap(7, drift * o7_true));
+    b.enter(w.camera.id(), w.t);
+    w.drive(0.4, 2.5, false, drift, withOdometry);
+    const auto out = b.leave(w.camera.id(), w.t);
+    REQUIRE(out.size() == 1);
+    REQUIRE(out[0].kind == CameraOutput::Kind::kRevisit);
+    return out[0].relative;
+  };
+  const Pose2 a = run(false), b = run(true);
+  CHECK(std::hypot(a.x - b.x, a.y - b.y) < 1e-6);
+  CHECK(std::abs(tessera::angleDiff(a.theta, b.theta)) < 1e-8);
 }
 
 TEST_CASE("camera constraint builder options are checked", "[camera_network][revisit]") {
@@ -309,6 +450,14 @@ TEST_CASE("camera constraint builder options are checked", "[camera_network][rev
   o = {};
   o.revisit.max_rms_m = std::nan("");
   CHECK_THROWS_WITH(CameraConstraintBuilder(o), Catch::Contains("max_rms_m"));
+  o = {};
+  o.relocalisation_covariance_scale = 0.5;
+  CHECK_THROWS_WITH(CameraConstraintBuilder(o), Catch::Contains("relocalisation_covariance_scale"));
+  o.relocalisation_covariance_scale = std::nan("");
+  CHECK_THROWS_WITH(CameraConstraintBuilder(o), Catch::Contains("relocalisation_covariance_scale"));
+  o = {};
+  o.odometry_shape_max_s = 0;
+  CHECK_THROWS_WITH(CameraConstraintBuilder(o), Catch::Contains("odometry_shape_max_s"));
 }
 
 }  // namespace camera_constraint_builder_test

@@ -2,6 +2,7 @@
 // the submap's smoothed trajectory), a revisit constraint from a later submap, bad input; the
 // published calibration saved with the map by the map assembler, and the calibrations file.
 #include <tessera/msg/camera.capnp.h>
+#include <tessera/msg/sensor.capnp.h>
 #include <tessera/msg/submap.capnp.h>
 #include <tessera/camera_network/camera_calibration_file.hpp>
 #include <tessera/camera_network/camera_network_slam_actor.hpp>
@@ -37,6 +38,7 @@ struct Drive {
   std::uint32_t seq = 0;
   Pose2 origin;  // current submap's origin in the chained frame (= world here)
   std::vector<std::pair<std::int64_t, Pose2>> trajectory;  // current submap's, its own frame
+  bool odometry = false;  // also publish odometry (in a frame of its own) at each frame
 
   /// One frame at 10 Hz: the chained pose, and the camera's detection when in view.
   void frame(const Pose2& truth, bool nan_pixel = false) {
@@ -46,6 +48,11 @@ struct Drive {
       setHeader(b.initHeader(), t, "map", seq);
       writePose(b.initPose(), truth);
     });
+    if (odometry)
+      h.push<msg::Odometry>("odom", [&](msg::Odometry::Builder b) {
+        setHeader(b.initHeader(), t, "odom", seq);
+        writePose(b.initPose(), Pose2(5.0, -3.0, 0.4) * truth);
+      });
     trajectory.emplace_back(t, origin.inverse() * truth);
     if (camera.inView(truth.translation())) {
       std::normal_distribution<double> n(0.0, 1.0);
@@ -69,9 +76,19 @@ struct Drive {
     });
     h.runUntilIdle();
   }
+  /// A visit of the camera driving a loop of 1 m radius under it (a calibration's motion).
+  void calibrationLoop() {
+    const Eigen::Vector2d c = camera.site().position;
+    event(true);
+    for (double a = 0; a < 2 * M_PI; a += 0.03)
+      frame(Pose2(c + Eigen::Vector2d(std::cos(a), std::sin(a)), a + M_PI / 2));
+    event(false);
+  }
   /// The builder finishes the current submap (with its smoothed trajectory) and starts `id` at
-  /// the robot's pose `start`.
-  void handOver(std::uint32_t from, std::uint32_t id, const Pose2& start) {
+  /// the robot's pose `start` (`lost`: the builder was lost, as after a kidnapping), with a
+  /// position std of `std_m` [m].
+  void handOver(std::uint32_t from, std::uint32_t id, const Pose2& start, bool lost = false,
+                double std_m = 0.05) {
     h.push<msg::Submap>("submaps", [&](msg::Submap::Builder b) {
       test::fillSubmap(b, static_cast<int>(from), origin, t);
       auto list = b.initTrajectory(static_cast<unsigned>(trajectory.size()));
@@ -86,8 +103,10 @@ struct Drive {
       setHeader(b.initHeader(), t, "map", seq);
       b.setFromId(from);
       b.setToId(id);
-      writePose(b.initRelative(), origin.inverse() * start);
+      const Eigen::Matrix3d cov = Eigen::Vector3d(std_m * std_m, std_m * std_m, 0.01).asDiagonal();
+      writePose(b.initRelative(), origin.inverse() * start, &cov);
       b.setKind(msg::SubmapConstraint::Kind::HAND_OVER);
+      b.setLost(lost);
     });
     h.runUntilIdle();
     origin = start;
@@ -109,6 +128,7 @@ TEST_CASE("camera_network_slam calibrates at a first visit and sends a revisit c
   CameraNetworkSlamOptions o;
   ActorHarness h(std::make_unique<CameraNetworkSlamActor>(o));
   Drive d(h, camera());
+  d.odometry = true;
   const Eigen::Vector2d c = d.camera.site().position;
   // Submap 0: a loop of 1 m radius under the camera.
   d.event(true);
@@ -149,6 +169,58 @@ TEST_CASE("camera_network_slam calibrates at a first visit and sends a revisit c
   CHECK(cov.allFinite());
   CHECK(cov.determinant() > 0);
   CHECK(std::get<std::int64_t>(summary()["revisits"]) == 1);
+  // Both visits' paths were the odometry's (the SLAM is exact here, so nothing else changes).
+  CHECK(std::get<std::int64_t>(summary()["sightings_with_odometry"]) ==
+        std::get<std::int64_t>(summary()["sightings"]));
+  CHECK(std::get<std::int64_t>(summary()["visits_odometry_shaped"]) == 2);
+}
+
+TEST_CASE("camera_network_slam relocalises after a lost hand-over and refines it later",
+          "[camera_network][actor]") {
+  CameraNetworkSlamOptions o;
+  ActorHarness h(std::make_unique<CameraNetworkSlamActor>(o));
+  Drive d(h, camera());
+  const Eigen::Vector2d c = d.camera.site().position;
+  auto summary = [&] {
+    Summary s;
+    h.actor().summarize(s);
+    return s;
+  };
+  d.calibrationLoop();
+  d.handOver(0, 1, Pose2(12, 5, 2.0), /*lost=*/false, /*std_m=*/100.0);
+  REQUIRE(std::get<std::int64_t>(summary()["calibrations"]) == 1);
+  // A hand-over with a wide covariance is not a lost one: only the flag says so.
+  CHECK(std::get<std::int64_t>(summary()["unanchored_handovers"]) == 0);
+
+  // Lost in submap 1: submap 2 starts where the builder's odometry guessed; here the chain and
+  // the world agree, so the revisit is checked against the truth as usual.
+  const Pose2 start2(-3, 2, -1.0);
+  d.handOver(1, 2, start2, /*lost=*/true);
+  CHECK(std::get<std::int64_t>(summary()["unanchored_handovers"]) == 1);
+  d.event(true);
+  for (double s = -3; s <= 3; s += 0.03) d.frame(Pose2(c + Eigen::Vector2d(s, 0.3), 0.0));
+  d.event(false);
+  // At the visit's end, without waiting for submap 2 to finish.
+  auto out = h.published<msg::SubmapConstraint>("camera_constraints");
+  REQUIRE(out.size() == 1);
+  CHECK(out[0]->getFromId() == 2);
+  CHECK(out[0]->getToId() == 0);
+  CHECK(std::get<std::int64_t>(summary()["relocalisations"]) == 1);
+  Eigen::Matrix3d provisional, refined;
+  REQUIRE(readCovariance(out[0]->getRelative(), provisional));
+  // Submap 2 finishes: the same visit on its smoothed trajectory, weighing far more.
+  d.handOver(2, 3, Pose2(20, 0, 0));
+  out = h.published<msg::SubmapConstraint>("camera_constraints");
+  REQUIRE(out.size() == 2);
+  CHECK(out[1]->getFromId() == 2);
+  CHECK(out[1]->getToId() == 0);
+  REQUIRE(readCovariance(out[1]->getRelative(), refined));
+  CHECK(provisional.trace() > 20 * refined.trace());
+  const Pose2 rel = toPose2(out[1]->getRelative());
+  const Pose2 truth = start2.inverse();
+  CHECK(std::hypot(rel.x - truth.x, rel.y - truth.y) < 0.05);
+  CHECK(std::get<std::int64_t>(summary()["relocalisations_refined"]) == 1);
+  CHECK(std::get<std::int64_t>(summary()["revisits"]) == 2);
 }
 
 TEST_CASE(
@@ -162,11 +234,7 @@ TEST_CASE(
   const CameraNetworkSlamOptions o;
   ActorHarness h(std::make_unique<CameraNetworkSlamActor>(o), (out / "cameras").string());
   Drive d(h, camera());
-  const Eigen::Vector2d c = d.camera.site().position;
-  d.event(true);
-  for (double a = 0; a < 2 * M_PI; a += 0.03)
-    d.frame(Pose2(c + Eigen::Vector2d(std::cos(a), std::sin(a)), a + M_PI / 2));
-  d.event(false);
+  d.calibrationLoop();
   CHECK(h.published<msg::CameraCalibration>("camera_calibrations").empty());  // held
   d.handOver(0, 1, Pose2(12, 5, 2.0));
   const auto published = h.published<msg::CameraCalibration>("camera_calibrations");
@@ -231,6 +299,11 @@ TEST_CASE("camera_network_slam ignores bad input and counts it", "[camera_networ
     writePose(b.initRelative(), Pose2(std::nan(""), 0, 0));
     b.setKind(msg::SubmapConstraint::Kind::HAND_OVER);
   });
+  // Odometry that is not finite.
+  h.push<msg::Odometry>("odom", [&](msg::Odometry::Builder b) {
+    setHeader(b.initHeader(), 0, "odom", 0);
+    writePose(b.initPose(), Pose2(0, std::nan(""), 0));
+  });
   // A missed detection.
   h.push<msg::MarkerDetection>("camera_detections", [&](msg::MarkerDetection::Builder b) {
     setHeader(b.initHeader(), 0, "camera_0", 0);
@@ -246,6 +319,7 @@ TEST_CASE("camera_network_slam ignores bad input and counts it", "[camera_networ
   Summary s;
   h.actor().summarize(s);
   CHECK(std::get<std::int64_t>(s["misses"]) == 1);
+  CHECK(std::get<std::int64_t>(s["odometry_ignored"]) == 1);
   CHECK(std::get<std::int64_t>(s["calibrations"]) == 0);
   CHECK(std::get<std::int64_t>(s["calibrations_refused"]) == 1);
   CHECK(std::get<std::string>(s["last_refusal"]).find("too few pairs") != std::string::npos);

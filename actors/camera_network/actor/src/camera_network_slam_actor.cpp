@@ -26,12 +26,12 @@ CameraNetworkSlamOptions checked(CameraNetworkSlamOptions o) {
   require(o.detection_queue >= 1, "detection_queue", "must be >= 1");
   require(o.pose_queue >= 1, "pose_queue", "must be >= 1");
   require(o.pose_history >= 2, "pose_history", "must be >= 2");
+  require(o.odom_queue >= 1, "odom_queue", "must be >= 1");
+  require(o.odom_history >= 2, "odom_history", "must be >= 2");
   require(std::isfinite(o.max_pose_gap_s) && o.max_pose_gap_s > 0, "max_pose_gap_s",
           "must be finite and > 0");
   require(std::isfinite(o.truth_tolerance_linear) && o.truth_tolerance_linear > 0,
           "truth_tolerance_linear", "must be finite and > 0");
-  require(std::isfinite(o.unanchored_std_m) && o.unanchored_std_m > 0, "unanchored_std_m",
-          "must be finite and > 0");
   require(std::isfinite(o.truth_tolerance_angular) && o.truth_tolerance_angular > 0,
           "truth_tolerance_angular", "must be finite and > 0");
   return o;
@@ -49,7 +49,8 @@ CameraNetworkSlamActor::CameraNetworkSlamActor(CameraNetworkSlamOptions options)
         }
       }()),
       pairing_(static_cast<std::size_t>(options_.detection_queue),
-               static_cast<std::size_t>(options_.pose_history), options_.max_pose_gap_s) {
+               static_cast<std::size_t>(options_.pose_history), options_.max_pose_gap_s),
+      odom_(static_cast<std::size_t>(options_.odom_history), options_.max_pose_gap_s) {
   chained_origins_[0] = Pose2::identity();
 }
 
@@ -87,6 +88,13 @@ void CameraNetworkSlamActor::configure(ActorContext& ctx) {
         pairing_.addItem({item, stamp}, stamp,
                          [this](const auto& it, const Pose2& p) { use(it.first, it.second, p); });
       });
+  if (options_.builder.odometry_shape) {
+    ctx.subscribe<msg::Odometry>(
+        "odom", MailboxPolicy::keepLatest(static_cast<std::size_t>(options_.odom_queue)),
+        [this](const Message<msg::Odometry>& m) {
+          if (!odom_.add(m->getHeader().getStampNs(), toPose2(m->getPose()))) ++odom_ignored_;
+        });
+  }
   ctx.subscribe<msg::PoseStamped>(
       "chained_pose", MailboxPolicy::keepLatest(static_cast<std::size_t>(options_.pose_queue)),
       [this](const Message<msg::PoseStamped>& m) {
@@ -109,15 +117,11 @@ void CameraNetworkSlamActor::configure(ActorContext& ctx) {
         const std::uint32_t to = m->getToId();
         const Pose2 origin = from->second * relative;
         chained_origins_[to] = origin;
-        Eigen::Matrix3d cov;
-        const double std_m =
-            readCovariance(m->getRelative(), cov) ? std::sqrt(std::max(cov(0, 0), cov(1, 1))) : 0.0;
-        const bool anchored = !(std_m > options_.unanchored_std_m);
+        const bool anchored = !m->getLost();
         if (!anchored) {
           ++unanchored_handovers_;
-          std::cerr << "[camera_network_slam] submap " << to << " is unanchored (hand-over std "
-                    << std_m
-                    << " m): the next calibrated camera "
+          std::cerr << "[camera_network_slam] submap " << to
+                    << " is unanchored (the submap builder was lost): the next calibrated camera "
                        "relocalises it\n";
         }
         builder_.addSubmap(to, origin, anchored);
@@ -159,7 +163,14 @@ void CameraNetworkSlamActor::use(const Item& item, std::int64_t stamp, const Pos
   s.pixel = item.pixel;
   s.pixel_std = item.pixel_std;
   s.robot = chained;
-  if (builder_.add(s)) ++sightings_;
+  Pose2 odom;
+  if (const auto r = odom_.at(stamp, odom);
+      r == PoseHistory::Lookup::kExact || r == PoseHistory::Lookup::kInterpolated)
+    s.odometry = odom;
+  if (builder_.add(s)) {
+    ++sightings_;
+    if (s.odometry) ++sightings_with_odometry_;
+  }
   if (options_.score_ground_truth) scoreSighting(s, item.corners);
 }
 
@@ -243,7 +254,13 @@ void CameraNetworkSlamActor::publishRevisit(const CameraOutput& o) {
   if (o.relocalisation) {
     ++relocalisations_;
     std::cerr << "[camera_network_slam] camera " << o.camera << ": relocalised the robot in submap "
-              << o.to << " (unanchored submap " << o.from << ", online poses)\n";
+              << o.to << " (unanchored submap " << o.from
+              << ", online poses, provisional until its smoothed poses)\n";
+  }
+  if (o.refines_relocalisation) {
+    ++relocalisations_refined_;
+    std::cerr << "[camera_network_slam] camera " << o.camera << ": relocalisation " << o.from
+              << " -> " << o.to << " refined on smoothed poses\n";
   }
   std::cerr << std::fixed << std::setprecision(3) << "[camera_network_slam] camera " << o.camera
             << ": revisit " << o.from << " -> " << o.to << " from " << o.sightings
@@ -304,10 +321,16 @@ void CameraNetworkSlamActor::summarize(Summary& out) const {
   out["revisits"] = revisits_;
   out["revisits_refused"] = revisits_refused_;
   out["relocalisations"] = relocalisations_;
+  out["relocalisations_refined"] = relocalisations_refined_;
   out["unanchored_handovers"] = unanchored_handovers_;
   out["checks"] = checks_;
   out["sightings"] = sightings_;
   out["misses"] = misses_;
+  if (options_.builder.odometry_shape) {
+    out["sightings_with_odometry"] = sightings_with_odometry_;
+    out["odometry_ignored"] = odom_ignored_;
+    out["visits_odometry_shaped"] = static_cast<std::int64_t>(builder_.odometryShapedVisits());
+  }
   out["sightings_unpaired"] = static_cast<std::int64_t>(pairing_.unpaired());
   out["sightings_ignored"] = static_cast<std::int64_t>(builder_.ignoredSightings());
   out["cameras_calibrated"] = static_cast<std::int64_t>(builder_.calibrations().size());

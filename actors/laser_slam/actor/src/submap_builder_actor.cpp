@@ -204,6 +204,7 @@ void SubmapBuilderActor::handOver(Nanos stamp, bool lost) {
   loan->setToId(static_cast<std::uint32_t>(done.id + 1));
   writePose(loan->initRelative(), done.next_in_this.pose, &done.next_in_this.covariance);
   loan->setKind(msg::SubmapConstraint::Kind::HAND_OVER);
+  loan->setLost(lost);
   constraint_pub_.publish(std::move(loan));
   submap_origin_ = submap_origin_ * done.next_in_this.pose;
   chained_origins_.push_back(submap_origin_);

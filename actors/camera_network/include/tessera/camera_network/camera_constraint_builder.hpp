@@ -34,6 +34,17 @@
 // calibrated camera is the relocalisation. It is processed at its end with the online poses
 // instead of waiting for smoothed ones, so the graph places the robot again within seconds; its
 // revisit (CameraOutput::relocalisation) anchors the chain and later visits are held as usual.
+// That revisit is provisional: its covariance is scaled up by relocalisation_covariance_scale,
+// and the same visit is also held and, once smoothed, gives the revisit again
+// (CameraOutput::refines_relocalisation), which outweighs the provisional one where the graph
+// fuses the two.
+// Odometry shape (odometry_shape, the default): where the sightings carry the odometry's pose at
+// their stamp, a visit's path is the odometry's, placed on the SLAM's poses by the rigid
+// transform that fits it to them best (least squares over the robot positions). Over the tens of
+// seconds of a visit wheel odometry keeps the path's shape far better than the SLAM, whose
+// scan matching wanders by centimetres (docs/algorithms.md#camera-network-calibration); the SLAM
+// still says where the path is in its submap. Sightings without odometry keep the SLAM's pose,
+// and visits longer than odometry_shape_max_s (where odometry drifts) are not reshaped.
 // Nothing throws for bad data: non-finite sightings and sightings of unknown cameras are counted
 // and ignored.
 #pragma once
@@ -66,6 +77,10 @@ struct CameraConstraintBuilderOptions {
   bool smoothed_poses = true;
   int stale_visits = 2;
   int max_visit_sightings = 3000;  ///< a visit keeps at most this many (later ones are dropped)
+  bool odometry_shape = true;
+  double odometry_shape_max_s = 120.0;  ///< longer visits keep the SLAM's poses
+  /// The relocalisation's revisit (online poses) has its covariance multiplied by this (>= 1).
+  double relocalisation_covariance_scale = 100.0;
 
   template <class V>
   void visit(V& v) {
@@ -82,6 +97,14 @@ struct CameraConstraintBuilderOptions {
     v("stale_visits", stale_visits,
       "drop a calibration after this many visits in a row disagree with the SLAM");
     v("max_visit_sightings", max_visit_sightings, "sightings kept per visit");
+    v("odometry_shape", odometry_shape,
+      "use each visit's odometry path, rigidly placed on the SLAM's poses, instead of the SLAM's "
+      "path (sightings that carry odometry)");
+    v("odometry_shape_max_s", odometry_shape_max_s,
+      "visits longer than this [s] keep the SLAM's poses (odometry drifts)");
+    v("relocalisation_covariance_scale", relocalisation_covariance_scale,
+      "multiply the covariance of a relocalisation's revisit (online poses, provisional) by this; "
+      "the same visit refit on smoothed poses follows and outweighs it (smoothed_poses)");
   }
   ConfigCheck check() const;
 };
@@ -93,6 +116,8 @@ struct CameraSighting {
   Eigen::Vector2d pixel = Eigen::Vector2d::Zero();  ///< [px]
   double pixel_std = 1.0;                           ///< [px]
   Pose2 robot;                                      ///< chained map frame
+  /// The odometry's pose at the same stamp (its own frame), when known (odometry_shape).
+  std::optional<Pose2> odometry;
 };
 
 struct CameraCalibration {
@@ -119,8 +144,10 @@ struct CameraOutput {
   /// kRevisit: the robot's pose in submap `to` at the last sighting (camera localisation).
   Pose2 robot_in_to;
   /// kRevisit / kRevisitRefused: the first visit of a calibrated camera after an unanchored
-  /// submap, processed with online poses.
+  /// submap, processed with online poses (covariance scaled by relocalisation_covariance_scale).
   bool relocalisation = false;
+  /// kRevisit / kRevisitRefused: that visit again, on smoothed poses (smoothed_poses).
+  bool refines_relocalisation = false;
 };
 
 class CameraConstraintBuilder {
@@ -152,6 +179,8 @@ class CameraConstraintBuilder {
   const std::map<int, CameraCalibration>& calibrations() const { return calibrations_; }
   std::uint32_t currentSubmap() const { return current_; }
   std::uint64_t ignoredSightings() const { return ignored_; }
+  /// Visits whose path was the odometry's (odometry_shape).
+  std::uint64_t odometryShapedVisits() const { return odometry_shaped_; }
   /// Visits ended but held for their submaps' smoothed trajectories.
   std::size_t heldVisits() const { return held_.size(); }
 
@@ -165,15 +194,20 @@ class CameraConstraintBuilder {
     std::int64_t stamp_ns = 0;
     std::vector<CameraSighting> sightings;
     bool relocalisation = false;
+    bool refines_relocalisation = false;
   };
   std::vector<CameraOutput> endVisit(int camera, std::int64_t stamp_ns);
   std::vector<CameraOutput> release(bool all);
   std::vector<CameraOutput> process(HeldVisit visit);
   std::optional<CameraOutput> calibrate(int camera, const std::vector<CameraSighting>& s,
                                         std::uint32_t submap, std::int64_t stamp_ns);
-  /// The chained pose at `stamp` from the smoothed trajectories, or `online` when none holds it.
+  /// The chained pose at `stamp` from the smoothed trajectories (the first to end at or after it,
+  /// if it has begun by then), or `online` when none holds it.
   Pose2 smoothed(std::int64_t stamp, const Pose2& online) const;
   Eigen::Vector2d markerIn(std::uint32_t submap, const Pose2& chained_robot) const;
+  /// odometry_shape: replaces the robot poses of the sightings that carry odometry by the
+  /// odometry's, rigidly placed on the SLAM's. False when the visit is left as it is.
+  bool placeOdometryShape(std::vector<CameraSighting>& sightings) const;
 
   CameraConstraintBuilderOptions options_;
   Eigen::Vector2d marker_;
@@ -182,10 +216,14 @@ class CameraConstraintBuilder {
   std::map<int, Visit> visits_;
   std::vector<HeldVisit> held_;
   std::map<std::uint32_t, std::vector<std::pair<std::int64_t, Pose2>>> trajectories_;
+  /// Finished submaps by the last stamp of their trajectory: the one holding a stamp is found by
+  /// one lookup (submaps follow each other in time).
+  std::map<std::int64_t, std::uint32_t> trajectory_ends_;
   std::int64_t smoothed_until_ = std::numeric_limits<std::int64_t>::min();
   std::map<int, CameraCalibration> calibrations_;
   std::map<int, int> strikes_;
   std::uint64_t ignored_ = 0;
+  std::uint64_t odometry_shaped_ = 0;
   std::optional<std::uint32_t> unanchored_since_;
 };
 

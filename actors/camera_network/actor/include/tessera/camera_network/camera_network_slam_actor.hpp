@@ -7,10 +7,13 @@
 //   chained_pose       msg::PoseStamped       keep_latest(pose_queue)  the submap builder's
 //                                             robot pose (chained map frame), for pairing
 //   constraints        msg::SubmapConstraint  reliable   the builder's hand-overs: where each
-//                                             submap starts (other kinds are ignored); one with a
-//                                             position std above unanchored_std_m (the SLAM was
-//                                             lost) starts an unanchored submap, which the next
-//                                             calibrated camera relocalises at once
+//                                             submap starts (other kinds are ignored); one marked
+//                                             `lost` (the builder was lost) starts an unanchored
+//                                             submap, which the next calibrated camera
+//                                             relocalises at once
+//   odom               msg::Odometry          keep_latest(odom_queue), with builder.odometry_shape:
+//                                             each sighting carries the odometry's pose then, so
+//                                             a visit's path is the odometry's placed on the SLAM
 //   submaps            msg::Submap            reliable   finished submaps' smoothed trajectories
 //                                             (builder.smoothed_poses: visits wait for them)
 //   ground_truth       msg::GroundTruthPose   keep_latest(1000), only with score_ground_truth:
@@ -33,14 +36,17 @@
 // submap, floor -> pixel homography (row-major, submap frame), and quality.
 //
 // Summary: calibrations, calibrations_refused (with the last reason), revisits,
-// relocalisations (revisits that placed unanchored submaps), unanchored_handovers,
-// revisits_refused, checks, sightings, sightings_unpaired, calibration_rms_px (mean over the
-// calibrations in force); with score_ground_truth also revisits_true / revisits_false (against
-// the true relative pose of the two submaps' start poses, within truth_tolerance_*) and
-// camera_localisation_rms_m / camera_localisation_max_m: every sighting of a calibrated camera
-// localised through its homography, against the true marker position in that submap; for
-// detections with corners (marker_camera) also camera_heading_rms_rad and camera_pose_nees
-// (the full pose from the corners, localizeMarkerPose, against the truth; 3 when consistent).
+// relocalisations (revisits that placed unanchored submaps, provisional), relocalisations_refined
+// (the same visits again on smoothed poses), unanchored_handovers,
+// revisits_refused, checks, sightings, sightings_unpaired, with builder.odometry_shape
+// sightings_with_odometry, visits_odometry_shaped and odometry_ignored (non-finite poses),
+// calibration_rms_px (mean over the calibrations in force); with score_ground_truth also
+// revisits_true / revisits_false (against the true relative pose of the two submaps' start poses,
+// within truth_tolerance_*) and camera_localisation_rms_m / camera_localisation_max_m: every
+// sighting of a calibrated camera localised through its homography, against the true marker
+// position in that submap; for detections with corners (marker_camera) also camera_heading_rms_rad
+// and camera_pose_nees (the full pose from the corners, localizeMarkerPose, against the truth; 3
+// when consistent).
 #pragma once
 
 #include <tessera/msg/camera.capnp.h>
@@ -67,10 +73,11 @@ struct CameraNetworkSlamOptions {
   bool score_ground_truth = false;
   double truth_tolerance_linear = 0.3;
   double truth_tolerance_angular = 0.1;
-  double unanchored_std_m = 10.0;
   int detection_queue = 256;
   int pose_queue = 256;
   int pose_history = 512;
+  int odom_queue = 512;
+  int odom_history = 6000;
   double max_pose_gap_s = 1.0;
 
   template <class V>
@@ -84,12 +91,11 @@ struct CameraNetworkSlamOptions {
       "a revisit within this of the truth counts as true [m]");
     v("truth_tolerance_angular", truth_tolerance_angular,
       "a revisit within this of the truth counts as true [rad]");
-    v("unanchored_std_m", unanchored_std_m,
-      "a hand-over whose position std exceeds this [m] (the SLAM was lost) starts an unanchored "
-      "submap: the next calibrated camera's visit relocalises it at once, with online poses");
     v("detection_queue", detection_queue, "detection mailbox size and pairing buffer");
     v("pose_queue", pose_queue, "chained pose mailbox size (keep-latest)");
     v("pose_history", pose_history, "chained poses remembered for pairing");
+    v("odom_queue", odom_queue, "odometry mailbox size (keep-latest; builder.odometry_shape)");
+    v("odom_history", odom_history, "odometry poses remembered for the sightings");
     v("max_pose_gap_s", max_pose_gap_s, "do not interpolate poses over gaps longer than this [s]");
   }
 };
@@ -131,10 +137,12 @@ class CameraNetworkSlamActor final : public Actor {
   std::map<std::uint32_t, Pose2> chained_origins_;
   // Ground truth for scoring: the last ~2 min at a simulator's 50 Hz (non-finite poses dropped).
   PoseHistory truth_{6000, 1.0};
+  PoseHistory odom_;
   std::int64_t last_stamp_ = 0;
   std::int64_t calibrations_ = 0, calibrations_refused_ = 0, revisits_ = 0, revisits_refused_ = 0,
-               checks_ = 0, sightings_ = 0, misses_ = 0, revisits_true_ = 0, revisits_false_ = 0,
-               revisits_unscored_ = 0, relocalisations_ = 0, unanchored_handovers_ = 0;
+               checks_ = 0, sightings_ = 0, sightings_with_odometry_ = 0, odom_ignored_ = 0,
+               misses_ = 0, revisits_true_ = 0, revisits_false_ = 0, revisits_unscored_ = 0,
+               relocalisations_ = 0, relocalisations_refined_ = 0, unanchored_handovers_ = 0;
   std::string last_refusal_;
   double loc_sq_ = 0, loc_max_ = 0;
   std::int64_t loc_count_ = 0;
