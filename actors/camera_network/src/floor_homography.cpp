@@ -27,7 +27,9 @@ ConfigCheck FloorHomographyOptions::check() const {
       .nonNegative("min_spread_m", min_spread_m)
       .probability("min_coverage", min_coverage)
       .positive("max_condition", max_condition)
-      .positive("max_rms_px", max_rms_px);
+      .positive("max_rms_px", max_rms_px)
+      .nonNegative("anchor_std_m", anchor_std_m)
+      .nonNegative("anchor_std_rad", anchor_std_rad);
   return c;
 }
 
@@ -289,6 +291,30 @@ FloorHomographyResult estimateFloorHomography(const std::vector<FloorPixelPair>&
   // parameters).
   const double sigma2 = std::max(pixel_std * pixel_std, sse / std::max(1, 2 * n - 8));
   out.covariance = sigma2 * jtj.ldlt().solve(Eigen::Matrix<double, 8, 8>::Identity());
+  if (options.anchor_std_m > 0 || options.anchor_std_rad > 0) {
+    // The floor points' frame is off by one rigid motion G (shift t, rotation a about their
+    // centroid, the origin of the normalised floor): the camera then fits H G⁻¹ instead of H,
+    // whatever the number of points. First order: Hn moves along d(Hn G)/d(t, a).
+    const double scale = out.floor_norm(0, 0);  // a similarity: equal scales
+    const auto params = [&](double tx, double ty, double a) {
+      Eigen::Matrix3d g;
+      g << std::cos(a), -std::sin(a), scale * tx, std::sin(a), std::cos(a), scale * ty, 0, 0, 1;
+      Eigen::Matrix3d m = out.hn * g;
+      m /= m(2, 2);
+      Eigen::Matrix<double, 8, 1> v;
+      for (int k = 0; k < 8; ++k) v(k) = m(k / 3, k % 3);
+      return v;
+    };
+    const double e = 1e-6;
+    Eigen::Matrix<double, 8, 3> j;
+    j.col(0) = (params(e, 0, 0) - params(-e, 0, 0)) / (2 * e);
+    j.col(1) = (params(0, e, 0) - params(0, -e, 0)) / (2 * e);
+    j.col(2) = (params(0, 0, e) - params(0, 0, -e)) / (2 * e);
+    const Eigen::Vector3d var(options.anchor_std_m * options.anchor_std_m,
+                              options.anchor_std_m * options.anchor_std_m,
+                              options.anchor_std_rad * options.anchor_std_rad);
+    out.covariance += j * var.asDiagonal() * j.transpose();
+  }
   out.quality = q;
   result.homography = out;
   return result;

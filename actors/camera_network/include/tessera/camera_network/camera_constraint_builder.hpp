@@ -66,7 +66,15 @@
 namespace tessera::camera_network {
 
 struct CameraConstraintBuilderOptions {
-  FloorHomographyOptions calibration;
+  /// The SLAM places each calibration visit in its submap with one error of a few centimetres
+  /// (its wander, docs/algorithms.md#camera-network-calibration), which no residual shows: it is
+  /// the calibration's anchor uncertainty.
+  FloorHomographyOptions calibration = [] {
+    FloorHomographyOptions o;
+    o.anchor_std_m = 0.02;
+    o.anchor_std_rad = 0.007;
+    return o;
+  }();
   MapTransformOptions revisit;
   std::vector<double> marker = {0, 0};  ///< marker in base_link [x m, y m]
   int image_width_px = 640;

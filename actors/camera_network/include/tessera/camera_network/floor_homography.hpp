@@ -38,6 +38,11 @@ struct FloorHomographyOptions {
   double min_coverage = 0.03;        ///< refuse when the inliers' hull covers less of the image
   double max_condition = 1e7;        ///< refuse a normalised design matrix worse than this
   double max_rms_px = 4.0;           ///< refuse a refined reprojection RMS above this [px]
+  /// Std of one rigid error shared by all the floor points (the SLAM placing the whole visit in
+  /// its submap): [m] per axis and [rad] about the points' centroid; added to the covariance
+  /// (the residuals cannot show it). 0 = the floor points' frame is exact.
+  double anchor_std_m = 0.0;
+  double anchor_std_rad = 0.0;
 
   template <class V>
   void visit(V& v) {
@@ -52,6 +57,11 @@ struct FloorHomographyOptions {
     v("max_condition", max_condition,
       "refuse when the normalised system's condition number exceeds this");
     v("max_rms_px", max_rms_px, "refuse when the refined reprojection RMS exceeds this [px]");
+    v("anchor_std_m", anchor_std_m,
+      "std of a shift shared by all the floor points (where the SLAM put the visit) [m], added "
+      "to the calibration's covariance");
+    v("anchor_std_rad", anchor_std_rad,
+      "std of a rotation shared by all the floor points, about their centroid [rad]");
   }
   ConfigCheck check() const;
 };
