@@ -1,6 +1,8 @@
 // The camera network's calibrations and revisit constraints: see camera_constraint_builder.hpp.
 #include <tessera/camera_network/camera_constraint_builder.hpp>
 
+#include <Eigen/Geometry>
+
 #include <algorithm>
 #include <cmath>
 #include <iterator>
@@ -209,31 +211,33 @@ bool CameraConstraintBuilder::placeOdometryShape(std::vector<CameraSighting>& si
   if (with.size() < 2) return false;
   const double span_s = 1e-9 * double(with.back()->stamp_ns - with.front()->stamp_ns);
   if (span_s > options_.odometry_shape_max_s) return false;
-  // The rigid transform T minimising Σ |T(odometry_k) - slam_k|² over the robot positions
-  // (2D Procrustes); a robot that hardly moved gives no rotation from positions, so then its
-  // headings give it.
-  Eigen::Vector2d mo = Eigen::Vector2d::Zero(), ms = Eigen::Vector2d::Zero();
+  // The rigid transform T minimising Σ |T(odometry_k) - slam_k|² over the robot positions; a
+  // robot that hardly moved (under 0.1 m) gives no rotation from positions, so then its headings
+  // give it.
+  std::vector<Eigen::Vector2d> odometry, slam;
   for (const auto* s : with) {
-    mo += s->odometry->translation();
-    ms += s->robot.translation();
+    odometry.push_back(s->odometry->translation());
+    slam.push_back(s->robot.translation());
   }
-  mo /= double(with.size());
-  ms /= double(with.size());
-  double dot = 0, cross = 0, extent = 0, sin_sum = 0, cos_sum = 0;
+  Pose2 place = closedFormRigidFit(odometry, slam);
+  double extent = 0, sin_sum = 0, cos_sum = 0;
   for (const auto* s : with) {
-    const Eigen::Vector2d a = s->odometry->translation() - mo, b = s->robot.translation() - ms;
-    dot += a.dot(b);
-    cross += a.x() * b.y() - a.y() * b.x();
-    extent = std::max(extent, a.norm());
+    extent = std::max(extent, (s->odometry->translation() - odometry.front()).norm());
     const double d = angleDiff(s->robot.theta, s->odometry->theta);
     sin_sum += std::sin(d);
     cos_sum += std::cos(d);
   }
-  const double theta = extent >= 0.1 ? std::atan2(cross, dot) : std::atan2(sin_sum, cos_sum);
-  const double c = std::cos(theta), sn = std::sin(theta);
-  const Eigen::Vector2d t =
-      ms - Eigen::Vector2d(c * mo.x() - sn * mo.y(), sn * mo.x() + c * mo.y());
-  const Pose2 place(t.x(), t.y(), theta);
+  if (extent < 0.1) {
+    // Rotate the odometry by the mean heading difference about its centroid onto the SLAM's.
+    Eigen::Vector2d mo = Eigen::Vector2d::Zero(), ms = Eigen::Vector2d::Zero();
+    for (std::size_t k = 0; k < slam.size(); ++k) {
+      mo += odometry[k];
+      ms += slam[k];
+    }
+    const double theta = std::atan2(sin_sum, cos_sum);
+    place = Pose2(ms / double(slam.size()) - Eigen::Rotation2Dd(theta) * (mo / double(slam.size())),
+                  theta);
+  }
   for (auto* s : with) s->robot = place * *s->odometry;
   return true;
 }

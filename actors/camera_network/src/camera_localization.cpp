@@ -115,6 +115,26 @@ std::optional<MarkerPoseFix> localizeMarkerPose(const FloorHomography& calibrati
   return fix;
 }
 
+Pose2 closedFormRigidFit(const std::vector<Eigen::Vector2d>& child,
+                         const std::vector<Eigen::Vector2d>& parent) {
+  const double n = static_cast<double>(child.size());
+  Eigen::Vector2d cp = Eigen::Vector2d::Zero(), cc = Eigen::Vector2d::Zero();
+  for (std::size_t k = 0; k < child.size(); ++k) {
+    cp += parent[k];
+    cc += child[k];
+  }
+  cp /= n;
+  cc /= n;
+  double sdot = 0, scross = 0;
+  for (std::size_t k = 0; k < child.size(); ++k) {
+    const Eigen::Vector2d a = child[k] - cc, b = parent[k] - cp;
+    sdot += a.dot(b);
+    scross += a.x() * b.y() - a.y() * b.x();
+  }
+  const double theta = std::atan2(scross, sdot);
+  return Pose2(cp - Eigen::Rotation2Dd(theta) * cc, theta);
+}
+
 MapTransformResult fitMapTransform(const std::vector<PointCorrespondence>& input,
                                    const MapTransformOptions& options) {
   options.check().throwIfBad("map transform fit");
@@ -139,22 +159,13 @@ MapTransformResult fitMapTransform(const std::vector<PointCorrespondence>& input
                      fixed(options.min_extent_m, 2) + " m of motion for a heading)";
     return result;
   }
-  // Closed form (unweighted) for the start: rotation from the centred point sets.
-  Eigen::Vector2d cp = Eigen::Vector2d::Zero(), cc = Eigen::Vector2d::Zero();
+  // Closed form (unweighted) for the start.
+  std::vector<Eigen::Vector2d> child, parent;
   for (const auto& p : pts) {
-    cp += p.parent;
-    cc += p.child;
+    child.push_back(p.child);
+    parent.push_back(p.parent);
   }
-  cp /= m.points;
-  cc /= m.points;
-  double sdot = 0, scross = 0;
-  for (const auto& p : pts) {
-    const Eigen::Vector2d a = p.child - cc, b = p.parent - cp;
-    sdot += a.dot(b);
-    scross += a.x() * b.y() - a.y() * b.x();
-  }
-  const double theta0 = std::atan2(scross, sdot);
-  Pose2 t(cp - Eigen::Rotation2Dd(theta0) * cc, theta0);
+  Pose2 t = closedFormRigidFit(child, parent);
 
   // Gauss-Newton with each residual weighted by its combined covariance.
   const double floor2 = options.min_point_std_m * options.min_point_std_m;

@@ -99,6 +99,12 @@ struct MapTransformResult {
   MapTransformFit measured;  ///< what was measured, also when refused (transform may be unset)
 };
 
+/// The rigid motion T with parent_k ≈ T child_k in the least-squares sense, unweighted, in
+/// closed form (2D Procrustes); the same number of finite points on both sides, at least one.
+/// Points that all coincide give no rotation (0).
+Pose2 closedFormRigidFit(const std::vector<Eigen::Vector2d>& child,
+                         const std::vector<Eigen::Vector2d>& parent);
+
 /// Non-finite correspondences are dropped first. Throws std::invalid_argument for bad options.
 MapTransformResult fitMapTransform(const std::vector<PointCorrespondence>& points,
                                    const MapTransformOptions& options);
