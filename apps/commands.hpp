@@ -32,6 +32,8 @@ void addBenchCommands(CLI::App& app, int& result);
 /// Adds `tessera launch` (a profile as several processes over shared memory) and the internal
 /// `tessera worker` it starts for each process.
 void addLaunchCommand(CLI::App& app, int& result);
+/// Adds `tessera emulate scip` (an emulated Hokuyo laser on a pty or TCP port).
+void addEmulateCommand(CLI::App& app, int& result);
 /// Adds `tessera doctor` (checks /dev/shm, leftovers, CPU governor, huge pages, datasets).
 void addDoctorCommand(CLI::App& app, int& result);
 /// Adds `tessera completion bash` (a completion script from the whole command tree: call last).

@@ -28,6 +28,7 @@ int main(int argc, char** argv) {
   tessera::app::addGraphCommand(app, result);
   tessera::app::addMapCommand(app, result);
   tessera::app::addVocabCommand(app, result);
+  tessera::app::addEmulateCommand(app, result);
   tessera::app::addDoctorCommand(app, result);
   tessera::app::addBenchCommands(app, result);
   tessera::app::addCompletionCommand(app, result);

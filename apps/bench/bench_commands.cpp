@@ -21,6 +21,7 @@ void addBenchCommands(CLI::App& app, int& result) {
   addBenchPlannerCommand(*bench, result);
   addBenchNavCommand(*bench, result);
   addBenchViewerCommand(*bench, result);
+  addBenchDriversCommand(*bench, result);
 }
 
 }  // namespace tessera::app

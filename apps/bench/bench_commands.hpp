@@ -32,5 +32,7 @@ void addBenchPlannerCommand(CLI::App& bench, int& result);
 void addBenchNavCommand(CLI::App& bench, int& result);
 /// `tessera bench viewer`: the live viewer's CPU cost and map-update latency.
 void addBenchViewerCommand(CLI::App& bench, int& result);
+/// `tessera bench drivers`: device drivers against their emulated devices.
+void addBenchDriversCommand(CLI::App& bench, int& result);
 
 }  // namespace tessera::app

@@ -5,6 +5,8 @@
 #include <tessera/datasets/relations.hpp>
 #include <tessera/datasets/rgbd_sequence.hpp>
 #include <tessera/datasets/urg_log.hpp>
+#include <tessera/drivers/scip_client.hpp>
+#include <tessera/drivers/scip_device.hpp>
 #include <tessera/io/text_reader.hpp>
 #include <tessera/messages/types.hpp>
 #include <tessera/pose_graph/pose_graph_io.hpp>
@@ -31,6 +33,37 @@ void carmen(const std::string& text) {
 
 void urg(const std::string& text) {
   (void)datasets::parseUrgLog("exp2.dat", text);
+}
+
+// A SCIP byte stream into a driver's session, in pieces: whatever arrives, the client must not
+// throw, and every scan it returns must have its declared number of beams.
+void scip(const std::string& text) {
+  drivers::ScipClient client({});
+  (void)client.connected(0);
+  std::int64_t t = 0;
+  for (std::size_t at = 0; at < text.size(); at += 97) {
+    t += 1'000'000;
+    auto out = client.received(std::string_view(text).substr(at, 97), t);
+    for (const auto& s : out.scans)
+      if (s.ranges.empty() || !(s.angle_increment > 0))
+        throw std::logic_error("scip: a scan without beams or with a bad increment came out");
+    if (out.reconnect) (void)client.connected(t);
+  }
+  (void)client.tick(t + 5'000'000'000);
+}
+
+// A device's answers to a driver's session: acknowledgements, PP, the MD acknowledgement and
+// two scans of a URG-04LX.
+std::string scipSeed() {
+  namespace scip = drivers::scip;
+  std::string s = scip::encodeStatusReply("SCIP2.0", "00") + scip::encodeStatusReply("QT", "00") +
+                  scip::encodeParametersReply(drivers::ScipDevice::urg04lx()) +
+                  scip::encodeStatusReply("MD0044072500000", "00");
+  std::vector<std::uint32_t> ranges(682);
+  for (std::size_t k = 0; k < ranges.size(); ++k) ranges[k] = 20 + (k * 31) % 4000;
+  s += scip::encodeScanReply("MD0044072500000", "99", 1000, ranges, 3);
+  s += scip::encodeScanReply("MD0044072500000", "99", 1100, ranges, 3);
+  return s;
 }
 
 void poseGraph(const std::string& text) {
@@ -158,6 +191,11 @@ const std::vector<Target>& targets() {
        urgSeed(),
        {"mines-paristech-urg04lx-odometry/exp2.dat.gz"},
        10},
+      {"scip",
+       "SCIP 2.0 byte streams from a Hokuyo laser into the driver's session",
+       scip,
+       scipSeed(),
+       {}},
       {"posegraph",
        "g2o and TORO pose graphs, 2D and 3D",
        poseGraph,

@@ -1,6 +1,7 @@
 // SCIP 2.0 encoding and reply parsing: see scip.hpp.
 #include <tessera/drivers/scip.hpp>
 
+#include <algorithm>
 #include <cctype>
 #include <stdexcept>
 
@@ -89,7 +90,11 @@ Reply buildReply(std::vector<std::string>& lines) {
       return r;
     }
     const std::string_view data(l.data(), l.size() - 1);
-    if (checksum(data) != l.back()) {
+    // The information replies' "KEY:VALUE;" lines sum without the ';'.
+    const bool info = r.echo == "PP" || r.echo == "VV" || r.echo == "II";
+    const std::string_view summed =
+        info && data.ends_with(';') ? data.substr(0, data.size() - 1) : data;
+    if (checksum(summed) != l.back()) {
       r.error = "line " + std::to_string(k + 1) + ": checksum mismatch";
       return r;
     }
@@ -161,13 +166,26 @@ std::vector<Reply> ReplyParser::feed(std::string_view bytes) {
   return out;
 }
 
+std::uint64_t ReplyParser::bufferedBytes() const {
+  std::uint64_t n = line_.size();
+  for (const auto& l : lines_) n += l.size() + 1;
+  return n;
+}
+
 void ReplyParser::reset() {
   line_.clear();
   lines_.clear();
   discarding_ = false;
 }
 
-ScanDecode decodeScan(const Reply& reply, int chars) {
+std::string intensityCommand(int first, int last, int cluster, int interval, int scans) {
+  std::string cmd = scanCommand(true, first, last, cluster, interval, scans, true);
+  cmd[0] = 'M';
+  cmd[1] = 'E';
+  return cmd;
+}
+
+ScanDecode decodeScan(const Reply& reply, int chars, bool intensity) {
   ScanDecode d;
   if (chars != 2 && chars != 3) {
     d.error = "values must be 2 or 3 characters, got " + std::to_string(chars);
@@ -197,20 +215,112 @@ ScanDecode decodeScan(const Reply& reply, int chars) {
               std::to_string(chars) + "-character values (a line lost?)";
     return d;
   }
+  const std::size_t width = static_cast<std::size_t>(chars);
+  if (intensity && data.size() % (2 * width) != 0) {
+    d.error = "intensity scan data of " + std::to_string(data.size()) +
+              " characters is not whole range-intensity pairs (a line lost?)";
+    return d;
+  }
   ScanReply s;
   s.timestamp_ms = *ts;
-  s.ranges.reserve(data.size() / static_cast<std::size_t>(chars));
-  for (std::size_t k = 0; k < data.size(); k += static_cast<std::size_t>(chars)) {
-    const auto v = decode(std::string_view(data).substr(k, static_cast<std::size_t>(chars)));
+  s.ranges.reserve(data.size() / width / (intensity ? 2 : 1));
+  if (intensity) s.intensities.reserve(s.ranges.capacity());
+  for (std::size_t k = 0; k < data.size(); k += width) {
+    const auto v = decode(std::string_view(data).substr(k, width));
     if (!v) {
-      d.error = "value " + std::to_string(k / static_cast<std::size_t>(chars)) +
-                " has a character outside the encoding";
+      d.error = "value " + std::to_string(k / width) + " has a character outside the encoding";
       return d;
     }
-    s.ranges.push_back(*v);
+    if (intensity && (k / width) % 2 == 1)
+      s.intensities.push_back(*v);
+    else
+      s.ranges.push_back(*v);
   }
   d.scan = std::move(s);
   return d;
+}
+
+namespace scip_detail {
+
+/// "KEY:VALUE;" lines of a PP/VV reply (the ';' ends the value; the payload line's checksum is
+/// already gone).
+std::optional<std::string> field(const Reply& reply, std::string_view key) {
+  for (const auto& line : reply.payload) {
+    if (line.size() <= key.size() || line.compare(0, key.size(), key) != 0 ||
+        line[key.size()] != ':')
+      continue;
+    const auto end = line.find(';', key.size() + 1);
+    if (end == std::string::npos) return std::nullopt;
+    return line.substr(key.size() + 1, end - key.size() - 1);
+  }
+  return std::nullopt;
+}
+
+bool integerField(const Reply& reply, std::string_view key, int& out, std::string& error) {
+  const auto v = field(reply, key);
+  if (!v || v->empty() || v->size() > 9 ||
+      !std::all_of(v->begin(), v->end(), [](char c) { return c >= '0' && c <= '9'; })) {
+    error = "PP reply: field " + std::string(key) +
+            (v ? " '" + *v + "' is not a number" : " is missing");
+    return false;
+  }
+  out = std::stoi(*v);
+  return true;
+}
+
+}  // namespace scip_detail
+
+std::optional<SensorParameters> parseParameters(const Reply& reply, std::string& error) {
+  if (!reply.error.empty()) {
+    error = "PP reply: " + reply.error;
+    return std::nullopt;
+  }
+  if (reply.status != "00") {
+    error = "PP reply: status " + reply.status;
+    return std::nullopt;
+  }
+  SensorParameters p;
+  p.model = scip_detail::field(reply, "MODL").value_or("");
+  using scip_detail::integerField;
+  if (!integerField(reply, "DMIN", p.min_range_mm, error) ||
+      !integerField(reply, "DMAX", p.max_range_mm, error) ||
+      !integerField(reply, "ARES", p.steps_per_revolution, error) ||
+      !integerField(reply, "AMIN", p.first_step, error) ||
+      !integerField(reply, "AMAX", p.last_step, error) ||
+      !integerField(reply, "AFRT", p.front_step, error) ||
+      !integerField(reply, "SCAN", p.scan_rpm, error))
+    return std::nullopt;
+  if (p.steps_per_revolution <= 0 || p.first_step > p.last_step ||
+      p.last_step >= p.steps_per_revolution || p.min_range_mm >= p.max_range_mm ||
+      p.scan_rpm <= 0) {
+    error = "PP reply: inconsistent geometry (ARES " + std::to_string(p.steps_per_revolution) +
+            ", AMIN " + std::to_string(p.first_step) + ", AMAX " + std::to_string(p.last_step) +
+            ", DMIN " + std::to_string(p.min_range_mm) + ", DMAX " +
+            std::to_string(p.max_range_mm) + ", SCAN " + std::to_string(p.scan_rpm) + ")";
+    return std::nullopt;
+  }
+  return p;
+}
+
+std::string encodeStatusReply(std::string_view echo, std::string_view status) {
+  return std::string(echo) + '\n' + std::string(status) + checksum(status) + "\n\n";
+}
+
+std::string encodeParametersReply(const SensorParameters& p) {
+  std::string out = std::string("PP\n00") + checksum("00") + '\n';
+  const auto line = [&out](const std::string& key, const std::string& value) {
+    const std::string l = key + ":" + value;
+    out += l + ';' + checksum(l) + '\n';
+  };
+  line("MODL", p.model);
+  line("DMIN", std::to_string(p.min_range_mm));
+  line("DMAX", std::to_string(p.max_range_mm));
+  line("ARES", std::to_string(p.steps_per_revolution));
+  line("AMIN", std::to_string(p.first_step));
+  line("AMAX", std::to_string(p.last_step));
+  line("AFRT", std::to_string(p.front_step));
+  line("SCAN", std::to_string(p.scan_rpm));
+  return out + '\n';
 }
 
 std::string encodeScanReply(std::string_view echo, std::string_view status,

@@ -7,6 +7,7 @@
 #include <algorithm>
 #include <cmath>
 #include <filesystem>
+#include <numbers>
 
 namespace tessera::players {
 namespace {
@@ -46,12 +47,14 @@ UrgPlayer::UrgPlayer(UrgPlayerOptions options) : options_(std::move(options)) {
   parse_options_.fov_deg = o.fov_deg;
   parse_options_.zero_is_no_return = o.zero_is_no_return;
   parse_options_.skip_malformed = o.skip_malformed;
+  if (o.urg04lx_steps && parse_options_.beams != 682)
+    fail("urg04lx_steps", "needs the log's 682 beams (steps 44..725)");
 }
 
 void UrgPlayer::configure(ActorContext& ctx) {
   ctx_ = &ctx;
   ctx.declareFiniteSource();
-  scan_pub_ = ctx.advertise<msg::LaserScan>("scan");
+  if (options_.publish_scans) scan_pub_ = ctx.advertise<msg::LaserScan>("scan");
   odom_pub_ = ctx.advertise<msg::Odometry>("odom");
   ctx.callAt(ctx.now(), [this] { step(); });
 }
@@ -93,7 +96,7 @@ void UrgPlayer::step() {
   try {
     const auto next_step = replay_.advance(
         ctx_->now(), [this] { return readNext(); }, [this](const Pending& p) { publish(p); },
-        [this] { return options_.max_scans > 0 && scans_ >= options_.max_scans; });
+        [this] { return options_.max_scans > 0 && odom_ >= options_.max_scans; });
     if (!next_step) return finish("");
     ctx_->reportProgress(reader_->progress());
     ctx_->callAt(*next_step, [this] { step(); });
@@ -122,12 +125,20 @@ void UrgPlayer::publish(const Pending& p) {
     odom_pub_.publish(std::move(loan));
     ++odom_;
   }
+  if (!options_.publish_scans) return;
   const auto& s = p.scan;
   auto loan = scan_pub_.loan(s.ranges.size() * sizeof(float) + 256);
   auto b = loan.builder();
   setHeader(b.initHeader(), stamp, "laser", scan_pub_.nextSeq());
-  b.setAngleMin(s.angle_min);
-  b.setAngleIncrement(s.angle_increment);
+  if (options_.urg04lx_steps) {
+    // Step k looks at (k - 384) 2 pi / 1024, the first beam being step 44 (as SCIP's PP says).
+    constexpr double kStep = 2 * std::numbers::pi / 1024;
+    b.setAngleMin(static_cast<float>((44 - 384) * kStep));
+    b.setAngleIncrement(static_cast<float>(kStep));
+  } else {
+    b.setAngleMin(s.angle_min);
+    b.setAngleIncrement(s.angle_increment);
+  }
   b.setRangeMin(static_cast<float>(options_.min_range));
   b.setRangeMax(static_cast<float>(options_.max_range));
   b.setScanTimeS(0.1f);  // URG-04LX: 10 Hz sweep

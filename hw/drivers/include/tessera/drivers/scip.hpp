@@ -60,6 +60,8 @@ class ReplyParser {
   explicit ReplyParser(std::size_t max_line = 128) : max_line_(max_line) {}
   std::vector<Reply> feed(std::string_view bytes);
   std::uint64_t skippedBytes() const { return skipped_; }
+  /// Bytes held for a reply that has not ended yet.
+  std::uint64_t bufferedBytes() const;
   /// Drops a partial reply (e.g. after a reconnect).
   void reset();
 
@@ -72,20 +74,48 @@ class ReplyParser {
   std::uint64_t skipped_ = 0;
 };
 
-/// A decoded scan reply (MD/GD/MS/GS).
+/// "ME" command line (continuous, 3-character ranges each followed by its 3-character
+/// intensity), same arguments as scanCommand's MD.
+std::string intensityCommand(int first, int last, int cluster, int interval = 0, int scans = 0);
+
+/// A decoded scan reply (MD/GD/MS/GS/ME).
 struct ScanReply {
-  std::uint32_t timestamp_ms = 0;     ///< the sensor's 24-bit clock, wraps every 4.66 h
-  std::vector<std::uint32_t> ranges;  ///< [mm] per (clustered) step, first..last
+  std::uint32_t timestamp_ms = 0;          ///< the sensor's 24-bit clock, wraps every 4.66 h
+  std::vector<std::uint32_t> ranges;       ///< [mm] per (clustered) step, first..last
+  std::vector<std::uint32_t> intensities;  ///< ME only: one per range, the sensor's units
 };
 
-/// Decodes the payload of a scan reply with `chars` (2 or 3) characters per value. Errors (the
-/// reply's own, a missing timestamp, a payload that is not whole values, a bad character) come
-/// back in `error`, naming the line.
+/// Decodes the payload of a scan reply with `chars` (2 or 3) characters per value; with
+/// `intensity` (ME), values alternate range and intensity. Errors (the reply's own, a missing
+/// timestamp, a payload that is not whole values, a bad character) come back in `error`, naming
+/// the line.
 struct ScanDecode {
   std::optional<ScanReply> scan;
   std::string error;
 };
-ScanDecode decodeScan(const Reply& reply, int chars);
+ScanDecode decodeScan(const Reply& reply, int chars, bool intensity = false);
+
+/// The "PP" reply: the sensor's geometry and range limits. Step s looks at
+/// (s - front_step) * 2 pi / steps_per_revolution [rad], counter-clockwise, 0 ahead.
+struct SensorParameters {
+  std::string model;             ///< MODL, e.g. "URG-04LX(Hokuyo Automatic Co.,Ltd.)"
+  int min_range_mm = 0;          ///< DMIN
+  int max_range_mm = 0;          ///< DMAX
+  int steps_per_revolution = 0;  ///< ARES
+  int first_step = 0;            ///< AMIN
+  int last_step = 0;             ///< AMAX
+  int front_step = 0;            ///< AFRT
+  int scan_rpm = 0;              ///< SCAN: motor speed [1/min], one scan per revolution
+};
+/// nullopt with the reason in `error` when the reply is not a valid PP answer (a missing or
+/// non-numeric field, an inconsistent geometry).
+std::optional<SensorParameters> parseParameters(const Reply& reply, std::string& error);
+
+/// The PP reply a device sends (the emulator's side).
+std::string encodeParametersReply(const SensorParameters& p);
+
+/// A reply without data lines: echo and status (checksum added).
+std::string encodeStatusReply(std::string_view echo, std::string_view status);
 
 /// The lines of a scan reply as a device sends them (the emulator's side): echo, status with
 /// checksum, timestamp, values in lines of 64 characters, the empty line. Without ranges, only

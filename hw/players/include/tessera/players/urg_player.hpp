@@ -7,7 +7,8 @@
 //                         ticks_per_revolution); starts at (0, 0, 0); twist from the increment
 //   scan  msg::LaserScan  frame "laser": 682 beams over fov_deg, counter-clockwise; +inf = no
 //                         return (reading 0), NaN = Hokuyo error code; mount from laser_mount
-//                         (145 mm ahead of the axle on the MinesParisTech robot)
+//                         (145 mm ahead of the axle on the MinesParisTech robot); not with
+//                         publish_scans false
 //
 // Time: as carmen_player (replay.hpp): line k at runtime_start + (t_k - t_0); stamps are the
 // log's own microsecond timestamps in ns (they count from the robot's boot, ~361 s on exp2),
@@ -43,6 +44,8 @@ struct UrgPlayerOptions {
   std::int64_t max_scans = 0;
   bool relative_stamps = false;
   bool skip_malformed = false;
+  bool publish_scans = true;
+  bool urg04lx_steps = false;
 
   template <class V>
   void visit(V& v) {
@@ -63,6 +66,12 @@ struct UrgPlayerOptions {
     v("relative_stamps", relative_stamps,
       "stamp messages with runtime time (0 at the first line) instead of the log's time");
     v("skip_malformed", skip_malformed, "skip and count malformed lines instead of stopping");
+    v("publish_scans", publish_scans,
+      "publish the scans; false: odometry only (the scans come from a driver, e.g. hokuyo_scip on "
+      "`tessera emulate scip` streaming the same log)");
+    v("urg04lx_steps", urg04lx_steps,
+      "beam angles of the URG-04LX's own steps 44..725 (1024 per turn, step 384 ahead), as its "
+      "SCIP driver reports them, instead of fov_deg spread evenly");
   }
 };
 

@@ -1,0 +1,170 @@
+// `tessera bench drivers`: the device drivers at their devices' full rates against the
+// emulated devices (drivers/scip_device.hpp on a pseudo-terminal or TCP): how long a scan takes
+// from its last byte read to its message published, and what CPU the driver's I/O thread uses.
+#include "bench_commands.hpp"
+
+#include <tessera/drivers/emulator_host.hpp>
+#include <tessera/drivers/hokuyo_driver_actor.hpp>
+#include <tessera/drivers/scip_device.hpp>
+#include <tessera/runtime/options.hpp>
+#include <tessera/runtime/process_stats.hpp>
+#include <tessera/runtime/runtime.hpp>
+
+#include <nlohmann/json.hpp>
+
+#include <chrono>
+#include <cmath>
+#include <iomanip>
+#include <iostream>
+#include <thread>
+
+namespace tessera::app {
+
+namespace drivers_bench {
+
+namespace drv = tessera::drivers;
+
+struct Options {
+  double seconds = 20;
+  bool json = false;
+};
+
+struct Device {
+  std::string name, link;
+  drv::scip::SensorParameters params;
+};
+
+/// A UTM-30LX: 1081 steps of 1440 per turn, 40 Hz, 30 m; usually on Ethernet.
+drv::scip::SensorParameters utm30lx() {
+  drv::scip::SensorParameters p;
+  p.model = "UTM-30LX(Hokuyo Automatic Co.,Ltd.)";
+  p.min_range_mm = 23;
+  p.max_range_mm = 30000;
+  p.steps_per_revolution = 1440;
+  p.first_step = 0;
+  p.last_step = 1080;
+  p.front_step = 540;
+  p.scan_rpm = 2400;
+  return p;
+}
+
+/// A sink for the driver's scans (the bench measures the driver, not a consumer).
+class Sink final : public Actor {
+ public:
+  void configure(ActorContext& ctx) override {
+    ctx.subscribe<msg::LaserScan>("scan", MailboxPolicy::keepLatest(8),
+                                  [](const Message<msg::LaserScan>&) {});
+  }
+};
+
+nlohmann::json runDevice(const Device& d, const Options& o) {
+  std::uint64_t k = 0;
+  const int steps = d.params.last_step - d.params.first_step + 1;
+  drv::ScipDevice device(d.params, [&]() -> std::optional<drv::EmulatedScan> {
+    drv::EmulatedScan s;
+    s.ranges_mm.resize(static_cast<std::size_t>(steps));
+    for (int i = 0; i < steps; ++i)  // a room-like profile that changes every scan
+      s.ranges_mm[static_cast<std::size_t>(i)] =
+          static_cast<std::uint32_t>(500 + (i * 37 + k * 11) % 4000);
+    ++k;
+    return s;
+  });
+  drv::EmulatorHostOptions ho;
+  if (d.link == "tcp") ho.tcp_port = 0;
+  drv::EmulatorHost host({[&](std::string_view b, std::int64_t t) { device.receive(b, t); },
+                          [&](std::int64_t t) { return device.poll(t); },
+                          [&] { return device.nextDue(); },
+                          {}},
+                         ho);
+  RuntimeOptions ro;
+  ro.clock = ClockKind::kWall;
+  ro.threads = 2;
+  ro.show_progress = false;
+  ro.max_sim_duration = secondsToNanos(o.seconds);
+  Runtime rt(ro);
+  drv::HokuyoDriverOptions opts;
+  opts.device = host.devicePath();
+  rt.add("laser", std::make_unique<drv::HokuyoDriverActor>(opts));
+  rt.add("sink", std::make_unique<Sink>());
+  std::thread stopper([&] {
+    std::this_thread::sleep_for(std::chrono::duration<double>(o.seconds));
+    rt.requestStop();
+  });
+  const auto report = rt.run();
+  stopper.join();
+  const auto& s = report.actors.at(0).summary;
+  const auto num = [&s](const char* key) { return std::get<double>(s.at(key)); };
+  const auto count = [&s](const char* key) { return std::get<std::int64_t>(s.at(key)); };
+  const double rate = d.params.scan_rpm / 60.0;
+  return {{"device", d.name},
+          {"link", d.link},
+          {"rate_hz", rate},
+          {"steps", steps},
+          {"scans", count("scans_published")},
+          {"bad_replies", count("bad_replies")},
+          {"latency_ms_median", num("latency_ms_median")},
+          {"latency_ms_p99", num("latency_ms_p99")},
+          {"latency_ms_max", num("latency_ms_max")},
+          {"cpu_percent", 100 * num("cpu_s") / o.seconds}};
+}
+
+}  // namespace drivers_bench
+
+void addBenchDriversCommand(CLI::App& bench, int& result) {
+  namespace db = drivers_bench;
+  auto* cmd = bench.add_subcommand(
+      "drivers",
+      "device drivers at their devices' full rates against the emulated devices: hokuyo_scip "
+      "with a URG-04LX on a pseudo-terminal (10 Hz, 682 steps) and a UTM-30LX on TCP (40 Hz, "
+      "1081 steps); latency from a scan's last byte read to its message published, CPU of the "
+      "driver's I/O thread.\n"
+      "--json prints one object: {machine, seconds, devices: [{device, link (pty | tcp), "
+      "rate_hz, steps, scans, bad_replies, latency_ms_median, latency_ms_p99, latency_ms_max, "
+      "cpu_percent}]}");
+  auto o = std::make_shared<db::Options>();
+  cmd->add_option("--seconds", o->seconds, "run time per device")->capture_default_str();
+  cmd->add_flag("--json", o->json, "print exactly one JSON object on stdout");
+  cmd->callback([o, &result] {
+    if (!(o->seconds >= 1) || !std::isfinite(o->seconds))
+      throw ConfigError("--seconds must be >= 1");
+    const std::vector<db::Device> devices{
+        {"URG-04LX", "pty", drivers::ScipDevice::urg04lx()},
+        {"UTM-30LX", "tcp", db::utm30lx()},
+    };
+    nlohmann::json list = nlohmann::json::array();
+    for (const auto& d : devices) {
+      if (!o->json)
+        std::cerr << "[bench drivers] " << d.name << " over " << d.link << ", " << o->seconds
+                  << " s\n";
+      list.push_back(db::runDevice(d, *o));
+    }
+    if (o->json) {
+      std::cout << nlohmann::json{{"machine", machineDescription()},
+                                  {"seconds", o->seconds},
+                                  {"devices", list}}
+                       .dump(2)
+                << "\n";
+      result = 0;
+      return;
+    }
+    std::cout << "machine: " << machineDescription() << "\n"
+              << std::left << std::setw(10) << "device" << std::setw(6) << "link" << std::right
+              << std::setw(8) << "Hz" << std::setw(8) << "scans" << std::setw(6) << "bad"
+              << std::setw(12) << "median ms" << std::setw(10) << "p99 ms" << std::setw(10)
+              << "max ms" << std::setw(8) << "CPU %"
+              << "\n";
+    for (const auto& j : list)
+      std::cout << std::left << std::setw(10) << j["device"].get<std::string>() << std::setw(6)
+                << j["link"].get<std::string>() << std::right << std::fixed << std::setprecision(0)
+                << std::setw(8) << j["rate_hz"].get<double>() << std::setw(8)
+                << j["scans"].get<std::int64_t>() << std::setw(6)
+                << j["bad_replies"].get<std::int64_t>() << std::setprecision(3) << std::setw(12)
+                << j["latency_ms_median"].get<double>() << std::setw(10)
+                << j["latency_ms_p99"].get<double>() << std::setw(10)
+                << j["latency_ms_max"].get<double>() << std::setprecision(2) << std::setw(8)
+                << j["cpu_percent"].get<double>() << "\n";
+    result = 0;
+  });
+}
+
+}  // namespace tessera::app
