@@ -1,13 +1,15 @@
-// `tessera emulate scip`: an emulated Hokuyo URG-04LX (drivers/scip_device.hpp) on a
-// pseudo-terminal or a TCP port, streaming a recorded URG log or a fixed room, so the
-// hokuyo_scip driver and whole profiles can be tried without the laser
-// (docs/architecture.md#device-drivers). Runs until SIGINT/SIGTERM, or with --exit-at-end until
-// the log has been streamed. Exit codes: 0 ok; 2 usage errors; 1 a log that cannot be read.
+// `tessera emulate scip|sick`: an emulated Hokuyo URG-04LX (drivers/scip_device.hpp) on a
+// pseudo-terminal or a TCP port, streaming a recorded URG log or a fixed room, or an emulated
+// SICK LMS200 (drivers/sick_lms_device.hpp) on a pseudo-terminal, so the drivers and whole
+// profiles can be tried without the lasers (docs/architecture.md#device-drivers). Runs until
+// SIGINT/SIGTERM, or with --exit-at-end until the log has been streamed. Exit codes: 0 ok; 2 usage
+// errors; 1 a log that cannot be read.
 #include "commands.hpp"
 
 #include <tessera/datasets/urg_log.hpp>
 #include <tessera/drivers/emulator_host.hpp>
 #include <tessera/drivers/scip_device.hpp>
+#include <tessera/drivers/sick_lms_device.hpp>
 #include <tessera/runtime/options.hpp>
 
 #include <atomic>
@@ -134,11 +136,12 @@ int runEmulate(const EmulateSettings& s) {
   ho.link = s.link;
   ho.tcp_port = s.tcp_port;
   ho.baud = s.baud;
-  drv::EmulatorHost host(
-      {[&](std::string_view b, std::int64_t t) { device.receive(b, t); },
-       [&](std::int64_t t) { return device.poll(t); }, [&] { return device.nextDue(); },
-       [&](std::int64_t t) { device.restart(t); }},
-      ho);
+  drv::EmulatorHost host({[&](std::string_view b, std::int64_t t) { device.receive(b, t); },
+                          [&](std::int64_t t) { return device.poll(t); },
+                          [&] { return device.nextDue(); },
+                          [&](std::int64_t t) { device.restart(t); },
+                          {}},
+                         ho);
   std::cout << "emulated " << params.model << " on " << host.devicePath()
             << (s.tcp_port < 0 ? " (" + std::to_string(s.baud) + " baud)" : std::string())
             << (log ? ", streaming " + s.log : std::string(", a fixed 6 x 4 m room")) << "\n"
@@ -162,6 +165,64 @@ int runEmulate(const EmulateSettings& s) {
   std::int64_t sent = 0;
   host.withDevice([&] { sent = device.scansSent(); });
   std::cerr << "emulate: " << sent << " scans sent" << (ended ? " (end of the log)" : "") << "\n";
+  return 0;
+}
+
+struct SickSettings {
+  std::string link;
+  double garbage = 0, corrupt = 0;
+};
+
+/// The LMS's view of the same 6 x 4 m room: beams from the right, counter-clockwise.
+std::vector<std::uint32_t> lmsRoom(int angle_deg, int resolution_centideg) {
+  const int n = angle_deg * 100 / resolution_centideg + 1;
+  std::vector<std::uint32_t> mm(static_cast<std::size_t>(n));
+  for (int k = 0; k < n; ++k) {
+    const double a = (-angle_deg / 2.0 + k * resolution_centideg * 0.01) * std::numbers::pi / 180;
+    const double c = std::cos(a), s = std::sin(a);
+    double t = 1e9;
+    if (c > 1e-9) t = std::min(t, 2.0 / c);
+    if (s > 1e-9) t = std::min(t, 2.0 / s);
+    if (s < -1e-9) t = std::min(t, -2.0 / s);
+    mm[static_cast<std::size_t>(k)] =
+        t > 8.0 ? 0u : static_cast<std::uint32_t>(std::lround(t * 1000));
+  }
+  return mm;
+}
+
+int runEmulateSick(const SickSettings& s) {
+  namespace drv = tessera::drivers;
+  if (s.garbage < 0 || s.garbage > 1 || s.corrupt < 0 || s.corrupt > 1)
+    throw ConfigError("--garbage and --corrupt are probabilities in [0, 1]");
+  drv::SickLmsDevice device(lmsRoom);
+  device.faults().garbage_probability = s.garbage;
+  device.faults().corrupt_probability = s.corrupt;
+  drv::EmulatorHostOptions ho;
+  ho.link = s.link;
+  ho.baud = 9600;
+  drv::EmulatorHost host(
+      {[&](std::string_view b, std::int64_t t) { device.receive(b, t); },
+       [&](std::int64_t t) { return device.poll(t); }, [&] { return device.nextDue(); },
+       [&](std::int64_t t) { device.restart(t); }, [&] { return device.baud(); }},
+      ho);
+  std::cout << "emulated SICK LMS200 on " << host.devicePath()
+            << " (9600 baud at power-up), a fixed 6 x 4 m room\n"
+            << std::flush;
+  g_emulate_stop = false;
+  auto* old_int = std::signal(SIGINT, onEmulateSignal);
+  auto* old_term = std::signal(SIGTERM, onEmulateSignal);
+  while (!g_emulate_stop) std::this_thread::sleep_for(std::chrono::milliseconds(50));
+  std::signal(SIGINT, old_int);
+  std::signal(SIGTERM, old_term);
+  std::int64_t sent = 0, skipped = 0;
+  int baud = 0;
+  host.withDevice([&] {
+    sent = device.scansSent();
+    skipped = device.scansSkipped();
+    baud = device.baud();
+  });
+  std::cerr << "emulate: " << sent << " scans sent, " << skipped
+            << " skipped (the line too slow), at " << baud << " baud\n";
   return 0;
 }
 
@@ -189,6 +250,16 @@ void addEmulateCommand(CLI::App& app, int& result) {
   scip->add_option("--garbage", s->garbage, "probability of noise bytes before a reply");
   scip->add_option("--corrupt", s->corrupt, "probability of a corrupted byte in a reply");
   scip->callback([s, &result] { result = runEmulate(*s); });
+
+  auto l = std::make_shared<SickSettings>();
+  auto* sick = emulate->add_subcommand(
+      "sick",
+      "a SICK LMS200 (telegrams with CRC, baud switching to 500 kBd, 75 Hz) on a "
+      "pseudo-terminal");
+  sick->add_option("--link", l->link, "create this symlink to the pseudo-terminal")->required();
+  sick->add_option("--garbage", l->garbage, "probability of noise bytes before a reply");
+  sick->add_option("--corrupt", l->corrupt, "probability of a corrupted byte in a reply");
+  sick->callback([l, &result] { result = runEmulateSick(*l); });
 }
 
 }  // namespace tessera::app

@@ -6,6 +6,8 @@
 #include <tessera/drivers/emulator_host.hpp>
 #include <tessera/drivers/hokuyo_driver_actor.hpp>
 #include <tessera/drivers/scip_device.hpp>
+#include <tessera/drivers/sick_lms_device.hpp>
+#include <tessera/drivers/sick_lms_driver_actor.hpp>
 #include <tessera/runtime/options.hpp>
 #include <tessera/runtime/process_stats.hpp>
 #include <tessera/runtime/runtime.hpp>
@@ -57,34 +59,16 @@ class Sink final : public Actor {
   }
 };
 
-nlohmann::json runDevice(const Device& d, const Options& o) {
-  std::uint64_t k = 0;
-  const int steps = d.params.last_step - d.params.first_step + 1;
-  drv::ScipDevice device(d.params, [&]() -> std::optional<drv::EmulatedScan> {
-    drv::EmulatedScan s;
-    s.ranges_mm.resize(static_cast<std::size_t>(steps));
-    for (int i = 0; i < steps; ++i)  // a room-like profile that changes every scan
-      s.ranges_mm[static_cast<std::size_t>(i)] =
-          static_cast<std::uint32_t>(500 + (i * 37 + k * 11) % 4000);
-    ++k;
-    return s;
-  });
-  drv::EmulatorHostOptions ho;
-  if (d.link == "tcp") ho.tcp_port = 0;
-  drv::EmulatorHost host({[&](std::string_view b, std::int64_t t) { device.receive(b, t); },
-                          [&](std::int64_t t) { return device.poll(t); },
-                          [&] { return device.nextDue(); },
-                          {}},
-                         ho);
+/// Runs `driver` against an emulated device for o.seconds on the wall clock; its figures as the
+/// JSON row of `name`.
+nlohmann::json measure(std::unique_ptr<Actor> driver, const std::string& name,
+                       const std::string& link, double rate_hz, int beams, const Options& o) {
   RuntimeOptions ro;
   ro.clock = ClockKind::kWall;
   ro.threads = 2;
   ro.show_progress = false;
-  ro.max_sim_duration = secondsToNanos(o.seconds);
   Runtime rt(ro);
-  drv::HokuyoDriverOptions opts;
-  opts.device = host.devicePath();
-  rt.add("laser", std::make_unique<drv::HokuyoDriverActor>(opts));
+  rt.add("laser", std::move(driver));
   rt.add("sink", std::make_unique<Sink>());
   std::thread stopper([&] {
     std::this_thread::sleep_for(std::chrono::duration<double>(o.seconds));
@@ -95,17 +79,66 @@ nlohmann::json runDevice(const Device& d, const Options& o) {
   const auto& s = report.actors.at(0).summary;
   const auto num = [&s](const char* key) { return std::get<double>(s.at(key)); };
   const auto count = [&s](const char* key) { return std::get<std::int64_t>(s.at(key)); };
-  const double rate = d.params.scan_rpm / 60.0;
-  return {{"device", d.name},
-          {"link", d.link},
-          {"rate_hz", rate},
-          {"steps", steps},
+  return {{"device", name},
+          {"link", link},
+          {"rate_hz", rate_hz},
+          {"steps", beams},
           {"scans", count("scans_published")},
           {"bad_replies", count("bad_replies")},
           {"latency_ms_median", num("latency_ms_median")},
           {"latency_ms_p99", num("latency_ms_p99")},
           {"latency_ms_max", num("latency_ms_max")},
           {"cpu_percent", 100 * num("cpu_s") / o.seconds}};
+}
+
+/// A room-like range profile of `n` readings [mm] that changes with every scan `k`.
+std::vector<std::uint32_t> profile(std::size_t n, std::uint64_t k, std::uint32_t spread) {
+  std::vector<std::uint32_t> mm(n);
+  for (std::size_t i = 0; i < n; ++i)
+    mm[i] = static_cast<std::uint32_t>(500 + (i * 37 + k * 11) % spread);
+  return mm;
+}
+
+nlohmann::json runDevice(const Device& d, const Options& o) {
+  std::uint64_t k = 0;
+  const int steps = d.params.last_step - d.params.first_step + 1;
+  drv::ScipDevice device(d.params, [&]() -> std::optional<drv::EmulatedScan> {
+    drv::EmulatedScan s;
+    s.ranges_mm = profile(static_cast<std::size_t>(steps), k++, 4000);
+    return s;
+  });
+  drv::EmulatorHostOptions ho;
+  if (d.link == "tcp") ho.tcp_port = 0;
+  drv::EmulatorHost host({[&](std::string_view b, std::int64_t t) { device.receive(b, t); },
+                          [&](std::int64_t t) { return device.poll(t); },
+                          [&] { return device.nextDue(); },
+                          {},
+                          {}},
+                         ho);
+  drv::HokuyoDriverOptions opts;
+  opts.device = host.devicePath();
+  return measure(std::make_unique<drv::HokuyoDriverActor>(opts), d.name, d.link,
+                 d.params.scan_rpm / 60.0, steps, o);
+}
+
+/// The LMS200 on a pseudo-terminal: found at 9600 baud, switched to 500 kBd, 180 deg at 1 deg.
+nlohmann::json runLms(const Options& o) {
+  std::uint64_t k = 0;
+  drv::SickLmsDevice device([&k](int angle, int res) {
+    return profile(static_cast<std::size_t>(angle * 100 / res + 1), k++, 7000);
+  });
+  drv::EmulatorHostOptions ho;
+  ho.baud = 9600;
+  drv::EmulatorHost host({[&](std::string_view b, std::int64_t t) { device.receive(b, t); },
+                          [&](std::int64_t t) { return device.poll(t); },
+                          [&] { return device.nextDue(); },
+                          {},
+                          [&] { return device.baud(); }},
+                         ho);
+  drv::SickLmsDriverOptions opts;
+  opts.device = host.devicePath();
+  opts.baud = 500000;
+  return measure(std::make_unique<drv::SickLmsDriverActor>(opts), "LMS200", "pty", 75.0, 181, o);
 }
 
 }  // namespace drivers_bench
@@ -116,7 +149,8 @@ void addBenchDriversCommand(CLI::App& bench, int& result) {
       "drivers",
       "device drivers at their devices' full rates against the emulated devices: hokuyo_scip "
       "with a URG-04LX on a pseudo-terminal (10 Hz, 682 steps) and a UTM-30LX on TCP (40 Hz, "
-      "1081 steps); latency from a scan's last byte read to its message published, CPU of the "
+      "1081 steps), sick_lms with an LMS200 at 500 kBd (75 Hz, 181 beams); latency from a scan's "
+      "last byte read to its message published, CPU of the "
       "driver's I/O thread.\n"
       "--json prints one object: {machine, seconds, devices: [{device, link (pty | tcp), "
       "rate_hz, steps, scans, bad_replies, latency_ms_median, latency_ms_p99, latency_ms_max, "
@@ -138,6 +172,9 @@ void addBenchDriversCommand(CLI::App& bench, int& result) {
                   << " s\n";
       list.push_back(db::runDevice(d, *o));
     }
+    if (!o->json)
+      std::cerr << "[bench drivers] LMS200 at 500 kBd over pty, " << o->seconds << " s\n";
+    list.push_back(db::runLms(*o));
     if (o->json) {
       std::cout << nlohmann::json{{"machine", machineDescription()},
                                   {"seconds", o->seconds},

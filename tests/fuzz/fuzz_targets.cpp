@@ -7,6 +7,7 @@
 #include <tessera/datasets/urg_log.hpp>
 #include <tessera/drivers/scip_client.hpp>
 #include <tessera/drivers/scip_device.hpp>
+#include <tessera/drivers/sick_lms_client.hpp>
 #include <tessera/io/text_reader.hpp>
 #include <tessera/messages/types.hpp>
 #include <tessera/pose_graph/pose_graph_io.hpp>
@@ -63,6 +64,44 @@ std::string scipSeed() {
   for (std::size_t k = 0; k < ranges.size(); ++k) ranges[k] = 20 + (k * 31) % 4000;
   s += scip::encodeScanReply("MD0044072500000", "99", 1000, ranges, 3);
   s += scip::encodeScanReply("MD0044072500000", "99", 1100, ranges, 3);
+  return s;
+}
+
+// An LMS byte stream into a driver's session: never an exception, never a scan of the wrong
+// size.
+void sickLms(const std::string& text) {
+  drivers::SickLmsClient client({}, 38400);
+  (void)client.openBaud(0);
+  (void)client.connected(0);
+  std::int64_t t = 0;
+  for (std::size_t at = 0; at < text.size(); at += 61) {
+    t += 1'000'000;
+    auto out = client.received(std::string_view(text).substr(at, 61), t);
+    for (const auto& s : out.scans)
+      if (s.ranges.size() != 181) throw std::logic_error("sick: a scan of the wrong size came out");
+    if (out.reconnect) {
+      (void)client.openBaud(0);
+      (void)client.connected(t);
+    }
+  }
+  (void)client.tick(t + 5'000'000'000);
+}
+
+// An LMS's answers to a session at its session rate: ACKs, the stop, variant, configuration (in
+// mm) and start replies, and two scans.
+std::string sickSeed() {
+  namespace sick = drivers::sick;
+  const std::string ack(1, static_cast<char>(sick::kAck));
+  std::string config(33, '\0');
+  config[sick::kUnitsByte] = 1;
+  std::string s = ack + sick::frame(0x80, std::string("\xA0\x00\x10", 3)) + ack +
+                  sick::frame(0x80, std::string("\xBB\x01\xB4\x00\x64\x00\x10", 7)) + ack +
+                  sick::frame(0x80, "\xF4" + config + "\x10") + ack +
+                  sick::frame(0x80, std::string("\xA0\x00\x10", 3));
+  sick::Scan scan;
+  scan.millimetres = true;
+  for (int k = 0; k < 181; ++k) scan.values.push_back(static_cast<std::uint16_t>(500 + k * 7));
+  s += sick::frame(0x80, sick::encodeScan(scan)) + sick::frame(0x80, sick::encodeScan(scan));
   return s;
 }
 
@@ -196,6 +235,7 @@ const std::vector<Target>& targets() {
        scip,
        scipSeed(),
        {}},
+      {"sick", "SICK LMS2xx telegram streams into the driver's session", sickLms, sickSeed(), {}},
       {"posegraph",
        "g2o and TORO pose graphs, 2D and 3D",
        poseGraph,

@@ -130,20 +130,29 @@ ByteLink ByteLink::open(const std::string& device, int baud, int timeout_ms) {
         "'" + device + "': " + why +
         (errno == EACCES ? " (add the user to the dialout group, or a udev rule)" : ""));
   }
-  ByteLink link(fd, device);
+  ByteLink link(fd, device, true);
   makeRaw(fd, baud, device);
   ::tcflush(fd, TCIOFLUSH);  // bytes from before this session are no answer to it
   return link;
 }
 
 ByteLink::ByteLink(ByteLink&& other) noexcept
-    : fd_(std::exchange(other.fd_, -1)), device_(std::move(other.device_)) {}
+    : fd_(std::exchange(other.fd_, -1)),
+      device_(std::move(other.device_)),
+      serial_(other.serial_) {}
+
+void ByteLink::setBaud(int baud) {
+  if (!serial_ || fd_ < 0) return;
+  ::tcdrain(fd_);  // the command that asked for the new rate goes out at the old one
+  makeRaw(fd_, baud, device_);
+}
 
 ByteLink& ByteLink::operator=(ByteLink&& other) noexcept {
   if (this != &other) {
     close();
     fd_ = std::exchange(other.fd_, -1);
     device_ = std::move(other.device_);
+    serial_ = other.serial_;
   }
   return *this;
 }

@@ -167,10 +167,12 @@ void EmulatorHost::run() {
       continue;
     }
     std::lock_guard lock(mutex_);
+    // At different rates each side sees the other's bytes as noise.
+    const bool mismatch =
+        pty_ && pty_->slaveBaud() != (device_.baud ? device_.baud() : options_.baud);
     if (n > 0) {
       bytes_in_ += n;
-      if (pty_ && pty_->slaveBaud() != options_.baud) {
-        // At the wrong rate each side sees the other's bytes as noise.
+      if (mismatch) {
         std::string noise(static_cast<std::size_t>(n) * 2, '\0');
         for (auto& c : noise) c = static_cast<char>(rng() | 0x80u);
         [[maybe_unused]] const auto w = ::write(io, noise.data(), noise.size());
@@ -178,7 +180,9 @@ void EmulatorHost::run() {
       }
       device_.receive(std::string_view(buf, static_cast<std::size_t>(n)), t);
     }
-    const std::string out = device_.poll(t);
+    std::string out = device_.poll(t);
+    if (mismatch)
+      for (auto& c : out) c = static_cast<char>(rng() | 0x80u);
     // Like a UART with nobody listening, what the port does not take is lost.
     for (std::size_t at = 0; at < out.size();) {
       const ssize_t w = ::write(io, out.data() + at, out.size() - at);

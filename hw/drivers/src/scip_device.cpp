@@ -163,22 +163,7 @@ std::string ScipDevice::scanReply(const std::string& echo, const std::string& st
 
 void ScipDevice::queue(std::string bytes, std::int64_t now_ns) {
   if (faults_.silent) return;
-  std::uniform_real_distribution<double> u(0, 1);
-  if (faults_.corrupt_probability > 0 && u(rng_) < faults_.corrupt_probability) {
-    // Change one byte of a line (not a line feed): that line's checksum no longer holds.
-    std::vector<std::size_t> at;
-    for (std::size_t k = 0; k < bytes.size(); ++k)
-      if (bytes[k] != '\n') at.push_back(k);
-    if (!at.empty()) {
-      const std::size_t k = at[rng_() % at.size()];
-      bytes[k] = static_cast<char>(0x30 + (bytes[k] - 0x30 + 1 + rng_() % 62) % 64);
-    }
-  }
-  if (faults_.garbage_probability > 0 && u(rng_) < faults_.garbage_probability) {
-    std::string noise(1 + rng_() % 40, '\0');
-    for (auto& c : noise) c = static_cast<char>(rng_() % 256);
-    bytes = noise + '\n' + bytes;
-  }
+  damage(bytes, faults_, rng_, '\n');
   const std::int64_t due =
       now_ns + static_cast<std::int64_t>(std::max(0.0, faults_.reply_delay_s) * 1e9);
   pending_.push_back(

@@ -71,7 +71,8 @@ struct Device {
         host(EmulatedDevice{[this](std::string_view b, std::int64_t t) { device.receive(b, t); },
                             [this](std::int64_t t) { return device.poll(t); },
                             [this] { return device.nextDue(); },
-                            [this](std::int64_t t) { device.restart(t); }},
+                            [this](std::int64_t t) { device.restart(t); },
+                            {}},
              o) {}
   int next = 0;
   ScipDevice device;
@@ -140,8 +141,9 @@ TEST_CASE("hokuyo_scip streams an emulated URG-04LX over a pseudo-terminal",
       o, c, [](const ScanCatcher& s) { return s.count() >= 15; }, 10);
   REQUIRE(c.count() >= 15);
   checkAllGenuineInOrder(c);
-  CHECK(c.numbers.front() <= 1);                     // from the first scans on
-  for (std::size_t k = 1; k < c.stamps.size(); ++k)  // the sensor's 100 ms, not the host's
+  CHECK(c.numbers.front() <= 1);  // from the first scans on
+  // The sensor's 100 ms, not the host's, once the clock offset has seen a fast transfer.
+  for (std::size_t k = 4; k < c.stamps.size(); ++k)
     CHECK(nanosToSeconds(c.stamps[k] - c.stamps[k - 1]) ==
           Approx(0.1 * (c.numbers[k] - c.numbers[k - 1])).margin(0.003));
   CHECK(figure(report, "sessions") == 1);

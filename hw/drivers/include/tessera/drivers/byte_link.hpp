@@ -43,11 +43,16 @@ class ByteLink {
   /// Writes all of `bytes`, waiting for the device at most `timeout_ms`; throws LinkError.
   void writeAll(std::string_view bytes, int timeout_ms = 200);
   void close();
+  /// Serial ports: switches to `baud` (after the bytes written so far have gone out); sockets:
+  /// nothing. Throws LinkError.
+  void setBaud(int baud);
 
  private:
-  ByteLink(int fd, std::string device) : fd_(fd), device_(std::move(device)) {}
+  ByteLink(int fd, std::string device, bool serial = false)
+      : fd_(fd), device_(std::move(device)), serial_(serial) {}
   int fd_ = -1;
   std::string device_;
+  bool serial_ = false;
 };
 
 /// The termios speed constant for `baud`; throws LinkError for a rate termios does not have.

@@ -29,6 +29,7 @@ struct EmulatedDevice {
   std::function<std::string(std::int64_t)> poll;
   std::function<std::optional<std::int64_t>()> next_due;
   std::function<void(std::int64_t)> restart;  ///< optional: called when plugged back in
+  std::function<int()> baud;  ///< optional: the device's rate now, if it changes (else options)
 };
 
 struct EmulatorHostOptions {

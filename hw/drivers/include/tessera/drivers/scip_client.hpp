@@ -14,6 +14,7 @@
 // counter-clockwise with 0 ahead (from the sensor's AFRT/ARES).
 #pragma once
 
+#include <tessera/drivers/laser_session.hpp>
 #include <tessera/drivers/scip.hpp>
 #include <tessera/drivers/sensor_clock.hpp>
 
@@ -50,56 +51,27 @@ struct ScipClientOptions {
   }
 };
 
-/// One scan, ready to publish.
-struct LaserReading {
-  std::int64_t stamp_ns = 0;           ///< host time of the sensor's timestamp (SensorClock)
-  std::int64_t received_ns = 0;        ///< host time its last byte was read
-  std::uint32_t sensor_ms = 0;         ///< the sensor's raw 24-bit stamp
-  float angle_min = 0;                 ///< [rad] first beam
-  float angle_increment = 0;           ///< [rad]
-  float range_min = 0, range_max = 0;  ///< [m] the sensor's DMIN / DMAX
-  float scan_time = 0;                 ///< [s] one revolution
-  std::vector<float> ranges;           ///< [m]; +inf no return, NaN error code
-  std::vector<float> intensities;      ///< ME only
-};
-
-class ScipClient {
+class ScipClient final : public LaserSession {
  public:
   enum class State { kDisconnected, kHandshake, kStreaming };
-
-  struct Output {
-    std::string send;                 ///< bytes to write to the device
-    std::vector<LaserReading> scans;  ///< good scans, in order
-    std::vector<std::string> events;  ///< what happened, for the log (connect, errors)
-    bool reconnect = false;           ///< close the link, back off, open it again
-    std::string reconnect_reason;
-  };
+  using Output = SessionOutput;
+  using Counters = SessionCounters;
 
   explicit ScipClient(ScipClientOptions options);  // throws std::invalid_argument
 
-  /// The link is open: starts the handshake.
-  Output connected(std::int64_t now_ns);
-  /// The link closed (by the device or after `reconnect`): forgets the session.
-  void disconnected();
-  /// Bytes read from the link at `now_ns`.
-  Output received(std::string_view bytes, std::int64_t now_ns);
-  /// Checks the timeouts; call it at least every 100 ms.
-  Output tick(std::int64_t now_ns);
+  Output connected(std::int64_t now_ns) override;
+  void disconnected() override;
+  Output received(std::string_view bytes, std::int64_t now_ns) override;
+  Output tick(std::int64_t now_ns) override;
+  bool streaming() const override { return state_ == State::kStreaming; }
+  Counters counters() const override;
+  std::string model() const override { return parameters_ ? parameters_->model : ""; }
 
   State state() const { return state_; }
   /// The sensor's PP answer, once the handshake got it.
   const std::optional<scip::SensorParameters>& parameters() const { return parameters_; }
   /// The scan command sent ("MD0044072501000"), without its line feed.
   const std::string& scanEcho() const { return scan_echo_; }
-
-  struct Counters {
-    std::int64_t scans = 0;           ///< good scans returned
-    std::int64_t bad_replies = 0;     ///< checksum, framing or decoding failures (dropped)
-    std::int64_t refusals = 0;        ///< status codes other than 00/99 on a scan command
-    std::int64_t sessions = 0;        ///< handshakes completed
-    std::uint64_t garbage_bytes = 0;  ///< bytes skipped by the reply parser
-  };
-  Counters counters() const;
 
  private:
   void send(Output& out, const std::string& command, std::int64_t now_ns);

@@ -14,6 +14,7 @@
 // ms since it was created, or the source's stamps when it has them.
 #pragma once
 
+#include <tessera/drivers/device_faults.hpp>
 #include <tessera/drivers/scip.hpp>
 
 #include <cstdint>
@@ -37,12 +38,7 @@ struct EmulatedScan {
 /// The next scan of the emulated world; nullopt at the end (the device goes quiet).
 using ScanSource = std::function<std::optional<EmulatedScan>()>;
 
-struct ScipDeviceFaults {
-  double garbage_probability = 0;  ///< per reply: random bytes sent before it
-  double corrupt_probability = 0;  ///< per reply: one data byte changed (its checksum fails)
-  bool silent = false;             ///< reads commands, answers nothing
-  double reply_delay_s = 0;        ///< every reply held back this long
-};
+using ScipDeviceFaults = DeviceFaults;
 
 class ScipDevice {
  public:

@@ -6,24 +6,18 @@
 //                         (+inf no return, NaN error code), intensities with `client.intensity`;
 //                         stamped with the sensor's own clock mapped to host time (SensorClock)
 //
-// The device is owned by one I/O thread: it opens the link, runs the SCIP session
-// (ScipClient), publishes each good scan as soon as its last byte is read, and on any failure
-// (the device gone, silent, refusing, sending noise) closes the link and reopens it with
-// exponential back-off. The runtime's threads never wait for the device. A corrupt reply is
-// counted and dropped, never published. Needs the wall clock (`clock: wall`): device time is
-// real time.
+// The device is owned by a LaserDriverLoop (one I/O thread, reconnect with back-off) running
+// the SCIP session (ScipClient). A corrupt reply is counted and dropped, never published. Needs
+// the wall clock (`clock: wall`): device time is real time.
 #pragma once
 
+#include <tessera/drivers/laser_driver_loop.hpp>
 #include <tessera/drivers/scip_client.hpp>
-#include <tessera/messages/types.hpp>
 #include <tessera/runtime/actor.hpp>
 #include <tessera/runtime/options.hpp>
 
-#include <atomic>
 #include <memory>
-#include <mutex>
 #include <string>
-#include <thread>
 #include <vector>
 
 namespace tessera::drivers {
@@ -50,40 +44,9 @@ struct HokuyoDriverOptions {
   }
 };
 
-class HokuyoDriverActor final : public Actor {
+class HokuyoDriverActor final : public LaserDriverActor {
  public:
   explicit HokuyoDriverActor(HokuyoDriverOptions options);  // throws ConfigError
-  ~HokuyoDriverActor() override;
-
-  void configure(ActorContext& ctx) override;
-  void start() override;
-  void stop() override;
-  /// scans_published, sessions, reconnects, open_failures, bad_replies, refusals,
-  /// garbage_bytes, latency_ms_median / _p99 (the last 4096 scans) / _max (last byte read to
-  /// published),
-  /// clock_offset_ms, cpu_s (the I/O thread), model, last_error.
-  void summarize(Summary& out) const override;
-
- private:
-  void run();
-  bool waitOrStop(double seconds);
-  void publish(const LaserReading& r);
-
-  HokuyoDriverOptions options_;
-  ActorContext* ctx_ = nullptr;
-  Publisher<msg::LaserScan> scan_pub_;
-  std::thread thread_;
-  std::atomic<bool> stop_{false};
-  int wake_fd_ = -1;
-
-  mutable std::mutex stats_mutex_;
-  struct Stats {
-    std::int64_t published = 0, reconnects = 0, open_failures = 0;
-    ScipClient::Counters client;
-    std::vector<double> latency_ms;
-    double clock_offset_ms = 0, cpu_s = 0, latency_max_ms = 0;
-    std::string model, last_error;
-  } stats_;
 };
 
 }  // namespace tessera::drivers
