@@ -62,3 +62,24 @@ struct ImuSample {
   linearAccelerationY @5 :Float64; # [m/s^2]
   linearAccelerationZ @6 :Float64; # [m/s^2]
 }
+
+# A mobile base's own sensors and its driver's safety state (e.g. create_base). Published when
+# something changes and at least twice a second while the base streams.
+struct BaseStatus {
+  header @0 :Common.Header;        # frameId = base_link
+  bumpLeft @1 :Bool;
+  bumpRight @2 :Bool;
+  wheelDropLeft @3 :Bool;
+  wheelDropRight @4 :Bool;
+  cliffLeft @5 :Bool;
+  cliffFrontLeft @6 :Bool;
+  cliffFrontRight @7 :Bool;
+  cliffRight @8 :Bool;
+  batteryVoltage @9 :Float64;      # [V]
+  batteryCurrent @10 :Float64;     # [A], negative while discharging
+  batteryCharge @11 :Float64;      # [Ah]
+  batteryCapacity @12 :Float64;    # [Ah]
+  charging @13 :Bool;
+  moving @14 :Bool;                # the wheels were last told to turn
+  stopReason @15 :Text;            # why the driver last stopped the wheels ("" if it did not)
+}

@@ -5,6 +5,7 @@
 #include <tessera/datasets/relations.hpp>
 #include <tessera/datasets/rgbd_sequence.hpp>
 #include <tessera/datasets/urg_log.hpp>
+#include <tessera/drivers/create_base.hpp>
 #include <tessera/drivers/scip_client.hpp>
 #include <tessera/drivers/scip_device.hpp>
 #include <tessera/drivers/sick_lms_client.hpp>
@@ -102,6 +103,32 @@ std::string sickSeed() {
   scan.millimetres = true;
   for (int k = 0; k < 181; ++k) scan.values.push_back(static_cast<std::uint16_t>(500 + k * 7));
   s += sick::frame(0x80, sick::encodeScan(scan)) + sick::frame(0x80, sick::encodeScan(scan));
+  return s;
+}
+
+// A Create's sensor stream into the base session, with drive commands between the pieces:
+// never an exception, never a wheel command beyond the OI's limits.
+void createOi(const std::string& text) {
+  drivers::CreateBase base({});
+  (void)base.connected(0);
+  std::int64_t t = 0;
+  for (std::size_t at = 0; at < text.size(); at += 23) {
+    t += 5'000'000;
+    (void)base.received(std::string_view(text).substr(at, 23), t);
+    const auto out = base.command(0.3, static_cast<double>(at % 7) - 3.0, t);
+    if (out.send.size() % 5 != 0) throw std::logic_error("create: a drive command was cut");
+    (void)base.tick(t);
+  }
+}
+
+std::string createSeed() {
+  drivers::oi::SensorFrame f;
+  f.voltage_mv = 14800;
+  f.left_counts = 65000;
+  f.right_counts = 12;
+  std::string s = drivers::oi::encodeFrame(f);
+  f.bump_left = true;
+  s += drivers::oi::encodeFrame(f);
   return s;
 }
 
@@ -236,6 +263,11 @@ const std::vector<Target>& targets() {
        scipSeed(),
        {}},
       {"sick", "SICK LMS2xx telegram streams into the driver's session", sickLms, sickSeed(), {}},
+      {"create",
+       "iRobot Open Interface sensor streams into the base driver's session",
+       createOi,
+       createSeed(),
+       {}},
       {"posegraph",
        "g2o and TORO pose graphs, 2D and 3D",
        poseGraph,

@@ -1,23 +1,13 @@
 // CreateBase: see create_base.hpp.
 #include <tessera/drivers/create_base.hpp>
+#include <tessera/drivers/session_text.hpp>
 
 #include <cmath>
-#include <sstream>
 #include <stdexcept>
 
 namespace tessera::drivers {
 
 namespace create_base_detail {
-
-std::int64_t nanos(double s) {
-  return static_cast<std::int64_t>(std::llround(s * 1e9));
-}
-
-std::string decimal(double v) {
-  std::ostringstream out;
-  out << v;
-  return out.str();
-}
 
 bool sameSensors(const oi::SensorFrame& a, const oi::SensorFrame& b) {
   return a.bump_left == b.bump_left && a.bump_right == b.bump_right &&
@@ -153,19 +143,18 @@ BaseOutput CreateBase::received(std::string_view bytes, std::int64_t now_ns) {
 }
 
 BaseOutput CreateBase::tick(std::int64_t now_ns) {
-  namespace d = create_base_detail;
   BaseOutput out;
   if (!connected_) return out;
-  if (now_ns - last_frame_ns_ > d::nanos(options_.frame_timeout_s)) {
+  if (now_ns - last_frame_ns_ > nanosOf(options_.frame_timeout_s)) {
     out.reconnect = true;
-    out.reconnect_reason = "no sensor frame for " + d::decimal(options_.frame_timeout_s) + " s";
+    out.reconnect_reason = "no sensor frame for " + decimal(options_.frame_timeout_s) + " s";
     out.events.push_back(out.reconnect_reason);
     disconnected();
     return out;
   }
-  if (moving_ && now_ns - last_command_ns_ > d::nanos(options_.watchdog_s)) {
+  if (moving_ && now_ns - last_command_ns_ > nanosOf(options_.watchdog_s)) {
     ++counters_.watchdog_stops;
-    stop(out, "watchdog: no drive command for " + d::decimal(options_.watchdog_s) + " s", now_ns);
+    stop(out, "watchdog: no drive command for " + decimal(options_.watchdog_s) + " s", now_ns);
   }
   return out;
 }

@@ -1,25 +1,15 @@
 // ScipClient: see scip_client.hpp.
 #include <tessera/drivers/scip_client.hpp>
+#include <tessera/drivers/session_text.hpp>
 
 #include <cmath>
 #include <limits>
 #include <numbers>
-#include <sstream>
 #include <stdexcept>
 
 namespace tessera::drivers {
 
 namespace scip_client_detail {
-
-std::int64_t seconds(double s) {
-  return static_cast<std::int64_t>(std::llround(s * 1e9));
-}
-
-std::string decimal(double v) {
-  std::ostringstream out;
-  out << v;
-  return out.str();
-}
 
 // The scan command's echo without its remaining-scans count, which MD replies count down.
 constexpr std::size_t kScanEchoPrefix = 13;
@@ -30,8 +20,7 @@ using scip_client_detail::kScanEchoPrefix;
 
 ScipClient::ScipClient(ScipClientOptions options)
     : options_(options),
-      clock_(24, 1'000'000,
-             scip_client_detail::seconds(options.clock_window_s > 0 ? options.clock_window_s : 1)) {
+      clock_(24, 1'000'000, nanosOf(options.clock_window_s > 0 ? options.clock_window_s : 1)) {
   const auto& o = options_;
   if (o.cluster < 1 || o.cluster > 99)
     throw std::invalid_argument("cluster must be 1..99, got " + std::to_string(o.cluster));
@@ -55,7 +44,7 @@ ScipClient::Counters ScipClient::counters() const {
 void ScipClient::send(Output& out, const std::string& command, std::int64_t now_ns) {
   out.send += command;
   waiting_for_ = command.substr(0, command.size() - 1);  // the echo: the line without its LF
-  deadline_ns_ = now_ns + scip_client_detail::seconds(options_.reply_timeout_s);
+  deadline_ns_ = now_ns + nanosOf(options_.reply_timeout_s);
 }
 
 void ScipClient::fail(Output& out, const std::string& why) {
@@ -99,9 +88,8 @@ ScipClient::Output ScipClient::tick(std::int64_t now_ns) {
   if (state_ == State::kDisconnected || now_ns <= deadline_ns_) return out;
   std::string why =
       state_ == State::kStreaming
-          ? "no scan for " + scip_client_detail::decimal(options_.scan_timeout_s) + " s"
-          : "no reply to '" + waiting_for_ + "' within " +
-                scip_client_detail::decimal(options_.reply_timeout_s) + " s";
+          ? "no scan for " + decimal(options_.scan_timeout_s) + " s"
+          : "no reply to '" + waiting_for_ + "' within " + decimal(options_.reply_timeout_s) + " s";
   const std::uint64_t noise = parser_.skippedBytes() + parser_.bufferedBytes();
   if (state_ == State::kHandshake && noise > 0 && session_replies_ == 0)
     why += " (" + std::to_string(noise) +
@@ -147,7 +135,7 @@ void ScipClient::onReply(const scip::Reply& reply, std::int64_t now_ns, Output& 
   }
   state_ = State::kStreaming;
   scan_echo_ = waiting_for_;
-  deadline_ns_ = now_ns + scip_client_detail::seconds(options_.scan_timeout_s);
+  deadline_ns_ = now_ns + nanosOf(options_.scan_timeout_s);
   ++counters_.sessions;
   out.events.push_back("streaming: " + parameters_->model + ", steps " + std::to_string(first_) +
                        ".." + std::to_string(last_) + ", " + std::to_string(parameters_->scan_rpm) +
@@ -212,7 +200,7 @@ void ScipClient::onScan(const scip::Reply& reply, std::int64_t now_ns, Output& o
       r.ranges[k] = static_cast<float>(static_cast<double>(mm) * 1e-3);
   }
   r.intensities.assign(d.scan->intensities.begin(), d.scan->intensities.end());
-  deadline_ns_ = now_ns + scip_client_detail::seconds(options_.scan_timeout_s);
+  deadline_ns_ = now_ns + nanosOf(options_.scan_timeout_s);
   ++counters_.scans;
   out.scans.push_back(std::move(r));
 }

@@ -1,34 +1,22 @@
 // SickLmsClient: see sick_lms_client.hpp.
+#include <tessera/drivers/session_text.hpp>
 #include <tessera/drivers/sick_lms_client.hpp>
 
 #include <array>
 #include <cmath>
 #include <limits>
 #include <numbers>
-#include <sstream>
 #include <stdexcept>
 
 namespace tessera::drivers {
 
 namespace sick_client_detail {
 
-std::int64_t nanos(double s) {
-  return static_cast<std::int64_t>(std::llround(s * 1e9));
-}
-
-std::string decimal(double v) {
-  std::ostringstream out;
-  out << v;
-  return out.str();
-}
-
 constexpr std::array<int, 4> kSearch = {9600, 19200, 38400, 500000};
 
 }  // namespace sick_client_detail
 
-using sick_client_detail::decimal;
 using sick_client_detail::kSearch;
-using sick_client_detail::nanos;
 
 SickLmsClient::SickLmsClient(SickLmsClientOptions options, int session_baud)
     : options_(std::move(options)), session_baud_(session_baud) {
@@ -95,7 +83,7 @@ void SickLmsClient::send(SessionOutput& out, Step step, const std::string& paylo
                          std::int64_t now_ns) {
   step_ = step;
   out.send += sick::frame(sick::kToSensor, payload);
-  deadline_ns_ = now_ns + nanos(options_.reply_timeout_s);
+  deadline_ns_ = now_ns + nanosOf(options_.reply_timeout_s);
 }
 
 void SickLmsClient::fail(SessionOutput& out, const std::string& why) {
@@ -182,7 +170,7 @@ void SickLmsClient::onTelegram(const sick::Telegram& t, std::int64_t now_ns, Ses
       }
       if (step_ == Step::kStart) {
         step_ = Step::kStreaming;
-        deadline_ns_ = now_ns + nanos(options_.scan_timeout_s);
+        deadline_ns_ = now_ns + nanosOf(options_.scan_timeout_s);
         ++counters_.sessions;
         attempt_ = 0;  // found it: next time, start from the session rate
         out.events.push_back("streaming: " + model() + ", " + std::to_string(link_baud_) + " baud");
@@ -260,7 +248,7 @@ void SickLmsClient::onScan(const sick::Telegram& t, std::int64_t now_ns, Session
   r.received_ns = now_ns;
   // 10 bits per byte on the line (8N1: start, 8 data, stop); 7 bytes of framing around the data.
   const double bytes = static_cast<double>(t.data.size() + 7);
-  r.stamp_ns = now_ns - nanos(bytes * 10.0 / link_baud_);
+  r.stamp_ns = now_ns - nanosOf(bytes * 10.0 / link_baud_);
   const double step = resolution_centideg_ * 0.01 * std::numbers::pi / 180;
   r.angle_min = static_cast<float>(-options_.angle_deg * 0.5 * std::numbers::pi / 180);
   r.angle_increment = static_cast<float>(step);
@@ -274,7 +262,7 @@ void SickLmsClient::onScan(const sick::Telegram& t, std::int64_t now_ns, Session
     const std::uint16_t v = scan->values[k];
     r.ranges[k] = v >= sick::kFirstCode ? kInf : static_cast<float>(v * unit);
   }
-  deadline_ns_ = now_ns + nanos(options_.scan_timeout_s);
+  deadline_ns_ = now_ns + nanosOf(options_.scan_timeout_s);
   ++counters_.scans;
   out.scans.push_back(std::move(r));
 }

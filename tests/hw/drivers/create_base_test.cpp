@@ -6,6 +6,8 @@
 #include <tessera/drivers/create_device.hpp>
 #include <tessera/drivers/create_oi.hpp>
 
+#include "byte_strings.hpp"
+
 #include <catch2/catch.hpp>
 
 #include <cmath>
@@ -19,11 +21,7 @@ namespace create_base_test {
 using namespace tessera::drivers;
 constexpr std::int64_t kMs = 1'000'000;
 
-std::string bytes(std::initializer_list<int> b) {
-  std::string s;
-  for (const int v : b) s += static_cast<char>(v);
-  return s;
-}
+using tessera::test::bytes;
 
 TEST_CASE("oi commands are the specification's bytes", "[drivers][create]") {
   CHECK(oi::driveDirect(200, 200) == bytes({145, 0x00, 0xC8, 0x00, 0xC8}));

@@ -7,6 +7,8 @@
 #include <tessera/drivers/sick_lms_client.hpp>
 #include <tessera/drivers/sick_lms_device.hpp>
 
+#include "byte_strings.hpp"
+
 #include <catch2/catch.hpp>
 
 #include <cmath>
@@ -21,11 +23,7 @@ namespace sick_lms_test {
 using namespace tessera::drivers;
 constexpr std::int64_t kMs = 1'000'000;
 
-std::string bytes(std::initializer_list<int> b) {
-  std::string s;
-  for (const int v : b) s += static_cast<char>(v);
-  return s;
-}
+using tessera::test::bytes;
 
 TEST_CASE("sick telegrams carry the listing's CRC", "[drivers][sick]") {
   // Stream every scan, stop, 38400 and 500000 baud: the telegrams every LMS driver sends.

@@ -121,6 +121,7 @@ const std::map<std::uint64_t, TypeEntry>& types() {
     add(generic, static_cast<msg::NavStatus*>(nullptr));
     add(generic, static_cast<msg::WheelTicks*>(nullptr));
     add(generic, static_cast<msg::ImuSample*>(nullptr));
+    add(generic, static_cast<msg::BaseStatus*>(nullptr));
     add(generic, static_cast<msg::Submap*>(nullptr));
     add(generic, static_cast<msg::SubmapConstraint*>(nullptr));
     add(Kind::kSubmapPoses, static_cast<msg::SubmapPoses*>(nullptr));

@@ -1,78 +1,53 @@
-// LaserDriverLoop: the I/O thread every laser driver actor runs (docs/architecture.md#device-
-// drivers). It owns the device's link, drives a LaserSession (the protocol core) with what it
-// reads, and publishes each good scan from its own thread as soon as the scan's last byte is
-// read. On any failure (the device gone, silent, refusing, sending noise) it closes the link
-// and reopens it with exponential back-off; the runtime's threads never wait for the device.
-// Events go to stderr, at most one a second.
+// LaserDriverLoop and LaserDriverActor: a laser driver is a DeviceLoop running a LaserSession
+// (the protocol core), publishing its scans (docs/architecture.md#device-drivers).
 #pragma once
 
+#include <tessera/drivers/device_loop.hpp>
 #include <tessera/drivers/laser_session.hpp>
 #include <tessera/messages/types.hpp>
 #include <tessera/runtime/actor.hpp>
 
-#include <atomic>
 #include <functional>
 #include <memory>
 #include <mutex>
 #include <string>
-#include <thread>
 #include <vector>
 
 namespace tessera::drivers {
 
-struct LaserLinkOptions {
-  std::string device;
-  int baud = 0;
-  double retry_initial_s = 0.5;
-  double retry_max_s = 8;
-};
+using LaserLinkOptions = DeviceLinkOptions;
 
-/// Throws ConfigError naming `actor`'s option when the device, baud or retry times are wrong.
-void checkLaserLinkOptions(const std::string& actor, const LaserLinkOptions& o);
-/// Throws ConfigError unless the runtime runs on the wall clock.
-void requireWallClock(const std::string& actor, const ActorContext& ctx);
-
+/// A DeviceLoop running a LaserSession: publishes each scan from the I/O thread as soon as its
+/// last byte is read, on `scan` with `frame_id` and the mount [x, y, theta].
 class LaserDriverLoop {
  public:
-  /// `session` and `ctx` outlive the loop. Scans are published on `scan` with `frame_id` and
-  /// the mount [x, y, theta].
+  /// `session` and `ctx` outlive the loop.
   LaserDriverLoop(std::string name, LaserLinkOptions link, LaserSession& session, ActorContext& ctx,
                   Publisher<msg::LaserScan> scan, std::string frame_id, std::vector<double> mount);
-  ~LaserDriverLoop();
-  LaserDriverLoop(const LaserDriverLoop&) = delete;
-  LaserDriverLoop& operator=(const LaserDriverLoop&) = delete;
-
-  void start();
-  void stop();  ///< wakes the thread and joins it
-  /// scans_published, sessions, reconnects, open_failures, bad_replies, refusals,
-  /// garbage_bytes, latency_ms_median / _p99 (the last 4096 scans) / _max (last byte read to
-  /// published), stamp_minus_receive_ms, cpu_s (the I/O thread), model, baud, last_error.
+  void start() { loop_->start(); }
+  void stop() { loop_->stop(); }
+  /// DeviceLoop's figures and scans_published, sessions, bad_replies, refusals, garbage_bytes,
+  /// latency_ms_median / _p99 (the last 4096 scans) / _max (last byte read to published),
+  /// stamp_minus_receive_ms, model.
   void summarize(Summary& out) const;
 
  private:
-  void run();
-  bool waitOrStop(double seconds);
+  DeviceStep take(SessionOutput&& out, Nanos read_at);
   void publish(const LaserReading& r);
 
-  std::string name_;
-  LaserLinkOptions link_;
   LaserSession& session_;
-  ActorContext& ctx_;
   Publisher<msg::LaserScan> scan_pub_;
   std::string frame_id_;
   std::vector<double> mount_;
-  std::thread thread_;
-  std::atomic<bool> stop_{false};
-  int wake_fd_ = -1;
-
   mutable std::mutex stats_mutex_;
   struct Stats {
-    std::int64_t published = 0, reconnects = 0, open_failures = 0, baud = 0;
+    std::int64_t published = 0;
     SessionCounters session;
     std::vector<double> latency_ms;
-    double clock_offset_ms = 0, cpu_s = 0, latency_max_ms = 0;
-    std::string model, last_error;
+    double clock_offset_ms = 0, latency_max_ms = 0;
+    std::string model;
   } stats_;
+  std::unique_ptr<DeviceLoop> loop_;  // last: its thread uses the members above
 };
 
 /// What a laser driver actor is, given its session: it checks the link options and the mount,
