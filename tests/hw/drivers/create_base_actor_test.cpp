@@ -47,14 +47,14 @@ class Listener final : public Actor {
 TEST_CASE("create_base drives an emulated Create 2, stops it on its watchdog and bumper",
           "[drivers][create_base]") {
   CreateDevice device;
-  EmulatorHost host({[&](std::string_view b, std::int64_t t) { device.receive(b, t); },
-                     [&](std::int64_t t) { return device.poll(t); },
-                     [&] { return device.nextDue(); },
-                     [&](std::int64_t t) { device.restart(t); },
-                     {}},
-                    EmulatorHostOptions{
-                        (std::filesystem::temp_directory_path() / "tessera_create_test").string(),
-                        -1, 115200});
+  EmulatorHost host(
+      {[&](std::string_view b, std::int64_t t) { device.receive(b, t); },
+       [&](std::int64_t t) { return device.poll(t); },
+       [&] { return device.nextDue(); },
+       [&](std::int64_t t) { device.restart(t); },
+       {}},
+      EmulatorHostOptions{(std::filesystem::temp_directory_path() / "tessera_create_test").string(),
+                          -1, 115200});
   CreateBaseActorOptions o;
   o.device = host.devicePath();
   o.retry_initial_s = 0.05;

@@ -39,7 +39,8 @@ struct CreateBaseActorOptions {
 
   template <class V>
   void visit(V& v) {
-    v("device", device, "serial device of the Create's cable (/dev/ttyUSB0, /dev/serial/by-id/...)");
+    v("device", device,
+      "serial device of the Create's cable (/dev/ttyUSB0, /dev/serial/by-id/...)");
     v("baud", baud, "the OI's rate: 115200 (Create 2 default) or 19200");
     v("frame_id", frame_id, "frame of wheel_ticks and base_status");
     v("retry_initial_s", retry_initial_s, "[s] first wait before reopening a failed device");
