@@ -70,7 +70,6 @@ class UrgLogSource {
     ++scans_;
     return e;
   }
-  std::int64_t scans() const { return scans_; }
 
  private:
   void open() {

@@ -8,7 +8,7 @@
 
 namespace tessera::drivers {
 
-LaserDriverLoop::LaserDriverLoop(std::string name, LaserLinkOptions link, LaserSession& session,
+LaserDriverLoop::LaserDriverLoop(std::string name, DeviceLinkOptions link, LaserSession& session,
                                  ActorContext& ctx, Publisher<msg::LaserScan> scan,
                                  std::string frame_id, std::vector<double> mount)
     : session_(session), scan_pub_(scan), frame_id_(std::move(frame_id)), mount_(std::move(mount)) {
@@ -109,7 +109,7 @@ void LaserDriverLoop::summarize(Summary& out) const {
 
 namespace tessera::drivers {
 
-LaserDriverActor::LaserDriverActor(std::string name, LaserLinkOptions link, std::string frame_id,
+LaserDriverActor::LaserDriverActor(std::string name, DeviceLinkOptions link, std::string frame_id,
                                    std::vector<double> mount)
     : name_(std::move(name)),
       link_(std::move(link)),

@@ -38,8 +38,6 @@ struct EmulatedScan {
 /// The next scan of the emulated world; nullopt at the end (the device goes quiet).
 using ScanSource = std::function<std::optional<EmulatedScan>()>;
 
-using ScipDeviceFaults = DeviceFaults;
-
 class ScipDevice {
  public:
   /// A URG-04LX: steps 44..725 of 1024, front 384, 20..5600 mm, 600 rpm.
@@ -54,7 +52,7 @@ class ScipDevice {
   /// When poll() next has something to send; nullopt when nothing is pending.
   std::optional<std::int64_t> nextDue() const;
 
-  ScipDeviceFaults& faults() { return faults_; }
+  DeviceFaults& faults() { return faults_; }
   /// Power cycle: stream stopped, laser off, its clock restarted at `now_ns`.
   void restart(std::int64_t now_ns);
 
@@ -79,7 +77,7 @@ class ScipDevice {
 
   scip::SensorParameters params_;
   ScanSource source_;
-  ScipDeviceFaults faults_;
+  DeviceFaults faults_;
   std::mt19937_64 rng_;
   std::string line_;
   struct Pending {

@@ -15,15 +15,14 @@
 
 namespace tessera::drivers {
 
-using LaserLinkOptions = DeviceLinkOptions;
-
 /// A DeviceLoop running a LaserSession: publishes each scan from the I/O thread as soon as its
 /// last byte is read, on `scan` with `frame_id` and the mount [x, y, theta].
 class LaserDriverLoop {
  public:
   /// `session` and `ctx` outlive the loop.
-  LaserDriverLoop(std::string name, LaserLinkOptions link, LaserSession& session, ActorContext& ctx,
-                  Publisher<msg::LaserScan> scan, std::string frame_id, std::vector<double> mount);
+  LaserDriverLoop(std::string name, DeviceLinkOptions link, LaserSession& session,
+                  ActorContext& ctx, Publisher<msg::LaserScan> scan, std::string frame_id,
+                  std::vector<double> mount);
   void start() { loop_->start(); }
   void stop() { loop_->stop(); }
   /// DeviceLoop's figures and scans_published, sessions, bad_replies, refusals, garbage_bytes,
@@ -62,7 +61,7 @@ class LaserDriverActor : public Actor {
 
  protected:
   /// Throws ConfigError naming `name`'s option ('device', 'baud', 'mount', …).
-  LaserDriverActor(std::string name, LaserLinkOptions link, std::string frame_id,
+  LaserDriverActor(std::string name, DeviceLinkOptions link, std::string frame_id,
                    std::vector<double> mount);
   ~LaserDriverActor() override;
   /// The derived driver's session; set in its constructor.
@@ -71,7 +70,7 @@ class LaserDriverActor : public Actor {
 
  private:
   std::string name_;
-  LaserLinkOptions link_;
+  DeviceLinkOptions link_;
   std::string frame_id_;
   std::vector<double> mount_;
   std::unique_ptr<LaserDriverLoop> loop_;
