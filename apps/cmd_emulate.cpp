@@ -1,15 +1,18 @@
-// `tessera emulate scip|sick`: an emulated Hokuyo URG-04LX (drivers/scip_device.hpp) on a
-// pseudo-terminal or a TCP port, streaming a recorded URG log or a fixed room, or an emulated
-// SICK LMS200 (drivers/sick_lms_device.hpp) on a pseudo-terminal, so the drivers and whole
-// profiles can be tried without the lasers (docs/architecture.md#device-drivers). Runs until
+// `tessera emulate scip|sick|vectornav|create`: an emulated Hokuyo URG-04LX
+// (drivers/scip_device.hpp) on a pseudo-terminal or a TCP port, streaming a recorded URG log or a
+// fixed room, or an emulated SICK LMS200, VectorNav VN-100 or iRobot Create 2 on a
+// pseudo-terminal (`emulate kinect`, a recording, is in cmd_emulate_kinect.cpp), so the drivers and
+// whole profiles can be tried without the lasers (docs/architecture.md#device-drivers). Runs until
 // SIGINT/SIGTERM, or with --exit-at-end until the log has been streamed. Exit codes: 0 ok; 2 usage
 // errors; 1 a log that cannot be read.
 #include "commands.hpp"
 
 #include <tessera/datasets/urg_log.hpp>
+#include <tessera/drivers/create_device.hpp>
 #include <tessera/drivers/emulator_host.hpp>
 #include <tessera/drivers/scip_device.hpp>
 #include <tessera/drivers/sick_lms_device.hpp>
+#include <tessera/drivers/vectornav_device.hpp>
 #include <tessera/runtime/options.hpp>
 
 #include <atomic>
@@ -30,6 +33,16 @@ namespace {
 std::atomic<bool> g_emulate_stop{false};
 extern "C" void onEmulateSignal(int) {
   g_emulate_stop = true;
+}
+
+/// Returns on SIGINT or SIGTERM (the emulator's device keeps running meanwhile).
+void waitForStopSignal() {
+  g_emulate_stop = false;
+  auto* old_int = std::signal(SIGINT, onEmulateSignal);
+  auto* old_term = std::signal(SIGTERM, onEmulateSignal);
+  while (!g_emulate_stop) std::this_thread::sleep_for(std::chrono::milliseconds(50));
+  std::signal(SIGINT, old_int);
+  std::signal(SIGTERM, old_term);
 }
 
 struct EmulateSettings {
@@ -207,12 +220,7 @@ int runEmulateSick(const SickSettings& s) {
   std::cout << "emulated SICK LMS200 on " << host.devicePath()
             << " (9600 baud at power-up), a fixed 6 x 4 m room\n"
             << std::flush;
-  g_emulate_stop = false;
-  auto* old_int = std::signal(SIGINT, onEmulateSignal);
-  auto* old_term = std::signal(SIGTERM, onEmulateSignal);
-  while (!g_emulate_stop) std::this_thread::sleep_for(std::chrono::milliseconds(50));
-  std::signal(SIGINT, old_int);
-  std::signal(SIGTERM, old_term);
+  waitForStopSignal();
   std::int64_t sent = 0, skipped = 0;
   int baud = 0;
   host.withDevice([&] {
@@ -226,6 +234,97 @@ int runEmulateSick(const SickSettings& s) {
 }
 
 }  // namespace
+
+namespace emulate_vectornav {
+
+struct Settings {
+  std::string link;
+  int baud = 115200;
+  double yaw_rate = 0.2, gyro_noise = 0, accel_noise = 0;
+  double garbage = 0, corrupt = 0;
+};
+
+/// The emulated VN-100 on a pseudo-terminal, turning left at a constant rate, level.
+int run(const Settings& s) {
+  namespace drv = tessera::drivers;
+  if (s.garbage < 0 || s.garbage > 1 || s.corrupt < 0 || s.corrupt > 1)
+    throw ConfigError("--garbage and --corrupt are probabilities in [0, 1]");
+  if (!std::isfinite(s.yaw_rate) || !(s.gyro_noise >= 0) || !(s.accel_noise >= 0))
+    throw ConfigError("--yaw-rate must be finite, --gyro-noise and --accel-noise >= 0");
+  drv::VectorNavDevice device(s.baud);
+  device.motion().angular_velocity = {0, 0, s.yaw_rate};
+  device.motion().gyro_noise = s.gyro_noise;
+  device.motion().accel_noise = s.accel_noise;
+  device.faults().garbage_probability = s.garbage;
+  device.faults().corrupt_probability = s.corrupt;
+  drv::EmulatorHostOptions ho;
+  ho.link = s.link;
+  ho.baud = s.baud;
+  drv::EmulatorHost host(
+      {[&](std::string_view b, std::int64_t t) { device.receive(b, t); },
+       [&](std::int64_t t) { return device.poll(t); }, [&] { return device.nextDue(); },
+       [&](std::int64_t t) { device.restart(t); }, [&] { return device.baud(); }},
+      ho);
+  std::cout << "emulated VectorNav " << drv::VectorNavDevice::kModel << " on " << host.devicePath()
+            << " (" << s.baud << " baud at power-up, VNYMR at 40 Hz), turning left at "
+            << s.yaw_rate << " rad/s\n"
+            << std::flush;
+  waitForStopSignal();
+  std::int64_t sent = 0, skipped = 0;
+  int baud = 0, type = 0, rate = 0;
+  host.withDevice([&] {
+    sent = device.linesSent();
+    skipped = device.linesSkipped();
+    baud = device.baud();
+    type = device.outputType();
+    rate = device.outputRate();
+  });
+  std::cerr << "emulate: " << sent << " lines sent, " << skipped
+            << " skipped (the line too slow), output type " << type << " at " << rate << " Hz, "
+            << baud << " baud\n";
+  return 0;
+}
+
+}  // namespace emulate_vectornav
+
+namespace emulate_create {
+
+struct Settings {
+  std::string link;
+  double garbage = 0, corrupt = 0;
+};
+
+/// The emulated Create 2 on a pseudo-terminal: a robot on an open floor, its battery charged.
+int run(const Settings& s) {
+  namespace drv = tessera::drivers;
+  if (s.garbage < 0 || s.garbage > 1 || s.corrupt < 0 || s.corrupt > 1)
+    throw ConfigError("--garbage and --corrupt are probabilities in [0, 1]");
+  drv::CreateDevice device;
+  device.faults().garbage_probability = s.garbage;
+  device.faults().corrupt_probability = s.corrupt;
+  drv::EmulatorHostOptions ho;
+  ho.link = s.link;
+  ho.baud = 115200;
+  drv::EmulatorHost host({[&](std::string_view b, std::int64_t t) { device.receive(b, t); },
+                          [&](std::int64_t t) { return device.poll(t); },
+                          [&] { return device.nextDue(); },
+                          [&](std::int64_t t) { device.restart(t); },
+                          {}},
+                         ho);
+  std::cout << "emulated iRobot Create 2 on " << host.devicePath()
+            << " (115200 baud, Open Interface), on an open floor\n"
+            << std::flush;
+  waitForStopSignal();
+  double left = 0, right = 0;
+  host.withDevice([&] {
+    left = device.leftDistance();
+    right = device.rightDistance();
+  });
+  std::cerr << "emulate: the wheels rolled " << left << " m (left) and " << right << " m (right)\n";
+  return 0;
+}
+
+}  // namespace emulate_create
 
 void addEmulateCommand(CLI::App& app, int& result) {
   auto* emulate = app.add_subcommand("emulate", "emulated devices for trying drivers without them");
@@ -250,6 +349,31 @@ void addEmulateCommand(CLI::App& app, int& result) {
   scip->add_option("--corrupt", s->corrupt, "probability of a corrupted byte in a reply");
   scip->callback([s, &result] { result = runEmulate(*s); });
 
+  auto v = std::make_shared<emulate_vectornav::Settings>();
+  auto* vn100 = emulate->add_subcommand(
+      "vectornav",
+      "a VectorNav VN-100 IMU (ASCII: registers, VNYMR/VNIMU output, baud switching) on a "
+      "pseudo-terminal");
+  vn100->add_option("--link", v->link, "create this symlink to the pseudo-terminal")->required();
+  vn100->add_option("--baud", v->baud, "its baud rate at power-up (the factory's: 115200)")
+      ->check(CLI::IsMember({9600, 19200, 38400, 57600, 115200, 230400, 460800, 921600}));
+  vn100->add_option("--yaw-rate", v->yaw_rate, "[rad/s] its constant turn, counter-clockwise");
+  vn100->add_option("--gyro-noise", v->gyro_noise, "[rad/s] standard deviation per sample");
+  vn100->add_option("--accel-noise", v->accel_noise, "[m/s^2] standard deviation per sample");
+  vn100->add_option("--garbage", v->garbage, "probability of noise bytes before a line");
+  vn100->add_option("--corrupt", v->corrupt, "probability of a corrupted byte in a line");
+  vn100->callback([v, &result] { result = emulate_vectornav::run(*v); });
+
+  auto c = std::make_shared<emulate_create::Settings>();
+  auto* create = emulate->add_subcommand(
+      "create",
+      "an iRobot Create 2 (Open Interface: drive, sensor stream with encoders, bumpers, cliffs, "
+      "battery) on a pseudo-terminal");
+  create->add_option("--link", c->link, "create this symlink to the pseudo-terminal")->required();
+  create->add_option("--garbage", c->garbage, "probability of noise bytes before a frame");
+  create->add_option("--corrupt", c->corrupt, "probability of a corrupted byte in a frame");
+  create->callback([c, &result] { result = emulate_create::run(*c); });
+
   auto l = std::make_shared<SickSettings>();
   auto* sick = emulate->add_subcommand(
       "sick",
@@ -259,6 +383,8 @@ void addEmulateCommand(CLI::App& app, int& result) {
   sick->add_option("--garbage", l->garbage, "probability of noise bytes before a reply");
   sick->add_option("--corrupt", l->corrupt, "probability of a corrupted byte in a reply");
   sick->callback([l, &result] { result = runEmulateSick(*l); });
+
+  addEmulateKinectCommand(*emulate, result);
 }
 
 }  // namespace tessera::app

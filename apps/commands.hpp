@@ -34,6 +34,8 @@ void addBenchCommands(CLI::App& app, int& result);
 void addLaunchCommand(CLI::App& app, int& result);
 /// Adds `tessera emulate scip` (an emulated Hokuyo laser on a pty or TCP port).
 void addEmulateCommand(CLI::App& app, int& result);
+/// Adds `tessera emulate kinect` (a fakenect recording from an RGB-D dataset) under `emulate`.
+void addEmulateKinectCommand(CLI::App& emulate, int& result);
 /// Adds `tessera doctor` (checks /dev/shm, leftovers, CPU governor, huge pages, datasets).
 void addDoctorCommand(CLI::App& app, int& result);
 /// Adds `tessera completion bash` (a completion script from the whole command tree: call last).

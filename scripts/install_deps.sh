@@ -14,6 +14,7 @@ PACKAGES=(
   # support libraries
   libyaml-cpp-dev nlohmann-json3-dev libcli11-dev libspdlog-dev libfmt-dev libzstd-dev zlib1g-dev libpng-dev libjpeg-dev
   libwebsocketpp-dev libasio-dev  # the live viewer's HTTP + WebSocket server (header-only)
+  libfreenect-dev  # Kinect v1 driver (libfreenect0.5 also brings fakenect, its recording player)
   libsuitesparse-dev  # CHOLMOD for the Gauss-Newton pose-graph stage (Ceres pulls it in too)
 )
 

@@ -9,11 +9,13 @@
 #include <tessera/drivers/scip_client.hpp>
 #include <tessera/drivers/scip_device.hpp>
 #include <tessera/drivers/sick_lms_client.hpp>
+#include <tessera/drivers/vectornav_imu.hpp>
 #include <tessera/io/text_reader.hpp>
 #include <tessera/messages/types.hpp>
 #include <tessera/pose_graph/pose_graph_io.hpp>
 #include <tessera/runtime/recording.hpp>
 
+#include <cmath>
 #include <filesystem>
 #include <fstream>
 #include <iostream>
@@ -129,6 +131,46 @@ std::string createSeed() {
   std::string s = drivers::oi::encodeFrame(f);
   f.bump_left = true;
   s += drivers::oi::encodeFrame(f);
+  return s;
+}
+
+// A VN-100's byte stream into the IMU session: never an exception, never a sample that is not
+// finite (NaN lines are dropped, not published).
+void vectorNav(const std::string& text) {
+  drivers::VectorNavImu imu({}, 115200);
+  (void)imu.connected(0);
+  std::int64_t t = 0;
+  for (std::size_t at = 0; at < text.size(); at += 37) {
+    t += 1'000'000;
+    auto out = imu.received(std::string_view(text).substr(at, 37), t);
+    for (const auto& s : out.samples)
+      for (int k = 0; k < 3; ++k)
+        if (!std::isfinite(s.gyro[k]) || !std::isfinite(s.accel[k]))
+          throw std::logic_error("vectornav: a sample with a value that is not finite came out");
+    if (out.reconnect) (void)imu.connected(t);
+    (void)imu.tick(t);
+  }
+  (void)imu.tick(t + 5'000'000'000);
+}
+
+// A VN-100's answers to a session at 115200 baud: model, serial number, output type and rate,
+// then VNIMU and VNYMR lines.
+std::string vectorNavSeed() {
+  namespace vn = drivers::vn;
+  std::string s = vn::frame("VNRRG,01,VN-100T-CR") + vn::frame("VNRRG,03,0100012345") +
+                  vn::frame("VNWRG,06,19") + vn::frame("VNWRG,07,100");
+  vn::Sample imu;
+  imu.mag_gauss = {0.2, 0, 0.45};
+  imu.accel = {0.1, -0.2, -9.81};
+  imu.gyro = {0.001, -0.002, -0.5};
+  imu.temperature_c = 25;
+  imu.pressure_kpa = 101.325;
+  s += vn::frame(vn::encodeSample(imu)) + vn::frame(vn::encodeSample(imu));
+  vn::Sample ymr = imu;
+  ymr.type = vn::kTypeYmr;
+  ymr.yaw_deg = 12.5;
+  ymr.pitch_deg = ymr.roll_deg = 0.5;
+  s += vn::frame(vn::encodeSample(ymr)) + vn::frame("VNERR,11");
   return s;
 }
 
@@ -267,6 +309,11 @@ const std::vector<Target>& targets() {
        "iRobot Open Interface sensor streams into the base driver's session",
        createOi,
        createSeed(),
+       {}},
+      {"vectornav",
+       "VectorNav VN-100 ASCII lines (replies, VNIMU, VNYMR) into the IMU driver's session",
+       vectorNav,
+       vectorNavSeed(),
        {}},
       {"posegraph",
        "g2o and TORO pose graphs, 2D and 3D",

@@ -14,6 +14,14 @@ SensorClock::SensorClock(int bits, std::int64_t tick_ns, std::int64_t window_ns)
     throw std::invalid_argument("SensorClock: tick and window must be > 0");
 }
 
+SensorClock SensorClock::withTickRate(int bits, std::int64_t ticks_per_second,
+                                      std::int64_t window_ns) {
+  if (ticks_per_second <= 0) throw std::invalid_argument("SensorClock: the tick rate must be > 0");
+  SensorClock c(bits, 1'000'000'000, window_ns);
+  c.tick_den_ = ticks_per_second;
+  return c;
+}
+
 std::int64_t SensorClock::stamp(std::uint32_t ticks, std::int64_t host_ns) {
   const std::uint64_t modulus = std::uint64_t{1} << bits_;
   ticks = static_cast<std::uint32_t>(ticks & (modulus - 1));
@@ -25,7 +33,9 @@ std::int64_t SensorClock::stamp(std::uint32_t ticks, std::int64_t host_ns) {
     unwrapped_ticks_ = ticks;
   }
   last_ticks_ = ticks;
-  const std::int64_t sensor_ns = unwrapped_ticks_ * tick_ns_;
+  // Whole seconds' worth of ticks and the rest apart, so that the product cannot overflow.
+  const std::int64_t sensor_ns =
+      unwrapped_ticks_ / tick_den_ * tick_ns_ + unwrapped_ticks_ % tick_den_ * tick_ns_ / tick_den_;
   const std::int64_t offset = host_ns - sensor_ns;
   while (!lows_.empty() && lows_.back().offset_ns >= offset) lows_.pop_back();
   lows_.push_back({host_ns, offset});

@@ -65,4 +65,23 @@ TEST_CASE("sensor clock refuses a nonsense configuration", "[drivers][sensor_clo
   CHECK_THROWS(SensorClock(24, 0));
 }
 
+TEST_CASE("a 60 MHz 32-bit counter (Kinect v1) maps to host time across its wrap",
+          "[drivers][sensor_clock]") {
+  auto clock = SensorClock::withTickRate(32, 60'000'000);
+  // 30 Hz frames = 2'000'000 ticks each, starting just before the 71.6 s wrap; the host sees
+  // them 5 ms late, one of them 4 ms later still.
+  std::uint32_t ticks = 0xffffffffu - 3'000'000u;
+  const std::int64_t host0 = 1'000'000'000'000;
+  std::int64_t first = 0;
+  for (int k = 0; k < 6; ++k) {
+    const std::int64_t host = host0 + k * 33'333'333 + (k == 3 ? 4'000'000 : 0);
+    const std::int64_t s = clock.stamp(ticks, host);
+    if (k == 0) first = s;
+    // Every stamp keeps the sensor's spacing (2'000'000 ticks = 33.33 ms), whatever the delay.
+    CHECK(std::llabs(s - first - k * 33'333'333) <= 1);
+    ticks += 2'000'000u;  // wraps after the second frame
+  }
+  CHECK(clock.wraps() == 1);
+}
+
 }  // namespace sensor_clock_test

@@ -10,7 +10,8 @@
 // ppm) is followed. A stamp is sensor time + that offset: the sensor's own timing, without the
 // host's jitter.
 //
-// Units: sensor ticks in `tick_ns` nanoseconds (1 ms for SCIP); host time in int64 ns.
+// Units: sensor ticks in `tick_ns` nanoseconds (1 ms for SCIP) or at a tick rate (60 MHz for the
+// Kinect v1); host time in int64 ns.
 #pragma once
 
 #include <cstdint>
@@ -25,6 +26,9 @@ class SensorClock {
   /// looks.
   explicit SensorClock(int bits = 24, std::int64_t tick_ns = 1'000'000,
                        std::int64_t window_ns = 10'000'000'000);
+  /// A counter of `ticks_per_second` (not a whole number of ns: the Kinect's 60 MHz).
+  static SensorClock withTickRate(int bits, std::int64_t ticks_per_second,
+                                  std::int64_t window_ns = 10'000'000'000);
 
   /// The host time of a reading stamped `ticks` by the sensor and received at `host_ns`. The
   /// counter is unwrapped: it is assumed never to go backwards (call reset() after the device
@@ -42,6 +46,7 @@ class SensorClock {
  private:
   int bits_;
   std::int64_t tick_ns_, window_ns_;
+  std::int64_t tick_den_ = 1;  // a tick is tick_ns_ / tick_den_ ns
   std::optional<std::uint32_t> last_ticks_;
   std::int64_t unwrapped_ticks_ = 0, wraps_ = 0;
   struct Sample {
