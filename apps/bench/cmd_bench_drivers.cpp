@@ -1,10 +1,15 @@
 // `tessera bench drivers`: the device drivers at their devices' full rates against the
-// emulated devices (drivers/scip_device.hpp on a pseudo-terminal or TCP): how long a scan takes
-// from its last byte read to its message published, and what CPU the driver's I/O thread uses.
+// emulated devices (on a pseudo-terminal or TCP; the Kinect through fakenect): how long a scan
+// takes from its last byte read to its message published, and what CPU the driver's I/O thread
+// uses.
 #include "bench_commands.hpp"
 
+#include <tessera/drivers/create_base_actor.hpp>
+#include <tessera/drivers/create_device.hpp>
 #include <tessera/drivers/emulator_host.hpp>
+#include <tessera/drivers/fakenect_recording.hpp>
 #include <tessera/drivers/hokuyo_driver_actor.hpp>
+#include <tessera/drivers/kinect_driver_actor.hpp>
 #include <tessera/drivers/scip_device.hpp>
 #include <tessera/drivers/sick_lms_device.hpp>
 #include <tessera/drivers/sick_lms_driver_actor.hpp>
@@ -14,10 +19,14 @@
 
 #include <nlohmann/json.hpp>
 
+#include <unistd.h>
+
 #include <chrono>
 #include <cmath>
+#include <filesystem>
 #include <iomanip>
 #include <iostream>
+#include <sstream>
 #include <thread>
 
 namespace tessera::app {
@@ -91,6 +100,14 @@ nlohmann::json measure(std::unique_ptr<Actor> driver, const std::string& name,
           {"cpu_percent", 100 * num("cpu_s") / o.seconds}};
 }
 
+/// A latency figure for the table ("-" where there is none).
+std::string ms(const nlohmann::json& v) {
+  if (v.is_null()) return "-";
+  std::ostringstream out;
+  out << std::fixed << std::setprecision(3) << v.get<double>();
+  return out.str();
+}
+
 /// A room-like range profile of `n` readings [mm] that changes with every scan `k`.
 std::vector<std::uint32_t> profile(std::size_t n, std::uint64_t k, std::uint32_t spread) {
   std::vector<std::uint32_t> mm(n);
@@ -141,6 +158,106 @@ nlohmann::json runLms(const Options& o) {
   return measure(std::make_unique<drv::SickLmsDriverActor>(opts), "LMS200", "pty", 75.0, 181, o);
 }
 
+/// A sink for the Kinect's frames.
+class FrameSink final : public Actor {
+ public:
+  void configure(ActorContext& ctx) override {
+    ctx.subscribe<msg::RgbdFrame>("rgbd", MailboxPolicy::keepLatest(2),
+                                  [](const Message<msg::RgbdFrame>&) {});
+  }
+};
+
+/// The kinect driver on libfreenect's own player (fakenect) at the Kinect's 30 Hz: a recording
+/// of one still 640 x 480 scene (hard links: no disk), raw depth converted by the driver. Its
+/// I/O thread also runs fakenect's reading of each frame from the page cache, where a device
+/// has libusb's transfers: a figure of the same order.
+nlohmann::json runKinect(const Options& o) {
+  const auto folder = std::filesystem::temp_directory_path() /
+                      ("tessera_bench_kinect_" + std::to_string(::getpid()));
+  std::filesystem::remove_all(folder);
+  drv::KinectDepthModel model;
+  {
+    drv::FakenectRecordingWriter w(folder);
+    std::vector<std::uint16_t> depth(640 * 480);
+    std::vector<std::uint8_t> color(640 * 480 * 3);
+    for (std::size_t i = 0; i < depth.size(); ++i) {
+      depth[i] =
+          static_cast<std::uint16_t>(model.disparity(0.8 + 0.01 * static_cast<double>(i % 300)));
+      color[3 * i] = static_cast<std::uint8_t>(i);
+    }
+    const int frames = static_cast<int>(std::lround(o.seconds * 30));
+    for (int k = 0; k < frames; ++k) {
+      const double t = k / 30.0;
+      const auto ticks = static_cast<std::uint32_t>(std::llround(t * 60e6) & 0xffffffffLL);
+      w.addDepth(t, ticks, depth);
+      w.addColor(t, ticks, color);
+    }
+  }
+  drv::KinectActorOptions opts;
+  opts.recording = folder.string();
+  opts.registration = "none";
+  RuntimeOptions ro;
+  ro.clock = ClockKind::kWall;
+  ro.threads = 2;
+  ro.show_progress = false;
+  Runtime rt(ro);
+  rt.add("camera", std::make_unique<drv::KinectDriverActor>(opts));
+  rt.add("sink", std::make_unique<FrameSink>());
+  const auto report = rt.run();  // ends with the recording
+  std::filesystem::remove_all(folder);
+  const auto& s = report.actors.at(0).summary;
+  const auto num = [&s](const char* key) { return std::get<double>(s.at(key)); };
+  const auto count = [&s](const char* key) { return std::get<std::int64_t>(s.at(key)); };
+  return {{"device", "Kinect v1"},
+          {"link", "fakenect"},
+          {"rate_hz", 30.0},
+          {"steps", 640 * 480},
+          {"scans", count("frames")},
+          {"bad_replies", count("dropped_unpaired")},
+          {"latency_ms_median", num("latency_ms_median")},
+          {"latency_ms_p99", num("latency_ms_p99")},
+          {"latency_ms_max", num("latency_ms_max")},
+          {"cpu_percent", 100 * num("cpu_s") / report.wall_s}};
+}
+
+/// create_base with an emulated Create 2 on a pseudo-terminal: the OI's 15 ms sensor stream.
+/// No latency figure (no scan): CPU of the I/O thread only.
+nlohmann::json runCreate(const Options& o) {
+  drv::CreateDevice device;
+  drv::EmulatorHost host({[&](std::string_view b, std::int64_t t) { device.receive(b, t); },
+                          [&](std::int64_t t) { return device.poll(t); },
+                          [&] { return device.nextDue(); },
+                          [&](std::int64_t t) { device.restart(t); },
+                          {}},
+                         drv::EmulatorHostOptions{});
+  drv::CreateBaseActorOptions opts;
+  opts.device = host.devicePath();
+  RuntimeOptions ro;
+  ro.clock = ClockKind::kWall;
+  ro.threads = 2;
+  ro.show_progress = false;
+  Runtime rt(ro);
+  [[maybe_unused]] auto cmd = rt.externalPublisher<msg::Twist>("base_cmd");  // nothing drives it
+  rt.add("base", std::make_unique<drv::CreateBaseActor>(opts));
+  std::thread stopper([&] {
+    std::this_thread::sleep_for(std::chrono::duration<double>(o.seconds));
+    rt.requestStop();
+  });
+  const auto report = rt.run();
+  stopper.join();
+  const auto& s = report.actors.at(0).summary;
+  return {{"device", "Create 2"},
+          {"link", "pty"},
+          {"rate_hz", 1000.0 / 15},
+          {"steps", 0},
+          {"scans", std::get<std::int64_t>(s.at("frames"))},
+          {"bad_replies", std::get<std::int64_t>(s.at("bad_frames"))},
+          {"latency_ms_median", nullptr},
+          {"latency_ms_p99", nullptr},
+          {"latency_ms_max", nullptr},
+          {"cpu_percent", 100 * std::get<double>(s.at("cpu_s")) / o.seconds}};
+}
+
 }  // namespace drivers_bench
 
 void addBenchDriversCommand(CLI::App& bench, int& result) {
@@ -149,9 +266,11 @@ void addBenchDriversCommand(CLI::App& bench, int& result) {
       "drivers",
       "device drivers at their devices' full rates against the emulated devices: hokuyo_scip "
       "with a URG-04LX on a pseudo-terminal (10 Hz, 682 steps) and a UTM-30LX on TCP (40 Hz, "
-      "1081 steps), sick_lms with an LMS200 at 500 kBd (75 Hz, 181 beams); latency from a scan's "
-      "last byte read to its message published, CPU of the "
-      "driver's I/O thread.\n"
+      "1081 steps), sick_lms with an LMS200 at 500 kBd (75 Hz, 181 beams), kinect through "
+      "fakenect (30 Hz, 640 x 480) and create_base with a Create 2 (15 ms sensor frames); "
+      "latency from a scan's last byte read (a Kinect frame handed over by libfreenect) to its "
+      "message published, CPU of the driver's I/O thread. For the Kinect, steps are pixels and "
+      "scans frames; for the Create, scans are sensor frames and the latencies null.\n"
       "--json prints one object: {machine, seconds, devices: [{device, link (pty | tcp), "
       "rate_hz, steps, scans, bad_replies, latency_ms_median, latency_ms_p99, latency_ms_max, "
       "cpu_percent}]}");
@@ -175,6 +294,11 @@ void addBenchDriversCommand(CLI::App& bench, int& result) {
     if (!o->json)
       std::cerr << "[bench drivers] LMS200 at 500 kBd over pty, " << o->seconds << " s\n";
     list.push_back(db::runLms(*o));
+    if (!o->json)
+      std::cerr << "[bench drivers] Kinect v1 through fakenect, " << o->seconds << " s\n";
+    list.push_back(db::runKinect(*o));
+    if (!o->json) std::cerr << "[bench drivers] Create 2 over pty, " << o->seconds << " s\n";
+    list.push_back(db::runCreate(*o));
     if (o->json) {
       std::cout << nlohmann::json{{"machine", machineDescription()},
                                   {"seconds", o->seconds},
@@ -196,10 +320,9 @@ void addBenchDriversCommand(CLI::App& bench, int& result) {
                 << std::setw(8) << j["rate_hz"].get<double>() << std::setw(8)
                 << j["scans"].get<std::int64_t>() << std::setw(6)
                 << j["bad_replies"].get<std::int64_t>() << std::setprecision(3) << std::setw(12)
-                << j["latency_ms_median"].get<double>() << std::setw(10)
-                << j["latency_ms_p99"].get<double>() << std::setw(10)
-                << j["latency_ms_max"].get<double>() << std::setprecision(2) << std::setw(8)
-                << j["cpu_percent"].get<double>() << "\n";
+                << db::ms(j["latency_ms_median"]) << std::setw(10) << db::ms(j["latency_ms_p99"])
+                << std::setw(10) << db::ms(j["latency_ms_max"]) << std::setprecision(2)
+                << std::setw(8) << j["cpu_percent"].get<double>() << "\n";
     result = 0;
   });
 }

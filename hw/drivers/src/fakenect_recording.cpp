@@ -4,6 +4,7 @@
 
 #include <cmath>
 #include <cstdio>
+#include <string_view>
 #include <vector>
 
 namespace tessera::drivers {
@@ -147,10 +148,20 @@ void FakenectRecordingWriter::add(char type, double time_s, std::uint32_t timest
   char name[96];
   std::snprintf(name, sizeof name, "%c-%.6f-%u.%s", type, time_s, timestamp,
                 type == 'd' ? "pgm" : "ppm");
-  std::ofstream out(folder_ / name, std::ios::binary);
-  out.write(header.data(), static_cast<std::streamsize>(header.size()));
-  out.write(static_cast<const char*>(data), static_cast<std::streamsize>(bytes));
-  if (!out) fakenect_detail::fail(folder_ / name, 0, "cannot be written (disk full?)");
+  Last& last = type == 'd' ? last_depth_ : last_color_;
+  const std::string_view content(static_cast<const char*>(data), bytes);
+  std::error_code ec;
+  if (!last.file.empty() && last.bytes == content) {
+    std::filesystem::create_hard_link(last.file, folder_ / name, ec);
+    if (ec) fakenect_detail::fail(folder_ / name, 0, "cannot be linked: " + ec.message());
+  } else {
+    std::ofstream out(folder_ / name, std::ios::binary);
+    out.write(header.data(), static_cast<std::streamsize>(header.size()));
+    out.write(content.data(), static_cast<std::streamsize>(bytes));
+    if (!out) fakenect_detail::fail(folder_ / name, 0, "cannot be written (disk full?)");
+    last.file = folder_ / name;
+    last.bytes.assign(content);
+  }
   index_ << name << '\n';
   index_.flush();
   if (!index_) fakenect_detail::fail(folder_ / "INDEX.txt", 0, "cannot be written");

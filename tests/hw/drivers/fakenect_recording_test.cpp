@@ -57,6 +57,9 @@ TEST_CASE("a written fakenect recording checks out with its frame counts and dur
   REQUIRE(lines.size() == 4);
   CHECK(lines[0].rfind("d-0.000000-1", 0) == 0);
   CHECK(fs::file_size(t.path / lines[0]) == 17 + 640 * 480 * 2);  // "P5 640 480 65535\n"
+  // The second depth frame equals the first: a hard link, no second copy.
+  CHECK(fs::hard_link_count(t.path / lines[0]) == 2);
+  CHECK(fs::equivalent(t.path / lines[0], t.path / lines[2]));
 }
 
 TEST_CASE("the recording writer refuses wrong sizes, 12-bit values and time going back",
@@ -78,7 +81,7 @@ TEST_CASE("the recording writer refuses wrong sizes, 12-bit values and time goin
 TEST_CASE("a truncated frame file is refused naming the file and the sizes", "[drivers][kinect]") {
   TempFolder t("truncated");
   writeTwoFrames(t.path);
-  const auto name = indexLines(t.path)[2];
+  const auto name = indexLines(t.path)[1];  // a colour frame (the depth frames share a file)
   fs::resize_file(t.path / name, 1000);
   CHECK_THROWS_WITH(checkFakenectRecording(t.path),
                     Catch::Contains(name) && Catch::Contains("truncated"));

@@ -44,7 +44,8 @@ FakenectRecordingInfo checkFakenectRecording(const std::filesystem::path& folder
 class FakenectRecordingWriter {
  public:
   /// Creates `folder` (which must not exist or be empty) and its INDEX.txt. Throws
-  /// FakenectRecordingError.
+  /// FakenectRecordingError. A frame equal to the previous one of its stream is stored as a
+  /// hard link to it (a still scene, a benchmark's minutes of frames, cost no disk).
   explicit FakenectRecordingWriter(const std::filesystem::path& folder);
 
   /// `raw`: 640 x 480 disparities (<= 2047). `time_s`: must not decrease from entry to entry.
@@ -61,6 +62,11 @@ class FakenectRecordingWriter {
   std::ofstream index_;
   std::size_t entries_ = 0;
   double last_time_ = 0;
+  struct Last {
+    std::filesystem::path file;
+    std::string bytes;
+  };
+  Last last_depth_, last_color_;
 };
 
 }  // namespace tessera::drivers

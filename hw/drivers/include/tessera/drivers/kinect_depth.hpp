@@ -71,8 +71,9 @@ class KinectDepthConverter {
 
 /// One frame of one stream, waiting for its partner.
 struct KinectImage {
-  std::int64_t stamp_ns = 0;        ///< host time the frame was taken
-  std::vector<std::uint8_t> bytes;  ///< the frame as the stream delivers it
+  std::int64_t stamp_ns = 0;         ///< host time the frame was taken
+  std::vector<std::uint8_t> bytes;   ///< a colour frame: RGB bytes
+  std::vector<std::uint16_t> depth;  ///< a depth frame: its values (the driver's: millimetres)
 };
 
 class RgbdPairer {

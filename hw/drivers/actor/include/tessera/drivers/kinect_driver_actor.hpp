@@ -75,13 +75,14 @@ class KinectDriverActor final : public Actor {
   void start() override;
   void stop() override;
   /// frames, depth_frames, color_frames, dropped_unpaired, corrupt_depth_pixels, reconnects,
-  /// open_failures, last_error, cpu_s, latency_ms_median / _max (frame complete -> published).
+  /// open_failures, last_error, cpu_s, latency_ms_median / _p99 / _max (the frame completing a
+  /// pair handed over by libfreenect -> published).
   void summarize(Summary& out) const override;
 
  private:
   void run();
   /// `t0`: when the frame completing the pair reached the callback (for the latency figure).
-  void publish(RgbdPairer::Pair&& pair, std::chrono::steady_clock::time_point t0);
+  void publish(const RgbdPairer::Pair& pair, std::chrono::steady_clock::time_point t0);
   bool waitOrStop(double seconds);
 
   KinectActorOptions options_;
