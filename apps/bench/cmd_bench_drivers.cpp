@@ -23,6 +23,7 @@
 
 #include <chrono>
 #include <cmath>
+#include <cstdio>
 #include <filesystem>
 #include <iomanip>
 #include <iostream>
@@ -203,7 +204,14 @@ nlohmann::json runKinect(const Options& o) {
   Runtime rt(ro);
   rt.add("camera", std::make_unique<drv::KinectDriverActor>(opts));
   rt.add("sink", std::make_unique<FrameSink>());
+  // fakenect prints its end of playback on stdout, which carries only the JSON: on stderr.
+  std::fflush(stdout);
+  const int saved_stdout = ::dup(STDOUT_FILENO);
+  ::dup2(STDERR_FILENO, STDOUT_FILENO);
   const auto report = rt.run();  // ends with the recording
+  std::fflush(stdout);
+  ::dup2(saved_stdout, STDOUT_FILENO);
+  ::close(saved_stdout);
   std::filesystem::remove_all(folder);
   const auto& s = report.actors.at(0).summary;
   const auto num = [&s](const char* key) { return std::get<double>(s.at(key)); };

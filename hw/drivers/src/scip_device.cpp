@@ -46,7 +46,7 @@ ScipDevice::ScipDevice(scip::SensorParameters parameters, ScanSource source, std
 void ScipDevice::restart(std::int64_t now_ns) {
   stream_.reset();
   laser_on_ = false;
-  pending_.clear();
+  outgoing_.clear();
   line_.clear();
   clock_zero_ns_ = now_ns;
 }
@@ -164,10 +164,8 @@ std::string ScipDevice::scanReply(const std::string& echo, const std::string& st
 void ScipDevice::queue(std::string bytes, std::int64_t now_ns) {
   if (faults_.silent) return;
   damage(bytes, faults_, rng_, '\n');
-  const std::int64_t due =
-      now_ns + static_cast<std::int64_t>(std::max(0.0, faults_.reply_delay_s) * 1e9);
-  pending_.push_back(
-      {std::max(due, pending_.empty() ? due : pending_.back().due_ns), std::move(bytes)});
+  outgoing_.append(now_ns + static_cast<std::int64_t>(std::max(0.0, faults_.reply_delay_s) * 1e9),
+                   std::move(bytes));
 }
 
 std::string ScipDevice::poll(std::int64_t now_ns) {
@@ -195,16 +193,11 @@ std::string ScipDevice::poll(std::int64_t now_ns) {
     ++scans_sent_;
     if (s.echo.substr(13, 2) != "00" && s.remaining == 0) stream_.reset();
   }
-  std::string out;
-  std::size_t k = 0;
-  while (k < pending_.size() && pending_[k].due_ns <= now_ns) out += pending_[k++].bytes;
-  pending_.erase(pending_.begin(), pending_.begin() + static_cast<std::ptrdiff_t>(k));
-  return out;
+  return outgoing_.take(now_ns);
 }
 
 std::optional<std::int64_t> ScipDevice::nextDue() const {
-  std::optional<std::int64_t> due;
-  if (!pending_.empty()) due = pending_.front().due_ns;
+  std::optional<std::int64_t> due = outgoing_.nextDue();
   if (stream_ && !source_ended_ && (!due || stream_->next_ns < *due)) due = stream_->next_ns;
   return due;
 }

@@ -30,9 +30,8 @@ SickLmsDevice::SickLmsDevice(LmsScanSource source, std::uint64_t seed)
 
 void SickLmsDevice::restart(std::int64_t now_ns) {
   baud_ = 9600;
-  pending_baud_ = 0;
   streaming_ = installation_ = false;
-  pending_.clear();
+  outgoing_.clear();
   parser_ = sick::TelegramParser();
   line_free_ns_ = now_ns;
 }
@@ -47,9 +46,8 @@ void SickLmsDevice::reply(const std::string& payload, std::int64_t now_ns) {
   damage(bytes, faults_, rng_);
   const std::int64_t due =
       now_ns + static_cast<std::int64_t>(std::max(0.0, faults_.reply_delay_s) * 1e9);
-  pending_.push_back(
-      {std::max(due, pending_.empty() ? due : pending_.back().due_ns), std::move(bytes)});
-  line_free_ns_ = std::max(line_free_ns_, due) + lineTime(pending_.back().bytes.size());
+  line_free_ns_ = std::max(line_free_ns_, due) + lineTime(bytes.size());
+  outgoing_.append(due, std::move(bytes));
 }
 
 void SickLmsDevice::receive(std::string_view bytes, std::int64_t now_ns) {
@@ -57,13 +55,12 @@ void SickLmsDevice::receive(std::string_view bytes, std::int64_t now_ns) {
   for (const auto& item : parser_.feed(bytes)) {
     if (item.kind != sick::TelegramParser::Item::Kind::kTelegram) continue;
     if (item.telegram.address & 0x80u) continue;  // not for the sensor
-    if (!faults_.silent)
-      pending_.push_back({now_ns, std::string(1, static_cast<char>(sick::kAck))});
+    if (!faults_.silent) outgoing_.append(now_ns, std::string(1, static_cast<char>(sick::kAck)));
     handle(item.telegram, now_ns);
   }
   // A telegram whose CRC failed: the sensor says so.
   if (parser_.badCrcs() > bad_before && !faults_.silent)
-    pending_.push_back({now_ns, std::string(1, static_cast<char>(sick::kNak))});
+    outgoing_.append(now_ns, std::string(1, static_cast<char>(sick::kNak)));
 }
 
 void SickLmsDevice::handle(const sick::Telegram& t, std::int64_t now_ns) {
@@ -86,7 +83,7 @@ void SickLmsDevice::handle(const sick::Telegram& t, std::int64_t now_ns) {
       for (const int rate : {9600, 19200, 38400, 500000})
         if (sick::baudMode(rate) == mode) {
           reply(std::string("\xA0\x00", 2) + status, now_ns);
-          pending_baud_ = rate;  // after the reply has gone out at the old rate
+          outgoing_.changeBaudWhenSent(rate);  // after the reply has gone out at the old rate
           return;
         }
       return reply(std::string("\xA0\x02", 2) + status, now_ns);
@@ -139,20 +136,11 @@ std::string SickLmsDevice::poll(std::int64_t now_ns) {
     reply(sick::encodeScan(s), at);
     ++scans_sent_;
   }
-  std::string out;
-  std::size_t k = 0;
-  while (k < pending_.size() && pending_[k].due_ns <= now_ns) out += pending_[k++].bytes;
-  pending_.erase(pending_.begin(), pending_.begin() + static_cast<std::ptrdiff_t>(k));
-  if (pending_baud_ > 0 && pending_.empty()) {
-    baud_ = pending_baud_;
-    pending_baud_ = 0;
-  }
-  return out;
+  return outgoing_.take(now_ns, baud_);
 }
 
 std::optional<std::int64_t> SickLmsDevice::nextDue() const {
-  std::optional<std::int64_t> due;
-  if (!pending_.empty()) due = pending_.front().due_ns;
+  std::optional<std::int64_t> due = outgoing_.nextDue();
   if (streaming_ && !faults_.silent && (!due || next_scan_ns_ < *due)) due = next_scan_ns_;
   return due;
 }

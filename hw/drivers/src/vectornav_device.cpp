@@ -6,6 +6,7 @@
 #include <cmath>
 #include <numbers>
 #include <stdexcept>
+#include <vector>
 
 namespace tessera::drivers {
 
@@ -35,10 +36,9 @@ VectorNavDevice::VectorNavDevice(int power_up_baud, std::uint64_t seed)
 
 void VectorNavDevice::restart(std::int64_t now_ns) {
   baud_ = power_up_baud_;
-  pending_baud_ = 0;
   type_ = vn::kTypeYmr;
   rate_hz_ = 40;
-  pending_.clear();
+  outgoing_.clear();
   splitter_ = vn::LineSplitter();
   last_ns_ = 0;  // starts the clock again at the next call
   line_free_ns_ = now_ns;
@@ -58,15 +58,9 @@ void VectorNavDevice::reply(const std::string& body, std::int64_t now_ns) {
   if (faults_.silent) return;
   std::string bytes = vn::frame(body);
   damage(bytes, faults_, rng_);
-  queue(now_ns + static_cast<std::int64_t>(std::max(0.0, faults_.reply_delay_s) * 1e9),
-        std::move(bytes));
-}
-
-void VectorNavDevice::queue(std::int64_t due_ns, std::string bytes) {
-  // In due order; a late reply does not hold the output lines back.
-  const auto at = std::upper_bound(pending_.begin(), pending_.end(), due_ns,
-                                   [](std::int64_t t, const Pending& p) { return t < p.due_ns; });
-  pending_.insert(at, {due_ns, std::move(bytes)});
+  // In due order: a late reply does not hold the output lines back.
+  outgoing_.queue(now_ns + static_cast<std::int64_t>(std::max(0.0, faults_.reply_delay_s) * 1e9),
+                  std::move(bytes));
 }
 
 void VectorNavDevice::error(int code, std::int64_t now_ns) {
@@ -130,7 +124,7 @@ void VectorNavDevice::command(const vn::Message& m, std::int64_t now_ns) {
       return error(9, now_ns);  // read-only
     case vn::kBaudRegister:
       if (!d::among(vn::baudRates(), v)) return error(7, now_ns);
-      pending_baud_ = v;  // after the reply has gone out at the old rate
+      outgoing_.changeBaudWhenSent(v);  // after the reply has gone out at the old rate
       break;
     case vn::kTypeRegister:
       if (!d::among({vn::kTypeOff, vn::kTypeYpr, vn::kTypeYmr, vn::kTypeImu}, v))
@@ -199,23 +193,14 @@ std::string VectorNavDevice::poll(std::int64_t now_ns) {
     // Only the output lines occupy the line in this model: replies are a few bytes.
     line_free_ns_ = at + lineTime(line.size());
     damage(line, faults_, rng_);
-    queue(at, std::move(line));
+    outgoing_.queue(at, std::move(line));
     ++lines_sent_;
   }
-  std::string out;
-  std::size_t k = 0;
-  while (k < pending_.size() && pending_[k].due_ns <= now_ns) out += pending_[k++].bytes;
-  pending_.erase(pending_.begin(), pending_.begin() + static_cast<std::ptrdiff_t>(k));
-  if (pending_baud_ > 0 && pending_.empty()) {
-    baud_ = pending_baud_;
-    pending_baud_ = 0;
-  }
-  return out;
+  return outgoing_.take(now_ns, baud_);
 }
 
 std::optional<std::int64_t> VectorNavDevice::nextDue() const {
-  std::optional<std::int64_t> due;
-  if (!pending_.empty()) due = pending_.front().due_ns;
+  std::optional<std::int64_t> due = outgoing_.nextDue();
   if (type_ != vn::kTypeOff && !faults_.silent && last_ns_ != 0 && (!due || next_line_ns_ < *due))
     due = next_line_ns_;
   return due;

@@ -8,6 +8,7 @@
 #include <tessera/drivers/sick_lms_device.hpp>
 
 #include "byte_strings.hpp"
+#include "serial_bench.hpp"
 
 #include <catch2/catch.hpp>
 
@@ -103,53 +104,20 @@ std::vector<std::uint32_t> room(int angle, int res, int sweep) {
 }
 
 /// Client and device wired in memory on a simulated clock, with the baud rates of both ends:
-/// at different rates each hears only noise.
-struct Bench {
+/// at different rates each hears only noise. A reconnect opens the link again at once.
+struct Bench : tessera::test::SerialBench<Bench> {
   Bench(SickLmsClientOptions o, int session_baud)
       : device([this](int a, int r) { return room(a, r, sweeps++); }), client(o, session_baud) {}
-  void connect() {
-    link_baud = client.openBaud(0);
-    exchange(client.connected(now));
-  }
-  void run(std::int64_t duration_ns) {
-    const std::int64_t end = now + duration_ns;
-    while (now < end) {
-      now += kMs;
-      const int device_baud = device.baud();  // the rate these bytes go out at
-      std::string out = device.poll(now);
-      if (!out.empty()) {
-        if (link_baud != device_baud) out = std::string(out.size(), '\xf0');
-        exchange(client.received(out, now));
-      }
-      exchange(client.tick(now));
-      if (reconnect_pending) {
-        reconnect_pending = false;
-        connect();
-      }
-    }
-  }
-  void exchange(SessionOutput out) {
-    if (out.switch_baud > 0) link_baud = out.switch_baud;
-    if (!out.send.empty() && link_baud == device.baud()) device.receive(out.send, now);
+  SickLmsClient& session() { return client; }
+  int openBaud() { return client.openBaud(0); }
+  void collect(SessionOutput& out) {
     for (auto& s : out.scans) scans.push_back(std::move(s));
-    for (auto& e : out.events) events.push_back(e);
-    if (out.reconnect) {
-      ++reconnects;
-      reason = out.reconnect_reason;
-      client.disconnected();
-      reconnect_pending = true;
-    }
   }
+  void lost() { client.disconnected(); }
   int sweeps = 0;
   SickLmsDevice device;
   SickLmsClient client;
-  int link_baud = 0;
-  std::int64_t now = 1000 * kMs;
   std::vector<LaserReading> scans;
-  std::vector<std::string> events;
-  int reconnects = 0;
-  bool reconnect_pending = false;
-  std::string reason;
 };
 
 TEST_CASE("sick client switches a fresh LMS to 38400 baud, mm and streams its scans",

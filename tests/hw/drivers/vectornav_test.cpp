@@ -7,6 +7,8 @@
 #include <tessera/drivers/vectornav_device.hpp>
 #include <tessera/drivers/vectornav_imu.hpp>
 
+#include "serial_bench.hpp"
+
 #include <catch2/catch.hpp>
 
 #include <algorithm>
@@ -248,56 +250,20 @@ TEST_CASE("vectornav device answers and refuses as the manual says", "[drivers][
 }
 
 /// Session and device wired in memory on a simulated clock, with the baud rates of both ends:
-/// at different rates each hears only noise.
-struct Bench {
+/// at different rates each hears only noise. A reconnect opens the link 100 ms after it is asked.
+struct Bench : tessera::test::SerialBench<Bench> {
   explicit Bench(VectorNavOptions o = {}, int session_baud = 115200, int device_baud = 115200)
-      : device(device_baud), imu(o, session_baud) {}
-  void connect() {
-    link_baud = imu.openBaud();
-    exchange(imu.connected(now));
+      : device(device_baud), imu(o, session_baud) {
+    reconnect_delay_ns = 100 * kMs;
   }
-  void run(std::int64_t duration_ns) {
-    const std::int64_t end = now + duration_ns;
-    while (now < end) {
-      now += kMs;
-      const int device_baud = device.baud();  // the rate these bytes go out at
-      std::string out = device.poll(now);
-      if (!out.empty()) {
-        if (link_baud != device_baud) out = std::string(out.size(), '\xf0');
-        exchange(imu.received(out, now));
-      }
-      exchange(imu.tick(now));
-      if (reconnect_pending && now >= reconnect_at) {
-        reconnect_pending = false;
-        connect();
-      }
-    }
-  }
-  void exchange(ImuOutput out) {
-    if (out.switch_baud > 0) link_baud = out.switch_baud;
-    if (!out.send.empty() && link_baud == device.baud()) device.receive(out.send, now);
+  VectorNavImu& session() { return imu; }
+  int openBaud() const { return imu.openBaud(); }
+  void collect(ImuOutput& out) {
     for (auto& s : out.samples) samples.push_back(s);
-    for (auto& e : out.events) events.push_back(e);
-    if (out.reconnect) {
-      ++reconnects;
-      reason = out.reconnect_reason;
-      reconnect_pending = true;
-      reconnect_at = now + 100 * kMs;
-    }
-  }
-  bool said(const std::string& what) const {
-    return std::any_of(events.begin(), events.end(),
-                       [&](const std::string& e) { return e.find(what) != std::string::npos; });
   }
   VectorNavDevice device;
   VectorNavImu imu;
-  int link_baud = 0;
-  std::int64_t now = 1000 * kMs, reconnect_at = 0;
   std::vector<ImuReading> samples;
-  std::vector<std::string> events;
-  int reconnects = 0;
-  bool reconnect_pending = false;
-  std::string reason;
 };
 
 TEST_CASE("vectornav session streams VNIMU at 100 Hz with REP-103 signs", "[drivers][vectornav]") {

@@ -15,6 +15,7 @@
 #pragma once
 
 #include <tessera/drivers/device_faults.hpp>
+#include <tessera/drivers/outgoing_bytes.hpp>
 #include <tessera/drivers/scip.hpp>
 
 #include <cstdint>
@@ -80,11 +81,7 @@ class ScipDevice {
   DeviceFaults faults_;
   std::mt19937_64 rng_;
   std::string line_;
-  struct Pending {
-    std::int64_t due_ns;
-    std::string bytes;
-  };
-  std::vector<Pending> pending_;  // in due order
+  OutgoingBytes outgoing_;  // in the order queued
   std::optional<Stream> stream_;
   bool laser_on_ = false;
   std::int64_t clock_zero_ns_ = 0;

@@ -12,6 +12,7 @@
 #pragma once
 
 #include <tessera/drivers/device_faults.hpp>
+#include <tessera/drivers/outgoing_bytes.hpp>
 #include <tessera/drivers/sick_lms.hpp>
 
 #include <cstdint>
@@ -57,17 +58,12 @@ class SickLmsDevice {
   std::mt19937_64 rng_;
   sick::TelegramParser parser_;
   int baud_ = 9600;
-  int pending_baud_ = 0;  // switched to once the reply that announced it has gone out
   bool streaming_ = false, installation_ = false;
   int angle_deg_ = 180, resolution_centideg_ = 100;
   std::string config_;
   std::uint8_t status_ = 0x10;  // the listing's "no error" status with the 8 m / 80 m flag
   std::int64_t next_scan_ns_ = 0, line_free_ns_ = 0;
-  struct Pending {
-    std::int64_t due_ns;
-    std::string bytes;
-  };
-  std::vector<Pending> pending_;
+  OutgoingBytes outgoing_;  // in the order queued; the baud change after them
   std::int64_t scans_sent_ = 0, scans_skipped_ = 0;
 };
 

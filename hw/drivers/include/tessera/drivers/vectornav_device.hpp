@@ -15,6 +15,7 @@
 #pragma once
 
 #include <tessera/drivers/device_faults.hpp>
+#include <tessera/drivers/outgoing_bytes.hpp>
 #include <tessera/drivers/vectornav.hpp>
 
 #include <array>
@@ -23,7 +24,6 @@
 #include <random>
 #include <string>
 #include <string_view>
-#include <vector>
 
 namespace tessera::drivers {
 
@@ -62,7 +62,6 @@ class VectorNavDevice {
   void command(const vn::Message& m, std::int64_t now_ns);
   void reply(const std::string& body, std::int64_t now_ns);
   void error(int code, std::int64_t now_ns);
-  void queue(std::int64_t due_ns, std::string bytes);
   std::string sampleLine(std::int64_t at_ns);
   std::int64_t lineTime(std::size_t bytes) const;
   bool carries(int type, int rate_hz, int baud) const;
@@ -72,15 +71,11 @@ class VectorNavDevice {
   DeviceFaults faults_;
   std::mt19937_64 rng_;
   vn::LineSplitter splitter_;
-  int baud_, pending_baud_ = 0;  // pending: switched to once the reply that set it went out
+  int baud_;
   int type_ = vn::kTypeYmr, rate_hz_ = 40;
   double yaw_deg_ = 0;  // VN-100 heading: clockwise seen from above
   std::int64_t last_ns_ = 0, next_line_ns_ = 0, line_free_ns_ = 0;
-  struct Pending {
-    std::int64_t due_ns;
-    std::string bytes;
-  };
-  std::vector<Pending> pending_;  // in due order
+  OutgoingBytes outgoing_;  // replies and output lines in due order; the baud change after them
   std::int64_t lines_sent_ = 0, lines_skipped_ = 0, commands_ = 0;
 };
 
