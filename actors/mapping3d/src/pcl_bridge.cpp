@@ -3,6 +3,8 @@
 // reads or writes a cloud maps it (see pcl_bridge_module.cpp for why).
 #include "pcl_bridge.hpp"
 
+#include <tessera/io/module_path.hpp>
+
 #include <dlfcn.h>
 
 #include <array>
@@ -84,16 +86,6 @@ bool tryLoad(const fs::path& file, Module& out, std::string& reason) {
   return true;
 }
 
-void addDirectory(std::vector<fs::path>& dirs, const fs::path& dir) {
-  if (dir.empty()) return;
-  std::error_code ec;
-  fs::path canonical = fs::weakly_canonical(dir, ec);
-  if (ec) canonical = dir;
-  for (const auto& d : dirs)
-    if (d == canonical) return;
-  dirs.push_back(canonical);
-}
-
 // Result of the one-time load behind module().
 struct Loaded {
   std::once_flag once;
@@ -166,23 +158,7 @@ void checkColors(const PointCloud& cloud) {
 }  // namespace
 
 std::vector<fs::path> candidatePaths() {
-  std::vector<fs::path> dirs;
-  std::error_code ec;
-  const fs::path exe = fs::read_symlink("/proc/self/exe", ec);
-  if (!ec) addDirectory(dirs, exe.parent_path());
-  // The object holding this code: the executable itself while mapping3d is a static library
-  // (dli_fname is then argv[0], which /proc/self/exe already covers), a .so otherwise.
-  Dl_info info{};
-  if (dladdr(&kAnchor, &info) != 0 && info.dli_fname != nullptr && info.dli_fname[0] != '\0') {
-    const fs::path self = fs::absolute(info.dli_fname, ec);
-    if (!ec) addDirectory(dirs, self.parent_path());
-  }
-  std::vector<fs::path> files;
-  for (const auto& dir : dirs) {
-    files.push_back(dir / kModuleName);
-    files.push_back((dir.parent_path() / "lib" / kModuleName).lexically_normal());
-  }
-  return files;
+  return io::moduleCandidates(kModuleName, &kAnchor);
 }
 
 Module loadModule(const fs::path& file) {

@@ -2,9 +2,9 @@
 #include <tessera/messages/types.hpp>
 #include <tessera/runtime/registry.hpp>
 
-#include <opencv2/imgcodecs.hpp>
+#include <tessera/camera_network/video_source.hpp>
+
 #include <opencv2/imgproc.hpp>
-#include <opencv2/videoio.hpp>
 
 #include <algorithm>
 #include <cctype>
@@ -89,15 +89,6 @@ std::vector<fs::path> listImages(const fs::path& dir) {
   return files;
 }
 
-/// The next frame; false at the end, on a failed read or a backend error.
-bool readFrame(cv::VideoCapture& capture, cv::Mat& image) {
-  try {
-    return capture.read(image) && !image.empty();
-  } catch (const cv::Exception&) {
-    return false;
-  }
-}
-
 /// The pixels of an image message as a Mat (grey or BGR, over the message's bytes where the
 /// detector takes them as they are; rgb8 is converted to grey in `converted`), or an empty Mat
 /// with the reason in `error`.
@@ -138,14 +129,14 @@ std::string seconds(double s) {
 
 }  // namespace marker_camera_detail
 
-/// The open source: a folder's image list, or a cv::VideoCapture; and the robot's marker tracked
+/// The open source: a folder's image list, or a VideoSource; and the robot's marker tracked
 /// through its frames (a new source starts with a whole-image search).
 struct MarkerCameraActor::Source {
   bool folder = false;
   bool file = false;  ///< a video file: its end is the end of the source
   std::vector<std::filesystem::path> images;
   std::size_t next = 0;
-  cv::VideoCapture capture;
+  std::unique_ptr<VideoSource> capture;  ///< null when closed
   std::optional<MarkerTracker> tracker;
 };
 
@@ -205,13 +196,13 @@ void MarkerCameraActor::tryOpen() {
   } else {
     s.file = fs::is_regular_file(src, ec);
     try {
-      open_ = mcd::isIndex(src) ? s.capture.open(std::stoi(src)) : s.capture.open(src);
-    } catch (const cv::Exception& e) {  // a backend's error is a failed open, like any other
+      s.capture = VideoSource::open(src, /*live=*/!s.file);
+      open_ = true;
+    } catch (const std::runtime_error& e) {
       open_ = false;
-      reason = "cannot be opened (" + e.msg + ")";
+      reason = e.what();
     }
   }
-  if (open_ && !s.folder && !s.file) s.capture.set(cv::CAP_PROP_BUFFERSIZE, 1);  // recent frames
 
   if (open_) {
     if (in_outage_) {
@@ -224,7 +215,7 @@ void MarkerCameraActor::tryOpen() {
     return;
   }
   ++open_failures_;
-  s.capture.release();
+  s.capture.reset();
   sourceFailed(reason, /*finished=*/false);
 }
 
@@ -261,14 +252,19 @@ void MarkerCameraActor::tick() {
       s.next = 0;
     }
     const auto& file = s.images[s.next++];
-    image = cv::imread(file.string(), cv::IMREAD_GRAYSCALE);
+    try {
+      image = VideoSource::readImage(file.string());
+    } catch (const std::runtime_error& e) {
+      sourceFailed(e.what(), /*finished=*/true);
+      return;
+    }
     if (image.empty()) {
       skipFrame("cannot read " + file.string());
       return;
     }
-  } else if (!mcd::readFrame(s.capture, image)) {
+  } else if (!s.capture || !s.capture->read(image)) {
     if (s.file && options_.loop_folder && frames_ > 0) {
-      s.capture.release();  // reopen at the first frame on the next tick
+      s.capture.reset();  // reopen at the first frame on the next tick
       open_ = false;
       tryOpen();
       return;
@@ -278,7 +274,7 @@ void MarkerCameraActor::tick() {
       return;
     }
     ++read_failures_;
-    s.capture.release();
+    s.capture.reset();
     sourceFailed("read failed", /*finished=*/false);
     return;
   }
