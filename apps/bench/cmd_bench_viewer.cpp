@@ -48,12 +48,6 @@ struct Options {
   bool json = false;
 };
 
-double threadCpuSeconds() {
-  timespec ts{};
-  clock_gettime(CLOCK_THREAD_CPUTIME_ID, &ts);
-  return static_cast<double>(ts.tv_sec) + static_cast<double>(ts.tv_nsec) * 1e-9;
-}
-
 // A port nobody listens on now (the viewer binds it a moment later).
 int freePort() {
   const int fd = ::socket(AF_INET, SOCK_STREAM, 0);

@@ -5,8 +5,6 @@
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/videoio.hpp>
 
-#include <algorithm>
-#include <cctype>
 #include <string>
 
 namespace tessera::camera_network {
@@ -28,25 +26,20 @@ class CaptureSource final : public VideoSource {
   cv::VideoCapture capture_;
 };
 
-bool isIndex(const std::string& s) {
-  return !s.empty() && s.size() < 6 &&
-         std::all_of(s.begin(), s.end(), [](unsigned char c) { return std::isdigit(c) != 0; });
-}
-
 }  // namespace camera_io_module
 
 }  // namespace tessera::camera_network
 
 using tessera::camera_network::VideoSource;
 
-/// A new source, or nullptr with `error` set.
+/// A new source (device `index` when >= 0, else `source`), or nullptr with `error` set.
 extern "C" __attribute__((visibility("default"))) VideoSource* tessera_camera_io_open(
-    const std::string* source, bool live, std::string* error) {
+    const std::string* source, int index, bool live, std::string* error) {
   namespace m = tessera::camera_network::camera_io_module;
   cv::VideoCapture capture;
   bool opened = false;
   try {
-    opened = m::isIndex(*source) ? capture.open(std::stoi(*source)) : capture.open(*source);
+    opened = index >= 0 ? capture.open(index) : capture.open(*source);
   } catch (const cv::Exception& e) {  // a backend's error is a failed open, like any other
     *error = "cannot be opened (" + e.msg + ")";
     return nullptr;

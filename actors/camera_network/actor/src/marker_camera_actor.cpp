@@ -63,11 +63,6 @@ Nanos toNanos(double seconds) {
   return std::max<Nanos>(1, static_cast<Nanos>(std::llround(std::min(seconds, 1e9) * 1e9)));
 }
 
-bool isIndex(const std::string& s) {
-  return !s.empty() && s.size() < 6 &&
-         std::all_of(s.begin(), s.end(), [](unsigned char c) { return std::isdigit(c) != 0; });
-}
-
 bool isUrl(const std::string& s) {
   return s.find("://") != std::string::npos;
 }
@@ -191,7 +186,7 @@ void MarkerCameraActor::tryOpen() {
     s.images = mcd::listImages(src);
     open_ = !s.images.empty();
     if (!open_) reason = "holds no images";
-  } else if (!mcd::isIndex(src) && !mcd::isUrl(src) && !fs::exists(src, ec)) {
+  } else if (!VideoSource::isDeviceIndex(src) && !mcd::isUrl(src) && !fs::exists(src, ec)) {
     reason = "cannot be opened (no such file, folder or device)";  // spares OpenCV's warnings
   } else {
     s.file = fs::is_regular_file(src, ec);

@@ -5,13 +5,15 @@
 
 #include <dlfcn.h>
 
+#include <algorithm>
+#include <cctype>
 #include <mutex>
 
 namespace tessera::camera_network {
 
 namespace video_source_detail {
 
-using OpenFn = VideoSource* (*)(const std::string*, bool, std::string*);
+using OpenFn = VideoSource* (*)(const std::string*, int, bool, std::string*);
 using ImreadFn = void (*)(const std::string*, cv::Mat*);
 
 struct Module {
@@ -53,9 +55,16 @@ const Module& module() {
 std::unique_ptr<VideoSource> VideoSource::open(const std::string& source, bool live) {
   const auto& m = video_source_detail::module();
   std::string error;
-  std::unique_ptr<VideoSource> s(m.open(&source, live, &error));
+  const int index = isDeviceIndex(source) ? std::stoi(source) : -1;
+  std::unique_ptr<VideoSource> s(m.open(&source, index, live, &error));
   if (!s) throw std::runtime_error(error.empty() ? "cannot be opened" : error);
   return s;
+}
+
+bool VideoSource::isDeviceIndex(const std::string& source) {
+  return !source.empty() && source.size() < 6 &&
+         std::all_of(source.begin(), source.end(),
+                     [](unsigned char c) { return std::isdigit(c) != 0; });
 }
 
 cv::Mat VideoSource::readImage(const std::string& path) {

@@ -2,6 +2,7 @@
 
 #include <tessera/drivers/byte_link.hpp>
 #include <tessera/runtime/options.hpp>
+#include <tessera/runtime/process_stats.hpp>
 
 #include <poll.h>
 #include <sys/eventfd.h>
@@ -9,7 +10,6 @@
 
 #include <algorithm>
 #include <cmath>
-#include <ctime>
 #include <iostream>
 #include <sstream>
 
@@ -21,12 +21,6 @@ std::string seconds(double s) {
   std::ostringstream out;
   out << s;
   return out.str();
-}
-
-double threadCpuSeconds() {
-  timespec ts{};
-  ::clock_gettime(CLOCK_THREAD_CPUTIME_ID, &ts);
-  return static_cast<double>(ts.tv_sec) + static_cast<double>(ts.tv_nsec) * 1e-9;
 }
 
 /// Prints driver events to stderr, at most one a second, with how many were held back: a
@@ -209,7 +203,7 @@ void DeviceLoop::run() {
     delay = std::min(2 * delay, link_.retry_max_s);
   }
   std::lock_guard lock(stats_mutex_);
-  cpu_s_ = d::threadCpuSeconds();
+  cpu_s_ = threadCpuSeconds();
 }
 
 void DeviceLoop::summarize(Summary& out) const {

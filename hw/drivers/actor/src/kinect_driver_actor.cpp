@@ -5,6 +5,7 @@
 #include <tessera/drivers/freenect_camera.hpp>
 #include <tessera/drivers/sensor_clock.hpp>
 #include <tessera/drivers/session_text.hpp>
+#include <tessera/runtime/process_stats.hpp>
 #include <tessera/runtime/registry.hpp>
 
 #include <algorithm>
@@ -12,7 +13,6 @@
 #include <cmath>
 #include <cstdlib>
 #include <cstring>
-#include <ctime>
 #include <filesystem>
 #include <iostream>
 #include <span>
@@ -42,12 +42,6 @@ KinectDepthConverter checkedConverter(const KinectActorOptions& o) {
   } catch (const std::invalid_argument& e) {
     fail("depth", e.what());
   }
-}
-
-double threadCpuSeconds() {
-  timespec ts{};
-  ::clock_gettime(CLOCK_THREAD_CPUTIME_ID, &ts);
-  return static_cast<double>(ts.tv_sec) + static_cast<double>(ts.tv_nsec) * 1e-9;
 }
 
 void writeImage(msg::Image::Builder b, Nanos stamp, const std::string& frame, std::uint64_t seq,
@@ -85,8 +79,7 @@ KinectDriverActor::KinectDriverActor(KinectActorOptions options)
               "must be none with a recording: fakenect plays the raw depth only (registration "
               "needs the calibration a real Kinect stores)");
     try {
-      const auto info = checkFakenectRecording(o.recording);
-      (void)info;
+      checkFakenectRecording(o.recording);
     } catch (const FakenectRecordingError& e) {
       d::fail("recording", e.what());
     }
@@ -251,7 +244,7 @@ void KinectDriverActor::run() {
       if (now - last_cpu > std::chrono::seconds(1)) {
         last_cpu = now;
         std::lock_guard lock(mutex_);
-        cpu_s_ = d::threadCpuSeconds();
+        cpu_s_ = threadCpuSeconds();
         depth_frames_ = depth_count;
         color_frames_ = color_count;
         dropped_ = pairer.dropped();
@@ -293,7 +286,7 @@ void KinectDriverActor::run() {
     }
   }
   std::lock_guard lock(mutex_);
-  cpu_s_ = d::threadCpuSeconds();
+  cpu_s_ = threadCpuSeconds();
 }
 
 void KinectDriverActor::publish(const RgbdPairer::Pair& pair,

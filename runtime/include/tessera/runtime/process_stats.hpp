@@ -6,6 +6,8 @@
 namespace tessera {
 
 double processCpuSeconds();
+/// CPU time of the calling thread (a driver's I/O thread, a benchmark's client).
+double threadCpuSeconds();
 double peakRssMegabytes();
 /// "Intel(R) Xeon(R) ... , 2 cores, 23.4 GiB, Linux 6.1" — printed by benchmarks.
 std::string machineDescription();

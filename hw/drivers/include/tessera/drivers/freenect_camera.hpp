@@ -54,8 +54,6 @@ class FreenectCamera {
   void open();
   void close();
   bool isOpen() const { return device_ != nullptr; }
-  /// The library loaded is fakenect (it plays the folder FAKENECT_PATH names).
-  bool isFakenect() const { return fakenect_; }
   /// Handles what arrived within `timeout_ms` (fakenect: plays the next entry, keeping the
   /// recording's pace). Returns false when the device is gone (or a recording has ended).
   bool processEvents(int timeout_ms);

@@ -26,6 +26,8 @@ class VideoSource {
   /// Opens a device index ("0"), a stream URL or a video file; `live`: keep only the newest
   /// frames. Throws std::runtime_error with the reason (the module or the source).
   static std::unique_ptr<VideoSource> open(const std::string& source, bool live);
+  /// `source` names a device by its index ("0".."99999") rather than a path or URL.
+  static bool isDeviceIndex(const std::string& source);
   /// An image file as grey; empty when it cannot be read. Throws std::runtime_error when the
   /// module cannot be loaded.
   static cv::Mat readImage(const std::string& path);
