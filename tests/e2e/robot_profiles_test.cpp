@@ -128,6 +128,32 @@ TEST_CASE("robot_create_kinect tracks 7-Scenes played through fakenect as rgbd_s
   CHECK(ate_kinect.translation.rmse < 0.08);
 }
 
+TEST_CASE("tessera emulate kinect refuses a missing or empty dataset and a used output folder",
+          "[e2e][drivers][kinect]") {
+  const fs::path out = test::scratchDir("e2e_emulate_kinect_bad");
+  auto run = test::runCli(
+      "emulate kinect --rgbd " + (out / "missing").string() + " --out " + (out / "rec").string(),
+      out);
+  CHECK(run.exit_code != 0);
+  CHECK_THAT(run.err, Catch::Contains("--rgbd"));
+  fs::create_directories(out / "empty");
+  run = test::runCli(
+      "emulate kinect --rgbd " + (out / "empty").string() + " --out " + (out / "rec").string(),
+      out);
+  CHECK(run.exit_code == 1);
+  CHECK_THAT(run.err, Catch::Contains((out / "empty").string()));
+  CHECK_FALSE(fs::exists(out / "rec"));
+  TESSERA_SHARED_DATA(tum, "tum-rgbd-fr1-desk-9frames");
+  fs::create_directories(out / "used");
+  std::ofstream(out / "used" / "keep.txt") << "x";
+  run = test::runCli("emulate kinect --rgbd " + tum.string() + " --out " + (out / "used").string(),
+                     out);
+  CHECK(run.exit_code == 1);
+  CHECK_THAT(run.err, Catch::Contains("not empty"));
+  CHECK(fs::exists(out / "used" / "keep.txt"));
+  fs::remove_all(out);
+}
+
 /// A 5 x 3 m box around the LMS, which stands 1 m from its left wall (beams from the right,
 /// counter-clockwise, in mm; 0 = no echo beyond 8 m).
 std::vector<std::uint32_t> box(int angle_deg, int resolution_centideg) {
