@@ -10,6 +10,7 @@ PACKAGES=(
   libeigen3-dev libopencv-dev libpcl-dev liboctomap-dev libceres-dev libtbb-dev
   libopencv-contrib-dev  # rgbd::registerDepth (7-Scenes) and the odometries `bench rgbd` compares
   iceoryx libiceoryx-posh-dev libiceoryx-hoofs-dev libacl1-dev
+  cyclonedds-dev cyclonedds-tools  # topics between hosts (ddsperf for reference figures)
   capnproto libcapnp-dev catch2
   # support libraries
   libyaml-cpp-dev nlohmann-json3-dev libcli11-dev libspdlog-dev libfmt-dev libzstd-dev zlib1g-dev libpng-dev libjpeg-dev
