@@ -39,6 +39,8 @@ struct LaunchArgs {
   int threads = 0;
   std::string shm_log = "error";
   RunSettings view;  // only the --view options
+  std::string host;  // --host: this host's part only, the others over DDS
+  int wait_peers_s = 60;
 };
 
 // `launch --view`: the workers read the profile from its file, so the viewer goes into a copy
@@ -74,6 +76,17 @@ std::string profileWithViewer(const std::string& path, const RunSettings& view) 
 }
 
 int launch(const LaunchArgs& a) {
+  if (!a.host.empty()) {
+    if (a.view.view_port >= 0) throw ConfigError("launch --host: --view is not available yet");
+    HostLaunchArgs h;
+    h.profile = a.profile;
+    h.host = a.host;
+    h.out = a.out;
+    h.sets = a.sets;
+    h.threads = a.threads;
+    h.wait_peers_s = a.wait_peers_s;
+    return launchHost(h);
+  }
   LauncherOptions o;
   o.profile_path = resolveProfilePath(a.profile, profileSearchDirs());
   std::string copy;
@@ -179,6 +192,11 @@ void addLaunchCommand(CLI::App& app, int& result) {
   cmd->add_option("--out", args->out, "output folder (created); default: none, nothing is written");
   cmd->add_option("--threads", args->threads, "executor threads per process (0: all cores)");
   cmd->add_option("--shm-log", args->shm_log, "iceoryx log level: off, error, warn, info");
+  cmd->add_option("--host", args->host,
+                  "run only process group NAME here; topics to the other groups cross hosts over "
+                  "DDS (profile section dds:)");
+  cmd->add_option("--wait-peers", args->wait_peers_s,
+                  "--host: seconds to wait for the other hosts before giving up (default 60)");
   addViewOptions(*cmd, args->view);  // the viewer in a process of its own
   cmd->callback([args, &result] { result = launch(*args); });
 

@@ -32,6 +32,16 @@ void addBenchCommands(CLI::App& app, int& result);
 /// Adds `tessera launch` (a profile as several processes over shared memory) and the internal
 /// `tessera worker` it starts for each process.
 void addLaunchCommand(CLI::App& app, int& result);
+
+/// `tessera launch PROFILE --host NAME`: process group NAME here, the other groups on other hosts
+/// over DDS (cmd_launch_host.cpp).
+struct HostLaunchArgs {
+  std::string profile, host, out;
+  std::vector<std::string> sets;
+  int threads = 0;
+  int wait_peers_s = 60;
+};
+int launchHost(const HostLaunchArgs& args);
 /// Adds `tessera emulate scip` (an emulated Hokuyo laser on a pty or TCP port).
 void addEmulateCommand(CLI::App& app, int& result);
 /// Adds `tessera emulate kinect` (a fakenect recording from an RGB-D dataset) under `emulate`.

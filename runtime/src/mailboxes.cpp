@@ -60,6 +60,7 @@ void Runtime::Impl::deliver(detail::TopicState* topic,
                             std::shared_ptr<const MessageStorage> message,
                             ImportDelivery delivery) {
   if (!started || options.manual) delivery = ImportDelivery::kSchedule;
+  if (closed.load()) return;  // after the run: nothing would handle it
   const auto n = topic->subscribers.size();
   if (message && delivery == ImportDelivery::kRunHere && n == 1) {
     // The common case of a message arriving after a quiet spell: no queue round trip, whose
@@ -101,6 +102,7 @@ void Runtime::Impl::enqueue(ActorSlot& actor, Item item, bool schedule_it) {
       }
     } else {
       while (mailbox.queued >= mailbox.policy.capacity) {
+        if (closed.load()) return;  // the run ended while this import waited for room
         if (std::find(detail::t_running.begin(), detail::t_running.end(), &actor) !=
             detail::t_running.end()) {
           throw std::logic_error("reliable mailbox '" + mailbox.topic + "' of actor '" +

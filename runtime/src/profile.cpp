@@ -52,8 +52,9 @@ std::vector<std::string> split(const std::string& s, char sep) {
   return out;
 }
 
-const std::set<std::string> kTopKeys = {"name",           "description", "clock",   "sim_rate",
-                                        "max_duration_s", "actors",      "restart", "external"};
+const std::set<std::string> kTopKeys = {"name",     "description",    "clock",
+                                        "sim_rate", "max_duration_s", "actors",
+                                        "restart",  "external",       "dds"};
 const std::set<std::string> kActorKeys = {"type", "process", "remap", "params"};
 
 void applyOverride(YAML::Node root, const std::string& text, const std::string& path) {
@@ -67,6 +68,10 @@ void applyOverride(YAML::Node root, const std::string& text, const std::string& 
   YAML::Node actors = root["actors"];
   if (parts.size() == 1 && kTopKeys.count(key) && key != "actors") {
     root[key] = value;
+    return;
+  }
+  if (parts.size() == 2 && parts[0] == "dds") {  // dds.partition=..., dds.domain=...
+    root["dds"][parts[1]] = value;
     return;
   }
   const auto entryOf = [&](const YAML::Node& actor) -> const ActorRegistry::Entry* {
@@ -200,7 +205,7 @@ Profile parseProfile(const std::string& yaml_text, const std::string& path,
     if (!kTopKeys.count(key)) {
       throw ConfigError(atKey(path, kv) + ": unknown key '" + key +
                         "' (known: name, description, clock, sim_rate, max_duration_s, actors, "
-                        "restart, external)");
+                        "restart, external, dds)");
     }
   }
   if (root["name"]) p.name = scalar(path, root["name"], "name");
@@ -232,6 +237,14 @@ Profile parseProfile(const std::string& yaml_text, const std::string& path,
     for (const auto& r : restart) p.restart.push_back(scalar(path, r, "restart"));
   }
   if (const YAML::Node external = root["external"]) parseExternal(path, external, p);
+  if (const YAML::Node dds = root["dds"]) {
+    if (!dds.IsMap()) {
+      throw ConfigError(at(path, dds) +
+                        ": dds: expected a mapping (domain, partition, interface, peers, ...)");
+    }
+    p.dds = Params(dds, path + ": dds");
+    p.has_dds = true;
+  }
   const YAML::Node actors = root["actors"];
   if (!actors || !actors.IsMap() || actors.size() == 0) {
     throw ConfigError(path +

@@ -185,6 +185,7 @@ void Runtime::Impl::stopActorsInTurns(RunCoordinator& coordinator) {
 }
 
 void Runtime::Impl::finish() {
+  closed.store(true);
   final_report = makeReport();
   stopExecutor();
 }

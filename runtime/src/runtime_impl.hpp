@@ -132,6 +132,9 @@ struct Runtime::Impl {
   std::atomic<std::uint64_t> order_counter{0};
 
   std::atomic<bool> stop_requested{false};
+  // Every actor stopped: messages still arriving from other processes or hosts are dropped
+  // instead of queued (or waited for) where nothing will ever handle them.
+  std::atomic<bool> closed{false};
   std::string stop_reason;
   std::mutex stop_reason_mutex;
   std::atomic<int> finite_sources{0}, finished_sources{0};

@@ -190,6 +190,10 @@ void Runtime::exportTopic(const std::string& topic, MessageType type,
   t.exporter = std::move(out);
 }
 
+int Runtime::finiteSources() const {
+  return impl_->finite_sources.load();
+}
+
 ImportFn Runtime::importTopic(const std::string& topic, MessageType type) {
   if (impl_->configured) throw std::logic_error("importTopic after configure()");
   auto* t = &impl_->topic(topic, type, "(import)", true);

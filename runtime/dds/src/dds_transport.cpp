@@ -5,6 +5,7 @@
 #include "tessera_frame.h"
 
 #include <dds/dds.h>
+#include <yaml-cpp/yaml.h>
 #include <zstd.h>
 
 #include <algorithm>
@@ -379,6 +380,38 @@ void DdsTransport::validate(const DdsOptions& o) {
   if (o.reliable_depth == 0) throw ConfigError("dds.reliable_depth: expected at least 1");
 }
 
+DdsOptions loadDdsOptions(const Params& params) {
+  DdsOptions o;
+  params.rejectUnknown({"domain", "partition", "interface", "peers", "max_message_bytes",
+                        "reliable_depth", "compression"});
+  params.read("domain", o.domain);
+  params.read("partition", o.partition);
+  params.read("interface", o.interface);
+  params.read("peers", o.peers);
+  std::uint64_t max_bytes = o.max_message_bytes;
+  params.read("max_message_bytes", max_bytes);
+  o.max_message_bytes = static_cast<std::size_t>(max_bytes);
+  params.read("reliable_depth", o.reliable_depth);
+  if (const YAML::Node c = params.node()["compression"]) {
+    if (!c.IsMap()) {
+      throw ConfigError(params.locate("compression") + ": expected a mapping {topic: zstd level}");
+    }
+    const Params levels = params.child("compression");
+    for (const auto& kv : c) {
+      const std::string topic = kv.first.as<std::string>();
+      int level = 0;
+      levels.read(topic.c_str(), level);
+      o.compression[topic] = level;
+    }
+  }
+  try {
+    DdsTransport::validate(o);
+  } catch (const ConfigError& e) {
+    throw ConfigError(params.where() + ": " + e.what());
+  }
+  return o;
+}
+
 DdsTransport::DdsTransport(DdsOptions options, std::string node_name)
     : impl_(std::make_unique<Impl>()) {
   validate(options);
@@ -477,6 +510,16 @@ std::vector<std::string> DdsTransport::unconnected() const {
       out.push_back("'" + e->topic.name + "' (no subscriber)");
   }
   return out;
+}
+
+bool DdsTransport::upstreamLeft() const {
+  if (impl_->imports.empty()) return false;
+  for (const auto& i : impl_->imports) {
+    dds_subscription_matched_status_t s{};
+    if (dds_get_subscription_matched_status(i->reader, &s) != DDS_RETCODE_OK) return false;
+    if (s.total_count == 0 || s.current_count > 0) return false;
+  }
+  return true;
 }
 
 bool DdsTransport::waitForPeers(std::chrono::milliseconds timeout,

@@ -10,6 +10,8 @@
 //     inputs: [goal]      #   published from outside (`tessera goal`): a subscriber needs no
 //                         #   publisher in the profile
 //     outputs: [nav_status]   # read from outside: crosses shared memory under `tessera launch`
+//   dds:                  # `tessera launch --host`: topics between hosts (tessera/dds)
+//     partition: lab_a    #   required; domain, interface, peers, compression: {topic: level}
 //   actors:
 //     sim:                # instance name
 //       type: simulator   # registered actor type (tessera actors lists them)
@@ -55,6 +57,9 @@ struct Profile {
   /// Topics a program outside the deployment publishes (e.g. `tessera goal`), and topics it
   /// reads. Each input must be subscribed and each output published by an actor of the profile.
   std::vector<std::string> external_inputs, external_outputs;
+  /// The `dds:` section as written (read by tessera/dds's loadDdsOptions); has_dds when given.
+  Params dds;
+  bool has_dds = false;
 };
 
 /// Parses and validates a profile file, applying --set overrides in order. Throws ConfigError.

@@ -130,6 +130,8 @@ class Runtime {
   /// registration order), after configure().
   std::vector<std::string> stopOrder() const;
   std::vector<std::string> topicsOfType(MessageType type) const;
+  /// Actors that declared a finite input (after configure()).
+  int finiteSources() const;
   /// Message type a topic carries (after configure()); throws for an unknown topic.
   MessageType topicType(const std::string& topic) const;
   /// Mailbox policy of `actor`'s subscription to global `topic`.

@@ -22,6 +22,7 @@
 #pragma once
 
 #include <tessera/runtime/mailbox.hpp>
+#include <tessera/runtime/options.hpp>
 #include <tessera/runtime/runtime.hpp>
 
 #include <chrono>
@@ -52,6 +53,10 @@ struct DdsOptions {
   /// zstd level per topic (1-19); unlisted topics go uncompressed.
   std::map<std::string, int> compression;
 };
+
+/// Reads a profile's `dds:` section (Profile::dds) and validates it; unknown keys, wrong types
+/// and values out of range are ConfigErrors naming file, line and key.
+DdsOptions loadDdsOptions(const Params& params);
 
 struct DdsTopic {
   std::string name;
@@ -93,6 +98,9 @@ class DdsTransport {
   bool waitForPeers(std::chrono::milliseconds timeout, const std::function<bool()>& give_up = {});
   /// Topics still unmatched: "'name' (no publisher)" / "'name' (no subscriber)".
   std::vector<std::string> unconnected() const;
+  /// True once every import had a publisher and none has one now: every host sending to this
+  /// one left (false while this host imports nothing).
+  bool upstreamLeft() const;
   void startReceiving();
   void stopReceiving();
   DdsStats stats() const;
