@@ -22,6 +22,7 @@ void addBenchCommands(CLI::App& app, int& result) {
   addBenchNavCommand(*bench, result);
   addBenchViewerCommand(*bench, result);
   addBenchDriversCommand(*bench, result);
+  addBenchDdsCommand(*bench, result);
 }
 
 }  // namespace tessera::app

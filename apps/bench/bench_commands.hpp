@@ -34,5 +34,7 @@ void addBenchNavCommand(CLI::App& bench, int& result);
 void addBenchViewerCommand(CLI::App& bench, int& result);
 /// `tessera bench drivers`: device drivers against their emulated devices.
 void addBenchDriversCommand(CLI::App& bench, int& result);
+/// `tessera bench dds`: latency over DDS (ours vs raw Cyclone) and robot -> server bandwidth.
+void addBenchDdsCommand(CLI::App& bench, int& result);
 
 }  // namespace tessera::app

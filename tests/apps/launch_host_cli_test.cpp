@@ -9,9 +9,9 @@
 #include <fstream>
 #include <string>
 
-using tessera::test::runCli;
+namespace launch_host_cli_test {
 
-namespace {
+using tessera::test::runCli;
 
 std::filesystem::path freshDir(const std::string& name) {
   const auto dir = std::filesystem::temp_directory_path() / ("tessera_test_launch_host_" + name);
@@ -46,8 +46,6 @@ std::string writeProfile(const std::filesystem::path& dir, const std::string& dd
 const std::string kDds =
     "dds:\n  partition: tessera_cli_test\n  interface: lo\n"
     "  peers: [127.0.0.1]\n";
-
-}  // namespace
 
 TEST_CASE("launch --host refuses a profile it cannot split over hosts, naming what is wrong",
           "[cli][dds]") {
@@ -92,3 +90,5 @@ TEST_CASE("launch --host without its peers gives up naming the topics it waited 
   CHECK(run.err.find("'scan' (no publisher)") != std::string::npos);
   CHECK(run.err.find("--host NAME") != std::string::npos);
 }
+
+}  // namespace launch_host_cli_test
