@@ -192,6 +192,7 @@ struct DdsTransport::Impl::Export final : TopicExport {
   Counters* counters = nullptr;
   std::mutex mutex;  // sequence numbers and the write itself stay in order
   std::uint64_t seq = 0;
+  std::vector<std::byte> framed;  // the last message's framing (reused)
 
   std::shared_ptr<detail::LoanStorage> loan(std::size_t size_hint_bytes,
                                             std::size_t blob_bytes) override {
@@ -212,7 +213,10 @@ struct DdsTransport::Impl::Export final : TopicExport {
                          " bytes exceeds dds.max_message_bytes (" +
                          std::to_string(impl->options.max_message_bytes) + ")");
     }
-    std::vector<std::byte> framed(bytes);
+    // The framing is built in a buffer kept by the export (under its lock): a fresh one per
+    // message costs page faults on every large message.
+    std::lock_guard lock(mutex);
+    if (framed.size() < bytes) framed.resize(bytes);
     {
       auto* table = reinterpret_cast<std::uint32_t*>(framed.data());
       std::memset(framed.data(), 0, table_words * sizeof(capnp::word));
@@ -225,15 +229,15 @@ struct DdsTransport::Impl::Export final : TopicExport {
         at += segments[i].size() * sizeof(capnp::word);
       }
     }
+    const std::span<const std::byte> raw(framed.data(), bytes);
     std::vector<std::byte> packed;
     if (level > 0) {
       const auto t0 = std::chrono::steady_clock::now();
-      packed = detail::zstdCompress(framed, level);
+      packed = detail::zstdCompress(raw, level);
       counters->compress_ns += static_cast<std::uint64_t>(secondsSince(t0) * 1e9);
     }
-    const std::vector<std::byte>& payload = level > 0 ? packed : framed;
+    const std::span<const std::byte> payload = level > 0 ? std::span<const std::byte>(packed) : raw;
 
-    std::lock_guard lock(mutex);
     tessera_dds_Frame sample{};
     sample.type_id = topic.type.id;
     sample.origin = impl->origin;
@@ -318,7 +322,8 @@ void DdsTransport::Impl::takeAll(Import& import) {
           throw MessageError(what + ": unknown codec " + std::to_string(f->codec));
         }
         import.counters->received += 1;
-        import.deliver(std::move(message), false, ImportDelivery::kSchedule);
+        // The receiving thread runs a free subscriber itself: one wake-up per message, not two.
+        import.deliver(std::move(message), false, ImportDelivery::kRunHere);
       } catch (const MessageError& e) {
         import.counters->rejected += 1;
         if (!import.warned) {
