@@ -242,10 +242,20 @@ std::shared_ptr<const MessageStorage> decodeMessage(std::span<const std::byte> b
     throw MessageError(what + ": " + std::to_string(bytes.size()) +
                        " bytes is not a whole number of 8-byte words (truncated?)");
   }
-  const std::size_t nwords = bytes.size() / sizeof(capnp::word);
-  auto words = kj::heapArray<capnp::word>(nwords);
+  auto words = kj::heapArray<capnp::word>(bytes.size() / sizeof(capnp::word));
   std::memcpy(words.begin(), bytes.data(), bytes.size());
+  return decodeMessageWords(kj::mv(words), what, limits);
+}
 
+std::shared_ptr<const MessageStorage> decodeMessageWords(kj::Array<capnp::word> words,
+                                                         const std::string& what,
+                                                         const DecodeLimits& limits) {
+  if (words.size() == 0) throw MessageError(what + ": empty input, expected a Cap'n Proto message");
+  if (words.size() * sizeof(capnp::word) > limits.max_bytes) {
+    throw MessageError(what + ": " + std::to_string(words.size() * sizeof(capnp::word)) +
+                       " bytes exceeds the limit of " + std::to_string(limits.max_bytes));
+  }
+  const std::size_t nwords = words.size();
   capnp::ReaderOptions options;
   options.traversalLimitInWords = limits.traversal_limit_words != 0
                                       ? limits.traversal_limit_words

@@ -223,6 +223,12 @@ std::shared_ptr<const MessageStorage> decodeMessage(std::span<const std::byte> b
                                                     const std::string& what,
                                                     const DecodeLimits& limits = {});
 
+/// As decodeMessage, for framing bytes already in 8-byte words: adopts `words` (no copy; the
+/// array's disposer runs when the last reader drops the message).
+std::shared_ptr<const MessageStorage> decodeMessageWords(kj::Array<capnp::word> words,
+                                                         const std::string& what,
+                                                         const DecodeLimits& limits = {});
+
 /// Checks that `storage` holds a readable T (every pointer in bounds, limits respected).
 /// Throws MessageError naming `what` otherwise.
 template <typename T>

@@ -123,6 +123,9 @@ std::vector<std::byte> zstdCompress(std::span<const std::byte> bytes, int level)
 /// disagrees with the frame, or the data is corrupt. `what` names the source.
 std::vector<std::byte> zstdDecompress(std::span<const std::byte> bytes, std::size_t raw_bytes,
                                       std::size_t cap, const std::string& what);
+/// Decompresses a zstd frame into `out`, which must be exactly the frame's content size.
+void zstdDecompressInto(std::span<const std::byte> bytes, std::span<std::byte> out,
+                        const std::string& what);
 }  // namespace detail
 
 }  // namespace tessera
