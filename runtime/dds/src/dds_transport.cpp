@@ -370,10 +370,9 @@ void DdsTransport::Impl::takeAll(Import& import) {
                              import.topic.type.name);
         }
         // Gaps in a sender's numbers are samples that never arrived.
-        auto [it, fresh] = import.next_seq.try_emplace(f->origin, f->seq);
-        if (f->seq > it->second) import.counters->lost += f->seq - it->second;
-        if (f->seq >= it->second) it->second = f->seq + 1;
-        (void)fresh;
+        auto& next = import.next_seq.try_emplace(f->origin, f->seq).first->second;
+        if (f->seq > next) import.counters->lost += f->seq - next;
+        if (f->seq >= next) next = f->seq + 1;
 
         const std::span<const std::byte> payload(
             reinterpret_cast<const std::byte*>(f->payload._buffer), f->payload._length);
