@@ -22,6 +22,8 @@ namespace {
 
 /// A host waits this long for its peers before starting, and says who it waits for this often.
 constexpr auto kPeerReport = std::chrono::seconds(5);
+// How long a leaving host waits for the other hosts to acknowledge its last reliable samples.
+constexpr auto kFlushTimeout = std::chrono::seconds(60);
 
 std::vector<DdsTopic> ddsTopics(const std::vector<ShmTopic>& crossing) {
   std::vector<DdsTopic> out;
@@ -140,9 +142,14 @@ int launchHost(const HostLaunchArgs& a) {
       while (!done.load()) {
         std::this_thread::sleep_for(std::chrono::milliseconds(100));
         if (!transport.upstreamLeft()) continue;
-        // Samples already received are queued before the writers' departure is seen; give the
-        // receiving thread a moment for the last ones, then stop (mailboxes drain first).
-        std::this_thread::sleep_for(std::chrono::milliseconds(300));
+        // The senders waited for their last samples to be acknowledged, so those are in this
+        // host's readers or being handed over; stop once the readers stayed empty for a moment
+        // (the mailboxes drain before the actors stop).
+        for (int quiet = 0; quiet < 3 && !done.load();) {
+          quiet = transport.drained() ? quiet + 1 : 0;
+          std::this_thread::sleep_for(std::chrono::milliseconds(100));
+        }
+        if (done.load()) return;
         std::cerr << "host '" << a.host << "': every host sending to this one left: stopping\n";
         runtime->requestStop();
         return;
@@ -152,6 +159,16 @@ int launchHost(const HostLaunchArgs& a) {
   const RunReport report = runtime->run();
   done = true;
   if (watcher.joinable()) watcher.join();
+  // Reliable samples still on their way to another host: wait for them before leaving.
+  const auto unacknowledged = transport.flush(kFlushTimeout);
+  if (!unacknowledged.empty()) {
+    std::string names;
+    for (const auto& n : unacknowledged) names += (names.empty() ? "" : ", ") + n;
+    std::cerr << "warning: host '" << a.host << "': reliable samples on " << names
+              << " were not acknowledged by the other hosts within "
+              << std::chrono::duration_cast<std::chrono::seconds>(kFlushTimeout).count()
+              << " s; they may be lost\n";
+  }
   transport.stopReceiving();
   const DdsStats stats = transport.stats();
   std::cerr << report.table();

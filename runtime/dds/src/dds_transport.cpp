@@ -210,6 +210,7 @@ struct DdsTransport::Impl {
   std::uint64_t origin = 0;
   dds_entity_t participant = 0, publisher = 0, subscriber = 0, waitset = 0;
   std::atomic<bool> stopping{false};
+  std::atomic<bool> taking{false};  // the receiving thread is taking or delivering samples
   std::thread receiver;
 
   struct Export;
@@ -620,6 +621,27 @@ bool DdsTransport::upstreamLeft() const {
   return true;
 }
 
+bool DdsTransport::drained() const {
+  for (const auto& i : impl_->imports) {
+    if (dds_triggered(i->condition) != 0) return false;
+  }
+  // After the readers: a sample taken between the two checks is seen as being handed over.
+  return !impl_->taking.load();
+}
+
+std::vector<std::string> DdsTransport::flush(std::chrono::milliseconds timeout) {
+  const auto deadline = std::chrono::steady_clock::now() + timeout;
+  std::vector<std::string> unacknowledged;
+  for (const auto& e : impl_->exports) {
+    if (!e->topic.reliable) continue;
+    const auto left = std::chrono::duration_cast<std::chrono::nanoseconds>(
+        deadline - std::chrono::steady_clock::now());
+    if (dds_wait_for_acks(e->writer, std::max<dds_duration_t>(left.count(), 0)) != DDS_RETCODE_OK)
+      unacknowledged.push_back(e->topic.name);
+  }
+  return unacknowledged;
+}
+
 bool DdsTransport::waitForPeers(std::chrono::milliseconds timeout,
                                 const std::function<bool()>& give_up) {
   const auto deadline = std::chrono::steady_clock::now() + timeout;
@@ -643,10 +665,12 @@ void DdsTransport::startReceiving() {
         std::this_thread::sleep_for(std::chrono::milliseconds(10));
         continue;
       }
+      impl->taking = true;
       for (dds_return_t k = 0; k < n; ++k) {
         const auto index = static_cast<std::size_t>(fired[static_cast<std::size_t>(k)]);
         if (index < impl->imports.size()) impl->takeAll(*impl->imports[index]);
       }
+      impl->taking = false;
     }
   });
 }

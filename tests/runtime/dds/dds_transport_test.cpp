@@ -8,11 +8,15 @@
 #include "tessera_frame.h"
 
 #include <dds/dds.h>
+#include <spawn.h>
+#include <sys/wait.h>
 #include <unistd.h>
 #include <catch2/catch.hpp>
 
 #include <chrono>
+#include <cstdlib>
 #include <cstring>
+#include <filesystem>
 #include <thread>
 
 using namespace tessera;
@@ -133,6 +137,45 @@ TEST_CASE("two hosts exchange 2000 messages on a reliable DDS topic without loss
   CHECK(got.received == 2000);
   CHECK(got.lost == 0);
   CHECK(got.rejected == 0);
+}
+
+// The sending half of the next test, run as a child process: inside one process Cyclone hands
+// samples over directly, never through the acknowledgement protocol the test is about.
+TEST_CASE("dds child: a host that leaves right after writing 7 reliable messages",
+          "[.][dds_child]") {
+  const char* partition = std::getenv("TESSERA_DDS_CHILD_PARTITION");
+  REQUIRE(partition != nullptr);
+  auto options = loopback();
+  options.partition = partition;
+  options.reliable_depth = 2;
+  Sender tx(options, blobTopic("blobs", true, false, true));
+  REQUIRE(tx.transport.waitForPeers(20s));
+  for (int i = 0; i < 7; ++i) tx.send(i, 100);
+  if (std::getenv("TESSERA_DDS_CHILD_NO_FLUSH") == nullptr) CHECK(tx.transport.flush(60s).empty());
+}
+
+TEST_CASE(
+    "a host leaving right after its last reliable message loses none of it, and the receiving "
+    "host sees it gone only once drained",
+    "[dds]") {
+  auto options = loopback("_leave");
+  options.reliable_depth = 2;
+  // A slow subscriber: when the sender leaves, its last samples wait for longer than Cyclone
+  // lingers for them on its own.
+  Receiver rx(options, blobTopic("blobs", false, true, true), MailboxPolicy::reliable(1), 500ms);
+  ::setenv("TESSERA_DDS_CHILD_PARTITION", options.partition.c_str(), 1);
+  const std::string exe = std::filesystem::read_symlink("/proc/self/exe").string();
+  const std::string name = "dds child: a host that leaves right after writing 7 reliable messages";
+  char* argv[] = {const_cast<char*>(exe.c_str()), const_cast<char*>(name.c_str()), nullptr};
+  pid_t child = 0;
+  REQUIRE(::posix_spawn(&child, exe.c_str(), nullptr, nullptr, argv, environ) == 0);
+  int status = 0;
+  REQUIRE(::waitpid(child, &status, 0) == child);
+  CHECK((WIFEXITED(status) && WEXITSTATUS(status) == 0));
+  REQUIRE(waitFor([&] { return rx.transport.upstreamLeft() && rx.transport.drained(); }, 60s));
+  CHECK(rx.transport.stats().topics.at("blobs").received == 7);
+  CHECK(rx.transport.stats().topics.at("blobs").lost == 0);
+  REQUIRE(waitFor([&] { return rx.handled() >= 7; }));
 }
 
 TEST_CASE("a compressed DDS topic arrives byte-identical and smaller on the wire", "[dds]") {

@@ -101,6 +101,13 @@ class DdsTransport {
   /// True once every import had a publisher and none has one now: every host sending to this
   /// one left (false while this host imports nothing).
   bool upstreamLeft() const;
+  /// True while no received sample waits in a reader and the receiving thread is not handing one
+  /// to a subscriber. Samples may still be in flight: callers check it over a moment.
+  bool drained() const;
+  /// Waits until every reliable sample this host wrote is acknowledged by the readers on the
+  /// other hosts (call it before leaving: Cyclone lingers only about a second for them).
+  /// Returns the topics still unacknowledged at `timeout`.
+  std::vector<std::string> flush(std::chrono::milliseconds timeout);
   void startReceiving();
   void stopReceiving();
   DdsStats stats() const;
