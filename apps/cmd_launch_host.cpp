@@ -60,12 +60,17 @@ int launchHost(const HostLaunchArgs& a) {
                       "sim_rate > 0): each host keeps its own time");
   }
   const DdsOptions options = loadDdsOptions(profile.dds);
-  const DeploymentPlan plan = planDeployment(profile);
+  const DeploymentPlan plan = planDeployment(profile, a.host);
   if (plan.indexOf(a.host) < 0) {
     std::string names;
     for (const auto& p : plan.processes) names += (names.empty() ? "" : ", ") + p;
     throw ConfigError(path + ": --host " + a.host + ": no actor has `process: " + a.host +
                       "` (process groups: " + names + ")");
+  }
+  for (const auto& [actor, why] : plan.unchecked) {
+    std::cerr << "host '" << a.host << "': actor '" << actor
+              << "' runs on another host and cannot be checked here (" << why
+              << "); what only it publishes or reads does not cross to this host\n";
   }
   for (const auto& [topic, level] : options.compression) {
     bool crosses = false;
@@ -103,14 +108,15 @@ int launchHost(const HostLaunchArgs& a) {
   ro.threads = a.threads;
   ro.output_dir = a.out;
   if (!a.out.empty()) std::filesystem::create_directories(a.out);
-  auto runtime = buildProcessRuntime(
-      run_profile, ro, a.host, [&](Runtime& rt) { transport.attach(rt, ddsTopics(crossing)); });
+  const std::vector<DdsTopic> dds_topics = ddsTopics(crossing);
+  auto runtime = buildProcessRuntime(run_profile, ro, a.host,
+                                     [&](Runtime& rt) { transport.attach(rt, dds_topics); });
   transport.startReceiving();
 
   // Start once every topic to and from the other hosts has its peer: what is sent before a
   // reader matched would not reach it.
   std::string names;
-  for (const auto& t : crossing) {
+  for (const auto& t : dds_topics) {
     names += (names.empty() ? "" : ", ") + t.name +
              (t.exported && t.imported ? " (out, in)"
               : t.exported             ? " (out)"

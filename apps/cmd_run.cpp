@@ -60,6 +60,9 @@ nlohmann::json summaryJson(const Profile& profile, const RunReport& r) {
     actors[a.name] = aj;
   }
   j["actors"] = actors;
+  nlohmann::json topics = nlohmann::json::object();
+  for (const auto& t : r.topics) topics[t.name] = {{"messages", t.messages}, {"bytes", t.bytes}};
+  j["topics"] = topics;
   return j;
 }
 

@@ -299,53 +299,85 @@ struct Options {
   int samples = 200;
   int rounds = 3;
   double bandwidth_seconds = 120;
+  std::string visual = "../shared/data/7scenes-redkitchen-rgbd";
+  bool visual_given = false;
   bool json = false;
   std::string follow, partition;  // internal: follower mode
 };
 
-/// Robot -> server bytes per data second of sim_slam_split as two hosts.
-nlohmann::json laserBandwidth(double seconds) {
+/// One pipeline's robot -> server figures, from a two-host run of its split profile.
+struct Pipeline {
+  std::string name;                        // "laser" | "visual"
+  std::string profile;                     // the split profile
+  std::vector<std::string> sensor_topics;  // what sending every raw frame would carry
+  std::string robot_sets;                  // extra --set options for the robot
+  std::string common_sets;                 // for both hosts
+};
+
+/// Runs `p` as two hosts; raw = the robot's sensor topics' bytes, sent = the bytes DDS carried
+/// from the robot, both per data second. Also prints both and the bytes before compression.
+nlohmann::json pipelineBandwidth(const Pipeline& p, bool quiet) {
   namespace fs = std::filesystem;
-  const fs::path dir =
-      fs::temp_directory_path() / ("tessera_bench_dds_" + std::to_string(::getpid()));
+  const fs::path dir = fs::temp_directory_path() /
+                       ("tessera_bench_dds_" + std::to_string(::getpid()) + "_" + p.name);
   fs::remove_all(dir);
   fs::create_directories(dir);
   const std::string common = " --set dds.partition=tessera_bench_dds_" +
-                             std::to_string(::getpid()) +
-                             " --set dds.interface=lo --set dds.peers=[127.0.0.1]"
-                             " --set max_duration_s=" +
-                             std::to_string(seconds);
+                             std::to_string(::getpid()) + "_" + p.name +
+                             " --set dds.interface=lo --set dds.peers=[127.0.0.1]" + p.common_sets;
   auto host = [&](const std::string& name, const std::string& extra) {
-    const std::string cmd = fs::read_symlink("/proc/self/exe").string() +
-                            " launch sim_slam_split --host " + name + " --out " +
-                            (dir / name).string() + common + extra + " > " +
-                            (dir / (name + ".log")).string() + " 2>&1";
+    const std::string cmd = fs::read_symlink("/proc/self/exe").string() + " launch " + p.profile +
+                            " --host " + name + " --out " + (dir / name).string() + common + extra +
+                            " > " + (dir / (name + ".log")).string() + " 2>&1";
     return std::system(cmd.c_str());
   };
+  if (!quiet) std::cerr << "bandwidth: " << p.profile << " as two hosts\n";
   int server_rc = -1;
   std::thread server([&] { server_rc = host("server", ""); });
-  const int robot_rc = host("robot", " --set sim_rate=12");
+  const int robot_rc = host("robot", p.robot_sets);
   server.join();
   if (robot_rc != 0 || server_rc != 0) {
-    throw std::runtime_error("bench dds: the two-host sim_slam_split run failed; logs in " +
+    throw std::runtime_error("bench dds: the two-host " + p.profile + " run failed; logs in " +
                              dir.string());
   }
   std::ifstream in(dir / "robot" / "summary_robot.json");
   const auto robot = nlohmann::json::parse(in);
-  double raw = 0, sent = 0;
+  double raw = 0, crossing = 0, sent = 0;
+  for (const auto& t : p.sensor_topics) {
+    if (!robot["topics"].contains(t)) {
+      throw std::runtime_error("bench dds: " + p.profile + "'s robot published no '" + t + "'");
+    }
+    raw += robot["topics"][t]["bytes"].get<double>();
+  }
   for (const auto& [topic, s] : robot["dds_topics"].items()) {
-    raw += s["bytes_raw"].get<double>();
+    crossing += s["bytes_raw"].get<double>();
     sent += s["bytes_sent"].get<double>();
   }
   const double data_s = robot["data_duration_s"].get<double>();
   fs::remove_all(dir);
-  return {{"pipeline", "laser"},
-          {"bytes_per_s_raw", raw / data_s},
-          {"bytes_per_s_sent", sent / data_s}};
+  if (!quiet) {
+    std::printf(
+        "bandwidth robot -> server, %s (%s, %.0f s of data): every raw frame %.0f B/s; sent %.0f "
+        "B/s (%.0f B/s before zstd): %.1fx less\n",
+        p.name.c_str(), p.profile.c_str(), data_s, raw / data_s, sent / data_s, crossing / data_s,
+        sent > 0 ? raw / sent : 0.0);
+  }
+  return {
+      {"pipeline", p.name}, {"bytes_per_s_raw", raw / data_s}, {"bytes_per_s_sent", sent / data_s}};
 }
 
 void runBench(const Options& o) {
   if (o.samples < 1 || o.rounds < 1) throw ConfigError("bench dds: --samples and --rounds >= 1");
+  const bool visual = !o.visual.empty() && std::filesystem::is_directory(o.visual);
+  if (!o.visual.empty() && !visual) {
+    if (o.visual_given) {
+      throw ConfigError("bench dds: --visual " + o.visual +
+                        ": no such folder (expected a TUM RGB-D or 7-Scenes folder; '' skips the "
+                        "visual pipeline)");
+    }
+    std::cerr << "bench dds: " << o.visual
+              << " is absent: the visual pipeline is skipped (--visual DIR names the frames)\n";
+  }
   std::map<std::string, std::vector<std::vector<double>>> all;  // transport -> size -> samples
   const int per_round = (o.samples + o.rounds - 1) / o.rounds;
   // Each side of every round in a fresh process; this one only starts and reaps them, so it
@@ -411,8 +443,41 @@ void runBench(const Options& o) {
                          {"p99_us", percentile(v, 0.99)}});
     }
   }
+  if (!o.json) {
+    std::cout << "machine: " << machineDescription() << "\n"
+              << "one-way latency over loopback (round trip / 2), " << o.samples
+              << " ping-pongs per size, 1 ms apart\n";
+    std::printf("%-8s %10s %10s %10s %12s\n", "transport", "payload", "p50 us", "p99 us",
+                "p50 / raw");
+    for (std::size_t s = 0; s < kPayloads.size(); ++s) {
+      for (const auto& r : results) {
+        if (r["payload_bytes"] != kPayloads[s]) continue;
+        const double raw = results[kPayloads.size() + s]["p50_us"].get<double>();
+        std::printf("%-8s %10zu %10.1f %10.1f %12.2f\n", r["transport"].get<std::string>().c_str(),
+                    kPayloads[s], r["p50_us"].get<double>(), r["p99_us"].get<double>(),
+                    r["p50_us"].get<double>() / raw);
+      }
+    }
+    std::fflush(stdout);
+  }
   nlohmann::json bandwidth = nlohmann::json::array();
-  if (o.bandwidth_seconds > 0) bandwidth.push_back(laserBandwidth(o.bandwidth_seconds));
+  if (o.bandwidth_seconds > 0) {
+    bandwidth.push_back(
+        pipelineBandwidth({"laser",
+                           "sim_slam_split",
+                           {"scan", "odom"},
+                           " --set sim_rate=12",
+                           " --set max_duration_s=" + std::to_string(o.bandwidth_seconds)},
+                          o.json));
+  }
+  if (visual) {
+    bandwidth.push_back(pipelineBandwidth({"visual",
+                                           "rgbd_slam_split",
+                                           {"rgbd"},
+                                           " --set sim_rate=3 --set player.path=" + o.visual,
+                                           ""},
+                                          o.json));
+  }
   if (o.json) {
     std::cout << nlohmann::json{{"machine", machineDescription()},
                                 {"results", results},
@@ -420,25 +485,6 @@ void runBench(const Options& o) {
                      .dump(2)
               << "\n";
     return;
-  }
-  std::cout << "machine: " << machineDescription() << "\n"
-            << "one-way latency over loopback (round trip / 2), " << o.samples
-            << " ping-pongs per size, 1 ms apart\n";
-  std::printf("%-8s %10s %10s %10s %12s\n", "transport", "payload", "p50 us", "p99 us",
-              "p50 / raw");
-  for (std::size_t s = 0; s < kPayloads.size(); ++s) {
-    for (const auto& r : results) {
-      if (r["payload_bytes"] != kPayloads[s]) continue;
-      const double raw = results[kPayloads.size() + s]["p50_us"].get<double>();
-      std::printf("%-8s %10zu %10.1f %10.1f %12.2f\n", r["transport"].get<std::string>().c_str(),
-                  kPayloads[s], r["p50_us"].get<double>(), r["p99_us"].get<double>(),
-                  r["p50_us"].get<double>() / raw);
-    }
-  }
-  for (const auto& b : bandwidth) {
-    std::printf("bandwidth robot -> server, %s (sim_slam_split): %.0f B/s raw, %.0f B/s sent\n",
-                b["pipeline"].get<std::string>().c_str(), b["bytes_per_s_raw"].get<double>(),
-                b["bytes_per_s_sent"].get<double>());
   }
 }
 
@@ -454,14 +500,17 @@ void addBenchDdsCommand(CLI::App& bench, int& result) {
   cmd->add_option("--rounds", o->rounds, "rounds in which the two transports take turns");
   cmd->add_option("--bandwidth-seconds", o->bandwidth_seconds,
                   "data seconds of the two-host sim_slam_split run (0: skip)");
+  auto* visual = cmd->add_option("--visual", o->visual,
+                                 "RGB-D folder for the two-host rgbd_slam_split run ('' skips it)");
   cmd->add_flag("--json", o->json, "print exactly one JSON object on stdout");
   cmd->add_option("--follow", o->follow)->group("");  // internal: a follower process
   cmd->add_option("--partition", o->partition)->group("");
-  cmd->callback([o, &result] {
+  cmd->callback([o, visual, &result] {
     if (!o->follow.empty()) {
       result = o->follow == "dds" ? ddsFollower(o->partition) : rawFollower(o->partition);
       return;
     }
+    o->visual_given = visual->count() > 0;
     runBench(*o);
     result = 0;
   });

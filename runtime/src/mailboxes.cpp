@@ -40,6 +40,8 @@ using detail::Item;
 void Runtime::Impl::publish(detail::TopicState* topic, std::uint32_t owner,
                             std::shared_ptr<const MessageStorage> message) {
   if (owner != detail::kExternalOwner) ++actors[owner]->messages_out;
+  topic->published.fetch_add(1, std::memory_order_relaxed);
+  topic->published_bytes.fetch_add(message->sizeInBytes(), std::memory_order_relaxed);
   if (topic->exporter) {
     // A message coming back to this process is work in flight: the run is not idle until the
     // import has queued it.

@@ -70,6 +70,10 @@ RunReport Runtime::Impl::makeReport() const {
     c->instance->summarize(a.summary);
     r.actors.push_back(std::move(a));
   }
+  for (const auto& [name, t] : topics) {
+    const auto n = t->published.load(std::memory_order_relaxed);
+    if (n > 0) r.topics.push_back({name, n, t->published_bytes.load(std::memory_order_relaxed)});
+  }
   return r;
 }
 

@@ -306,7 +306,8 @@ Profile loadProfile(const std::string& path, const std::vector<std::string>& ove
 namespace {
 std::unique_ptr<Runtime> build(const Profile& profile, RuntimeOptions options,
                                const std::string* process,
-                               const std::function<void(Runtime&)>& before_configure) {
+                               const std::function<void(Runtime&)>& before_configure,
+                               bool allow_unpublished = false) {
   options.clock = profile.clock;
   options.sim_rate = profile.sim_rate;
   options.max_sim_duration = secondsToNanos(profile.max_duration_s);
@@ -327,17 +328,21 @@ std::unique_ptr<Runtime> build(const Profile& profile, RuntimeOptions options,
   }
   if (before_configure) before_configure(*runtime);
   try {
-    runtime->configure();
+    runtime->configure(allow_unpublished);
   } catch (const ConfigError& e) {
     throw ConfigError(profile.path + ": " + e.what());
   }
-  if (process == nullptr) checkExternal(profile, *runtime);
+  if (process == nullptr && !allow_unpublished) checkExternal(profile, *runtime);
   return runtime;
 }
 }  // namespace
 
 std::unique_ptr<Runtime> buildRuntime(const Profile& profile, RuntimeOptions options) {
   return build(profile, std::move(options), nullptr, {});
+}
+
+std::unique_ptr<Runtime> buildWiringRuntime(const Profile& profile, RuntimeOptions options) {
+  return build(profile, std::move(options), nullptr, {}, true);
 }
 
 std::unique_ptr<Runtime> buildProcessRuntime(

@@ -44,6 +44,8 @@ struct TopicState {
   std::vector<Subscriber> subscribers;
   std::vector<std::string> publishers;  // actor names, for error messages
   std::atomic<std::uint64_t> seq{0};
+  // Published in this process (not imported), for the report's per-topic figures.
+  std::atomic<std::uint64_t> published{0}, published_bytes{0};
   std::shared_ptr<TopicExport> exporter;  // set when the topic leaves this process
 };
 

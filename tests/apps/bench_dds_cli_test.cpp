@@ -16,7 +16,8 @@ namespace bench_dds_cli_test {
 TEST_CASE("bench dds reports ours and raw Cyclone DDS at three sizes and the laser bandwidth",
           "[bench_dds][dds]") {
   const auto dir = tessera::test::scratchDir("bench_dds");
-  const auto run = runCli("bench dds --json --samples 5 --rounds 1 --bandwidth-seconds 20", dir);
+  const auto run =
+      runCli("bench dds --json --samples 5 --rounds 1 --bandwidth-seconds 20 --visual ''", dir);
   INFO(run.err);
   REQUIRE(run.exit_code == 0);
   const auto j = nlohmann::json::parse(run.out);
@@ -45,6 +46,10 @@ TEST_CASE("bench dds names a bad option", "[bench_dds][dds]") {
   const auto run = runCli("bench dds --samples 0", dir);
   CHECK(run.exit_code == 2);
   CHECK(run.err.find("--samples") != std::string::npos);
+  const auto visual =
+      runCli("bench dds --samples 1 --bandwidth-seconds 0 --visual /nonexistent", dir);
+  CHECK(visual.exit_code != 0);
+  CHECK(visual.err.find("--visual /nonexistent: no such folder") != std::string::npos);
 }
 
 }  // namespace bench_dds_cli_test

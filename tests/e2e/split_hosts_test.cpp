@@ -4,6 +4,7 @@
 #include <tessera/evaluation/trajectory_metrics.hpp>
 #include <tessera/mapping/map_io.hpp>
 #include <tessera/mapping/trajectory_io.hpp>
+#include <tessera/mapping3d/cloud_map.hpp>
 
 #include <unistd.h>
 #include <catch2/catch.hpp>
@@ -54,35 +55,61 @@ double occupiedAgreement(const grid::OccupancyMap& reference, const grid::Occupa
   return occupied == 0 ? 0.0 : static_cast<double>(found) / static_cast<double>(occupied);
 }
 
+/// Translation ATE (rmse, m) of `out`/one/`file` and of `out`/`host`/`file` against the
+/// one-process run's ground truth.
+std::pair<double, double> ateOneAndSplit(const fs::path& out, const std::string& file,
+                                         const std::string& host) {
+  const auto truth = mapping::readTum(out / "one" / "ground_truth.tum");
+  const auto ate = [&](const fs::path& tum) {
+    return evaluation::computeAte(mapping::readTum(tum), truth).translation.rmse;
+  };
+  return {ate(out / "one" / file), ate(out / host / file)};
+}
+
+/// Runs `profile` as two hosts, `tessera launch --host server` and `--host robot`, on the loopback
+/// interface in a partition of this test; outputs and logs under `out`. Returns both exit codes
+/// (robot, server); the logs are in the test's messages.
+std::pair<int, int> runTwoHosts(const std::string& profile, const fs::path& out,
+                                const std::string& robot_sets) {
+  const std::string dds = " --set dds.partition=tessera_e2e_" + profile + "_" +
+                          std::to_string(::getpid()) +
+                          " --set dds.interface=lo --set dds.peers=[127.0.0.1]";
+  const auto host = [&](const std::string& name, const std::string& sets) {
+    return runTessera("launch " + profile + " --host " + name + " --wait-peers 60 --out " +
+                          (out / name).string() + dds + sets,
+                      out / (name + ".log"));
+  };
+  int server_status = -1;
+  std::thread server_host([&] { server_status = host("server", ""); });
+  const int robot_status = host("robot", robot_sets);
+  server_host.join();
+  return {robot_status, server_status};
+}
+
+/// The two reliable-topic checks of a split run: every message the robot sent arrived.
+void checkNothingLost(const nlohmann::json& robot, const nlohmann::json& server,
+                      std::initializer_list<const char*> topics) {
+  for (const char* topic : topics) {
+    INFO(topic);
+    CHECK(robot["dds_topics"][topic]["sent"].get<std::int64_t>() > 0);
+    CHECK(server["dds_topics"][topic]["received"] == robot["dds_topics"][topic]["sent"]);
+    CHECK(server["dds_topics"][topic]["lost"] == 0);
+  }
+}
+
 TEST_CASE("sim_slam_split on two hosts over DDS maps as one process does, nothing reliable lost",
           "[e2e][dds]") {
   const fs::path out = test::scratchDir("sim_slam_split");
-  const std::string dds = " --set dds.partition=tessera_e2e_" + std::to_string(::getpid()) +
-                          " --set dds.interface=lo --set dds.peers=[127.0.0.1]";
-  int server_status = -1;
-  std::thread server_host([&] {
-    server_status = runTessera("launch sim_slam_split --host server --wait-peers 60 --out " +
-                                   (out / "server").string() + dds,
-                               out / "server.log");
-  });
-  const int robot_status = runTessera("launch sim_slam_split --host robot --wait-peers 60 --out " +
-                                          (out / "robot").string() + dds + " --set sim_rate=12",
-                                      out / "robot.log");
-  server_host.join();
+  const auto [robot_status, server_status] =
+      runTwoHosts("sim_slam_split", out, " --set sim_rate=12");
   INFO("robot:\n" << readText(out / "robot.log").substr(0, 4000));
   INFO("server:\n" << readText(out / "server.log").substr(0, 4000));
   REQUIRE(robot_status == 0);
   REQUIRE(server_status == 0);
 
   const RunReport one = test::runProfile("sim_slam_split", out / "one", {"sim_rate=0"});
-  const auto truth = mapping::readTum(out / "one" / "ground_truth.tum");
-  const auto ate = [&](const fs::path& tum) {
-    return evaluation::computeAte(mapping::readTum(tum), truth).translation.rmse;
-  };
-  const double one_final = ate(out / "one" / "trajectory_final.tum");
-  const double split_final = ate(out / "server" / "trajectory_final.tum");
-  const double one_live = ate(out / "one" / "trajectory.tum");
-  const double split_live = ate(out / "robot" / "trajectory.tum");
+  const auto [one_final, split_final] = ateOneAndSplit(out, "trajectory_final.tum", "server");
+  const auto [one_live, split_live] = ateOneAndSplit(out, "trajectory.tum", "robot");
   INFO("final ATE one process " << one_final << " m, two hosts " << split_final << " m; live ATE "
                                 << one_live << " / " << split_live << " m");
   CHECK(split_final < one_final + 0.03);
@@ -91,12 +118,7 @@ TEST_CASE("sim_slam_split on two hosts over DDS maps as one process does, nothin
   const auto server = nlohmann::json::parse(readText(out / "server" / "summary_server.json"));
   const auto robot = nlohmann::json::parse(readText(out / "robot" / "summary_robot.json"));
   // Every message the robot sent on a reliable topic arrived (the scans are keep_latest).
-  for (const char* topic : {"submaps", "chained_pose", "constraints", "ground_truth"}) {
-    INFO(topic);
-    CHECK(robot["dds_topics"][topic]["sent"].get<std::int64_t>() > 0);
-    CHECK(server["dds_topics"][topic]["received"] == robot["dds_topics"][topic]["sent"]);
-    CHECK(server["dds_topics"][topic]["lost"] == 0);
-  }
+  checkNothingLost(robot, server, {"submaps", "chained_pose", "constraints", "ground_truth"});
   // Submaps cross compressed.
   CHECK(robot["dds_topics"]["submaps"]["bytes_sent"].get<double>() <
         0.8 * robot["dds_topics"]["submaps"]["bytes_raw"].get<double>());
@@ -114,6 +136,52 @@ TEST_CASE("sim_slam_split on two hosts over DDS maps as one process does, nothin
   const double agreement = occupiedAgreement(one_map, split_map);
   INFO("occupied cells of the one-process map found in the two-host map: " << agreement);
   CHECK(agreement > 0.9);
+}
+
+TEST_CASE(
+    "rgbd_slam_split on two hosts over DDS: the same keyframe trajectory as one process, 20x "
+    "fewer bytes than the frames",
+    "[e2e][dds][rgbd]") {
+  TESSERA_SHARED_DATA(data, "7scenes-redkitchen-rgbd");
+  const fs::path out = test::scratchDir("rgbd_slam_split");
+  const auto [robot_status, server_status] =
+      runTwoHosts("rgbd_slam_split", out, " --set sim_rate=3 --set player.path=" + data.string());
+  INFO("robot:\n" << readText(out / "robot.log").substr(0, 4000));
+  INFO("server:\n" << readText(out / "server.log").substr(0, 4000));
+  REQUIRE(robot_status == 0);
+  REQUIRE(server_status == 0);
+
+  fs::create_directories(out / "one");
+  test::runProfile("rgbd_slam_split", out / "one", {"sim_rate=0", "player.path=" + data.string()});
+  // The robot's front end sees every frame in both runs; the server optimises the same keyframes
+  // and loops.
+  const auto [one_keyframes, split_keyframes] = ateOneAndSplit(out, "keyframes.tum", "server");
+  const auto [one_frames, split_frames] = ateOneAndSplit(out, "trajectory_optimized.tum", "server");
+  INFO("keyframe ATE one process " << one_keyframes << " m, two hosts " << split_keyframes
+                                   << " m; every frame " << one_frames << " / " << split_frames);
+  CHECK(std::abs(split_keyframes - one_keyframes) < 0.001);
+  CHECK(std::abs(split_frames - one_frames) < 0.001);
+  const auto [one_tracked, split_tracked] = ateOneAndSplit(out, "trajectory.tum", "robot");
+  CHECK(split_tracked == Approx(one_tracked));
+
+  const auto server = nlohmann::json::parse(readText(out / "server" / "summary_server.json"));
+  const auto robot = nlohmann::json::parse(readText(out / "robot" / "summary_robot.json"));
+  checkNothingLost(robot, server, {"keyframes", "camera_pose"});
+  CHECK(server["actors"]["loops"]["published"].get<std::int64_t>() >= 1);
+  // The frames the robot read against everything it sent the server.
+  const double frames = robot["topics"]["rgbd"]["bytes"].get<double>();
+  double sent = 0;
+  for (const auto& [topic, s] : robot["dds_topics"].items()) sent += s["bytes_sent"].get<double>();
+  INFO("frames " << frames << " bytes, sent " << sent << " bytes");
+  CHECK(frames > 20 * sent);
+  CHECK(server["actors"]["mapper"]["keyframes_mapped"] ==
+        robot["actors"]["front_end"]["keyframes"]);
+  // The server's cloud is the one-process cloud.
+  const auto one_cloud = mapping3d::readPcd(out / "one" / "cloud.pcd");
+  const auto split_cloud = mapping3d::readPcd(out / "server" / "cloud.pcd");
+  CHECK(one_cloud.size() > 10000);
+  CHECK(std::abs(static_cast<double>(split_cloud.size()) - static_cast<double>(one_cloud.size())) <
+        0.01 * static_cast<double>(one_cloud.size()));
 }
 
 }  // namespace split_hosts_test

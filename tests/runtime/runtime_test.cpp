@@ -114,6 +114,25 @@ TEST_CASE("max_sim_duration ends a run that has no finite source", "[runtime]") 
   CHECK(report.stop_reason == "reached max_duration_s");
 }
 
+TEST_CASE("the report counts each topic's messages and bytes published in this process",
+          "[runtime]") {
+  Runtime rt(threadedOptions());
+  rt.add("small", std::make_unique<CountingSource>(4, 1'000'000, 8));
+  rt.add("large", std::make_unique<CountingSource>(3, 1'000'000, 100'000), {{"out", "big"}});
+  rt.add("rec", std::make_unique<Recorder>(MailboxPolicy::reliable(8)), {{"in", "out"}});
+  auto report = rt.run();
+  REQUIRE(report.topics.size() == 2);
+  CHECK(report.topics[0].name == "big");
+  CHECK(report.topics[0].messages == 3);
+  // Each message holds its 100 000-byte payload, rounded up to words, and a small header.
+  CHECK(report.topics[0].bytes >= 3 * 100'000);
+  CHECK(report.topics[0].bytes < 3 * 100'500);
+  CHECK(report.topics[1].name == "out");
+  CHECK(report.topics[1].messages == 4);
+  CHECK(report.topics[1].bytes > 4 * 8);
+  CHECK(report.topics[1].bytes < 4 * 500);
+}
+
 TEST_CASE("stopping drains every reliable mailbox before downstream actors stop", "[runtime]") {
   auto o = threadedOptions();
   o.clock = ClockKind::kWall;

@@ -1,5 +1,7 @@
 #include <tessera/shm/deployment.hpp>
 
+#include <tessera/runtime/registry.hpp>
+
 #include <fcntl.h>
 #include <linux/futex.h>
 #include <sys/mman.h>
@@ -36,10 +38,26 @@ std::size_t messageBound(const MessageType& type) {
   return std::size_t{256} << 10;
 }
 
-DeploymentPlan planDeployment(const Profile& profile) {
+DeploymentPlan planDeployment(const Profile& full_profile, const std::string& host) {
+  // The actors of other hosts that cannot be built here stay out of the wiring.
+  Profile profile = full_profile;
+  std::map<std::string, std::string> unchecked;
+  if (!host.empty()) {
+    std::erase_if(profile.actors, [&](const ActorSpec& a) {
+      if (a.process == host) return false;
+      try {
+        (void)ActorRegistry::instance().create(a.type, a.params);
+        return false;
+      } catch (const std::exception& e) {
+        unchecked[a.name] = e.what();
+        return true;
+      }
+    });
+  }
   DeploymentPlan plan;
+  plan.unchecked = std::move(unchecked);
   std::vector<std::string> order;  // first appearance in the profile
-  for (const auto& a : profile.actors) {
+  for (const auto& a : full_profile.actors) {
     if (std::find(order.begin(), order.end(), a.process) == order.end()) order.push_back(a.process);
     plan.actors[a.process].push_back(a.name);
   }
@@ -57,7 +75,8 @@ DeploymentPlan planDeployment(const Profile& profile) {
   // The wiring, from every actor configured once in a runtime that never starts.
   RuntimeOptions options;
   options.manual = true;
-  auto rt = buildRuntime(profile, options);
+  auto rt = plan.unchecked.empty() ? buildRuntime(profile, options)
+                                   : buildWiringRuntime(profile, options);
   struct Wiring {
     MessageType type;
     std::set<std::string> publishers;

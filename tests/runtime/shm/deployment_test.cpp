@@ -66,6 +66,25 @@ TEST_CASE("topics used from outside the deployment cross shared memory without a
   CHECK(find(planDeployment(p).topics.at("nav"), "nav_status") == nullptr);
 }
 
+TEST_CASE("a host plans without the other hosts' actors whose inputs only they have",
+          "[deployment]") {
+  // rgbd_slam_split's player needs the robot's dataset folder, which the server does not have.
+  const Profile profile =
+      loadProfile(std::string(TESSERA_SOURCE_DIR) + "/apps/profiles/rgbd_slam_split.yaml");
+  CHECK_THROWS_WITH(planDeployment(profile),
+                    Catch::Contains("path") && Catch::Contains("required"));
+  const auto plan = planDeployment(profile, "server");
+  REQUIRE(plan.unchecked.size() == 1);
+  CHECK(plan.unchecked.count("player") == 1);
+  CHECK_THAT(plan.unchecked.at("player"), Catch::Contains("path"));
+  const auto* keyframes = find(plan.topics.at("server"), "keyframes");
+  REQUIRE(keyframes != nullptr);
+  CHECK(keyframes->imported);
+  CHECK(find(plan.topics.at("server"), "camera_pose") != nullptr);
+  // The robot's own actors are never left out: its plan fails on its own missing folder.
+  CHECK_THROWS_WITH(planDeployment(profile, "robot"), Catch::Contains("path"));
+}
+
 TEST_CASE("a profile run in one process has nothing to share", "[deployment]") {
   const auto plan = planDeployment(
       simMapping({"sim.process=main", "mapper.process=main", "map_writer.process=main",

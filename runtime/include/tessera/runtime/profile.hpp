@@ -72,6 +72,10 @@ Profile parseProfile(const std::string& yaml_text, const std::string& path,
 /// it. Option errors are rethrown as ConfigError naming the profile file and actor.
 std::unique_ptr<Runtime> buildRuntime(const Profile& profile, RuntimeOptions options);
 
+/// Same, but a subscription without a publisher is allowed: the wiring of part of a deployment
+/// (a runtime that is never run).
+std::unique_ptr<Runtime> buildWiringRuntime(const Profile& profile, RuntimeOptions options);
+
 /// Same for one process of a multi-process deployment: only the actors whose `process` is
 /// `process`; `before_configure` wires the cross-process topics.
 std::unique_ptr<Runtime> buildProcessRuntime(const Profile& profile, RuntimeOptions options,

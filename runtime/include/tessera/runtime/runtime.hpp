@@ -63,6 +63,13 @@ struct ActorReport {
   Summary summary;  // the actor's own figures
 };
 
+/// A topic's messages published in this process (imports from other processes not counted);
+/// bytes are the messages' Cap'n Proto segments.
+struct TopicReport {
+  std::string name;
+  std::uint64_t messages = 0, bytes = 0;
+};
+
 struct RunReport {
   double wall_s = 0, cpu_s = 0;
   double sim_duration_s = 0;  // data / simulated time covered
@@ -70,7 +77,8 @@ struct RunReport {
   bool interrupted = false;  // stopped by a signal or requestStop
   std::string stop_reason;
   std::vector<ActorReport> actors;
-  std::string table() const;  // human-readable metrics table
+  std::vector<TopicReport> topics;  // those published in this process, by name
+  std::string table() const;        // human-readable metrics table
 };
 
 class Runtime {

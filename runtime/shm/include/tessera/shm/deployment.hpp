@@ -51,12 +51,17 @@ struct DeploymentPlan {
   std::map<std::string, std::vector<std::string>> actors;  // process -> actor names
   std::map<std::string, std::vector<ShmTopic>> topics;     // process -> crossing topics
   std::vector<ChunkDemand> demands;                        // shared-memory demand per topic
+  /// Actors of other process groups left out of a host's plan: actor -> why (see planDeployment).
+  std::map<std::string, std::string> unchecked;
   int indexOf(const std::string& process) const;
 };
 
 /// Throws ConfigError for a profile that cannot be deployed (e.g. a restart entry naming no
 /// process).
-DeploymentPlan planDeployment(const Profile& profile);
+/// With `host` (one host of a deployment over several machines): an actor of another process
+/// group whose options fail here (e.g. a dataset folder only the robot has) is left out of the
+/// wiring and listed in `unchecked`; topics only it publishes or reads do not cross to `host`.
+DeploymentPlan planDeployment(const Profile& profile, const std::string& host = {});
 
 /// Largest message expected on a topic of `type` (bytes), by message family.
 std::size_t messageBound(const MessageType& type);
