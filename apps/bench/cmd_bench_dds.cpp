@@ -11,9 +11,11 @@
 // (1 ms) before each ping so both sides are idle, as when sensor data arrives. The two transports
 // take turns in rounds (a fresh follower process each), so machine noise hits both alike.
 //
-// Bandwidth: sim_slam_split run as two hosts (`tessera launch --host`), robot -> server bytes
-// per second of data: raw = the messages' Cap'n Proto bytes, sent = what DDS carried (after
-// zstd), from the hosts' summaries.
+// Bandwidth: sim_slam_split (laser) and rgbd_slam_split (visual, --visual DIR) run as two hosts
+// (`tessera launch --host`), robot -> server bytes per second of data: raw = the robot's sensor
+// topics (every raw frame), sent = what DDS carried from the robot (after zstd), from the hosts'
+// summaries. The text output adds the server's throughput from its CPU time: keyframes per
+// second per core (visual), robots per core (laser).
 #include "bench_commands.hpp"
 #include "bench_util.hpp"
 
@@ -312,6 +314,9 @@ struct Pipeline {
   std::vector<std::string> sensor_topics;  // what sending every raw frame would carry
   std::string robot_sets;                  // extra --set options for the robot
   std::string common_sets;                 // for both hosts
+  /// Server throughput: per message of this topic ("keyframes"), or, when empty, per data second
+  /// (robots one server core keeps up with).
+  std::string unit_topic;
 };
 
 /// Runs `p` as two hosts; raw = the robot's sensor topics' bytes, sent = the bytes DDS carried
@@ -333,15 +338,17 @@ nlohmann::json pipelineBandwidth(const Pipeline& p, bool quiet) {
   };
   if (!quiet) std::cerr << "bandwidth: " << p.profile << " as two hosts\n";
   int server_rc = -1;
-  std::thread server([&] { server_rc = host("server", ""); });
+  std::thread server_host([&] { server_rc = host("server", ""); });
   const int robot_rc = host("robot", p.robot_sets);
-  server.join();
+  server_host.join();
   if (robot_rc != 0 || server_rc != 0) {
     throw std::runtime_error("bench dds: the two-host " + p.profile + " run failed; logs in " +
                              dir.string());
   }
   std::ifstream in(dir / "robot" / "summary_robot.json");
   const auto robot = nlohmann::json::parse(in);
+  std::ifstream server_in(dir / "server" / "summary_server.json");
+  const auto server = nlohmann::json::parse(server_in);
   double raw = 0, crossing = 0, sent = 0;
   for (const auto& t : p.sensor_topics) {
     if (!robot["topics"].contains(t)) {
@@ -361,6 +368,28 @@ nlohmann::json pipelineBandwidth(const Pipeline& p, bool quiet) {
         "B/s (%.0f B/s before zstd): %.1fx less\n",
         p.name.c_str(), p.profile.c_str(), data_s, raw / data_s, sent / data_s, crossing / data_s,
         sent > 0 ? raw / sent : 0.0);
+    // The server's CPU time (all its threads, the DDS receiver included) for what it processed.
+    const double server_cpu_s = server["cpu_s"].get<double>();
+    if (!p.unit_topic.empty()) {
+      const double units = server["dds_topics"][p.unit_topic]["received"].get<double>();
+      std::printf("server throughput, %s: %.0f %s in %.2f s of CPU: %.1f %s per second per core\n",
+                  p.name.c_str(), units, p.unit_topic.c_str(), server_cpu_s,
+                  server_cpu_s > 0 ? units / server_cpu_s : 0.0, p.unit_topic.c_str());
+    } else {
+      std::printf(
+          "server throughput, %s: %.2f s of CPU for %.0f s of data: one core keeps up with %.1f "
+          "robots\n",
+          p.name.c_str(), server_cpu_s, data_s, server_cpu_s > 0 ? data_s / server_cpu_s : 0.0);
+    }
+    // Work a saturated server skipped (keep_latest queues) makes its CPU figure too low.
+    std::uint64_t drops = 0;
+    for (const auto& [name, a] : server["actors"].items()) drops += a["drops"].get<std::uint64_t>();
+    if (drops > 0) {
+      std::printf(
+          "  (the server dropped %llu messages from keep_latest queues: it fell behind, "
+          "so this throughput is an upper bound)\n",
+          static_cast<unsigned long long>(drops));
+    }
   }
   return {
       {"pipeline", p.name}, {"bytes_per_s_raw", raw / data_s}, {"bytes_per_s_sent", sent / data_s}};
@@ -467,7 +496,8 @@ void runBench(const Options& o) {
                            "sim_slam_split",
                            {"scan", "odom"},
                            " --set sim_rate=12",
-                           " --set max_duration_s=" + std::to_string(o.bandwidth_seconds)},
+                           " --set max_duration_s=" + std::to_string(o.bandwidth_seconds),
+                           ""},
                           o.json));
   }
   if (visual) {
@@ -475,7 +505,8 @@ void runBench(const Options& o) {
                                            "rgbd_slam_split",
                                            {"rgbd"},
                                            " --set sim_rate=3 --set player.path=" + o.visual,
-                                           ""},
+                                           "",
+                                           "keyframes"},
                                           o.json));
   }
   if (o.json) {
