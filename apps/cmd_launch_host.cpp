@@ -181,11 +181,12 @@ int launchHost(const HostLaunchArgs& a) {
   const auto total = stats.total();
   std::fprintf(stderr,
                "dds: %llu sent (%.1f MB as %.1f MB on the wire), %llu received, %llu lost, "
-               "%llu rejected\n",
+               "%llu rejected, %llu replayed twice (skipped)\n",
                static_cast<unsigned long long>(total.sent), total.bytes_raw / 1e6,
                total.bytes_sent / 1e6, static_cast<unsigned long long>(total.received),
                static_cast<unsigned long long>(total.lost),
-               static_cast<unsigned long long>(total.rejected));
+               static_cast<unsigned long long>(total.rejected),
+               static_cast<unsigned long long>(total.duplicates));
   if (!a.out.empty()) {
     auto j = summaryJson(profile, report);
     j["host"] = a.host;
@@ -197,6 +198,7 @@ int launchHost(const HostLaunchArgs& a) {
                       {"bytes_sent", s.bytes_sent},
                       {"lost", s.lost},
                       {"rejected", s.rejected},
+                      {"duplicates", s.duplicates},
                       {"compress_s", s.compress_s},
                       {"decompress_s", s.decompress_s}};
     }

@@ -6,6 +6,9 @@
 #include <tessera/mapping/trajectory_io.hpp>
 #include <tessera/mapping3d/cloud_map.hpp>
 
+#include <signal.h>
+#include <spawn.h>
+#include <sys/wait.h>
 #include <unistd.h>
 #include <catch2/catch.hpp>
 #include <nlohmann/json.hpp>
@@ -182,6 +185,90 @@ TEST_CASE(
   CHECK(one_cloud.size() > 10000);
   CHECK(std::abs(static_cast<double>(split_cloud.size()) - static_cast<double>(one_cloud.size())) <
         0.01 * static_cast<double>(one_cloud.size()));
+}
+
+/// `tessera ARGS` started in the background, output in `log`; its pid.
+pid_t startTessera(const std::string& args, const fs::path& log) {
+  const std::string command =
+      "exec " + std::string(TESSERA_CLI_PATH) + " " + args + " > " + log.string() + " 2>&1";
+  const char* argv[] = {"/bin/sh", "-c", command.c_str(), nullptr};
+  pid_t pid = 0;
+  REQUIRE(::posix_spawn(&pid, "/bin/sh", nullptr, nullptr, const_cast<char* const*>(argv),
+                        environ) == 0);
+  return pid;
+}
+
+int exitCode(pid_t pid) {
+  int status = 0;
+  if (::waitpid(pid, &status, 0) != pid) return -1;
+  return WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+}
+
+TEST_CASE(
+    "rgbd_slam_split: after the link drops or the server restarts, the server catches up to the "
+    "one-process result",
+    "[e2e][dds][rgbd]") {
+  TESSERA_SHARED_DATA(data, "7scenes-redkitchen-rgbd");
+  const fs::path out = test::scratchDir("rgbd_slam_split_link");
+  fs::create_directories(out / "one");
+  test::runProfile("rgbd_slam_split", out / "one", {"sim_rate=0", "player.path=" + data.string()});
+  const auto keyframeAte = [&](const fs::path& dir) {
+    return evaluation::computeAte(mapping::readTum(dir / "keyframes.tum"),
+                                  mapping::readTum(out / "one" / "ground_truth.tum"))
+        .translation.rmse;
+  };
+  const double one_keyframes = keyframeAte(out / "one");
+
+  for (const std::string outage : {"link", "restart"}) {
+    INFO(outage);
+    const fs::path run = out / outage;
+    fs::create_directories(run);
+    const std::string dds = " --set dds.partition=tessera_e2e_" + outage + "_" +
+                            std::to_string(::getpid()) +
+                            " --set dds.interface=lo --set dds.peers=[127.0.0.1]"
+                            " --set dds.lease_s=1.5";
+    const auto server_args = [&](const std::string& dir) {
+      return "launch rgbd_slam_split --host server --wait-peers 60 --out " + (run / dir).string() +
+             dds;
+    };
+    pid_t server = startTessera(server_args("server"), run / "server.log");
+    const pid_t robot = startTessera("launch rgbd_slam_split --host robot --wait-peers 60 --out " +
+                                         (run / "robot").string() + dds +
+                                         " --set sim_rate=1 --set player.path=" + data.string(),
+                                     run / "robot.log");
+    // The robot reads the 15 s of frames at their pace; 4 s in, the server goes away for 5 s:
+    // frozen (a link that drops: the robot's lease on it runs out after 1.5 s) or killed and
+    // started again with nothing (a restart: it gets back what it missed from the robot).
+    std::this_thread::sleep_for(std::chrono::seconds(6));
+    if (outage == "link") {
+      ::kill(server, SIGSTOP);
+      std::this_thread::sleep_for(std::chrono::seconds(5));
+      ::kill(server, SIGCONT);
+    } else {
+      ::kill(server, SIGKILL);
+      CHECK(exitCode(server) == -1);
+      std::this_thread::sleep_for(std::chrono::seconds(5));
+      server = startTessera(server_args("server"), run / "server2.log");
+    }
+    const int robot_status = exitCode(robot);
+    const int server_status = exitCode(server);
+    INFO("robot:\n" << readText(run / "robot.log").substr(0, 3000));
+    INFO("server:\n"
+         << readText(run / (outage == "link" ? "server.log" : "server2.log")).substr(0, 3000));
+    REQUIRE(robot_status == 0);
+    REQUIRE(server_status == 0);
+    const double split_keyframes = keyframeAte(run / "server");
+    INFO("keyframe ATE one process " << one_keyframes << " m, after the " << outage << " "
+                                     << split_keyframes << " m");
+    CHECK(std::abs(split_keyframes - one_keyframes) < 0.001);
+    const auto server_summary =
+        nlohmann::json::parse(readText(run / "server" / "summary_server.json"));
+    const auto robot_summary =
+        nlohmann::json::parse(readText(run / "robot" / "summary_robot.json"));
+    checkNothingLost(robot_summary, server_summary, {"keyframes", "camera_pose"});
+    CHECK(server_summary["actors"]["mapper"]["keyframes_mapped"] ==
+          robot_summary["actors"]["front_end"]["keyframes"]);
+  }
 }
 
 }  // namespace split_hosts_test

@@ -13,7 +13,9 @@
 #include <cstdio>
 #include <cstring>
 #include <mutex>
+#include <optional>
 #include <random>
+#include <set>
 #include <thread>
 
 namespace tessera {
@@ -70,6 +72,7 @@ DdsTopicStats DdsStats::total() const {
     t.bytes_sent += s.bytes_sent;
     t.lost += s.lost;
     t.rejected += s.rejected;
+    t.duplicates += s.duplicates;
     t.compress_s += s.compress_s;
     t.decompress_s += s.decompress_s;
   }
@@ -83,6 +86,8 @@ constexpr std::uint8_t kCodecZstd = 1;
 /// The message's only segment, without the segment table: written to DDS from the message's
 /// own memory (no framing copy on the sending side).
 constexpr std::uint8_t kCodecSegment = 2;
+/// No message: the writer's stream ends here (its host leaves on purpose; see flush()).
+constexpr std::uint8_t kCodecEnd = 3;
 
 double secondsSince(std::chrono::steady_clock::time_point t0) {
   return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
@@ -196,7 +201,7 @@ class WordPool final : public kj::ArrayDisposer {
 
 struct Counters {
   std::atomic<std::uint64_t> sent{0}, received{0}, bytes_raw{0}, bytes_sent{0}, lost{0},
-      rejected{0};
+      rejected{0}, duplicates{0};
   std::atomic<std::uint64_t> compress_ns{0}, decompress_ns{0};
 };
 
@@ -211,6 +216,11 @@ struct DdsTransport::Impl {
   dds_entity_t participant = 0, publisher = 0, subscriber = 0, waitset = 0;
   std::atomic<bool> stopping{false};
   std::atomic<bool> taking{false};  // the receiving thread is taking or delivering samples
+  // Senders (transport ids) seen on any import, and those that ended their streams.
+  std::mutex origins_mutex;
+  std::set<std::uint64_t> seen_origins, ended_origins;
+  // When the imports last lost their last publisher (upstreamLeft's reconnect timeout).
+  std::optional<std::chrono::steady_clock::time_point> gone_since;
   std::thread receiver;
 
   struct Export;
@@ -309,6 +319,13 @@ struct DdsTransport::Impl::Export final : TopicExport {
     write(level > 0 ? kCodecZstd : kCodecRaw, payload, bytes, bytes);
   }
 
+  /// Ends the stream: a sample without a message, after the last one.
+  void end() {
+    std::lock_guard lock(mutex);
+    write(kCodecEnd, {}, 0, 0);
+    counters->sent -= 1;  // not a message
+  }
+
   /// Writes one sample (under `mutex`): `raw_bytes` is what the payload decodes to, `bytes`
   /// the message's framing size (for the figures).
   void write(std::uint8_t codec, std::span<const std::byte> payload, std::size_t raw_bytes,
@@ -370,10 +387,24 @@ void DdsTransport::Impl::takeAll(Import& import) {
           throw MessageError(what + ": a sample of type id " + id + ", expected " +
                              import.topic.type.name);
         }
-        // Gaps in a sender's numbers are samples that never arrived.
+        {
+          std::lock_guard lock(origins_mutex);
+          seen_origins.insert(f->origin);
+        }
+        // Gaps in a sender's numbers are samples that never arrived; numbers already seen are
+        // replays after a lost link (the writer keeps its last samples for returning readers).
         auto& next = import.next_seq.try_emplace(f->origin, f->seq).first->second;
+        if (f->seq < next) {
+          import.counters->duplicates += 1;
+          continue;
+        }
         if (f->seq > next) import.counters->lost += f->seq - next;
-        if (f->seq >= next) next = f->seq + 1;
+        next = f->seq + 1;
+        if (f->codec == kCodecEnd) {
+          std::lock_guard lock(origins_mutex);
+          ended_origins.insert(f->origin);
+          continue;
+        }
 
         const std::span<const std::byte> payload(
             reinterpret_cast<const std::byte*>(f->payload._buffer), f->payload._length);
@@ -442,13 +473,17 @@ std::string DdsTransport::configXml(const DdsOptions& o) {
   }
   if (!o.peers.empty()) xml.append("<AllowMulticast>false</AllowMulticast>");
   // Large samples (submaps, maps, clouds) on loopback: bigger UDP messages and socket buffers.
-  xml.append("<MaxMessageSize>65500B</MaxMessageSize></General>");
+  xml.append("<MaxMessageSize>65500B</MaxMessageSize></General><Discovery>");
+  xml.append("<LeaseDuration>")
+      .append(std::to_string(static_cast<long long>(o.lease_s * 1000)))
+      .append("ms</LeaseDuration>");
   if (!o.peers.empty()) {
-    xml.append("<Discovery><ParticipantIndex>auto</ParticipantIndex>")
+    xml.append("<ParticipantIndex>auto</ParticipantIndex>")
         .append("<MaxAutoParticipantIndex>60</MaxAutoParticipantIndex><Peers>");
     for (const auto& p : o.peers) xml.append("<Peer address=\"").append(p).append("\"/>");
-    xml.append("</Peers></Discovery>");
+    xml.append("</Peers>");
   }
+  xml.append("</Discovery>");
   xml.append("<Internal><SocketReceiveBufferSize min=\"default\" max=\"8MB\"/>")
       .append("<SocketSendBufferSize min=\"default\" max=\"8MB\"/>")
       .append("<MaxSampleSize>")
@@ -477,12 +512,25 @@ void DdsTransport::validate(const DdsOptions& o) {
     throw ConfigError("dds.max_message_bytes: expected 1 to 2^31");
   }
   if (o.reliable_depth == 0) throw ConfigError("dds.reliable_depth: expected at least 1");
+  if (o.replay_depth > (1u << 20)) {
+    throw ConfigError("dds.replay_depth: " + std::to_string(o.replay_depth) +
+                      " is out of range, expected 0 to 1048576");
+  }
+  if (!(o.lease_s >= 0.5 && o.lease_s <= 3600)) {
+    throw ConfigError("dds.lease_s: " + std::to_string(o.lease_s) +
+                      " is out of range, expected 0.5 to 3600 seconds");
+  }
+  if (!(o.reconnect_timeout_s >= 0 && o.reconnect_timeout_s <= 86400)) {
+    throw ConfigError("dds.reconnect_timeout_s: " + std::to_string(o.reconnect_timeout_s) +
+                      " is out of range, expected 0 to 86400 seconds");
+  }
 }
 
 DdsOptions loadDdsOptions(const Params& params) {
   DdsOptions o;
   params.rejectUnknown({"domain", "partition", "interface", "peers", "max_message_bytes",
-                        "reliable_depth", "compression"});
+                        "reliable_depth", "replay_depth", "lease_s", "reconnect_timeout_s",
+                        "compression"});
   params.read("domain", o.domain);
   params.read("partition", o.partition);
   params.read("interface", o.interface);
@@ -491,6 +539,9 @@ DdsOptions loadDdsOptions(const Params& params) {
   params.read("max_message_bytes", max_bytes);
   o.max_message_bytes = static_cast<std::size_t>(max_bytes);
   params.read("reliable_depth", o.reliable_depth);
+  params.read("replay_depth", o.replay_depth);
+  params.read("lease_s", o.lease_s);
+  params.read("reconnect_timeout_s", o.reconnect_timeout_s);
   if (const YAML::Node c = params.node()["compression"]) {
     if (!c.IsMap()) {
       throw ConfigError(params.locate("compression") + ": expected a mapping {topic: zstd level}");
@@ -552,6 +603,14 @@ void DdsTransport::attach(Runtime& runtime, const std::vector<DdsTopic>& topics)
       dds_qset_history(qos, DDS_HISTORY_KEEP_ALL, 0);
       const auto depth = static_cast<std::int32_t>(impl_->options.reliable_depth);
       dds_qset_resource_limits(qos, depth, DDS_LENGTH_UNLIMITED, depth);
+      if (impl_->options.replay_depth > 0) {
+        // The writer keeps its last samples for readers that join late or come back; readers
+        // ask for them. Live readers still get every sample (KEEP_ALL above).
+        const auto replay = static_cast<std::int32_t>(impl_->options.replay_depth);
+        dds_qset_durability(qos, DDS_DURABILITY_TRANSIENT_LOCAL);
+        dds_qset_durability_service(qos, 0, DDS_HISTORY_KEEP_LAST, replay, DDS_LENGTH_UNLIMITED,
+                                    DDS_LENGTH_UNLIMITED, DDS_LENGTH_UNLIMITED);
+      }
     } else {
       dds_qset_reliability(qos, DDS_RELIABILITY_BEST_EFFORT, 0);
       dds_qset_history(qos, DDS_HISTORY_KEEP_LAST,
@@ -611,14 +670,29 @@ std::vector<std::string> DdsTransport::unconnected() const {
   return out;
 }
 
-bool DdsTransport::upstreamLeft() const {
+bool DdsTransport::upstreamLeft() {
   if (impl_->imports.empty()) return false;
   for (const auto& i : impl_->imports) {
     dds_subscription_matched_status_t s{};
-    if (dds_get_subscription_matched_status(i->reader, &s) != DDS_RETCODE_OK) return false;
-    if (s.total_count == 0 || s.current_count > 0) return false;
+    bool gone = dds_get_subscription_matched_status(i->reader, &s) == DDS_RETCODE_OK &&
+                s.total_count > 0 && s.current_count == 0;
+    if (!gone) {
+      impl_->gone_since.reset();
+      return false;
+    }
   }
-  return true;
+  const auto now = std::chrono::steady_clock::now();
+  if (!impl_->gone_since) impl_->gone_since = now;
+  {
+    // Every sender ended its streams: they left on purpose.
+    std::lock_guard lock(impl_->origins_mutex);
+    if (std::includes(impl_->ended_origins.begin(), impl_->ended_origins.end(),
+                      impl_->seen_origins.begin(), impl_->seen_origins.end()))
+      return true;
+  }
+  // Some vanished (a lost link, a crash): wait for them to come back, for a while.
+  return std::chrono::duration<double>(now - *impl_->gone_since).count() >=
+         impl_->options.reconnect_timeout_s;
 }
 
 bool DdsTransport::drained() const {
@@ -632,6 +706,7 @@ bool DdsTransport::drained() const {
 std::vector<std::string> DdsTransport::flush(std::chrono::milliseconds timeout) {
   const auto deadline = std::chrono::steady_clock::now() + timeout;
   std::vector<std::string> unacknowledged;
+  for (const auto& e : impl_->exports) e->end();
   for (const auto& e : impl_->exports) {
     if (!e->topic.reliable) continue;
     const auto left = std::chrono::duration_cast<std::chrono::nanoseconds>(
@@ -693,6 +768,7 @@ DdsStats DdsTransport::stats() const {
     s.bytes_sent = c->bytes_sent;
     s.lost = c->lost;
     s.rejected = c->rejected;
+    s.duplicates = c->duplicates;
     s.compress_s = static_cast<double>(c->compress_ns.load()) * 1e-9;
     s.decompress_s = static_cast<double>(c->decompress_ns.load()) * 1e-9;
   }

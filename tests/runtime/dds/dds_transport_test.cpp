@@ -8,12 +8,14 @@
 #include "tessera_frame.h"
 
 #include <dds/dds.h>
+#include <signal.h>
 #include <spawn.h>
 #include <sys/wait.h>
 #include <unistd.h>
 #include <catch2/catch.hpp>
 
 #include <chrono>
+#include <cmath>
 #include <cstdlib>
 #include <cstring>
 #include <filesystem>
@@ -139,20 +141,72 @@ TEST_CASE("two hosts exchange 2000 messages on a reliable DDS topic without loss
   CHECK(got.rejected == 0);
 }
 
-// The sending half of the next test, run as a child process: inside one process Cyclone hands
-// samples over directly, never through the acknowledgement protocol the test is about.
-TEST_CASE("dds child: a host that leaves right after writing 7 reliable messages",
-          "[.][dds_child]") {
+// The sending host of the next tests, run as a child process: inside one process Cyclone hands
+// samples over directly, never through the acknowledgement, discovery and lease protocols these
+// tests are about. TESSERA_DDS_CHILD_MODE says what it does:
+//   leave  waits for its reader, writes 7 messages, leaves (without a flush if NO_FLUSH is set)
+//   late   writes 20 messages before any reader exists, then waits for one and leaves
+//   pause  writes 5, sleeps 2 s (the parent stops it meanwhile), writes 5 more, leaves
+//   crash  writes 3 and sleeps until the parent kills it
+TEST_CASE("dds child: a sending host", "[.][dds_child]") {
   const char* partition = std::getenv("TESSERA_DDS_CHILD_PARTITION");
+  const char* mode_env = std::getenv("TESSERA_DDS_CHILD_MODE");
   REQUIRE(partition != nullptr);
+  REQUIRE(mode_env != nullptr);
+  const std::string mode = mode_env;
   auto options = loopback();
   options.partition = partition;
   options.reliable_depth = 2;
+  options.lease_s = 1;
   Sender tx(options, blobTopic("blobs", true, false, true));
+  if (mode == "late") {
+    for (int i = 0; i < 20; ++i) tx.send(i, 100);
+  }
   REQUIRE(tx.transport.waitForPeers(20s));
-  for (int i = 0; i < 7; ++i) tx.send(i, 100);
-  if (std::getenv("TESSERA_DDS_CHILD_NO_FLUSH") == nullptr) CHECK(tx.transport.flush(60s).empty());
+  if (mode == "leave") {
+    for (int i = 0; i < 7; ++i) tx.send(i, 100);
+    if (std::getenv("TESSERA_DDS_CHILD_NO_FLUSH") != nullptr) return;
+  } else if (mode == "pause") {
+    for (int i = 0; i < 5; ++i) tx.send(i, 100);
+    std::this_thread::sleep_for(2s);
+    for (int i = 5; i < 10; ++i) tx.send(i, 100);
+  } else if (mode == "crash") {
+    for (int i = 0; i < 3; ++i) tx.send(i, 100);
+    std::this_thread::sleep_for(600s);
+  }
+  CHECK(tx.transport.flush(60s).empty());
 }
+
+namespace {
+/// Starts the sending host above in `mode` on `partition`; its pid.
+pid_t spawnSender(const std::string& mode, const std::string& partition) {
+  ::setenv("TESSERA_DDS_CHILD_PARTITION", partition.c_str(), 1);
+  ::setenv("TESSERA_DDS_CHILD_MODE", mode.c_str(), 1);
+  const std::string exe = std::filesystem::read_symlink("/proc/self/exe").string();
+  const std::string name = "dds child: a sending host";
+  char* argv[] = {const_cast<char*>(exe.c_str()), const_cast<char*>(name.c_str()), nullptr};
+  pid_t child = 0;
+  REQUIRE(::posix_spawn(&child, exe.c_str(), nullptr, nullptr, argv, environ) == 0);
+  return child;
+}
+/// Loopback options with a short lease (a frozen or killed host counts as gone after 1 s).
+DdsOptions shortLease(const std::string& suffix, double reconnect_timeout_s = 120) {
+  auto options = loopback(suffix);
+  options.lease_s = 1;
+  options.reconnect_timeout_s = reconnect_timeout_s;
+  return options;
+}
+/// 0, 1, ..., n - 1: the sequence numbers of a sender's first n messages.
+std::vector<std::uint64_t> firstSeqs(std::size_t n) {
+  std::vector<std::uint64_t> seqs(n);
+  for (std::size_t i = 0; i < n; ++i) seqs[i] = i;
+  return seqs;
+}
+bool exitedCleanly(pid_t child) {
+  int status = 0;
+  return ::waitpid(child, &status, 0) == child && WIFEXITED(status) && WEXITSTATUS(status) == 0;
+}
+}  // namespace
 
 TEST_CASE(
     "a host leaving right after its last reliable message loses none of it, and the receiving "
@@ -160,22 +214,66 @@ TEST_CASE(
     "[dds]") {
   auto options = loopback("_leave");
   options.reliable_depth = 2;
+  options.lease_s = 1;
   // A slow subscriber: when the sender leaves, its last samples wait for longer than Cyclone
   // lingers for them on its own.
   Receiver rx(options, blobTopic("blobs", false, true, true), MailboxPolicy::reliable(1), 500ms);
-  ::setenv("TESSERA_DDS_CHILD_PARTITION", options.partition.c_str(), 1);
-  const std::string exe = std::filesystem::read_symlink("/proc/self/exe").string();
-  const std::string name = "dds child: a host that leaves right after writing 7 reliable messages";
-  char* argv[] = {const_cast<char*>(exe.c_str()), const_cast<char*>(name.c_str()), nullptr};
-  pid_t child = 0;
-  REQUIRE(::posix_spawn(&child, exe.c_str(), nullptr, nullptr, argv, environ) == 0);
-  int status = 0;
-  REQUIRE(::waitpid(child, &status, 0) == child);
-  CHECK((WIFEXITED(status) && WEXITSTATUS(status) == 0));
+  CHECK(exitedCleanly(spawnSender("leave", options.partition)));
   REQUIRE(waitFor([&] { return rx.transport.upstreamLeft() && rx.transport.drained(); }, 60s));
   CHECK(rx.transport.stats().topics.at("blobs").received == 7);
   CHECK(rx.transport.stats().topics.at("blobs").lost == 0);
   REQUIRE(waitFor([&] { return rx.handled() >= 7; }));
+}
+
+TEST_CASE("a host that starts after its sender gets the messages sent before it joined", "[dds]") {
+  const auto options = shortLease("_late");
+  const pid_t child = spawnSender("late", options.partition);
+  std::this_thread::sleep_for(1500ms);  // the sender writes with no reader anywhere
+  Receiver rx(options, blobTopic("blobs", false, true, true), MailboxPolicy::reliable(32));
+  CHECK(exitedCleanly(child));
+  REQUIRE(waitFor([&] { return rx.transport.upstreamLeft() && rx.transport.drained(); }, 30s));
+  REQUIRE(waitFor([&] { return rx.handled() >= 20; }));
+  rx.finish();
+  CHECK(rx.recorder->seqs == firstSeqs(20));
+  CHECK(rx.transport.stats().topics.at("blobs").lost == 0);
+}
+
+TEST_CASE("after a lost link the sender replays what the receiver missed, and nothing twice",
+          "[dds]") {
+  const auto options = shortLease("_pause", 60);
+  Receiver rx(options, blobTopic("blobs", false, true, true), MailboxPolicy::reliable(32));
+  const pid_t child = spawnSender("pause", options.partition);
+  REQUIRE(waitFor([&] { return rx.handled() >= 5; }));
+  // The link goes: the sender stops answering until this host's lease on it ran out.
+  ::kill(child, SIGSTOP);
+  CHECK(waitFor([&] { return !rx.transport.unconnected().empty(); }, 10s));
+  CHECK_FALSE(rx.transport.upstreamLeft());  // gone without ending: it may come back
+  ::kill(child, SIGCONT);
+  CHECK(exitedCleanly(child));
+  REQUIRE(waitFor([&] { return rx.transport.upstreamLeft() && rx.transport.drained(); }, 30s));
+  REQUIRE(waitFor([&] { return rx.handled() >= 10; }));
+  rx.finish();
+  CHECK(rx.recorder->seqs == firstSeqs(10));
+  const auto s = rx.transport.stats().topics.at("blobs");
+  CHECK(s.lost == 0);
+  CHECK(s.received == 10);
+  CHECK(s.duplicates > 0);  // the replay after the link came back held samples it had
+}
+
+TEST_CASE("a sender that vanishes without ending counts as gone after dds.reconnect_timeout_s",
+          "[dds]") {
+  const auto options = shortLease("_crash", 2);
+  Receiver rx(options, blobTopic("blobs", false, true, true), MailboxPolicy::reliable(32));
+  const pid_t child = spawnSender("crash", options.partition);
+  REQUIRE(waitFor([&] { return rx.handled() >= 3; }));
+  ::kill(child, SIGKILL);
+  int status = 0;
+  ::waitpid(child, &status, 0);
+  REQUIRE(waitFor([&] { return !rx.transport.unconnected().empty(); }, 10s));
+  const auto gone = std::chrono::steady_clock::now();
+  CHECK_FALSE(rx.transport.upstreamLeft());
+  REQUIRE(waitFor([&] { return rx.transport.upstreamLeft(); }, 10s));
+  CHECK(std::chrono::steady_clock::now() - gone >= 1900ms);
 }
 
 TEST_CASE("a compressed DDS topic arrives byte-identical and smaller on the wire", "[dds]") {
@@ -242,6 +340,7 @@ TEST_CASE(
   const dds_entity_t publisher = dds_create_publisher(participant, qos, nullptr);
   dds_qset_reliability(qos, DDS_RELIABILITY_RELIABLE, DDS_SECS(1));
   dds_qset_history(qos, DDS_HISTORY_KEEP_ALL, 0);
+  dds_qset_durability(qos, DDS_DURABILITY_TRANSIENT_LOCAL);  // as reliable readers ask
   const dds_entity_t topic =
       dds_create_topic(participant, &tessera_dds_Frame_desc, "tessera/blobs", nullptr, nullptr);
   const dds_entity_t writer = dds_create_writer(publisher, topic, qos, nullptr);
@@ -253,11 +352,13 @@ TEST_CASE(
                                      setHeader(b.initHeader(), 5, "test", 77);
                                      b.initPayload(40);
                                    }).storage());
+  std::uint64_t next_seq = 0;
   auto write = [&](std::uint64_t type_id, std::uint8_t codec, std::vector<std::byte> payload,
                    std::uint32_t raw_bytes) {
     tessera_dds_Frame f{};
     f.type_id = type_id;
     f.origin = 42;
+    f.seq = next_seq++;  // a repeated number would be taken for a replay and skipped
     f.codec = codec;
     f.raw_bytes = raw_bytes;
     f.payload._buffer = reinterpret_cast<std::uint8_t*>(payload.data());
@@ -304,11 +405,24 @@ TEST_CASE("DDS options are checked: partition required, domain and levels in ran
   CHECK_THROWS_WITH(DdsTransport::validate(o), Catch::Contains("dds.compression.map: level 25"));
   o.compression["map"] = 3;
   CHECK_NOTHROW(DdsTransport::validate(o));
+  o.lease_s = 0.1;
+  CHECK_THROWS_WITH(DdsTransport::validate(o), Catch::Contains("dds.lease_s: 0.1"));
+  o.lease_s = std::nan("");
+  CHECK_THROWS_WITH(DdsTransport::validate(o), Catch::Contains("dds.lease_s"));
+  o.lease_s = 2;
+  o.reconnect_timeout_s = -1;
+  CHECK_THROWS_WITH(DdsTransport::validate(o), Catch::Contains("dds.reconnect_timeout_s"));
+  o.reconnect_timeout_s = 5;
+  o.replay_depth = 1u << 21;
+  CHECK_THROWS_WITH(DdsTransport::validate(o), Catch::Contains("dds.replay_depth"));
+  o.replay_depth = 16;
+  CHECK_NOTHROW(DdsTransport::validate(o));
   o.interface = "lo";
   o.peers = {"10.0.0.2"};
   const auto xml = DdsTransport::configXml(o);
   CHECK(xml.find("<NetworkInterface name=\"lo\"/>") != std::string::npos);
   CHECK(xml.find("<Peer address=\"10.0.0.2\"/>") != std::string::npos);
+  CHECK(xml.find("<LeaseDuration>2000ms</LeaseDuration>") != std::string::npos);
 }
 
 TEST_CASE("a message over dds.max_message_bytes is a clear error on the sending host", "[dds]") {

@@ -50,6 +50,15 @@ struct DdsOptions {
   std::size_t max_message_bytes = std::size_t{64} << 20;
   /// Reliable topics: samples a reader may hold before the writer blocks.
   std::uint32_t reliable_depth = 64;
+  /// Reliable topics: the last samples each writer keeps for a reader that joins late or comes
+  /// back after a lost link (a restarted server catches up from them; a returning reader skips
+  /// what it already had). 0: none kept. Memory: up to this many samples per reliable topic.
+  std::uint32_t replay_depth = 1024;
+  /// Seconds without a sign of life after which a host counts as gone (DDS participant lease).
+  double lease_s = 10;
+  /// A host without inputs of its own waits this long for hosts that vanished without ending
+  /// their streams (a lost link or a crash) to come back before it stops, seconds.
+  double reconnect_timeout_s = 120;
   /// zstd level per topic (1-19); unlisted topics go uncompressed.
   std::map<std::string, int> compression;
 };
@@ -73,6 +82,7 @@ struct DdsTopicStats {
   std::uint64_t bytes_raw = 0;   ///< sent, before compression (framing bytes)
   std::uint64_t bytes_sent = 0;  ///< sent, payload bytes on DDS
   std::uint64_t lost = 0;        ///< sequence gaps seen by this host's reader
+  std::uint64_t duplicates = 0;  ///< replayed samples this host had already (skipped)
   std::uint64_t rejected = 0;    ///< malformed, oversized or foreign-type samples dropped
   double compress_s = 0, decompress_s = 0;
 };
@@ -98,15 +108,17 @@ class DdsTransport {
   bool waitForPeers(std::chrono::milliseconds timeout, const std::function<bool()>& give_up = {});
   /// Topics still unmatched: "'name' (no publisher)" / "'name' (no subscriber)".
   std::vector<std::string> unconnected() const;
-  /// True once every import had a publisher and none has one now: every host sending to this
-  /// one left (false while this host imports nothing).
-  bool upstreamLeft() const;
+  /// True once every import had a publisher and none has one now, and every host that sent to
+  /// this one ended its streams (flush) or has been gone for dds.reconnect_timeout_s: every host
+  /// sending to this one left (false while this host imports nothing).
+  bool upstreamLeft();
   /// True while no received sample waits in a reader and the receiving thread is not handing one
   /// to a subscriber. Samples may still be in flight: callers check it over a moment.
   bool drained() const;
-  /// Waits until every reliable sample this host wrote is acknowledged by the readers on the
-  /// other hosts (call it before leaving: Cyclone lingers only about a second for them).
-  /// Returns the topics still unacknowledged at `timeout`.
+  /// Ends this host's streams: an end mark on every exported topic, then waits until every
+  /// reliable sample this host wrote is acknowledged by the readers on the other hosts (call it
+  /// before leaving: Cyclone lingers only about a second for them). Returns the topics still
+  /// unacknowledged at `timeout`.
   std::vector<std::string> flush(std::chrono::milliseconds timeout);
   void startReceiving();
   void stopReceiving();
