@@ -288,9 +288,9 @@ struct DdsTransport::Impl::Export final : TopicExport {
     }
     std::lock_guard lock(mutex);
     if (level == 0 && segments.size() == 1) {
-      const auto& segment = segments[0];
-      write(kCodecSegment, std::as_bytes(std::span(segment.begin(), segment.size())),
-            segment.size() * sizeof(capnp::word), bytes);
+      const auto segment = std::as_bytes(std::span(segments[0].begin(), segments[0].size()));
+      write(kCodecSegment, segment, segment.size());
+      counted(bytes, segment.size());
       return;
     }
     // The framing is built in a buffer kept by the export (under its lock): a fresh one per
@@ -316,20 +316,26 @@ struct DdsTransport::Impl::Export final : TopicExport {
       counters->compress_ns += static_cast<std::uint64_t>(secondsSince(t0) * 1e9);
     }
     const std::span<const std::byte> payload = level > 0 ? std::span<const std::byte>(packed) : raw;
-    write(level > 0 ? kCodecZstd : kCodecRaw, payload, bytes, bytes);
+    write(level > 0 ? kCodecZstd : kCodecRaw, payload, bytes);
+    counted(bytes, payload.size());
   }
 
   /// Ends the stream: a sample without a message, after the last one.
   void end() {
     std::lock_guard lock(mutex);
-    write(kCodecEnd, {}, 0, 0);
-    counters->sent -= 1;  // not a message
+    write(kCodecEnd, {}, 0);
   }
 
-  /// Writes one sample (under `mutex`): `raw_bytes` is what the payload decodes to, `bytes`
-  /// the message's framing size (for the figures).
-  void write(std::uint8_t codec, std::span<const std::byte> payload, std::size_t raw_bytes,
-             std::size_t bytes) {
+  /// One message sent: `bytes` of framing, `wire` bytes of payload on DDS.
+  void counted(std::size_t bytes, std::size_t wire) {
+    counters->sent += 1;
+    counters->bytes_raw += bytes;
+    counters->bytes_sent += wire;
+  }
+
+  /// Writes one sample, the next in this writer's sequence (under `mutex`): `raw_bytes` is what
+  /// the payload decodes to.
+  void write(std::uint8_t codec, std::span<const std::byte> payload, std::size_t raw_bytes) {
     tessera_dds_Frame sample{};
     sample.type_id = topic.type.id;
     sample.origin = impl->origin;
@@ -360,9 +366,6 @@ struct DdsTransport::Impl::Export final : TopicExport {
       throw MessageError("dds: topic '" + topic.name + "': write failed: " + ddsError(rc));
     }
     ++seq;
-    counters->sent += 1;
-    counters->bytes_raw += bytes;
-    counters->bytes_sent += payload.size();
   }
 };
 
@@ -387,13 +390,14 @@ void DdsTransport::Impl::takeAll(Import& import) {
           throw MessageError(what + ": a sample of type id " + id + ", expected " +
                              import.topic.type.name);
         }
-        {
+        // Gaps in a sender's numbers are samples that never arrived; numbers already seen are
+        // replays after a lost link (the writer keeps its last samples for returning readers).
+        const auto [slot, new_sender] = import.next_seq.try_emplace(f->origin, f->seq);
+        if (new_sender) {
           std::lock_guard lock(origins_mutex);
           seen_origins.insert(f->origin);
         }
-        // Gaps in a sender's numbers are samples that never arrived; numbers already seen are
-        // replays after a lost link (the writer keeps its last samples for returning readers).
-        auto& next = import.next_seq.try_emplace(f->origin, f->seq).first->second;
+        auto& next = slot->second;
         if (f->seq < next) {
           import.counters->duplicates += 1;
           continue;
@@ -423,18 +427,14 @@ void DdsTransport::Impl::takeAll(Import& import) {
           detail::zstdDecompressInto(
               payload, std::as_writable_bytes(std::span(words.begin(), words.size())), what);
           import.counters->decompress_ns += static_cast<std::uint64_t>(secondsSince(t0) * 1e9);
+        } else if ((f->codec == kCodecRaw || f->codec == kCodecSegment) &&
+                   payload.size() != f->raw_bytes) {
+          throw MessageError(what + ": payload of " + std::to_string(payload.size()) +
+                             " bytes, the sample says " + std::to_string(f->raw_bytes));
         } else if (f->codec == kCodecRaw) {
-          if (payload.size() != f->raw_bytes) {
-            throw MessageError(what + ": payload of " + std::to_string(payload.size()) +
-                               " bytes, the sample says " + std::to_string(f->raw_bytes));
-          }
           words = WordPool::instance().take(f->raw_bytes / sizeof(capnp::word));
           std::memcpy(words.begin(), payload.data(), payload.size());
         } else if (f->codec == kCodecSegment) {
-          if (payload.size() != f->raw_bytes) {
-            throw MessageError(what + ": payload of " + std::to_string(payload.size()) +
-                               " bytes, the sample says " + std::to_string(f->raw_bytes));
-          }
           // The segment table of a single segment in front, then the segment.
           const std::size_t n = f->raw_bytes / sizeof(capnp::word);
           words = WordPool::instance().take(n + 1);
