@@ -65,6 +65,12 @@ TEST_CASE("launch --host refuses a profile it cannot split over hosts, naming wh
        "no_topic: no such topic crosses"},
       {writeProfile(dir, kDds), "--host robot --wait-peers 1 --set dds.domain=500",
        "dds.domain: 500"},
+      {writeProfile(dir, "dds: [a, b]\n"), "--host robot", "dds: expected a mapping"},
+      {writeProfile(dir, kDds + "  lease_s: .nan\n"), "--host robot", "dds.lease_s"},
+      {writeProfile(dir, kDds + "  lease_s: soon\n"), "--host robot", "lease_s"},
+      {writeProfile(dir, kDds + "  replay_depth: -3\n"), "--host robot", "replay_depth"},
+      {writeProfile(dir, kDds), "--host robot --set dds.reconnect_timeout_s=-1",
+       "dds.reconnect_timeout_s"},
   };
   for (const auto& c : cases) {
     const std::string args = "launch " + c.profile + " " + c.args;
