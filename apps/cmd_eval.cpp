@@ -1,4 +1,4 @@
-// `tessera eval relations|ate|rpe|landmarks|loops`: accuracy of a trajectory or landmark map
+// `tessera eval relations|ate|merged|rpe|landmarks|loops`: accuracy of a trajectory or landmark map
 // against a reference. Without --json the summary goes to stdout; with --json stdout holds exactly
 // one JSON object and the summary goes to stderr, so the output can be piped into other tools. Exit
 // codes: 0 ok; 2 usage errors (bad option values, an input file that does not exist); 1 bad input
@@ -10,8 +10,10 @@
 #include <tessera/datasets/relations.hpp>
 #include <tessera/evaluation/landmark_io.hpp>
 #include <tessera/evaluation/loop_metrics.hpp>
+#include <tessera/evaluation/map_metrics.hpp>
 #include <tessera/evaluation/trajectory_metrics.hpp>
 #include <tessera/io/atomic_file.hpp>
+#include <tessera/mapping/map_io.hpp>
 #include <tessera/mapping/trajectory_io.hpp>
 #include <tessera/pose_graph/pose_graph_io.hpp>
 #include <tessera/runtime/options.hpp>
@@ -26,6 +28,7 @@
 #include <iterator>
 #include <map>
 #include <memory>
+#include <optional>
 #include <sstream>
 
 namespace tessera::app {
@@ -503,6 +506,112 @@ void addAte(CLI::App& eval, int& result) {
   });
 }
 
+void addMerged(CLI::App& eval, int& result) {
+  auto* cmd = eval.add_subcommand(
+      "merged",
+      "ATE of several robots' trajectories in one merged frame: one rigid alignment for all");
+  struct Args {
+    std::vector<std::string> estimates, references;
+    double max_diff_s = AssociationOptions{}.max_difference_s;
+    bool planar = false, spatial = false, json = false;
+    std::string map, walls;
+  };
+  auto a = std::make_shared<Args>();
+  cmd->add_option("--map", a->map,
+                  "the merged map (map_server YAML): scored against --walls moved into the merged "
+                  "frame by the alignment");
+  cmd->add_option("--walls", a->walls,
+                  "the true walls, 'x0 y0 x1 y1' lines in the references' frame (world_writer)");
+  cmd->add_option("--estimate", a->estimates,
+                  "a robot's trajectory in the merged frame, TUM format; one per robot")
+      ->required();
+  cmd->add_option("--reference", a->references,
+                  "its ground truth, TUM format, in the order of --estimate; the references "
+                  "share one frame (e.g. the simulator's world)")
+      ->required();
+  cmd->add_option("--max-diff", a->max_diff_s, "[s] largest stamp difference of a pose pair")
+      ->capture_default_str();
+  auto* p = cmd->add_flag("--2d", a->planar, "SE(2): compare in the xy plane (default: automatic)");
+  auto* s3 = cmd->add_flag("--3d", a->spatial, "SE(3) even for planar files");
+  p->excludes(s3);
+  cmd->add_flag("--json", a->json, "print one JSON object on stdout");
+  cmd->callback([a, &result] {
+    if (!(a->max_diff_s >= 0)) throw ConfigError("--max-diff must be a number >= 0");
+    if (a->estimates.size() != a->references.size())
+      throw ConfigError("eval merged: " + std::to_string(a->estimates.size()) + " --estimate but " +
+                        std::to_string(a->references.size()) +
+                        " --reference; give one reference per estimate");
+    std::vector<std::pair<std::vector<mapping::TumPose>, std::vector<mapping::TumPose>>> pairs;
+    for (std::size_t k = 0; k < a->estimates.size(); ++k)
+      pairs.emplace_back(loadTrajectory(a->estimates[k], "--estimate"),
+                         loadTrajectory(a->references[k], "--reference"));
+    AteOptions options;
+    options.association.max_difference_s = a->max_diff_s;
+    options.dimension = dimensionOf(a->planar, a->spatial);
+    if (a->map.empty() != a->walls.empty())
+      throw ConfigError("eval merged: --map and --walls go together");
+    const JointAteResult r = computeJointAte(pairs, options);
+    Summary s("ATE in one merged frame (one alignment for every trajectory)");
+    std::optional<MapWallScore> walls;
+    if (!a->map.empty()) {
+      requireFile(a->walls, "--walls");
+      auto segments = readWalls(a->walls);
+      // Into the merged frame: the inverse of the alignment (estimate -> reference).
+      const auto toMap = [&](const Eigen::Vector2d& p) -> Eigen::Vector2d {
+        const Eigen::Vector3d q = r.alignment.rotation.transpose() *
+                                  (Eigen::Vector3d(p.x(), p.y(), 0) - r.alignment.translation);
+        return q.head<2>();
+      };
+      for (auto& w : segments) {
+        w.a = toMap(w.a);
+        w.b = toMap(w.b);
+      }
+      requireFile(a->map, "--map");
+      walls = scoreMapAgainstWalls(mapping::loadMap(a->map), segments);
+    }
+    s.row("alignment", modeName(r.planar) + ", " + std::to_string(pairs.size()) + " trajectories");
+    nlohmann::json list = nlohmann::json::array();
+    for (std::size_t k = 0; k < pairs.size(); ++k) {
+      s.row(a->estimates[k], "merged frame rmse " + Summary::num(r.joint[k].rmse, 4) + " m, max " +
+                                 Summary::num(r.joint[k].max, 4) + " m; aligned alone rmse " +
+                                 Summary::num(r.alone[k].translation.rmse, 4) + " m (" +
+                                 std::to_string(r.alone[k].pairs) + " pairs)");
+      nlohmann::json j;
+      j["estimate"] = a->estimates[k];
+      j["reference"] = a->references[k];
+      j["pairs"] = r.alone[k].pairs;
+      j["merged_rmse_m"] = r.joint[k].rmse;
+      j["merged_max_m"] = r.joint[k].max;
+      j["alone_rmse_m"] = r.alone[k].translation.rmse;
+      list.push_back(j);
+    }
+    if (walls) {
+      s.row("map", a->map);
+      s.row("wall cells found", Summary::num(walls->wall_cells_found, 4) + " of the " +
+                                    std::to_string(walls->wall_points_seen) +
+                                    " true wall points observed");
+      s.row("false wall cells", std::to_string(walls->false_wall_cells) + " of " +
+                                    std::to_string(walls->occupied_cells) + " occupied, " +
+                                    std::to_string(walls->doubled_wall_cells) +
+                                    " of them doubled walls (within 1 m of a true wall)");
+    }
+    s.print(a->json);
+    if (a->json) {
+      nlohmann::json j;
+      j["mode"] = r.planar ? "se2" : "se3";
+      j["trajectories"] = list;
+      if (walls) {
+        j["wall_cells_found"] = walls->wall_cells_found;
+        j["occupied_cells"] = walls->occupied_cells;
+        j["false_wall_cells"] = walls->false_wall_cells;
+        j["doubled_wall_cells"] = walls->doubled_wall_cells;
+      }
+      std::cout << j.dump(2) << "\n";
+    }
+    result = 0;
+  });
+}
+
 void addRpe(CLI::App& eval, int& result) {
   auto* cmd =
       eval.add_subcommand("rpe", "relative pose error over a fixed delta (TUM RGB-D conventions)");
@@ -734,6 +843,7 @@ void addEvalCommand(CLI::App& app, int& result) {
   eval->require_subcommand(1);
   addRelations(*eval, result);
   addAte(*eval, result);
+  addMerged(*eval, result);
   addRpe(*eval, result);
   addHeading(*eval, result);
   addLandmarks(*eval, result);

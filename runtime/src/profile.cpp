@@ -4,6 +4,7 @@
 #include <yaml-cpp/yaml.h>
 
 #include <algorithm>
+#include <cctype>
 #include <filesystem>
 #include <fstream>
 #include <set>
@@ -55,7 +56,7 @@ std::vector<std::string> split(const std::string& s, char sep) {
 const std::set<std::string> kTopKeys = {"name",     "description",    "clock",
                                         "sim_rate", "max_duration_s", "actors",
                                         "restart",  "external",       "dds"};
-const std::set<std::string> kActorKeys = {"type", "process", "remap", "params"};
+const std::set<std::string> kActorKeys = {"type", "process", "remap", "namespace", "params"};
 
 void applyOverride(YAML::Node root, const std::string& text, const std::string& path) {
   const auto eq = text.find('=');
@@ -263,7 +264,7 @@ Profile parseProfile(const std::string& yaml_text, const std::string& path,
       const std::string f = field.first.as<std::string>();
       if (!kActorKeys.count(f)) {
         throw ConfigError(atKey(path, field) + ": actors." + spec.name + ": unknown key '" + f +
-                          "' (known: type, process, remap, params)");
+                          "' (known: type, process, remap, namespace, params)");
       }
     }
     if (!a["type"])
@@ -285,6 +286,19 @@ Profile parseProfile(const std::string& yaml_text, const std::string& path,
         spec.remap[r.first.as<std::string>()] =
             scalar(path, r.second, "actors." + spec.name + ".remap");
       }
+    }
+    if (a["namespace"]) {
+      spec.topic_namespace = scalar(path, a["namespace"], "actors." + spec.name + ".namespace");
+      const auto& n = spec.topic_namespace;
+      const bool ok = !n.empty() && n.front() != '/' && n.back() != '/' &&
+                      n.find("//") == std::string::npos &&
+                      std::all_of(n.begin(), n.end(), [](char c) {
+                        return std::isalnum(static_cast<unsigned char>(c)) || c == '_' || c == '/';
+                      });
+      if (!ok)
+        throw ConfigError(at(path, a["namespace"]) + ": actors." + spec.name + ".namespace: '" + n +
+                          "' is not a namespace (expected letters, digits, '_' and inner '/', "
+                          "e.g. r1 or fleet/r1)");
     }
     const std::string params_where = (a["params"] && a["params"].Mark().line >= 0)
                                          ? path + ": actors." + spec.name + ".params"
@@ -324,7 +338,7 @@ std::unique_ptr<Runtime> build(const Profile& profile, RuntimeOptions options,
       throw ConfigError(profile.path + ":" + std::to_string(spec.line) + ": actor '" + spec.name +
                         "' (" + spec.type + "): " + e.what());
     }
-    runtime->add(spec.name, std::move(actor), spec.remap);
+    runtime->add(spec.name, std::move(actor), spec.remap, spec.topic_namespace);
   }
   if (before_configure) before_configure(*runtime);
   try {

@@ -86,10 +86,17 @@ struct ActorSlot {
   std::string name;
   std::unique_ptr<Actor> instance;
   std::map<std::string, std::string> remap;
+  std::string topic_namespace;  // prefix of the local names not remapped ("" = none)
   std::unique_ptr<ActorSlotContext> context;
   std::vector<Subscription> subscriptions;
   std::vector<std::string> publishes;  // global topic names
   std::vector<std::size_t> timers;     // indices into Impl::timers
+
+  /// The global name of local topic `local`: its remap, else namespaced.
+  std::string globalName(const std::string& local) const {
+    if (auto it = remap.find(local); it != remap.end()) return it->second;
+    return topic_namespace.empty() ? local : topic_namespace + "/" + local;
+  }
 
   // Inbox: one ordered queue over all of this actor's subscriptions and timers.
   std::mutex mutex;

@@ -124,8 +124,7 @@ void ActorSlotContext::requestStop(std::string_view reason) {
 }
 
 std::string ActorSlotContext::global(std::string_view local) const {
-  auto it = actor_.remap.find(std::string(local));
-  return it == actor_.remap.end() ? std::string(local) : it->second;
+  return actor_.globalName(std::string(local));
 }
 
 void ActorSlotContext::requireConfiguring(const char* what) const {
@@ -157,7 +156,7 @@ std::pair<TopicState*, std::uint32_t> ActorSlotContext::advertiseRaw(std::string
 }  // namespace detail
 
 Actor& Runtime::add(std::string name, std::unique_ptr<Actor> actor,
-                    std::map<std::string, std::string> remap) {
+                    std::map<std::string, std::string> remap, std::string topic_namespace) {
   if (impl_->configured) throw std::logic_error("Runtime::add after configure()");
   if (!actor) throw std::invalid_argument("Runtime::add: null actor '" + name + "'");
   for (const auto& c : impl_->actors) {
@@ -168,6 +167,7 @@ Actor& Runtime::add(std::string name, std::unique_ptr<Actor> actor,
   slot->name = std::move(name);
   slot->instance = std::move(actor);
   slot->remap = std::move(remap);
+  slot->topic_namespace = std::move(topic_namespace);
   slot->context = std::make_unique<detail::ActorSlotContext>(*impl_, *slot);
   auto& ref = *slot->instance;
   impl_->actors.push_back(std::move(slot));
@@ -289,8 +289,7 @@ std::vector<std::uint32_t> Runtime::Impl::stopOrder() const {
 std::string Runtime::globalTopic(const std::string& actor, const std::string& local) const {
   for (const auto& c : impl_->actors) {
     if (c->name != actor) continue;
-    auto it = c->remap.find(local);
-    return it == c->remap.end() ? local : it->second;
+    return c->globalName(local);
   }
   throw std::invalid_argument("no actor named '" + actor + "'");
 }

@@ -188,6 +188,49 @@ AteResult computeAte(const std::vector<mapping::TumPose>& estimate,
   return r;
 }
 
+JointAteResult computeJointAte(
+    const std::vector<std::pair<std::vector<mapping::TumPose>, std::vector<mapping::TumPose>>>&
+        trajectories,
+    const AteOptions& options) {
+  if (trajectories.empty()) throw MetricError("joint ATE: no trajectories");
+  if (options.scale) throw MetricError("joint ATE: scale alignment is not supported");
+  JointAteResult r;
+  std::vector<Eigen::Vector3d> from, to;
+  std::vector<std::size_t> owner;
+  r.planar = true;
+  for (const auto& [estimate, reference] : trajectories)
+    r.planar = r.planar && planarMode(options.dimension, estimate, reference);
+  AteOptions alone = options;
+  alone.dimension = r.planar ? Dimension::kPlanar : Dimension::kSpatial;
+  for (std::size_t t = 0; t < trajectories.size(); ++t) {
+    const auto& [estimate, reference] = trajectories[t];
+    try {
+      r.alone.push_back(computeAte(estimate, reference, alone));
+    } catch (const MetricError& e) {
+      throw MetricError("trajectory " + std::to_string(t + 1) + ": " + e.what());
+    }
+    for (const auto& [e, f] : associateByTime(estimate, reference, options.association)) {
+      from.push_back(estimate[e].position);
+      to.push_back(reference[f].position);
+      owner.push_back(t);
+    }
+  }
+  Eigen::Matrix3Xd a(3, static_cast<Eigen::Index>(from.size())),
+      b(3, static_cast<Eigen::Index>(to.size()));
+  for (std::size_t k = 0; k < from.size(); ++k) {
+    a.col(static_cast<Eigen::Index>(k)) = from[k];
+    b.col(static_cast<Eigen::Index>(k)) = to[k];
+  }
+  r.alignment = alignPoints(a, b, r.planar, false);
+  std::vector<std::vector<double>> errors(trajectories.size());
+  for (std::size_t k = 0; k < from.size(); ++k) {
+    const Eigen::Vector3d d = r.alignment.apply(from[k]) - to[k];
+    errors[owner[k]].push_back(r.planar ? d.head<2>().norm() : d.norm());
+  }
+  for (auto& e : errors) r.joint.push_back(summarize(std::move(e)));
+  return r;
+}
+
 HeadingDriftResult computeHeadingDrift(const std::vector<mapping::TumPose>& estimate,
                                        const std::vector<mapping::TumPose>& reference,
                                        const AssociationOptions& options) {

@@ -17,6 +17,7 @@
 //       type: simulator   # registered actor type (tessera actors lists them)
 //       process: robot    # process group for `tessera launch` (default: main)
 //       remap: {scan: /front/scan}   # local topic -> global topic
+//       namespace: r1     # topics not remapped are r1/<local name> (several robots' actors)
 //       params: {world: builtin:office}
 //
 // --set overrides: "ACTOR.KEY=VALUE" sets params.KEY of ACTOR (nested keys with more dots);
@@ -42,7 +43,8 @@ struct ActorSpec {
   std::string process = "main";
   Params params;
   std::map<std::string, std::string> remap;
-  int line = 0;  // 1-based line of the actor's entry in the profile
+  std::string topic_namespace;  // `namespace:`: prefix of the topics not remapped
+  int line = 0;                 // 1-based line of the actor's entry in the profile
 };
 
 struct Profile {

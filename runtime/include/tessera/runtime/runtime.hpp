@@ -88,9 +88,11 @@ class Runtime {
   Runtime(const Runtime&) = delete;
   Runtime& operator=(const Runtime&) = delete;
 
-  /// Adds an actor instance. `remap` maps the actor's local topic names to global ones.
+  /// Adds an actor instance. `remap` maps the actor's local topic names to global ones; a local
+  /// name not remapped becomes "topic_namespace/name" when topic_namespace is not empty (one
+  /// robot's actors among several robots'), else stays as it is.
   Actor& add(std::string name, std::unique_ptr<Actor> actor,
-             std::map<std::string, std::string> remap = {});
+             std::map<std::string, std::string> remap = {}, std::string topic_namespace = {});
 
   /// A publisher from outside any actor (tests, benchmarks, bridges). Call before configure().
   template <typename T>

@@ -111,6 +111,21 @@ AteResult computeAte(const std::vector<mapping::TumPose>& estimate,
                      const std::vector<mapping::TumPose>& reference,
                      const AteOptions& options = {});
 
+/// ATE of several trajectories in one frame (several robots in a merged map): ONE rigid
+/// alignment of all their pose pairs onto their references (the references share a frame, e.g.
+/// the simulator's world), then each trajectory's errors under it; beside each, its ATE aligned
+/// on its own (what it would score alone). Throws MetricError when a trajectory has no pairs.
+struct JointAteResult {
+  bool planar = false;
+  Alignment alignment;            ///< the one alignment
+  std::vector<AteResult> alone;   ///< each aligned on its own
+  std::vector<ErrorStats> joint;  ///< each under the one alignment [m]
+};
+JointAteResult computeJointAte(
+    const std::vector<std::pair<std::vector<mapping::TumPose>, std::vector<mapping::TumPose>>>&
+        trajectories,
+    const AteOptions& options = {});
+
 struct HeadingDriftResult {
   std::size_t estimate_poses = 0, reference_poses = 0, pairs = 0;
   double final_deg = 0;         ///< |e| at the last pair [deg]
