@@ -359,3 +359,57 @@ TEST_CASE("tessera eval loops counts a loop that disagrees with the reference as
   CHECK(missing.exit_code == 2);
   CHECK_THAT(missing.err, Catch::Contains("none.g2o"));
 }
+
+TEST_CASE("tessera eval merged aligns several robots' trajectories once and scores each",
+          "[eval][cli]") {
+  const auto dir = tessera::test::scratchDir("eval_merged");
+  // Two robots on squares in one world; their merged-frame trajectories share one frame
+  // (rotated and shifted from the world), but robot 2's is placed 0.3 m off in it.
+  const auto ref1 = square(4, 40);
+  auto ref2 = ref1;
+  for (auto& p : ref2) p = TumPose::fromPlanar(p.stamp_ns, Pose2(10, 2, 0.5) * p.planar());
+  const Pose2 frame(3, -1, std::numbers::pi / 6);
+  auto est1 = ref1, est2 = ref2;
+  for (auto& p : est1) p = TumPose::fromPlanar(p.stamp_ns, frame * p.planar());
+  for (auto& p : est2) p = TumPose::fromPlanar(p.stamp_ns, Pose2(0.3, 0, 0) * frame * p.planar());
+  writeTum(dir / "ref1.tum", ref1);
+  writeTum(dir / "ref2.tum", ref2);
+  writeTum(dir / "est1.tum", est1);
+  writeTum(dir / "est2.tum", est2);
+  const auto at = [&](const char* f) { return (dir / f).string(); };
+  const std::string files = " --estimate " + at("est1.tum") + " --reference " + at("ref1.tum") +
+                            " --estimate " + at("est2.tum") + " --reference " + at("ref2.tum");
+  const CliRun run = runCli("eval merged" + files + " --json", dir);
+  INFO(run.err);
+  REQUIRE(run.exit_code == 0);
+  const auto j = nlohmann::json::parse(run.out);
+  REQUIRE(j["trajectories"].size() == 2);
+  for (const auto& t : j["trajectories"]) {
+    CHECK(t["pairs"] == 160);
+    CHECK(t["alone_rmse_m"].get<double>() < 1e-9);  // each alone is exact
+  }
+  // One alignment cannot put both right: about half the 0.3 m each.
+  CHECK(j["trajectories"][0]["merged_rmse_m"].get<double>() > 0.1);
+  CHECK(j["trajectories"][1]["merged_rmse_m"].get<double>() > 0.1);
+  CHECK(j["trajectories"][1]["merged_rmse_m"].get<double>() < 0.3);
+
+  // Bad use: counts differ, --map without --walls, a malformed file.
+  const CliRun uneven = runCli("eval merged" + files + " --estimate " + at("est1.tum"), dir);
+  CHECK(uneven.exit_code == 2);  // usage errors
+  CHECK_THAT(uneven.err, Catch::Contains("3 --estimate but 2 --reference"));
+  const CliRun map_only = runCli("eval merged" + files + " --map " + at("m.yaml"), dir);
+  CHECK(map_only.exit_code == 2);
+  CHECK_THAT(map_only.err, Catch::Contains("--map and --walls go together"));
+  {
+    std::ofstream bad(dir / "nan.tum");
+    bad << "0.0 nan 0 0 0 0 0 1\n";
+  }
+  const CliRun nan =
+      runCli("eval merged --estimate " + at("nan.tum") + " --reference " + at("ref1.tum"), dir);
+  CHECK(nan.exit_code == 1);
+  CHECK_THAT(nan.err, Catch::Contains("nan.tum:1"));
+  { std::ofstream empty(dir / "empty.tum"); }
+  const CliRun empty =
+      runCli("eval merged --estimate " + at("empty.tum") + " --reference " + at("ref1.tum"), dir);
+  CHECK(empty.exit_code == 1);
+}

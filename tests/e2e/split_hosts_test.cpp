@@ -69,24 +69,36 @@ std::pair<double, double> ateOneAndSplit(const fs::path& out, const std::string&
   return {ate(out / "one" / file), ate(out / host / file)};
 }
 
-/// Runs `profile` as two hosts, `tessera launch --host server` and `--host robot`, on the loopback
-/// interface in a partition of this test; outputs and logs under `out`. Returns both exit codes
-/// (robot, server); the logs are in the test's messages.
-std::pair<int, int> runTwoHosts(const std::string& profile, const fs::path& out,
-                                const std::string& robot_sets) {
+/// Runs `profile` as a server and the given robot hosts, each `tessera launch --host NAME` (all
+/// at once), on the loopback interface in a partition of this test; outputs and logs under
+/// `out` (NAME/, NAME.log). `robot_sets` go to the robots, `server_sets` to the server. Returns
+/// the exit codes in the order of `robots`, the server's last.
+std::vector<int> runHosts(const std::string& profile, const fs::path& out,
+                          const std::vector<std::string>& robots, const std::string& robot_sets,
+                          const std::string& server_sets = "") {
   const std::string dds = " --set dds.partition=tessera_e2e_" + profile + "_" +
                           std::to_string(::getpid()) +
                           " --set dds.interface=lo --set dds.peers=[127.0.0.1]";
-  const auto host = [&](const std::string& name, const std::string& sets) {
-    return runTessera("launch " + profile + " --host " + name + " --wait-peers 60 --out " +
-                          (out / name).string() + dds + sets,
-                      out / (name + ".log"));
-  };
-  int server_status = -1;
-  std::thread server_host([&] { server_status = host("server", ""); });
-  const int robot_status = host("robot", robot_sets);
-  server_host.join();
-  return {robot_status, server_status};
+  std::vector<std::string> names = robots;
+  names.push_back("server");
+  std::vector<int> status(names.size(), -1);
+  std::vector<std::thread> hosts;
+  for (std::size_t k = 0; k < names.size(); ++k)
+    hosts.emplace_back([&, k] {
+      status[k] = runTessera("launch " + profile + " --host " + names[k] +
+                                 " --wait-peers 60 --out " + (out / names[k]).string() + dds +
+                                 (k < robots.size() ? robot_sets : server_sets),
+                             out / (names[k] + ".log"));
+    });
+  for (auto& h : hosts) h.join();
+  return status;
+}
+
+/// runHosts with one robot host, "robot": (robot, server) exit codes.
+std::pair<int, int> runTwoHosts(const std::string& profile, const fs::path& out,
+                                const std::string& robot_sets) {
+  const auto status = runHosts(profile, out, {"robot"}, robot_sets);
+  return {status[0], status[1]};
 }
 
 /// The two reliable-topic checks of a split run: every message the robot sent arrived.
@@ -268,6 +280,39 @@ TEST_CASE(
     checkNothingLost(robot_summary, server_summary, {"keyframes", "camera_pose"});
     CHECK(server_summary["actors"]["mapper"]["keyframes_mapped"] ==
           robot_summary["actors"]["front_end"]["keyframes"]);
+  }
+}
+
+TEST_CASE("sim_multi_robot on three hosts: each robot gets the merged map and its pose in it",
+          "[e2e][dds][multi_robot]") {
+  const fs::path out = test::scratchDir("sim_multi_robot_hosts");
+  // The profile runs as fast as it can in one process; over hosts the clock must be paced.
+  const auto status =
+      runHosts("sim_multi_robot", out, {"r1", "r2"}, " --set sim_rate=8", " --set sim_rate=8");
+  INFO("r1:\n" << readText(out / "r1.log").substr(0, 3000));
+  INFO("server:\n" << readText(out / "server.log").substr(0, 3000));
+  REQUIRE(status == std::vector<int>{0, 0, 0});
+  const auto server = nlohmann::json::parse(readText(out / "server" / "summary_server.json"));
+  CHECK(server["robots_joined"] == 2);
+  CHECK(server["inter_robot_closures_false"] == 0);
+  CHECK(server["inter_robot_closures"].get<std::int64_t>() >= 10);
+  std::vector<std::pair<std::vector<mapping::TumPose>, std::vector<mapping::TumPose>>> pairs;
+  for (const std::string r : {"r1", "r2"}) {
+    INFO(r);
+    const auto robot = nlohmann::json::parse(readText(out / r / ("summary_" + r + ".json")));
+    checkNothingLost(robot, server, {(r + "/submaps").c_str(), (r + "/chained_pose").c_str()});
+    // What the robot received from the server: the merged map and its pose in it.
+    CHECK(robot["dds_topics"]["map"]["received"].get<std::int64_t>() >= 1);
+    CHECK(fs::exists(out / r / (r + "_received_map.yaml")));
+    CHECK(mapping::readTum(out / r / (r + "_map_pose.tum")).size() > 500);
+    pairs.emplace_back(mapping::readTum(out / "server" / (r + "_trajectory_merged.tum")),
+                       mapping::readTum(out / r / (r + "_ground_truth.tum")));
+  }
+  const auto joint = evaluation::computeJointAte(pairs);
+  for (std::size_t k = 0; k < 2; ++k) {
+    INFO("r" << k + 1 << ": merged " << joint.joint[k].rmse << " m, alone "
+             << joint.alone[k].translation.rmse << " m");
+    CHECK(joint.joint[k].rmse <= joint.alone[k].translation.rmse + 0.05);
   }
 }
 

@@ -63,6 +63,35 @@ TEST_CASE("a valid profile builds and runs", "[profile]") {
   CHECK(report.actors[1].messages_in == 5);
 }
 
+TEST_CASE("an actor's namespace prefixes the topics it does not remap", "[profile]") {
+  // Two robots' pipelines side by side: r1's source feeds r1's sink, r2's source r2's sink.
+  const char* two = R"(actors:
+  src1: {type: test_source, namespace: r1, params: {count: 3}}
+  src2: {type: test_source, namespace: r2, params: {count: 5}}
+  sink1: {type: test_sink, namespace: r1, remap: {in: r1/out}}
+  sink2: {type: test_sink, namespace: fleet/r2, remap: {in: r2/out}}
+)";
+  auto p = parseProfile(two, "two.yaml");
+  CHECK(p.actors[0].topic_namespace == "r1");
+  RuntimeOptions o;
+  o.show_progress = false;
+  auto rt = buildRuntime(p, o);
+  CHECK(rt->globalTopic("src1", "out") == "r1/out");
+  CHECK(rt->globalTopic("src2", "out") == "r2/out");
+  CHECK(rt->globalTopic("sink2", "in") == "r2/out");  // a remap is global as written
+  auto report = rt->run();
+  CHECK(report.actors[2].messages_in == 3);
+  CHECK(report.actors[3].messages_in == 5);
+  for (const char* bad : {"/r1", "r1/", "r 1", "a//b", "''"}) {
+    INFO(bad);
+    CHECK_THROWS_WITH(
+        parseProfile(
+            std::string("actors:\n  a:\n    type: test_source\n    namespace: ") + bad + "\n",
+            "p.yaml"),
+        Catch::Contains("p.yaml:4") && Catch::Contains("namespace"));
+  }
+}
+
 TEST_CASE("overrides given with --set change actor parameters and top-level keys", "[profile]") {
   auto p = parseProfile(kGood, "demo.yaml", {"src.count=7", "label=hello", "max_duration_s=2.5"});
   CHECK(p.max_duration_s == 2.5);

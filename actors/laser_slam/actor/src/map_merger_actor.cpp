@@ -1,5 +1,6 @@
 #include <tessera/laser_slam/map_merger_actor.hpp>
 
+#include <tessera/actor_common/map_message.hpp>
 #include <tessera/messages/views.hpp>
 #include <tessera/runtime/periodic.hpp>
 #include <tessera/runtime/registry.hpp>
@@ -7,12 +8,10 @@
 #include <algorithm>
 #include <cctype>
 #include <cmath>
-#include <cstring>
 #include <filesystem>
 #include <fstream>
 #include <iomanip>
 #include <iostream>
-#include <iterator>
 #include <set>
 #include <stdexcept>
 
@@ -80,13 +79,12 @@ void MapMergerActor::configure(ActorContext& ctx) {
             ++poses_invalid_;
         });
     if (options_.score_ground_truth)
-      ctx.subscribe<msg::GroundTruthPose>(
-          ns + "/ground_truth", MailboxPolicy::keepLatest(1000),
-          [this, robot](const Message<msg::GroundTruthPose>& m) {
-            const tessera::Pose2 p = toPose2(m->getPose());
-            if (p.isFinite())
-              robots_[static_cast<std::size_t>(robot)].truth[m->getHeader().getStampNs()] = p;
-          });
+      ctx.subscribe<msg::GroundTruthPose>(ns + "/ground_truth", MailboxPolicy::keepLatest(1000),
+                                          [this, robot](const Message<msg::GroundTruthPose>& m) {
+                                            const tessera::Pose2 p = toPose2(m->getPose());
+                                            robots_[static_cast<std::size_t>(robot)].truth.add(
+                                                m->getHeader().getStampNs(), p);
+                                          });
     robots_[k].map_pose_pub = ctx.advertise<msg::PoseStamped>(ns + "/map_pose");
     robots_[k].trajectory_pub = ctx.advertise<msg::PoseStamped>(ns + "/trajectory_merged");
   }
@@ -99,14 +97,15 @@ void MapMergerActor::onSubmap(int robot, const Message<msg::Submap>& m) {
   if (!m->getFinished()) return;
   RobotState& r = robots_[static_cast<std::size_t>(robot)];
   const int id = static_cast<int>(m->getId());
-  const auto g = m->getGrid();
   tessera::grid::OccupancyMap grid;
-  grid.resolution = g.getResolution();
-  grid.width = static_cast<int>(g.getWidth());
-  grid.height = static_cast<int>(g.getHeight());
-  grid.origin = toPose2(g.getOrigin());
-  const auto cells = viewInt8(g.getCells());
-  grid.cells.assign(cells.begin(), cells.end());
+  try {
+    grid = toOccupancyMap(m->getGrid());
+  } catch (const std::invalid_argument& e) {
+    std::cerr << "[map_merger] " << options_.robots[static_cast<std::size_t>(robot)] << ": submap "
+              << id << ": " << e.what() << "; left out\n";
+    ++submaps_rejected_;
+    return;
+  }
   const tessera::Pose2 chained = toPose2(m->getGlobalPose());
   std::vector<SubmapTrajectoryPose> trajectory;
   for (const auto p : m->getTrajectory())
@@ -175,36 +174,13 @@ void MapMergerActor::publishMap() {
   const tessera::grid::OccupancyMap map = merger_.assemble();
   dirty_ = false;
   if (map.empty()) return;
-  auto loan = map_pub_.loanWithBlob(map.cells.size(), 512);
-  setHeader(loan->initHeader(), last_stamp_, options_.frame_id, map_pub_.nextSeq());
-  loan->setResolution(static_cast<float>(map.resolution));
-  loan->setWidth(static_cast<std::uint32_t>(map.width));
-  loan->setHeight(static_cast<std::uint32_t>(map.height));
-  writePose(loan->initOrigin(), map.origin);
-  std::memcpy(loan.blob().data(), map.cells.data(), map.cells.size());
-  loan->adoptCells(loan.blobData());
-  map_pub_.publish(std::move(loan));
+  publishOccupancyMap(map_pub_, map, last_stamp_, options_.frame_id);
   ++maps_published_;
 }
 
 bool MapMergerActor::truthAt(const RobotState& r, Nanos stamp, tessera::Pose2& out) const {
-  // Linear interpolation between the neighbouring truth poses (at most 0.5 s apart).
-  const auto after = r.truth.lower_bound(stamp);
-  if (after == r.truth.end()) return false;
-  if (after->first == stamp || after == r.truth.begin()) {
-    if (std::abs(after->first - stamp) > 500'000'000) return false;
-    out = after->second;
-    return true;
-  }
-  const auto before = std::prev(after);
-  if (after->first - before->first > 500'000'000) return false;
-  const double f = static_cast<double>(stamp - before->first) /
-                   static_cast<double>(after->first - before->first);
-  const tessera::Pose2& a = before->second;
-  const tessera::Pose2& b = after->second;
-  out = {a.x + f * (b.x - a.x), a.y + f * (b.y - a.y),
-         a.theta + f * tessera::angleDiff(b.theta, a.theta)};
-  return true;
+  const auto found = r.truth.at(stamp, out);
+  return found == PoseHistory::Lookup::kExact || found == PoseHistory::Lookup::kInterpolated;
 }
 
 void MapMergerActor::scoreNewClosures() {

@@ -1,0 +1,201 @@
+// MapMerger: two robots' submaps of one synthetic floor, each in the robot's own frame, joined
+// at the true relative frame; a look-alike floor (the same rooms turned half a turn, one cabinet
+// moved) is never joined; bad input is refused by name.
+#include <tessera/laser_slam/map_merger.hpp>
+
+#include <catch2/catch.hpp>
+
+#include <cmath>
+#include <numbers>
+#include <vector>
+
+using tessera::Pose2;
+using tessera::grid::OccupancyMap;
+using tessera::laser_slam::MapMerger;
+using tessera::laser_slam::MapMergerOptions;
+using tessera::laser_slam::SubmapTrajectoryPose;
+
+namespace {
+
+struct Box {
+  double x0, y0, x1, y1;
+};
+
+/// A 20 x 16 m floor: outer walls, an inner wall with a door, and furniture placed so that no
+/// turn or mirror maps the floor onto itself.
+std::vector<Box> floorBoxes(bool moved_cabinet = false) {
+  std::vector<Box> b = {{0, 0, 20, 0.2},      {0, 15.8, 20, 16},   {0, 0, 0.2, 16},
+                        {19.8, 0, 20, 16},    {8, 0, 8.2, 6},      {8, 7.2, 8.2, 16},
+                        {2, 11, 4, 12},       {14, 3, 14.6, 6},    {11, 12, 12.5, 12.8},
+                        {16.5, 10, 18, 10.4}, {4.5, 3.5, 5.3, 4.3}};
+  if (moved_cabinet) b.back() = {3.0, 6.0, 3.8, 6.8};
+  return b;
+}
+
+bool inside(const std::vector<Box>& boxes, const Eigen::Vector2d& p) {
+  for (const auto& b : boxes)
+    if (p.x() >= b.x0 && p.x() <= b.x1 && p.y() >= b.y0 && p.y() <= b.y1) return true;
+  return false;
+}
+
+/// A submap whose frame sits at `frame` in the floor (the robot's own frame, origin = its
+/// start): walls occupied, the floor within `seen` metres of `centre` (floor coordinates) free,
+/// the rest unknown. `turn`: the floor turned half a turn about its centre (a look-alike).
+OccupancyMap submap(const Pose2& frame, const Eigen::Vector2d& centre, double seen,
+                    const std::vector<Box>& boxes, bool turn = false) {
+  OccupancyMap m;
+  m.resolution = 0.05;
+  m.width = m.height = 520;
+  const Pose2 centre_local = frame.inverse() * Pose2(centre, 0.0);
+  m.origin = Pose2(centre_local.x - 13, centre_local.y - 13, 0);
+  m.cells.assign(static_cast<std::size_t>(m.width) * m.height, OccupancyMap::kUnknown);
+  for (int row = 0; row < m.height; ++row)
+    for (int col = 0; col < m.width; ++col) {
+      Eigen::Vector2d p = frame * m.cellCenter(col, row);
+      if ((p - centre).norm() > seen) continue;
+      if (turn) p = Eigen::Vector2d(20, 16) - p;
+      if (p.x() < 0 || p.y() < 0 || p.x() > 20 || p.y() > 16) continue;
+      m.at(col, row) = inside(boxes, p) ? 100 : 0;
+    }
+  return m;
+}
+
+/// A straight drive from `a` to `b` (floor coordinates) in the robot's frame `frame`.
+std::vector<SubmapTrajectoryPose> drive(const Pose2& frame, const Eigen::Vector2d& a,
+                                        const Eigen::Vector2d& b) {
+  std::vector<SubmapTrajectoryPose> out;
+  const double heading = std::atan2(b.y() - a.y(), b.x() - a.x());
+  for (int k = 0; k <= 40; ++k) {
+    const Eigen::Vector2d p = a + (b - a) * (k / 40.0);
+    out.push_back({k * 100'000'000LL, frame.inverse() * Pose2(p, heading)});
+  }
+  return out;
+}
+
+}  // namespace
+
+TEST_CASE("MapMerger joins two robots at their true relative frame", "[laser_slam][map_merger]") {
+  const Pose2 frame_a(1.5, 2.0, 0.3), frame_b(17.0, 13.0, 2.5);  // starts on the floor
+  MapMerger merger(2);
+  const auto boxes = floorBoxes();
+  REQUIRE(merger
+              .addSubmap(0, 0, submap(frame_a, {5, 6}, 9, boxes), Pose2(),
+                         drive(frame_a, {3, 3}, {6, 9}))
+              .empty());
+  CHECK_FALSE(merger.frame(1));
+  REQUIRE(merger
+              .addSubmap(1, 0, submap(frame_b, {6, 7}, 8, boxes), Pose2(),
+                         drive(frame_b, {7, 10}, {4, 4}))
+              .empty());
+  const auto frame = merger.frame(1);
+  REQUIRE(frame);
+  const Pose2 truth = frame_a.inverse() * frame_b;
+  INFO("estimate " << frame->x << " " << frame->y << " " << frame->theta << ", truth " << truth.x
+                   << " " << truth.y << " " << truth.theta);
+  CHECK(std::hypot(frame->x - truth.x, frame->y - truth.y) < 0.1);
+  CHECK(std::abs(tessera::angleDiff(frame->theta, truth.theta)) < 0.02);
+  CHECK(merger.closures().size() >= 2);
+  CHECK(merger.counts().joins == 1);
+  for (const auto& c : merger.closures()) CHECK(c.global);
+  CHECK(merger.relativeFrame(1, 0));
+  // The merged map holds both robots' cells: wider than either submap alone.
+  const OccupancyMap merged = merger.assemble();
+  CHECK(merged.width * merged.resolution > 26.0);
+
+  SECTION("a later submap is searched near where the frames put it") {
+    const Pose2 second(2.0, -1.0, 0.4);  // robot b's second submap origin, in its own frame
+    const Pose2 second_in_floor = frame_b * second;
+    REQUIRE(merger
+                .addSubmap(1, 1, submap(second_in_floor, {12, 8}, 8, boxes), second,
+                           drive(second_in_floor, {10, 9}, {15, 8}))
+                .empty());
+    CHECK(merger.counts().joined_searches > 0);
+    CHECK(merger.closures().size() > 2);
+    const auto after = merger.frame(1);
+    REQUIRE(after);
+    CHECK(std::hypot(after->x - truth.x, after->y - truth.y) < 0.1);
+  }
+
+  SECTION("a robot's optimiser moving its submaps moves its frame with them") {
+    merger.setPose(1, 0, Pose2(0.5, 0.0, 0.0));
+    const auto moved = merger.frame(1);
+    REQUIRE(moved);
+    const Pose2 expected = truth * Pose2(0.5, 0.0, 0.0).inverse();
+    CHECK(std::hypot(moved->x - expected.x, moved->y - expected.y) < 0.1);
+  }
+}
+
+TEST_CASE("MapMerger never joins a look-alike floor", "[laser_slam][map_merger]") {
+  // Robot b is on another floor: the same rooms turned half a turn, one cabinet elsewhere. The
+  // global search finds the turned alignment; overlaying the submaps shows the cabinet on free
+  // floor, so nothing is joined.
+  const Pose2 frame_a(1.5, 2.0, 0.3), frame_b(17.0, 13.0, 2.5);
+  MapMerger merger(2);
+  REQUIRE(merger
+              .addSubmap(0, 0, submap(frame_a, {5, 6}, 9, floorBoxes()), Pose2(),
+                         drive(frame_a, {3, 3}, {6, 9}))
+              .empty());
+  REQUIRE(merger
+              .addSubmap(1, 0, submap(frame_b, {14, 9}, 8, floorBoxes(true), true), Pose2(),
+                         drive(frame_b, {13, 6}, {16, 12}))
+              .empty());
+  CHECK_FALSE(merger.frame(1));
+  CHECK(merger.closures().empty());
+  CHECK(merger.counts().global_searches > 0);
+  CHECK(merger.counts().conflicting >= 1);  // found, and refused by the overlay
+}
+
+TEST_CASE("MapMerger needs matches of min_agreeing patches before it joins",
+          "[laser_slam][map_merger]") {
+  const Pose2 frame_a(1.5, 2.0, 0.3), frame_b(17.0, 13.0, 2.5);
+  MapMergerOptions options;
+  options.min_agreeing = 20;  // more patches than the submap has
+  MapMerger merger(2, options);
+  const auto boxes = floorBoxes();
+  merger.addSubmap(0, 0, submap(frame_a, {5, 6}, 9, boxes), Pose2(),
+                   drive(frame_a, {3, 3}, {6, 9}));
+  merger.addSubmap(1, 0, submap(frame_b, {6, 7}, 8, boxes), Pose2(),
+                   drive(frame_b, {7, 10}, {4, 4}));
+  CHECK(merger.counts().candidates >= 2);
+  CHECK_FALSE(merger.frame(1));
+  CHECK(merger.closures().empty());
+}
+
+TEST_CASE("MapMerger refuses bad input by name", "[laser_slam][map_merger]") {
+  MapMerger merger(2);
+  const auto boxes = floorBoxes();
+  const Pose2 frame(1.5, 2.0, 0.3);
+  const auto grid = submap(frame, {5, 6}, 9, boxes);
+  const auto path = drive(frame, {3, 3}, {6, 9});
+  CHECK(merger.addSubmap(2, 0, grid, Pose2(), path).find("robot 2") != std::string::npos);
+  CHECK(merger.addSubmap(-1, 0, grid, Pose2(), path).find("robot -1") != std::string::npos);
+  CHECK(merger.addSubmap(0, 0, grid, Pose2(std::nan(""), 0, 0), path).find("non-finite") !=
+        std::string::npos);
+  CHECK_FALSE(merger.addSubmap(0, 1, OccupancyMap{}, Pose2(), path).empty());
+  OccupancyMap truncated = grid;
+  truncated.cells.resize(truncated.cells.size() / 2);
+  CHECK_FALSE(merger.addSubmap(0, 2, truncated, Pose2(), path).empty());
+  CHECK(merger.counts().submaps_rejected == 5);
+  // No trajectory, or one of NaN poses: kept (it can still be matched against), no patches.
+  std::vector<SubmapTrajectoryPose> nan_path = {{0, Pose2(std::nan(""), 0, 0)}};
+  CHECK(merger.addSubmap(0, 3, grid, Pose2(), nan_path).empty());
+  CHECK(merger.addSubmap(0, 4, grid, Pose2(), {}).empty());
+  CHECK(merger.counts().patches == 0);
+  CHECK(merger.submapPose(0, 3));
+  // A repeated id keeps the first copy.
+  CHECK(merger.addSubmap(0, 3, grid, Pose2(5, 5, 0), path).empty());
+  CHECK(merger.submapPose(0, 3)->x == 0.0);
+  merger.setPose(0, 3, Pose2(std::nan(""), 0, 0));  // ignored
+  CHECK(merger.submapPose(0, 3)->x == 0.0);
+
+  CHECK_THROWS_WITH(MapMerger(1), Catch::Contains("at least 2 robots"));
+  MapMergerOptions bad;
+  bad.patch_radius = 50;
+  CHECK_THROWS_WITH(MapMerger(2, bad), Catch::Contains("patch_radius"));
+  bad = {};
+  bad.max_conflict_fraction = std::nan("");
+  CHECK_THROWS_WITH(MapMerger(2, bad), Catch::Contains("max_conflict_fraction"));
+  bad = {};
+  bad.min_agreeing = 0;
+  CHECK_THROWS_WITH(MapMerger(2, bad), Catch::Contains("min_agreeing"));
+}
