@@ -17,6 +17,7 @@ PACKAGES=(
   libwebsocketpp-dev libasio-dev  # the live viewer's HTTP + WebSocket server (header-only)
   libfreenect-dev  # Kinect v1 driver (libfreenect0.5 also brings fakenect, its recording player)
   libsuitesparse-dev  # CHOLMOD for the Gauss-Newton pose-graph stage (Ceres pulls it in too)
+  iproute2  # `ip netns`: the multi-host tests put each host in its own network namespace
 )
 
 missing=()

@@ -1,6 +1,9 @@
-// sim_slam_split as two hosts: `tessera launch --host server` and `--host robot` as two processes
-// that share no memory, their topics over Cyclone DDS on the loopback interface (unicast
-// discovery, a partition of this test alone), checked against the same profile in one process.
+// Split profiles as several hosts: `tessera launch --host server` and `--host robot` (or r1, r2)
+// as processes that share no memory, their topics over Cyclone DDS, checked against the same
+// profile in one process. Where the machine allows it (root and iproute2: CI), each host runs in
+// its own network namespace, the namespaces joined by veth pairs on a bridge of their own, so
+// the hosts share no network interface either; elsewhere they meet on the loopback interface
+// (unicast discovery, a partition of this test alone) and the test says so.
 #include <tessera/evaluation/trajectory_metrics.hpp>
 #include <tessera/mapping/map_io.hpp>
 #include <tessera/mapping/trajectory_io.hpp>
@@ -15,6 +18,7 @@
 
 #include <cstdlib>
 #include <fstream>
+#include <iostream>
 #include <sstream>
 #include <thread>
 
@@ -26,10 +30,11 @@ namespace split_hosts_test {
 using namespace tessera;
 namespace fs = std::filesystem;
 
-/// `tessera ARGS`, output in `log`; the exit status.
-int runTessera(const std::string& args, const fs::path& log) {
+/// `PREFIX tessera ARGS` (a prefix such as `ip netns exec NS `), output in `log`; the exit
+/// status.
+int runTessera(const std::string& prefix, const std::string& args, const fs::path& log) {
   const std::string command =
-      std::string(TESSERA_CLI_PATH) + " " + args + " > " + log.string() + " 2>&1";
+      prefix + std::string(TESSERA_CLI_PATH) + " " + args + " > " + log.string() + " 2>&1";
   const int status = std::system(command.c_str());
   return WIFEXITED(status) ? WEXITSTATUS(status) : -1;
 }
@@ -69,26 +74,106 @@ std::pair<double, double> ateOneAndSplit(const fs::path& out, const std::string&
   return {ate(out / "one" / file), ate(out / host / file)};
 }
 
+/// Network namespaces for `hosts` (one each, 10.213.0.k/24 on a veth pair to a bridge in a
+/// namespace of its own), removed on destruction. isolated() is false, with why(), where they
+/// cannot be made (not root, no `ip`, a sandbox without network namespaces).
+class HostNetwork {
+ public:
+  explicit HostNetwork(std::size_t hosts) {
+    const std::string id = std::to_string(::getpid() % 100000) + "_" + std::to_string(next_++);
+    const auto ip = [](const std::string& args) {
+      return std::system(("ip " + args + " > /dev/null 2>&1").c_str()) == 0;
+    };
+    switch_ = "tsw_" + id;
+    if (!ip("netns add " + switch_)) {
+      why_ = "cannot create network namespaces (needs root and iproute2)";
+      switch_.clear();
+      return;
+    }
+    bool ok = ip("-n " + switch_ + " link add br0 type bridge") &&
+              ip("-n " + switch_ + " link set br0 up");
+    for (std::size_t k = 0; k < hosts && ok; ++k) {
+      const std::string ns = "th" + std::to_string(k) + "_" + id;
+      const std::string dev = "vh" + std::to_string(k) + "_" + id;
+      const std::string peer = "vs" + std::to_string(k) + "_" + id;
+      const std::string address = "10.213.0." + std::to_string(k + 1);
+      ok = ip("netns add " + ns);
+      if (ok) namespaces_.push_back(ns);
+      ok = ok &&
+           ip("link add " + dev + " netns " + ns + " type veth peer name " + peer + " netns " +
+              switch_) &&
+           ip("-n " + switch_ + " link set " + peer + " master br0") &&
+           ip("-n " + switch_ + " link set " + peer + " up") &&
+           ip("-n " + ns + " addr add " + address + "/24 dev " + dev) &&
+           ip("-n " + ns + " link set " + dev + " up") && ip("-n " + ns + " link set lo up");
+      devices_.push_back(dev);
+      addresses_.push_back(address);
+    }
+    if (!ok) {
+      why_ = "could not wire the network namespaces (veth, bridge)";
+      remove();
+    }
+  }
+  ~HostNetwork() { remove(); }
+  HostNetwork(const HostNetwork&) = delete;
+  HostNetwork& operator=(const HostNetwork&) = delete;
+
+  bool isolated() const { return !switch_.empty(); }
+  const std::string& why() const { return why_; }
+  /// The command prefix that runs host k in its namespace ("" on loopback).
+  std::string prefix(std::size_t k) const {
+    return isolated() ? "ip netns exec " + namespaces_[k] + " " : "";
+  }
+  /// The dds settings of host k: its interface and every host's address as peers.
+  std::string ddsSets(std::size_t k) const {
+    if (!isolated()) return " --set dds.interface=lo --set dds.peers=[127.0.0.1]";
+    std::string peers;
+    for (const auto& a : addresses_) peers += (peers.empty() ? "" : ",") + a;
+    return " --set dds.interface=" + devices_[k] + " --set dds.peers=[" + peers + "]";
+  }
+
+ private:
+  void remove() {
+    for (const auto& ns : namespaces_)
+      std::system(("ip netns del " + ns + " > /dev/null 2>&1").c_str());
+    if (!switch_.empty()) std::system(("ip netns del " + switch_ + " > /dev/null 2>&1").c_str());
+    namespaces_.clear();
+    switch_.clear();
+  }
+
+  static inline int next_ = 0;
+  std::string switch_, why_;
+  std::vector<std::string> namespaces_, devices_, addresses_;
+};
+
 /// Runs `profile` as a server and the given robot hosts, each `tessera launch --host NAME` (all
-/// at once), on the loopback interface in a partition of this test; outputs and logs under
-/// `out` (NAME/, NAME.log). `robot_sets` go to the robots, `server_sets` to the server. Returns
-/// the exit codes in the order of `robots`, the server's last.
+/// at once), each in its own network namespace where possible (HostNetwork), else on the loopback
+/// interface, in a partition of this test; outputs and logs under `out` (NAME/, NAME.log).
+/// `robot_sets` go to the robots, `server_sets` to the server. Returns the exit codes in the
+/// order of `robots`, the server's last.
 std::vector<int> runHosts(const std::string& profile, const fs::path& out,
                           const std::vector<std::string>& robots, const std::string& robot_sets,
                           const std::string& server_sets = "") {
-  const std::string dds = " --set dds.partition=tessera_e2e_" + profile + "_" +
-                          std::to_string(::getpid()) +
-                          " --set dds.interface=lo --set dds.peers=[127.0.0.1]";
+  const std::string dds =
+      " --set dds.partition=tessera_e2e_" + profile + "_" + std::to_string(::getpid());
   std::vector<std::string> names = robots;
   names.push_back("server");
+  const HostNetwork network(names.size());
+  if (network.isolated())
+    std::cout << "[split_hosts] " << profile << ": " << names.size()
+              << " hosts in their own network namespaces (veth pairs on a bridge)\n";
+  else
+    WARN(profile << ": hosts on the loopback interface: " << network.why());
   std::vector<int> status(names.size(), -1);
   std::vector<std::thread> hosts;
   for (std::size_t k = 0; k < names.size(); ++k)
     hosts.emplace_back([&, k] {
-      status[k] = runTessera("launch " + profile + " --host " + names[k] +
-                                 " --wait-peers 60 --out " + (out / names[k]).string() + dds +
-                                 (k < robots.size() ? robot_sets : server_sets),
-                             out / (names[k] + ".log"));
+      status[k] =
+          runTessera(network.prefix(k),
+                     "launch " + profile + " --host " + names[k] + " --wait-peers 60 --out " +
+                         (out / names[k]).string() + dds + network.ddsSets(k) +
+                         (k < robots.size() ? robot_sets : server_sets),
+                     out / (names[k] + ".log"));
     });
   for (auto& h : hosts) h.join();
   return status;
@@ -300,7 +385,10 @@ TEST_CASE("sim_multi_robot on three hosts: each robot gets the merged map and it
   for (const std::string r : {"r1", "r2"}) {
     INFO(r);
     const auto robot = nlohmann::json::parse(readText(out / r / ("summary_" + r + ".json")));
-    checkNothingLost(robot, server, {(r + "/submaps").c_str(), (r + "/chained_pose").c_str()});
+    // Every message on the reliable topics arrived (poses and scans are keep_latest).
+    checkNothingLost(
+        robot, server,
+        {(r + "/submaps").c_str(), (r + "/constraints").c_str(), (r + "/final_poses").c_str()});
     // What the robot received from the server: the merged map and its pose in it.
     CHECK(robot["dds_topics"]["map"]["received"].get<std::int64_t>() >= 1);
     CHECK(fs::exists(out / r / (r + "_received_map.yaml")));
