@@ -125,6 +125,32 @@ TEST_CASE("MapMerger joins two robots at their true relative frame", "[laser_sla
   }
 }
 
+TEST_CASE("MapMerger places a robot joined only through another one", "[laser_slam][map_merger]") {
+  // a and c saw opposite corners of the floor and share nothing; b drove through both.
+  const Pose2 frame_a(1.5, 2.0, 0.3), frame_b(10.0, 8.0, -1.2), frame_c(18.0, 14.0, 2.8);
+  MapMerger merger(3);
+  const auto boxes = floorBoxes();
+  merger.addSubmap(0, 0, submap(frame_a, {5, 6}, 8, boxes), Pose2(),
+                   drive(frame_a, {3, 3}, {6, 9}));
+  merger.addSubmap(1, 0, submap(frame_b, {10, 8}, 14, boxes), Pose2(),
+                   drive(frame_b, {3, 4}, {16, 12}));
+  CHECK(merger.frame(1));
+  CHECK_FALSE(merger.frame(2));
+  merger.addSubmap(2, 0, submap(frame_c, {17, 13}, 5, boxes), Pose2(),
+                   drive(frame_c, {18.5, 9.5}, {15, 14.5}));
+  for (int robot : {1, 2}) {
+    INFO("robot " << robot);
+    const auto frame = merger.frame(robot);
+    REQUIRE(frame);
+    const Pose2 truth = frame_a.inverse() * (robot == 1 ? frame_b : frame_c);
+    CHECK(std::hypot(frame->x - truth.x, frame->y - truth.y) < 0.15);
+    CHECK(std::abs(tessera::angleDiff(frame->theta, truth.theta)) < 0.03);
+  }
+  CHECK(merger.relativeFrame(2, 0));       // either way round
+  for (const auto& c : merger.closures())  // c was placed through b alone
+    CHECK_FALSE(((c.robot_a == 0 && c.robot_b == 2) || (c.robot_a == 2 && c.robot_b == 0)));
+}
+
 TEST_CASE("MapMerger never joins a look-alike floor", "[laser_slam][map_merger]") {
   // Robot b is on another floor: the same rooms turned half a turn, one cabinet elsewhere. The
   // global search finds the turned alignment; overlaying the submaps shows the cabinet on free

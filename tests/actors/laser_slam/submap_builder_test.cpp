@@ -376,6 +376,28 @@ TEST_CASE("submap builder rejects bad options naming the key", "[rbpf][submap_bu
   o = {};
   o.submap_distance = -1;
   CHECK_THROWS_WITH(SubmapBuilderActor(o), Catch::Contains("submap_distance"));
+  o = {};
+  o.loop_scan_every = -2;
+  CHECK_THROWS_WITH(SubmapBuilderActor(o), Catch::Contains("loop_scan_every"));
+}
+
+TEST_CASE("loop_scan_every republishes every n-th scan that got a pose, and only those",
+          "[rbpf][submap_builder]") {
+  const auto sim = test::simulateRoomLoop();
+  SubmapBuilderOptions o = fastOptions();
+  o.loop_scan_every = 5;
+  ActorHarness h(std::make_unique<SubmapBuilderActor>(o));
+  feedAndStop(h, sim, 60);
+  const auto poses = h.published<msg::PoseStamped>("chained_pose");
+  const auto scans = h.published<msg::LaserScan>("loop_scans");
+  REQUIRE(poses.size() == 60);
+  REQUIRE(scans.size() == 12);
+  for (std::size_t k = 0; k < scans.size(); ++k)
+    CHECK(scans[k]->getHeader().getStampNs() == poses[5 * k + 4]->getHeader().getStampNs());
+  // Off by default: nothing on loop_scans.
+  ActorHarness off(std::make_unique<SubmapBuilderActor>(fastOptions()));
+  feedAndStop(off, sim, 10);
+  CHECK(off.publishedCount("loop_scans") == 0);
 }
 
 TEST_CASE("map assembler draws submaps at their global poses", "[map_assembler]") {

@@ -26,6 +26,8 @@ Rbpf checkedFilter(const SubmapBuilderOptions& o) {
   if (!(std::isfinite(o.max_pose_gap_s) && o.max_pose_gap_s > 0))
     fail("max_pose_gap_s must be > 0");
   if (o.frame_id.empty()) fail("frame_id must not be empty");
+  if (o.loop_scan_every < 0)
+    fail("loop_scan_every must be >= 0 (0 = off; got " + std::to_string(o.loop_scan_every) + ")");
   try {
     return Rbpf(o.rbpf);  // the core owns the rules for its options
   } catch (const std::invalid_argument& e) {
@@ -73,6 +75,7 @@ void SubmapBuilderActor::configure(ActorContext& ctx) {
   submap_pub_ = ctx.advertise<msg::Submap>("submaps");
   constraint_pub_ = ctx.advertise<msg::SubmapConstraint>("constraints");
   final_pub_ = ctx.advertise<msg::PoseStamped>("final_poses");
+  if (options_.loop_scan_every > 0) loop_scan_pub_ = ctx.advertise<msg::LaserScan>("loop_scans");
 }
 
 void SubmapBuilderActor::onScan(const Message<msg::LaserScan>& scan) {
@@ -161,6 +164,9 @@ void SubmapBuilderActor::process(const Message<msg::LaserScan>& scan, const tess
     handOver(stamp);
   }
   publishPose(stamp, odom);
+  if (options_.loop_scan_every > 0 &&
+      ++loop_scan_count_ % static_cast<std::uint64_t>(options_.loop_scan_every) == 0)
+    loop_scan_pub_.publish(scan);
 }
 
 void SubmapBuilderActor::publishPose(Nanos stamp, const tessera::Pose2& odometry) {

@@ -29,6 +29,10 @@
 //                                       (when the filter is lost, rbpf.lost_match_fraction: the
 //                                       odometry's guess with the lost_sigma_* covariance, so
 //                                       later constraints place the new submap)
+//   loop_scans   msg::LaserScan         only with loop_scan_every n > 0: every n-th scan that got
+//                                       a pose (the same message, zero copy), for a loop detector
+//                                       on another host (its every_n_scans then 1): n times fewer
+//                                       scan bytes cross than with every scan
 //   final_poses  msg::PoseStamped       in stop(): one per scan, the best particle's pose at the
 //                                       filter update before it (trajectory tree, submap by
 //                                       submap, map frame) moved by the odometry since (with
@@ -72,6 +76,7 @@ struct SubmapBuilderOptions {
   bool camera_trigger = false;
   bool interpolate_updates = false;
   bool optimized_poses = false;
+  int loop_scan_every = 0;
   // Plumbing.
   std::string frame_id = "map";
   int scan_queue = 8;
@@ -93,6 +98,9 @@ struct SubmapBuilderOptions {
     v("optimized_poses", optimized_poses,
       "subscribe to submap_poses: the live pose and map_to_odom place the current submap by the "
       "latest optimised graph instead of by chained hand-overs");
+    v("loop_scan_every", loop_scan_every,
+      "republish every n-th scan that got a pose on loop_scans (0 = off): what a loop detector "
+      "on another host reads instead of every scan");
     v("frame_id", frame_id, "global frame of the published poses");
     v("scan_queue", scan_queue, "scan mailbox size (keep-latest)");
     v("odom_queue", odom_queue, "odometry mailbox size (keep-latest)");
@@ -193,6 +201,8 @@ class SubmapBuilderActor final : public Actor {
   Publisher<msg::Submap> submap_pub_;
   Publisher<msg::SubmapConstraint> constraint_pub_;
   Publisher<msg::PoseStamped> final_pub_;
+  Publisher<msg::LaserScan> loop_scan_pub_;
+  std::uint64_t loop_scan_count_ = 0;
   std::vector<Rbpf::StampedPose> finished_trajectory_;  // best trajectories of closed submaps
   // [s], each scan's motion chain: odometry, or with tracking the online pose's scan-matched
   // motion between updates (densify() moves the smoothed update poses by it)
