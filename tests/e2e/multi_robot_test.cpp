@@ -12,6 +12,7 @@
 #include <fstream>
 #include <sstream>
 
+#include "../shared_data.hpp"
 #include "run_profile.hpp"
 
 using namespace tessera;

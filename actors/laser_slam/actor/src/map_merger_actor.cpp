@@ -1,6 +1,7 @@
 #include <tessera/laser_slam/map_merger_actor.hpp>
 
 #include <tessera/actor_common/map_message.hpp>
+#include <tessera/io/atomic_file.hpp>
 #include <tessera/messages/views.hpp>
 #include <tessera/runtime/periodic.hpp>
 #include <tessera/runtime/registry.hpp>
@@ -9,7 +10,6 @@
 #include <cctype>
 #include <cmath>
 #include <filesystem>
-#include <fstream>
 #include <iomanip>
 #include <iostream>
 #include <set>
@@ -120,9 +120,9 @@ void MapMergerActor::onSubmap(int robot, const Message<msg::Submap>& m) {
   }
   const std::string error = merger_.addSubmap(robot, id, std::move(grid), pose, trajectory);
   if (!error.empty()) {
+    // Counted by the merger (merger_submaps_rejected adds both counts).
     std::cerr << "[map_merger] " << options_.robots[static_cast<std::size_t>(robot)] << ": "
               << error << "; left out\n";
-    ++submaps_rejected_;
     return;
   }
   r.chained[id] = chained;
@@ -224,10 +224,11 @@ bool MapMergerActor::truthFrame(int robot, tessera::Pose2& out) const {
 }
 
 void MapMergerActor::writeFrames() {
+  // Written whole or not at all (io::AtomicFile): a reader never sees half a file.
   try {
     const std::filesystem::path path = std::filesystem::path(output_dir_) / options_.frames_file;
-    std::ofstream out(path);
-    if (!out) throw std::runtime_error(path.string() + ": cannot open for writing");
+    io::AtomicFile file(path);
+    std::ostream& out = file.stream();
     out << std::setprecision(9) << "{\n  \"frame_id\": \"" << options_.frame_id
         << "\",\n  \"reference\": \"" << options_.robots[0] << "\",\n  \"robots\": [\n";
     for (std::size_t k = 0; k < options_.robots.size(); ++k) {
@@ -244,7 +245,7 @@ void MapMergerActor::writeFrames() {
           << "\n";
     }
     out << "  ]\n}\n";
-    if (!out) throw std::runtime_error(path.string() + ": write failed");
+    file.commit();
     frames_path_ = path.string();
   } catch (const std::exception& e) {
     write_error_ = e.what();
