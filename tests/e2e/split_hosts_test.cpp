@@ -217,8 +217,15 @@ TEST_CASE("sim_slam_split on two hosts over DDS maps as one process does, nothin
 
   const auto server = nlohmann::json::parse(readText(out / "server" / "summary_server.json"));
   const auto robot = nlohmann::json::parse(readText(out / "robot" / "summary_robot.json"));
-  // Every message the robot sent on a reliable topic arrived (the scans are keep_latest).
-  checkNothingLost(robot, server, {"submaps", "chained_pose", "constraints", "ground_truth"});
+  // Every message the robot sent on a reliable topic arrived. chained_pose, ground_truth and the
+  // loop scans have only keep_latest subscribers, so they cross best-effort: a sample can be
+  // dropped (it was, once, the last pose in the burst at the robot's stop); nearly all arrive.
+  checkNothingLost(robot, server, {"submaps", "constraints", "final_poses"});
+  for (const char* topic : {"chained_pose", "ground_truth", "loop_scans"}) {
+    INFO(topic);
+    CHECK(server["dds_topics"][topic]["received"].get<double>() >=
+          0.99 * robot["dds_topics"][topic]["sent"].get<double>());
+  }
   // Submaps cross compressed.
   CHECK(robot["dds_topics"]["submaps"]["bytes_sent"].get<double>() <
         0.8 * robot["dds_topics"]["submaps"]["bytes_raw"].get<double>());
