@@ -558,9 +558,7 @@ void addMerged(CLI::App& eval, int& result) {
       auto segments = readWalls(a->walls);
       // Into the merged frame: the inverse of the alignment (estimate -> reference).
       const auto toMap = [&](const Eigen::Vector2d& p) -> Eigen::Vector2d {
-        const Eigen::Vector3d q = r.alignment.rotation.transpose() *
-                                  (Eigen::Vector3d(p.x(), p.y(), 0) - r.alignment.translation);
-        return q.head<2>();
+        return r.alignment.unapply({p.x(), p.y(), 0}).head<2>();
       };
       for (auto& w : segments) {
         w.a = toMap(w.a);

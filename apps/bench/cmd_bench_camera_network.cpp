@@ -108,11 +108,8 @@ nlohmann::json scoreRun(const fs::path& dir, const std::string& config, bool cam
   const auto ate = evaluation::computeAte(mapping::readTum(dir / "trajectory_final.tum"), truth);
   // The walls move into the SLAM's map frame by the trajectory's rigid alignment (the map's
   // placement in the world is a free choice, as for the ATE).
-  const auto& a = ate.alignment;
   const auto toMap = [&](const Eigen::Vector2d& p) -> Eigen::Vector2d {
-    const Eigen::Vector3d q =
-        a.rotation.transpose() * (Eigen::Vector3d(p.x(), p.y(), 0) - a.translation) / a.scale;
-    return q.head<2>();
+    return ate.alignment.unapply({p.x(), p.y(), 0}).head<2>();
   };
   auto walls = evaluation::readWalls((dir / "walls.txt").string());
   for (auto& w : walls) {

@@ -290,12 +290,7 @@ Profile parseProfile(const std::string& yaml_text, const std::string& path,
     if (a["namespace"]) {
       spec.topic_namespace = scalar(path, a["namespace"], "actors." + spec.name + ".namespace");
       const auto& n = spec.topic_namespace;
-      const bool ok = !n.empty() && n.front() != '/' && n.back() != '/' &&
-                      n.find("//") == std::string::npos &&
-                      std::all_of(n.begin(), n.end(), [](char c) {
-                        return std::isalnum(static_cast<unsigned char>(c)) || c == '_' || c == '/';
-                      });
-      if (!ok)
+      if (!isTopicNamespace(n))
         throw ConfigError(at(path, a["namespace"]) + ": actors." + spec.name + ".namespace: '" + n +
                           "' is not a namespace (expected letters, digits, '_' and inner '/', "
                           "e.g. r1 or fleet/r1)");
@@ -307,6 +302,13 @@ Profile parseProfile(const std::string& yaml_text, const std::string& path,
     p.actors.push_back(std::move(spec));
   }
   return p;
+}
+
+bool isTopicNamespace(std::string_view n) {
+  return !n.empty() && n.front() != '/' && n.back() != '/' && n.find("//") == n.npos &&
+         std::all_of(n.begin(), n.end(), [](char c) {
+           return std::isalnum(static_cast<unsigned char>(c)) || c == '_' || c == '/';
+         });
 }
 
 Profile loadProfile(const std::string& path, const std::vector<std::string>& overrides) {

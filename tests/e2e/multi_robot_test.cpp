@@ -26,11 +26,7 @@ evaluation::MapWallScore wallScore(const fs::path& map, const fs::path& walls_fi
                                    const evaluation::Alignment& alignment) {
   auto walls = evaluation::readWalls(walls_file.string());
   for (auto& w : walls)
-    for (Eigen::Vector2d* p : {&w.a, &w.b}) {
-      const Eigen::Vector3d q = alignment.rotation.transpose() *
-                                (Eigen::Vector3d(p->x(), p->y(), 0) - alignment.translation);
-      *p = q.head<2>();
-    }
+    for (Eigen::Vector2d* p : {&w.a, &w.b}) *p = alignment.unapply({p->x(), p->y(), 0}).head<2>();
   return evaluation::scoreMapAgainstWalls(mapping::loadMap(map), walls);
 }
 

@@ -5,8 +5,6 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
-#include <cstdio>
-#include <cstdlib>
 #include <deque>
 #include <list>
 #include <numbers>
@@ -26,6 +24,9 @@ using tessera::scan_matching::SearchWindow;
 
 /// Key of a submap in the MapAssembler and the pyramid cache: robot · stride + id.
 constexpr std::int64_t kIdStride = std::int64_t{1} << 24;
+int keyOf(int robot, int id) {
+  return static_cast<int>(robot * kIdStride + id);
+}
 
 struct Patch {
   Pose2 pose;  // in the submap's frame
@@ -49,7 +50,7 @@ struct PairState {
 };
 
 struct CachedPyramid {
-  std::int64_t key = 0;
+  int key = 0;  // keyOf(robot, submap)
   std::uint64_t used = 0;
   std::unique_ptr<MatchGrid> grid;
 };
@@ -167,7 +168,7 @@ struct MapMerger::Impl {
         robots(static_cast<std::size_t>(n)) {}
 
   const MatchGrid& finePyramid(int robot, int id) {
-    const std::int64_t key = robot * kIdStride + id;
+    const int key = keyOf(robot, id);
     ++clock;
     for (auto& c : cache)
       if (c.key == key) {
@@ -177,7 +178,7 @@ struct MapMerger::Impl {
     if (cache.size() >= static_cast<std::size_t>(options.fine_cache))
       cache.erase(std::min_element(cache.begin(), cache.end(),
                                    [](const auto& a, const auto& b) { return a.used < b.used; }));
-    const auto cells = assembler.grid(static_cast<int>(key));
+    const auto cells = assembler.grid(key);
     auto grid = std::make_unique<MatchGrid>(fine.precompute(GridView::of(*cells)));
     cache.push_back({key, clock, std::move(grid)});
     return *cache.back().grid;
@@ -332,7 +333,7 @@ std::string MapMerger::addSubmap(int robot, int id, OccupancyMap grid, const Pos
   });
   counts_.patches += patches.size();
 
-  impl_->assembler.setSubmap(static_cast<int>(robot * kIdStride + id), std::move(grid));
+  impl_->assembler.setSubmap(keyOf(robot, id), std::move(grid));
   mine.emplace(id, std::move(s));
   const Submap& self = mine.at(id);
 
@@ -400,18 +401,14 @@ std::string MapMerger::addSubmap(int robot, int id, OccupancyMap grid, const Pos
     if (global) {
       // Overlay the two whole submaps at the match (pose of s's origin in t's frame).
       const Pose2 s_in_t = result.pose * patch.pose.inverse();
-      const auto a = impl_->assembler.grid(static_cast<int>(robot * kIdStride + id));
-      const auto b = impl_->assembler.grid(static_cast<int>(other * kIdStride + t.id));
+      const auto a = impl_->assembler.grid(keyOf(robot, id));
+      const auto b = impl_->assembler.grid(keyOf(other, t.id));
       const auto [agree_ab, conflict_ab] =
           conflicts(*a, *b, s_in_t, o.occupied_percent, o.free_percent);
       const auto [agree_ba, conflict_ba] =
           conflicts(*b, *a, s_in_t.inverse(), o.occupied_percent, o.free_percent);
       const double total = static_cast<double>(agree_ab + conflict_ab + agree_ba + conflict_ba);
       const double fraction = total > 0 ? (conflict_ab + conflict_ba) / total : 1.0;
-      if (std::getenv("TESSERA_MERGER_DEBUG"))
-        std::fprintf(stderr, "merger: r%d s%d -> r%d t%d score %.3f conflicts %.4f (%zu/%g)\n",
-                     robot, id, other, t.id, result.score, fraction, conflict_ab + conflict_ba,
-                     total);
       if (fraction > o.max_conflict_fraction) {
         ++counts_.conflicting;
         return;
@@ -510,7 +507,7 @@ OccupancyMap MapMerger::assemble() {
     const auto f = frame(k);
     if (!f) continue;
     for (const auto& [id, s] : impl_->robots[static_cast<std::size_t>(k)])
-      impl_->assembler.setPose(static_cast<int>(k * kIdStride + id), *f * s.pose);
+      impl_->assembler.setPose(keyOf(k, id), *f * s.pose);
   }
   return impl_->assembler.assemble();
 }

@@ -537,3 +537,13 @@ TEST_CASE("heading drift: unaligned, relative to the first pose, unwrapped past 
   CHECK_THROWS_AS(tessera::evaluation::computeHeadingDrift({}, reference),
                   tessera::evaluation::MetricError);
 }
+
+TEST_CASE("an alignment's unapply undoes apply", "[evaluation]") {
+  Alignment a;
+  a.rotation = Eigen::AngleAxisd(0.7, Eigen::Vector3d::UnitZ()).toRotationMatrix();
+  a.translation = {3, -2, 0.5};
+  a.scale = 1.3;
+  const Eigen::Vector3d p(1.5, -4, 2);
+  CHECK((a.unapply(a.apply(p)) - p).norm() < 1e-12);
+  CHECK((a.apply(a.unapply(p)) - p).norm() < 1e-12);
+}

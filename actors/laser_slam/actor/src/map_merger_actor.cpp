@@ -4,10 +4,10 @@
 #include <tessera/io/atomic_file.hpp>
 #include <tessera/messages/views.hpp>
 #include <tessera/runtime/periodic.hpp>
+#include <tessera/runtime/profile.hpp>
 #include <tessera/runtime/registry.hpp>
 
 #include <algorithm>
-#include <cctype>
 #include <cmath>
 #include <filesystem>
 #include <iomanip>
@@ -25,11 +25,8 @@ MapMerger checkedMerger(const MapMergerActorOptions& o) {
          ")");
   std::set<std::string> seen;
   for (const auto& r : o.robots) {
-    const bool ok = !r.empty() && r.front() != '/' && r.back() != '/' &&
-                    std::all_of(r.begin(), r.end(), [](char c) {
-                      return std::isalnum(static_cast<unsigned char>(c)) || c == '_' || c == '/';
-                    });
-    if (!ok) fail("robots: '" + r + "' is not a topic namespace (letters, digits, '_', inner '/')");
+    if (!isTopicNamespace(r))
+      fail("robots: '" + r + "' is not a topic namespace (letters, digits, '_', inner '/')");
     if (!seen.insert(r).second) fail("robots: '" + r + "' is named twice");
   }
   if (!(std::isfinite(o.publish_period_s) && o.publish_period_s >= 0))

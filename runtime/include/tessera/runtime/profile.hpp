@@ -33,6 +33,7 @@
 #include <map>
 #include <memory>
 #include <string>
+#include <string_view>
 #include <vector>
 
 namespace tessera {
@@ -63,6 +64,10 @@ struct Profile {
   Params dds;
   bool has_dds = false;
 };
+
+/// A topic namespace (an actor's `namespace:`, a robot's prefix): letters, digits, '_' and '/'
+/// between non-empty parts, e.g. "r1" or "fleet/r1".
+bool isTopicNamespace(std::string_view name);
 
 /// Parses and validates a profile file, applying --set overrides in order. Throws ConfigError.
 Profile loadProfile(const std::string& path, const std::vector<std::string>& overrides = {});

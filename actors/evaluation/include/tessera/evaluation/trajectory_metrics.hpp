@@ -76,6 +76,11 @@ struct Alignment {
   Eigen::Vector3d apply(const Eigen::Vector3d& p) const {
     return scale * (rotation * p) + translation;
   }
+  /// The inverse: a reference-frame point in the estimate's frame (e.g. true walls moved into a
+  /// SLAM map's frame).
+  Eigen::Vector3d unapply(const Eigen::Vector3d& p) const {
+    return rotation.transpose() * (p - translation) / scale;
+  }
 };
 
 /// Least-squares alignment of the columns of `from` onto those of `to` (same count). Planar: z
