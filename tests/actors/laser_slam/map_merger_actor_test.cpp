@@ -139,6 +139,8 @@ TEST_CASE("map_merger refuses bad options by name", "[laser_slam][map_merger]") 
   CHECK_THROWS_WITH(MapMergerActor(o), Catch::Contains("'r1' is named twice"));
   o.robots = {"r1", "/r2"};
   CHECK_THROWS_WITH(MapMergerActor(o), Catch::Contains("'/r2'"));
+  o.robots = {"r1", "fleet//r2"};  // the profile's namespace rule: no empty part
+  CHECK_THROWS_WITH(MapMergerActor(o), Catch::Contains("'fleet//r2'"));
   o = twoRobots();
   o.publish_period_s = std::nan("");
   CHECK_THROWS_WITH(MapMergerActor(o), Catch::Contains("publish_period_s"));
