@@ -59,6 +59,8 @@ void addGoalCommand(CLI::App& app, int& result);
 nlohmann::json summaryJson(const Profile& profile, const RunReport& report);
 /// Adds `tessera record` (a profile plus a recorder actor).
 void addRecordCommand(CLI::App& app, int& result);
+/// Adds `tessera batch` (a recorded RGB-D sequence as parallel map tasks and one reduce).
+void addBatchCommand(CLI::App& app, int& result);
 /// Adds `tessera replay` (a recording into a profile, or --info).
 void addReplayCommand(CLI::App& app, int& result);
 

@@ -24,6 +24,7 @@ int main(int argc, char** argv) {
   tessera::app::addActorsCommand(app, result);
   tessera::app::addRecordCommand(app, result);
   tessera::app::addReplayCommand(app, result);
+  tessera::app::addBatchCommand(app, result);
   tessera::app::addEvalCommand(app, result);
   tessera::app::addGraphCommand(app, result);
   tessera::app::addMapCommand(app, result);

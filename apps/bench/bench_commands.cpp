@@ -23,6 +23,7 @@ void addBenchCommands(CLI::App& app, int& result) {
   addBenchViewerCommand(*bench, result);
   addBenchDriversCommand(*bench, result);
   addBenchDdsCommand(*bench, result);
+  addBenchBatchCommand(*bench, result);
 }
 
 }  // namespace tessera::app

@@ -36,5 +36,7 @@ void addBenchViewerCommand(CLI::App& bench, int& result);
 void addBenchDriversCommand(CLI::App& bench, int& result);
 /// `tessera bench dds`: latency over DDS (ours vs raw Cyclone) and robot -> server bandwidth.
 void addBenchDdsCommand(CLI::App& bench, int& result);
+/// `bench batch`: batch reprocessing against worker processes (cmd_bench_batch.cpp).
+void addBenchBatchCommand(CLI::App& bench, int& result);
 
 }  // namespace tessera::app

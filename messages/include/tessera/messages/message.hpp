@@ -159,6 +159,13 @@ class Loan {
   Builder* operator->() { return &root_; }
   Builder& builder() { return root_; }
 
+  /// Makes the message a copy of `source` (to forward a received message with a field changed);
+  /// the builder then edits the copy.
+  void copyFrom(typename T::Reader source) {
+    storage_->builder().setRoot(source);
+    root_ = storage_->builder().template getRoot<T>();
+  }
+
   /// Bytes for one large Data field, reserved with the loan (Publisher::loanWithBlob): placed
   /// after the message rather than inside it, and NOT zeroed, so a producer that overwrites a
   /// large payload anyway writes it once (a Data field from init...() is zeroed first, then

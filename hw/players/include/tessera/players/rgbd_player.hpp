@@ -78,6 +78,9 @@ class RgbdPlayerActor final : public Actor {
   void summarize(Summary& out) const override;
 
   const datasets::RgbdSequence& sequence() const { return sequence_; }
+  /// The frames it plays, [begin, end) of sequence().frames (first_frame / last_frame applied).
+  std::size_t beginFrame() const { return begin_; }
+  std::size_t endFrame() const { return end_; }
 
  private:
   void playNext();
