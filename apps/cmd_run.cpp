@@ -48,6 +48,14 @@ nlohmann::json summaryJson(const Profile& profile, const RunReport& r) {
     aj["handler_p50_us"] = a.handler_p50_us;
     aj["handler_p99_us"] = a.handler_p99_us;
     aj["handler_total_s"] = a.handler_total_s;
+    aj["queue_wait_p50_us"] = a.queue_wait_p50_us;
+    aj["queue_wait_p99_us"] = a.queue_wait_p99_us;
+    nlohmann::json subs = nlohmann::json::object();
+    for (const auto& s : a.subscriptions)
+      subs[s.topic] = {{"policy", s.reliable ? "reliable" : "keep_latest"},
+                       {"handled", s.handled},
+                       {"drops", s.drops}};
+    aj["subscriptions"] = subs;
     for (const auto& [k, v] : a.summary) {
       aj[k] = toJson(v);
       // Actor figures are also top-level keys (scripts read e.g. summary["scans_processed"]);
@@ -172,7 +180,10 @@ int runProfile(const Profile& profile, const std::string& verb, const RunSetting
     }
     std::cerr << "\n";
   }
-  std::cerr << "  clock: " << (profile.clock == ClockKind::kSimulated ? "simulated" : "wall")
+  std::cerr << "  clock: "
+            << (profile.clock == ClockKind::kSimulated ? "simulated"
+                : profile.clock == ClockKind::kPaced   ? "paced (never waits for the actors)"
+                                                       : "wall")
             << (profile.clock == ClockKind::kSimulated && profile.sim_rate == 0
                     ? " (as fast as possible)"
                     : "")

@@ -24,6 +24,7 @@ void addBenchCommands(CLI::App& app, int& result) {
   addBenchDriversCommand(*bench, result);
   addBenchDdsCommand(*bench, result);
   addBenchBatchCommand(*bench, result);
+  addBenchOverloadCommand(*bench, result);
 }
 
 }  // namespace tessera::app

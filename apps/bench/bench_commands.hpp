@@ -38,5 +38,7 @@ void addBenchDriversCommand(CLI::App& bench, int& result);
 void addBenchDdsCommand(CLI::App& bench, int& result);
 /// `bench batch`: batch reprocessing against worker processes (cmd_bench_batch.cpp).
 void addBenchBatchCommand(CLI::App& bench, int& result);
+/// `bench overload`: every profile with sensors at F x real time (cmd_bench_overload.cpp).
+void addBenchOverloadCommand(CLI::App& bench, int& result);
 
 }  // namespace tessera::app

@@ -16,8 +16,17 @@ Nanos readClock(clockid_t id) {
 }
 }  // namespace
 
+Clock::Clock(ClockKind kind, Nanos sim_start, double rate)
+    : kind_(kind), sim_now_(sim_start), rate_(rate > 0 ? rate : 1.0) {
+  if (kind_ == ClockKind::kPaced) origin_ = readClock(CLOCK_MONOTONIC);
+}
+
 Nanos Clock::now() const {
   if (kind_ == ClockKind::kWall) return readClock(CLOCK_REALTIME);
+  if (kind_ == ClockKind::kPaced) {
+    const double elapsed = static_cast<double>(readClock(CLOCK_MONOTONIC) - origin_) * rate_;
+    return sim_now_.load(std::memory_order_relaxed) + static_cast<Nanos>(elapsed);
+  }
   return sim_now_.load(std::memory_order_acquire);
 }
 

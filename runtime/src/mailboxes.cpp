@@ -128,6 +128,7 @@ void Runtime::Impl::enqueue(ActorSlot& actor, Item item, bool schedule_it) {
     ++mailbox.queued;
   }
   if (options.manual) item.order = order_counter.fetch_add(1);
+  if (item.subscription >= 0) item.enqueued = steadyNow();
   pending.fetch_add(1);
   actor.queue.push_back(std::move(item));
   actor.max_depth = std::max<std::uint64_t>(actor.max_depth, actor.queue.size());
@@ -252,6 +253,8 @@ void Runtime::Impl::dispatch(ActorSlot& actor, Item& item) {
     // Indexed anew after the handler: in manual mode it may subscribe, moving the vector.
     const auto subscription = static_cast<std::size_t>(item.subscription);
     ++actor.messages_in;
+    ++actor.subscriptions[subscription].handled;
+    actor.queue_wait.add(item.enqueued > 0 ? t0 - item.enqueued : 0);
     try {
       actor.subscriptions[subscription].handler(item.message);
     } catch (const MalformedMessage& e) {

@@ -62,8 +62,14 @@ RunReport Runtime::Impl::makeReport() const {
     a.messages_out = c->messages_out;
     a.timer_calls = c->timer_calls;
     a.malformed = c->malformed;
-    for (const auto& s : c->subscriptions) a.drops += s.drops;
+    for (const auto& s : c->subscriptions) {
+      a.drops += s.drops;
+      a.subscriptions.push_back(
+          {s.topic, s.policy.kind == MailboxPolicy::Kind::kReliable, s.handled, s.drops});
+    }
     a.max_queue_depth = c->max_depth;
+    a.queue_wait_p50_us = c->queue_wait.percentileMicros(0.50);
+    a.queue_wait_p99_us = c->queue_wait.percentileMicros(0.99);
     a.handler_p50_us = c->handler_time.percentileMicros(0.50);
     a.handler_p99_us = c->handler_time.percentileMicros(0.99);
     a.handler_total_s = c->handler_time.totalSeconds();

@@ -217,9 +217,11 @@ Profile parseProfile(const std::string& yaml_text, const std::string& path,
       p.clock = ClockKind::kSimulated;
     else if (c == "wall")
       p.clock = ClockKind::kWall;
+    else if (c == "paced")
+      p.clock = ClockKind::kPaced;
     else
-      throw ConfigError(at(path, root["clock"]) + ": clock: expected 'sim' or 'wall', got '" + c +
-                        "'");
+      throw ConfigError(at(path, root["clock"]) +
+                        ": clock: expected 'sim', 'wall' or 'paced', got '" + c + "'");
   }
   if (root["sim_rate"]) {
     p.sim_rate = number(path, root["sim_rate"], "sim_rate");
@@ -324,6 +326,10 @@ std::unique_ptr<Runtime> build(const Profile& profile, RuntimeOptions options,
                                const std::string* process,
                                const std::function<void(Runtime&)>& before_configure,
                                bool allow_unpublished = false) {
+  if (profile.clock == ClockKind::kPaced && !(profile.sim_rate > 0))
+    throw ConfigError(profile.path +
+                      ": clock 'paced' needs sim_rate > 0 (simulated seconds per "
+                      "wall second, e.g. --rate 10)");
   options.clock = profile.clock;
   options.sim_rate = profile.sim_rate;
   options.max_sim_duration = secondsToNanos(profile.max_duration_s);

@@ -163,8 +163,12 @@ RecordingWriter::RecordingWriter(std::string path, std::vector<RecordingTopic> t
                            " bytes");
   }
   if (options_.block_bytes == 0) options_.block_bytes = 1;
-  file_ = std::fopen(path_.c_str(), "wb");
-  if (file_ == nullptr) throw RecordingError(path_ + ": cannot create: " + std::strerror(errno));
+  // Written under a temporary name and renamed by close(), so `path` is only ever a complete
+  // recording (a previous one stays until the new one is whole); after a crash the ".partial"
+  // file is still readable: the reader scans its blocks.
+  file_ = std::fopen(partialPath().c_str(), "wb");
+  if (file_ == nullptr)
+    throw RecordingError(partialPath() + ": cannot create: " + std::strerror(errno));
   topic_counts_.assign(topics_.size(), 0);
 
   std::vector<unsigned char> body;
@@ -301,7 +305,15 @@ void RecordingWriter::close() {
   writeBytes(footer.data(), footer.size());
   std::FILE* f = file_;
   file_ = nullptr;
-  if (std::fclose(f) != 0) throw RecordingError(path_ + ": close failed: " + std::strerror(errno));
+  const bool synced = std::fflush(f) == 0 && ::fsync(::fileno(f)) == 0;
+  const int sync_errno = errno;
+  if (std::fclose(f) != 0 || !synced)
+    throw RecordingError(partialPath() +
+                         ": close failed: " + std::strerror(synced ? errno : sync_errno) + " (" +
+                         path_ + " was not replaced)");
+  if (std::rename(partialPath().c_str(), path_.c_str()) != 0)
+    throw RecordingError(partialPath() + ": cannot rename to " + path_ + ": " +
+                         std::strerror(errno));
 }
 
 // ---------------------------------------------------------------- reader

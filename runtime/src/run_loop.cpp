@@ -14,7 +14,7 @@
 namespace tessera {
 
 Runtime::Impl::Impl(RuntimeOptions o)
-    : options(std::move(o)), clock(options.clock, options.sim_start) {}
+    : options(std::move(o)), clock(options.clock, options.sim_start, options.sim_rate) {}
 
 Runtime::Runtime(RuntimeOptions options) : impl_(std::make_unique<Impl>(std::move(options))) {}
 
@@ -318,13 +318,23 @@ class RunLoop {
     }
   }
 
-  /// Wall clock: fires the timers that are due, or waits (at most 20 ms, less when work ends)
-  /// for the next one. The run goes on until a stop is requested.
+  /// Wall or paced clock: fires the timers that are due, or waits (at most 20 ms, less when work
+  /// ends) for the next one. The run goes on until a stop is requested, its finite inputs are
+  /// done, or max_duration_s has passed.
   bool fireWallClockTimers(Nanos due) {
     const Nanos now = rt_.clock.now();
+    if (now >= limit_) {
+      end_reason_ = "reached max_duration_s";
+      return false;
+    }
     if (due > now) {
+      // A paced clock runs sim_rate times faster than the wall: wait that much less.
+      const double rate = rt_.clock.kind() == ClockKind::kPaced && rt_.options.sim_rate > 0
+                              ? rt_.options.sim_rate
+                              : 1.0;
+      const auto wait = static_cast<Nanos>(static_cast<double>(std::min(due, limit_) - now) / rate);
       std::unique_lock lock(rt_.idle_mutex);
-      rt_.idle_cv.wait_for(lock, std::chrono::nanoseconds(std::min<Nanos>(due - now, 20'000'000)));
+      rt_.idle_cv.wait_for(lock, std::chrono::nanoseconds(std::clamp<Nanos>(wait, 0, 20'000'000)));
       return true;
     }
     rt_.fireTimersDueBy(now);

@@ -57,6 +57,7 @@ struct Subscription {
   RawHandler handler;
   std::size_t queued = 0;
   std::uint64_t drops = 0;
+  std::uint64_t handled = 0;  // messages its handler ran on (under the strand)
 };
 
 /// One queued unit of work: a message for a subscription (index >= 0), or a timer tick
@@ -65,6 +66,7 @@ struct Item {
   std::int32_t subscription;
   std::uint64_t order;  // global arrival order, for deterministic manual stepping
   std::shared_ptr<const MessageStorage> message;
+  Nanos enqueued = 0;  // steady time it entered the inbox (0: handled without queueing)
 };
 
 struct Timer {
@@ -113,6 +115,7 @@ struct ActorSlot {
   // Metrics (written under strand or atomically).
   std::atomic<std::uint64_t> messages_in{0}, messages_out{0}, timer_calls{0}, malformed{0};
   DurationHistogram handler_time;
+  DurationHistogram queue_wait;  // messages: inbox entry to handler start (0 when run at once)
   std::atomic<std::int64_t> busy_ns{0};  // handler_time's total, readable from other threads
 
   // Finite-source bookkeeping.

@@ -16,7 +16,7 @@
 using namespace tessera;
 namespace fs = std::filesystem;
 
-namespace {
+namespace batch_e2e {
 
 std::string slurp(const fs::path& p) {
   std::ifstream in(p, std::ios::binary);
@@ -37,7 +37,9 @@ nlohmann::json readJson(const fs::path& p) {
   return nlohmann::json::parse(in);
 }
 
-}  // namespace
+}  // namespace batch_e2e
+
+using namespace batch_e2e;
 
 TEST_CASE("tessera batch joins shards of 7-Scenes as accurately as one process",
           "[e2e][batch][rgbd]") {

@@ -147,7 +147,14 @@ TEST_CASE("profile errors name the file, the line and the key", "[profile]") {
   }
   SECTION("bad clock and YAML syntax") {
     CHECK_THROWS_WITH(parseProfile("clock: moon\nactors: {a: {type: test_source}}\n", "p.yaml"),
-                      Catch::Contains("moon"));
+                      Catch::Contains("moon") && Catch::Contains("paced"));
+    // A paced clock needs its rate.
+    RuntimeOptions quiet;
+    quiet.show_progress = false;
+    CHECK_THROWS_WITH(
+        buildRuntime(parseProfile("clock: paced\nactors: {a: {type: test_source}}\n", "p.yaml"),
+                     quiet),
+        Catch::Contains("p.yaml") && Catch::Contains("sim_rate > 0"));
     CHECK_THROWS_WITH(parseProfile("actors: [\n", "p.yaml"), Catch::Contains("syntax"));
     CHECK_THROWS_WITH(parseProfile("", "p.yaml"), Catch::Contains("mapping"));
   }

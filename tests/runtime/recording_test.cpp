@@ -154,6 +154,40 @@ TEST_CASE("recording round trip is byte exact with and without zstd", "[recordin
   }
 }
 
+TEST_CASE("a recording appears under its name only whole; until then it is readable as .partial",
+          "[recording]") {
+  const auto path = tempFile("whole.trec");
+  fs::remove(path);
+  const auto earlier = writeRecording(path, 10, smallBlocks(false));
+  const auto earlier_bytes = fileBytes(path);
+  {
+    RecordingWriter writer(path.string(), kTopics, smallBlocks(true));
+    CHECK(writer.partialPath() == path.string() + ".partial");
+    std::vector<Sent> sent;
+    for (int i = 0; i < 80; ++i) {
+      auto m = scan(static_cast<std::uint64_t>(i));
+      writer.append(0, i * 1000, *m);
+      sent.push_back({0, i * 1000, encodeMessage(*m)});
+    }
+    writer.flush();
+    // A reader of `path` meanwhile sees the earlier whole recording; the one being written (as
+    // a crash would leave it) is read from its .partial name by scanning its blocks.
+    CHECK(fileBytes(path) == earlier_bytes);
+    RecordingReader partial(writer.partialPath());
+    CHECK_FALSE(partial.indexed());
+    checkSame(readAll(partial), sent, 0);
+    writer.close();
+    CHECK_FALSE(fs::exists(writer.partialPath()));
+    RecordingReader whole(path.string());
+    CHECK(whole.indexed());
+    checkSame(readAll(whole), sent, 0);
+  }
+  CHECK(earlier.size() == 10);
+  // A folder that does not exist: the error names the file.
+  CHECK_THROWS_WITH(RecordingWriter("/nonexistent/dir/x.trec", kTopics),
+                    Catch::Contains("/nonexistent/dir/x.trec"));
+}
+
 TEST_CASE("recording reader filters topics and seeks by time", "[recording]") {
   const auto path = tempFile("seek.trec");
   const auto sent = writeRecording(path, 120, smallBlocks(true));

@@ -1,6 +1,7 @@
 // McapWriter: MCAP records in little-endian byte order, chunked, zstd-compressed, indexed.
 #include <tessera/viewer/mcap_writer.hpp>
 
+#include <unistd.h>
 #include <zlib.h>
 #include <zstd.h>
 
@@ -64,8 +65,10 @@ std::uint32_t crc(std::uint32_t running, const std::vector<std::uint8_t>& bytes)
 
 McapWriter::McapWriter(std::string path, McapWriterOptions options)
     : path_(std::move(path)), options_(std::move(options)) {
-  file_ = std::fopen(path_.c_str(), "wb");
-  if (!file_) throw McapError("mcap: cannot create '" + path_ + "': " + std::strerror(errno));
+  // Written under a temporary name and renamed by close(): `path` is only ever a whole file.
+  file_ = std::fopen(partialPath().c_str(), "wb");
+  if (!file_)
+    throw McapError("mcap: cannot create '" + partialPath() + "': " + std::strerror(errno));
   std::vector<std::uint8_t> head(kMagic, kMagic + 8), header;
   Bytes h{header};
   h.str(options_.profile);
@@ -291,11 +294,18 @@ void McapWriter::close() {
   Bytes t{tail};
   t.num(summary_crc);
   t.raw(kMagic, 8);
-  if (std::fwrite(tail.data(), 1, tail.size(), file_) != tail.size() || std::fclose(file_) != 0) {
-    file_ = nullptr;
-    throw McapError("mcap: cannot write '" + path_ + "': " + std::strerror(errno));
-  }
+  const bool written = std::fwrite(tail.data(), 1, tail.size(), file_) == tail.size() &&
+                       std::fflush(file_) == 0 && ::fsync(::fileno(file_)) == 0;
+  const int write_errno = errno;
+  const bool closed = std::fclose(file_) == 0;
   file_ = nullptr;
+  if (!written || !closed)
+    throw McapError("mcap: cannot write '" + partialPath() +
+                    "': " + std::strerror(written ? errno : write_errno) + " ('" + path_ +
+                    "' was not replaced)");
+  if (std::rename(partialPath().c_str(), path_.c_str()) != 0)
+    throw McapError("mcap: cannot rename '" + partialPath() + "' to '" + path_ +
+                    "': " + std::strerror(errno));
   offset_ += tail.size();
   stats_.file_bytes = offset_;
 }

@@ -211,3 +211,25 @@ TEST_CASE("the MCAP writer refuses unknown channels and schemas and unwritable p
   REQUIRE(f.size() > 16);
   CHECK(std::memcmp(f.data() + f.size() - 8, kMagic, 8) == 0);
 }
+
+TEST_CASE("an MCAP file appears under its name only whole; an earlier one stays until then",
+          "[viewer][mcap]") {
+  const fs::path path = scratch("whole.mcap");
+  {
+    McapWriter first(path.string());
+    first.write(first.addChannel(0, "t", "json"), 1, R"({"n":1})");
+  }  // closed by the destructor
+  const auto before = slurpBytes(path);
+  REQUIRE(before.size() > 16);
+  McapWriter w(path.string());
+  const auto c = w.addChannel(0, "t", "json");
+  for (int i = 0; i < 50; ++i) w.write(c, static_cast<std::uint64_t>(i), R"({"n":2})");
+  CHECK(w.partialPath() == path.string() + ".partial");
+  CHECK(fs::exists(w.partialPath()));
+  CHECK(slurpBytes(path) == before);  // a reader of `path` sees the earlier whole file
+  w.close();
+  CHECK_FALSE(fs::exists(w.partialPath()));
+  const auto after = slurpBytes(path);
+  CHECK(after != before);
+  CHECK(std::memcmp(after.data() + after.size() - 8, kMagic, 8) == 0);
+}

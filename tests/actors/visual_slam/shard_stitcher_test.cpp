@@ -21,7 +21,7 @@ using namespace tessera;
 using namespace tessera::visual_slam;
 namespace fs = std::filesystem;
 
-namespace {
+namespace shard_stitcher_test {
 
 constexpr Nanos kFrameNs = 100'000'000;
 
@@ -91,7 +91,9 @@ double distance(const Pose3& a, const Pose3& b) {
   return (a.t - b.t).norm() + a.q.angularDistance(b.q);
 }
 
-}  // namespace
+}  // namespace shard_stitcher_test
+
+using namespace shard_stitcher_test;
 
 TEST_CASE("shard_stitcher publishes two shards as one sequence in shard 0's frame and clock",
           "[visual_slam][shard_stitcher]") {

@@ -58,7 +58,8 @@ struct RecordingWriterOptions {
 /// Writes a recording. Not thread-safe (one recorder actor owns it).
 class RecordingWriter {
  public:
-  /// Creates (truncates) `path` and writes the file header. Throws RecordingError.
+  /// Creates (truncates) partialPath() and writes the file header; close() renames it to `path`.
+  /// Throws RecordingError.
   RecordingWriter(std::string path, std::vector<RecordingTopic> topics,
                   RecordingWriterOptions options = {});
   /// Closes the file if close() was not called; errors are swallowed (call close() to see them).
@@ -84,6 +85,8 @@ class RecordingWriter {
   };
   const Stats& stats() const { return stats_; }
   const std::string& path() const { return path_; }
+  /// Where the file is written until close() renames it to path(): path() + ".partial".
+  std::string partialPath() const { return path_ + ".partial"; }
 
  private:
   void writeBlock();

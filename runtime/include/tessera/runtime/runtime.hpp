@@ -51,6 +51,14 @@ struct RuntimeOptions {
 };
 
 /// Per-actor figures printed at exit and stored in summary.json.
+/// One subscription of an actor: its global topic, whether its mailbox is reliable (never
+/// drops; publishers wait) or keep_latest (evicts the oldest), messages handled and evicted.
+struct SubscriptionReport {
+  std::string topic;
+  bool reliable = true;
+  std::uint64_t handled = 0, drops = 0;
+};
+
 struct ActorReport {
   std::string name;
   std::uint64_t messages_in = 0;   // handled messages
@@ -60,6 +68,9 @@ struct ActorReport {
   std::uint64_t malformed = 0;  // delivered messages that could not be read (dropped)
   std::uint64_t max_queue_depth = 0;
   double handler_p50_us = 0, handler_p99_us = 0, handler_total_s = 0;
+  /// Time messages waited in the inbox before their handler started (0 for those handled at once).
+  double queue_wait_p50_us = 0, queue_wait_p99_us = 0;
+  std::vector<SubscriptionReport> subscriptions;
   Summary summary;  // the actor's own figures
 };
 

@@ -39,9 +39,12 @@ struct McapWriterOptions {
 
 class McapWriter {
  public:
-  /// Creates (truncates) `path` and writes the magic and the header.
+  /// Creates (truncates) partialPath() and writes the magic and the header; close() renames it
+  /// to `path`, so `path` is only ever a whole file.
   explicit McapWriter(std::string path, McapWriterOptions options = {});
   ~McapWriter();  ///< closes if close() was not called; errors are swallowed
+  /// Where the file is written until close(): path + ".partial".
+  std::string partialPath() const { return path_ + ".partial"; }
   McapWriter(const McapWriter&) = delete;
   McapWriter& operator=(const McapWriter&) = delete;
 
