@@ -1,8 +1,8 @@
+#include <tessera/messages/detail/storage_allocator.hpp>
 #include <tessera/messages/message.hpp>
 
 #include <capnp/dynamic.h>
 #include <kj/exception.h>
-#include <tbb/scalable_allocator.h>
 
 #include <array>
 #include <cstdlib>
@@ -85,8 +85,8 @@ class SegmentPool {
 
 std::shared_ptr<BuilderStorage> makeBuilderStorage(std::size_t size_hint_bytes,
                                                    std::size_t blob_bytes) {
-  return std::allocate_shared<BuilderStorage>(tbb::scalable_allocator<BuilderStorage>(),
-                                              size_hint_bytes, blob_bytes);
+  return std::allocate_shared<BuilderStorage>(StorageAllocator<BuilderStorage>(), size_hint_bytes,
+                                              blob_bytes);
 }
 
 BuilderStorage::BuilderStorage(std::size_t size_hint_bytes, std::size_t blob_bytes) {

@@ -135,7 +135,9 @@ struct Runtime::Impl {
   std::map<std::string, std::unique_ptr<detail::TopicState>> topics;
   std::mutex timers_mutex;
   std::deque<detail::Timer> timers;  // deque: callAt may add while others run callbacks
-  bool configured = false, started = false, stopped = false, configuring = false;
+  bool configured = false, stopped = false, configuring = false;
+  // Read by the shared-memory receive thread, which delivers imports from before start() on.
+  std::atomic<bool> started{false};
 
   // Outstanding work: queued items plus running handlers. Zero means idle.
   std::atomic<std::int64_t> pending{0};

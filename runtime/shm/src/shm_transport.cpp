@@ -2,6 +2,7 @@
 // messages in them, a receiving thread hands them to the runtime's mailboxes, and the chunk-extent
 // bookkeeping zeroes only what a reused chunk needs. Longer than ~600 lines on purpose: the
 // three share one ownership protocol over the chunks, which reads best in one place.
+#include <tessera/messages/detail/storage_allocator.hpp>
 #include <tessera/shm/shm_transport.hpp>
 
 #include "runtime_impl.hpp"
@@ -16,7 +17,6 @@
 #include <capnp/serialize.h>
 #include <kj/debug.h>
 #include <pthread.h>
-#include <tbb/scalable_allocator.h>
 
 #include <algorithm>
 #include <cstring>
@@ -604,7 +604,7 @@ std::size_t deliverArrived(ShmTransport::Impl* impl) {
       try {
         // Views are freed on whichever thread drops the last reader: a scalable allocator
         // keeps that cross-thread free off a shared malloc arena lock.
-        view = std::allocate_shared<ChunkView>(tbb::scalable_allocator<ChunkView>(), i, payload,
+        view = std::allocate_shared<ChunkView>(detail::StorageAllocator<ChunkView>(), i, payload,
                                                kj::arrayPtr(words, (size - kPrefixBytes) / kWord));
       } catch (const kj::Exception& e) {
         // The view was not built, so its destructor will not release the chunk.
