@@ -5,6 +5,7 @@
 // shard_stitcher joins the recordings in one frame and feeds the rest of the profile (loop
 // detector, keyframe graph, mapper, writers). --shard K runs one map task (on any host that sees
 // the dataset and the output folder), --reduce the reduce alone.
+#include "child_process.hpp"
 #include "cli_inputs.hpp"
 #include "commands.hpp"
 
@@ -13,7 +14,6 @@
 #include <tessera/runtime/registry.hpp>
 
 #include <sys/wait.h>
-#include <unistd.h>
 #include <yaml-cpp/yaml.h>
 
 #include <chrono>
@@ -45,8 +45,7 @@ struct BatchArgs {
 
 /// The global name of an actor's local topic (its remap, else its namespace).
 std::string globalName(const ActorSpec& a, const std::string& local) {
-  if (const auto it = a.remap.find(local); it != a.remap.end()) return it->second;
-  return a.topic_namespace.empty() ? local : a.topic_namespace + "/" + local;
+  return globalTopicName(a.remap, a.topic_namespace, local);
 }
 
 /// The profile's player and front end, the actors a map task runs.
@@ -194,20 +193,7 @@ std::vector<MapResult> runMapTasks(const std::vector<Shard>& shards, int workers
       argv.push_back("--set");
       argv.push_back(s);
     }
-    std::vector<char*> cargv;
-    for (auto& a : argv) cargv.push_back(a.data());
-    cargv.push_back(nullptr);
-    const std::string log = (dir / "log.txt").string();
-    const pid_t pid = ::fork();
-    if (pid < 0) throw std::runtime_error("batch: fork failed for shard " + std::to_string(k));
-    if (pid == 0) {
-      if (std::FILE* f = std::fopen(log.c_str(), "w")) {
-        ::dup2(::fileno(f), 1);
-        ::dup2(::fileno(f), 2);
-      }
-      ::execv("/proc/self/exe", cargv.data());
-      std::_Exit(127);
-    }
+    const pid_t pid = spawnTessera(argv, dir / "log.txt");
     running[pid] = {k, std::chrono::steady_clock::now()};
   };
   while (next < shards.size() || !running.empty()) {
@@ -220,7 +206,7 @@ std::vector<MapResult> runMapTasks(const std::vector<Shard>& shards, int workers
     if (it == running.end()) continue;
     const int k = it->second.first;
     results[k].wall_s = secondsSince(it->second.second);
-    results[k].code = WIFEXITED(status) ? WEXITSTATUS(status) : 128;
+    results[k].code = exitCodeOf(status);
     running.erase(it);
     std::cerr << "batch: shard " << k << " (frames " << shards[k].first << "-" << shards[k].last
               << ") " << (results[k].code == 0 ? "done" : "FAILED") << " in " << std::fixed

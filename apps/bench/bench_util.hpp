@@ -1,5 +1,5 @@
-// Helpers shared by the messaging benchmarks (`bench runtime`, `bench ipc`): percentiles of
-// latency samples and the yielding wait a measuring thread uses for a hand-off to complete.
+// Helpers shared by the benchmarks: percentiles and medians of samples, and the yielding wait a
+// messaging benchmark's measuring thread uses for a hand-off to complete.
 #pragma once
 
 #include <algorithm>
@@ -14,6 +14,14 @@ inline double percentile(std::vector<double> v, double q) {
   if (v.empty()) return 0;
   std::sort(v.begin(), v.end());
   return v[std::min(v.size() - 1, static_cast<std::size_t>(q * static_cast<double>(v.size())))];
+}
+
+/// The median of `v` (the mean of the two middle values for an even count); 0 for no samples.
+inline double median(std::vector<double> v) {
+  if (v.empty()) return 0;
+  std::sort(v.begin(), v.end());
+  const std::size_t n = v.size();
+  return n % 2 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]);
 }
 
 /// Waits until `value` reaches `target`, yielding the core: on a 2-core machine a pure spin

@@ -4,7 +4,8 @@
 // Every run is a child process; its wall time is measured here, the map and reduce split is read
 // from its batch.json, and the keyframe ATE from its keyframes.tum against ground_truth.tum.
 #include "bench_commands.hpp"
-#include "child_run.hpp"
+#include "bench_util.hpp"
+#include "child_process.hpp"
 
 #include <tessera/evaluation/trajectory_metrics.hpp>
 #include <tessera/mapping/trajectory_io.hpp>
@@ -37,13 +38,6 @@ struct Options {
   std::string out = "out/bench_batch";
   bool json = false;
 };
-
-double medianOf(std::vector<double> v) {
-  if (v.empty()) return 0;
-  std::sort(v.begin(), v.end());
-  const std::size_t n = v.size();
-  return n % 2 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]);
-}
 
 double keyframeAte(const fs::path& dir) {
   const auto est = dir / "keyframes.tum", ref = dir / "ground_truth.tum";
@@ -117,7 +111,7 @@ int run(const Options& o) {
   const auto med = [](const std::vector<Sample>& v, double Sample::*field) {
     std::vector<double> x;
     for (const auto& s : v) x.push_back(s.*field);
-    return medianOf(x);
+    return median(x);
   };
   const double one_wall = med(one, &Sample::wall_s);
   const double base_wall = med(batch[o.workers.front()], &Sample::wall_s);

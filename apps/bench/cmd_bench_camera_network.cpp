@@ -12,7 +12,7 @@
 // map against the world's true walls moved by the same rigid alignment
 // (evaluation/map_metrics.hpp), and the cameras' figures.
 #include "bench_commands.hpp"
-#include "child_run.hpp"
+#include "child_process.hpp"
 #include "cli_inputs.hpp"
 
 #include <tessera/evaluation/map_metrics.hpp>

@@ -7,17 +7,14 @@
 // process but not handled: must be 0), the worst actor's inbox wait p99, and the data time
 // covered per wall second (below F when a reliable mailbox held its source back).
 #include "bench_commands.hpp"
+#include "child_process.hpp"
 
 #include <tessera/runtime/process_stats.hpp>
 
 #include <CLI/CLI.hpp>
 #include <nlohmann/json.hpp>
 
-#include <sys/wait.h>
-#include <unistd.h>
-
 #include <chrono>
-#include <csignal>
 #include <cstdio>
 #include <cstdlib>
 #include <filesystem>
@@ -86,37 +83,6 @@ std::vector<Case> allCases(const Options& o, const fs::path& out) {
   };
 }
 
-/// Runs this executable with `args`, output to `log`; kills it after `limit_s`. Returns the exit
-/// code, or -1 when it was killed at the limit.
-int runWithLimit(const std::vector<std::string>& args, const fs::path& log, double limit_s) {
-  std::vector<std::string> a = args;
-  std::vector<char*> argv;
-  for (auto& s : a) argv.push_back(s.data());
-  argv.push_back(nullptr);
-  const pid_t pid = ::fork();
-  if (pid < 0) throw std::runtime_error("bench overload: fork failed");
-  if (pid == 0) {
-    if (std::FILE* f = std::fopen(log.c_str(), "w")) {
-      ::dup2(::fileno(f), 1);
-      ::dup2(::fileno(f), 2);
-    }
-    ::execv("/proc/self/exe", argv.data());
-    std::_Exit(127);
-  }
-  const auto t0 = std::chrono::steady_clock::now();
-  for (;;) {
-    int status = 0;
-    if (::waitpid(pid, &status, WNOHANG) == pid)
-      return WIFEXITED(status) ? WEXITSTATUS(status) : 128 + WTERMSIG(status);
-    if (std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count() > limit_s) {
-      ::kill(pid, SIGKILL);
-      ::waitpid(pid, &status, 0);
-      return -1;
-    }
-    std::this_thread::sleep_for(std::chrono::milliseconds(50));
-  }
-}
-
 nlohmann::json measure(const Case& c, const Options& o, const fs::path& out) {
   nlohmann::json r = {{"profile", c.profile}};
   if (!c.needs.empty() && !fs::exists(c.needs)) {
@@ -143,7 +109,7 @@ nlohmann::json measure(const Case& c, const Options& o, const fs::path& out) {
     args.push_back(s);
   }
   const double limit = 3 * o.seconds + 60;
-  const int code = runWithLimit(args, dir / "run.log", limit);
+  const int code = runTesseraChild(args, dir / "run.log", limit);
   r["exit_code"] = code;
   r["finished"] = code == 0;
   if (code < 0) {
@@ -186,7 +152,6 @@ nlohmann::json measure(const Case& c, const Options& o, const fs::path& out) {
   }
   r["wall_s"] = s.value("wall_s", 0.0);
   r["data_s"] = s.value("data_duration_s", 0.0);
-  r["rate_reached"] = s.value("realtime_factor", 0.0);
   r["keep_latest_drops"] = keep_latest_drops;
   r["reliable_drops"] = reliable_drops;
   r["reliable_lost"] = reliable_lost;
@@ -212,7 +177,7 @@ int run(const Options& o) {
   }
   // sim_mcl localises on a map made beforehand: the known-pose mapping run makes it.
   if (std::any_of(cases.begin(), cases.end(), [](const Case& c) { return c.profile == "sim_mcl"; }))
-    runWithLimit(
+    runTesseraChild(
         {"tessera", "run", "sim_mapping", "--quiet", "--out", (out / "prep_sim_map").string()},
         out / "prep_sim_map.log", 300);
 
@@ -242,8 +207,8 @@ int run(const Options& o) {
   std::cout << "machine: " << machineDescription() << "\n"
             << "sensors at " << o.factor << "x real time, " << o.seconds << " s of wall time each\n"
             << std::left << std::setw(20) << "profile" << std::right << std::setw(9) << "ended"
-            << std::setw(9) << "rate" << std::setw(14) << "kl drops" << std::setw(14) << "rel. lost"
-            << std::setw(14) << "wait p99 ms"
+            << std::setw(14) << "kl drops" << std::setw(14) << "rel. lost" << std::setw(14)
+            << "wait p99 ms"
             << "  worst actor\n";
   for (const auto& r : results) {
     std::cout << std::left << std::setw(20) << r["profile"].get<std::string>() << std::right;
@@ -252,7 +217,6 @@ int run(const Options& o) {
       continue;
     }
     std::cout << std::setw(9) << (r.value("finished", false) ? "yes" : "NO") << std::fixed
-              << std::setprecision(1) << std::setw(8) << r.value("rate_reached", 0.0) << "x"
               << std::setw(14) << r.value("keep_latest_drops", 0) << std::setw(14)
               << r.value("reliable_lost", 0) << std::setprecision(2) << std::setw(14)
               << r.value("queue_wait_p99_us", 0.0) / 1000.0 << "  "

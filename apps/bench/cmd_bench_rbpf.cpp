@@ -5,7 +5,8 @@
 // with the relations metric. Runs are interleaved across profiles so that machine noise falls
 // on all of them alike.
 #include "bench_commands.hpp"
-#include "child_run.hpp"
+#include "bench_util.hpp"
+#include "child_process.hpp"
 #include "cli_inputs.hpp"
 
 #include <tessera/evaluation/trajectory_metrics.hpp>
@@ -41,13 +42,6 @@ struct Options {
   std::string out = "out/bench_rbpf";
   bool json = false;
 };
-
-double median(std::vector<double> v) {
-  if (v.empty()) return 0;
-  std::sort(v.begin(), v.end());
-  const std::size_t n = v.size();
-  return n % 2 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]);
-}
 
 double mean(const std::vector<double>& v) {
   double s = 0;

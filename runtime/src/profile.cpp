@@ -313,6 +313,12 @@ bool isTopicNamespace(std::string_view n) {
          });
 }
 
+std::string globalTopicName(const std::map<std::string, std::string>& remap,
+                            const std::string& topic_namespace, const std::string& local) {
+  if (const auto it = remap.find(local); it != remap.end()) return it->second;
+  return topic_namespace.empty() ? local : topic_namespace + "/" + local;
+}
+
 Profile loadProfile(const std::string& path, const std::vector<std::string>& overrides) {
   std::ifstream in(path);
   if (!in) throw ConfigError(path + ": cannot open profile file");

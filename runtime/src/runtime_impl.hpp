@@ -11,6 +11,7 @@
 #include "metrics.hpp"
 
 #include <tessera/runtime/options.hpp>
+#include <tessera/runtime/profile.hpp>
 #include <tessera/runtime/runtime.hpp>
 
 #include <tbb/global_control.h>
@@ -96,8 +97,7 @@ struct ActorSlot {
 
   /// The global name of local topic `local`: its remap, else namespaced.
   std::string globalName(const std::string& local) const {
-    if (auto it = remap.find(local); it != remap.end()) return it->second;
-    return topic_namespace.empty() ? local : topic_namespace + "/" + local;
+    return globalTopicName(remap, topic_namespace, local);
   }
 
   // Inbox: one ordered queue over all of this actor's subscriptions and timers.

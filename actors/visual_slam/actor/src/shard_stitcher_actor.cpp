@@ -17,6 +17,7 @@ struct ShardStitcherActor::Output {
   enum class Kind { kKeyframe, kPose, kTruth };
   Nanos stamp = 0;  ///< global
   Kind kind = Kind::kPose;
+  std::uint32_t frame = 0;  ///< the frame index of a pose or keyframe (ground truth has none)
   std::size_t shard = 0;
   std::shared_ptr<const MessageStorage> message;
 };
@@ -67,15 +68,18 @@ ShardMessages readShard(const std::string& path, const ShardStitcherOptions& o, 
   while (reader->next(m)) {
     const auto kind = kinds.find(m.topic);
     if (kind == kinds.end()) continue;
-    ShardStitcherActor::Output out{m.stamp, kind->second, k, m.message};
+    ShardStitcherActor::Output out{m.stamp, kind->second, 0, k, m.message};
     try {
       if (kind->second == Kind::kPose) {
         const auto p = readMessage<msg::PoseStamped3D>(m.message);
         s.track.poses.push_back(
             {p->getFrameIndex(), p->getHeader().getStampNs(), toPose3(p->getPose())});
         out.stamp = p->getHeader().getStampNs();
+        out.frame = p->getFrameIndex();
       } else if (kind->second == Kind::kKeyframe) {
-        out.stamp = readMessage<msg::Keyframe>(m.message)->getHeader().getStampNs();
+        const auto kf = readMessage<msg::Keyframe>(m.message);
+        out.stamp = kf->getHeader().getStampNs();
+        out.frame = kf->getFrameIndex();
       } else {
         out.stamp = readMessage<msg::GroundTruthPose3D>(m.message)->getHeader().getStampNs();
       }
@@ -129,13 +133,7 @@ ShardStitcherActor::ShardStitcherActor(ShardStitcherOptions options)
     }
     for (auto& m : shards[k].messages) {
       m.stamp += place.stamp_offset_ns;
-      bool keep = true;
-      if (m.kind == Output::Kind::kPose)
-        keep = readMessage<msg::PoseStamped3D>(m.message)->getFrameIndex() < end_frame;
-      else if (m.kind == Output::Kind::kKeyframe)
-        keep = readMessage<msg::Keyframe>(m.message)->getFrameIndex() < end_frame;
-      else
-        keep = m.stamp < end_stamp;
+      const bool keep = m.kind == Output::Kind::kTruth ? m.stamp < end_stamp : m.frame < end_frame;
       if (keep)
         outputs_.push_back(std::move(m));
       else

@@ -69,6 +69,11 @@ struct Profile {
 /// between non-empty parts, e.g. "r1" or "fleet/r1".
 bool isTopicNamespace(std::string_view name);
 
+/// The global name of an actor's local topic: its remap if one is given, else the local name under
+/// the actor's namespace ("ns/local"), else the local name itself.
+std::string globalTopicName(const std::map<std::string, std::string>& remap,
+                            const std::string& topic_namespace, const std::string& local);
+
 /// Parses and validates a profile file, applying --set overrides in order. Throws ConfigError.
 Profile loadProfile(const std::string& path, const std::vector<std::string>& overrides = {});
 /// Same, from YAML text (`path` only names it in errors).
