@@ -25,6 +25,7 @@ void addBenchCommands(CLI::App& app, int& result) {
   addBenchDdsCommand(*bench, result);
   addBenchBatchCommand(*bench, result);
   addBenchOverloadCommand(*bench, result);
+  addBenchSoakCommand(*bench, result);
 }
 
 }  // namespace tessera::app

@@ -40,5 +40,7 @@ void addBenchDdsCommand(CLI::App& bench, int& result);
 void addBenchBatchCommand(CLI::App& bench, int& result);
 /// `bench overload`: every profile with sensors at F x real time (cmd_bench_overload.cpp).
 void addBenchOverloadCommand(CLI::App& bench, int& result);
+/// tessera bench soak: lifelong mapping for H simulated hours (cmd_bench_soak.cpp).
+void addBenchSoakCommand(CLI::App& bench, int& result);
 
 }  // namespace tessera::app

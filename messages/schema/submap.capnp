@@ -57,6 +57,10 @@ struct SubmapPoses {
   poses @1 :List(SubmapPose);   # by increasing id
   chi2 @2 :Float64;             # g2o objective after this optimisation (without the 1/2)
   iterations @3 :UInt32;        # solver iterations this optimisation took
+  # Lifelong mapping (docs/algorithms.md#lifelong-mapping): every submap removed from the map so
+  # far, newer ones covering its area, by increasing id. Consumers drop them (cumulative, so a
+  # keep_latest subscriber that skips messages still learns of each one).
+  trimmed @4 :List(UInt32);
   struct SubmapPose {
     id @0 :UInt32;
     pose @1 :Common.Pose2D;     # covariance left zero

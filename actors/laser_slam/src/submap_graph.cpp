@@ -54,6 +54,10 @@ SubmapGraph::Outcome SubmapGraph::insert(const SubmapConstraintInput& c) {
                   std::to_string(eig.eigenvalues().minCoeff()) + ")";
     return Outcome::kRejected;
   }
+  if (removed(c.from) || removed(c.to)) {
+    last_error_ = "constraint " + describe(c) + " names a submap removed from the map (lifelong)";
+    return Outcome::kRejected;
+  }
   const auto key = std::make_tuple(c.from, c.to, c.relative.x, c.relative.y, c.relative.theta);
   if (seen_.count(key)) return Outcome::kDuplicate;
 
@@ -69,6 +73,11 @@ SubmapGraph::Outcome SubmapGraph::insert(const SubmapConstraintInput& c) {
     return Outcome::kPending;
   }
   seen_.insert(key);
+  seen_order_.push_back(key);
+  if (seen_order_.size() > kMaxSeen) {
+    seen_.erase(seen_order_.front());
+    seen_order_.pop_front();
+  }
   const int a = graph_.index(c.from);
   const Eigen::Vector3d placed = pose_graph::compose(graph_.poses[a], vec(c.relative));
   if (!to_known) graph_.addNode(c.to, placed);
@@ -109,6 +118,24 @@ void SubmapGraph::resolvePending() {
       break;
     }
   }
+}
+
+bool SubmapGraph::removeSubmap(int id) {
+  last_error_.clear();
+  if (!graph_.contains(id)) {
+    last_error_ = "submap " + std::to_string(id) + " is not in the graph";
+    return false;
+  }
+  if (graph_.index(id) == 0) {
+    last_error_ = "submap " + std::to_string(id) + " anchors the map frame";
+    return false;
+  }
+  pose_graph::marginalizeNode(graph_, id);
+  removed_.insert(id);
+  std::erase_if(pending_,
+                [id](const SubmapConstraintInput& c) { return c.from == id || c.to == id; });
+  dirty_ = true;
+  return true;
 }
 
 pose_graph::OptimizerSummary SubmapGraph::optimize() {

@@ -4,6 +4,7 @@
 
 #include <Eigen/Eigenvalues>
 
+#include <algorithm>
 #include <cmath>
 #include <deque>
 #include <map>
@@ -131,6 +132,22 @@ int Graph<Pose, Dim>::index(std::int64_t id) const {
   return it->second;
 }
 
+template <class Pose, int Dim>
+void Graph<Pose, Dim>::removeNode(std::int64_t id) {
+  const int k = index(id);
+  ids.erase(ids.begin() + k);
+  poses.erase(poses.begin() + k);
+  fixed.erase(fixed.begin() + k);
+  std::erase_if(edges, [k](const EdgeType& e) { return e.from == k || e.to == k; });
+  for (auto& e : edges) {
+    if (e.from > k) --e.from;
+    if (e.to > k) --e.to;
+  }
+  index_.erase(id);
+  for (auto& [other, i] : index_)
+    if (i > k) --i;
+}
+
 template struct Graph<Eigen::Vector3d, 3>;
 template struct Graph<Pose3, 6>;
 
@@ -209,6 +226,64 @@ Measurement2D invert(const Measurement2D& m) {
   out.information = Jinv.transpose() * m.information * Jinv;
   out.information = 0.5 * (out.information + out.information.transpose()).eval();
   return out;
+}
+
+Measurement2D chain(const Measurement2D& a_to_x, const Measurement2D& x_to_b) {
+  const Eigen::Vector3d& p = a_to_x.mean;
+  const Eigen::Vector3d& q = x_to_b.mean;
+  const double c = std::cos(p.z()), s = std::sin(p.z());
+  Eigen::Matrix3d jp, jq;              // d(p ⊕ q)/dp and d(p ⊕ q)/dq
+  jp << 1, 0, -s * q.x() - c * q.y(),  //
+      0, 1, c * q.x() - s * q.y(),     //
+      0, 0, 1;
+  jq << c, -s, 0,  //
+      s, c, 0,     //
+      0, 0, 1;
+  const Eigen::Matrix3d cov = jp * a_to_x.information.inverse() * jp.transpose() +
+                              jq * x_to_b.information.inverse() * jq.transpose();
+  Measurement2D out;
+  out.mean = compose(p, q);
+  out.information = cov.inverse();
+  out.information = 0.5 * (out.information + out.information.transpose()).eval();
+  return out;
+}
+
+void marginalizeNode(Graph2D& graph, std::int64_t id) {
+  const int x = graph.index(id);
+  if (x == 0)
+    throw GraphError("pose graph: node " + std::to_string(id) +
+                     " anchors the frame (index 0) and cannot be marginalised");
+  // Every edge at x as a measurement x -> neighbour.
+  struct Tie {
+    int node = 0;
+    Measurement2D from_x;
+    bool robust = false;
+  };
+  std::vector<Tie> ties;
+  for (const auto& e : graph.edges) {
+    if (e.from == x)
+      ties.push_back({e.to, {e.measurement, e.information}, e.robust});
+    else if (e.to == x)
+      ties.push_back({e.from, invert({e.measurement, e.information}), e.robust});
+  }
+  std::vector<Edge2D> chained;
+  if (ties.size() > 1) {
+    const auto hub = std::max_element(ties.begin(), ties.end(), [](const Tie& a, const Tie& b) {
+      return a.from_x.information.determinant() < b.from_x.information.determinant();
+    });
+    const Measurement2D hub_to_x = invert(hub->from_x);
+    for (const auto& t : ties) {
+      if (&t == &*hub || t.node == hub->node) continue;
+      const Measurement2D m = chain(hub_to_x, t.from_x);
+      chained.push_back({hub->node, t.node, m.mean, m.information, hub->robust || t.robust});
+    }
+  }
+  graph.removeNode(id);
+  for (auto& e : chained) {
+    if (e.from > x) --e.from;
+    if (e.to > x) --e.to;
+    addOrFuse(graph, e);
+  }
 }
 
 bool addOrFuse(Graph2D& graph, const Edge2D& edge) {

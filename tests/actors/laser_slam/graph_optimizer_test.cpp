@@ -412,3 +412,198 @@ TEST_CASE("loop_detector refuses bad options and skips a malformed submap", "[lo
   CHECK(count(s, "loop_submaps_rejected") == 1);
   CHECK(count(s, "loops_published") == 0);
 }
+
+namespace lifelong_test {
+
+/// Submap `id` with a 4 x 4 m grid, every cell known (free): submaps at the same place cover
+/// each other.
+void pushRoomSubmap(ActorHarness& h, int id, const Pose2& origin) {
+  h.push<msg::Submap>("submaps", [&](auto& b) {
+    setHeader(b.initHeader(), 1000 + id, "map", 0);
+    b.setId(static_cast<std::uint32_t>(id));
+    auto g = b.initGrid();
+    g.setResolution(0.1f);
+    g.setWidth(40);
+    g.setHeight(40);
+    writePose(g.initOrigin(), tessera::Pose2{0, 0, 0});
+    auto cells = mutableViewInt8(g.initCells(1600));
+    std::fill(cells.begin(), cells.end(), std::int8_t{0});
+    for (int k = 0; k < 40; ++k) cells[static_cast<std::size_t>(k)] = 100;  // a wall
+    writePose(b.initGlobalPose(), tessera::Pose2{origin.x, origin.y, origin.theta});
+    b.setFinished(true);
+  });
+}
+
+void pushTrimmed(ActorHarness& h, const std::vector<std::pair<int, Pose2>>& poses,
+                 const std::vector<std::uint32_t>& trimmed) {
+  h.push<msg::SubmapPoses>("submap_poses", [&](auto& b) {
+    auto list = b.initPoses(static_cast<unsigned>(poses.size()));
+    for (unsigned i = 0; i < poses.size(); ++i) {
+      list[i].setId(static_cast<std::uint32_t>(poses[i].first));
+      writePose(list[i].initPose(), poses[i].second);
+    }
+    auto t = b.initTrimmed(static_cast<unsigned>(trimmed.size()));
+    for (unsigned i = 0; i < trimmed.size(); ++i) t.set(i, trimmed[i]);
+  });
+}
+
+}  // namespace lifelong_test
+
+TEST_CASE("graph_optimizer in lifelong mode trims submaps newer ones cover and lists them",
+          "[graph_optimizer][lifelong]") {
+  GraphOptimizerActorOptions o;
+  o.lifelong.enabled = true;
+  o.lifelong.trimmer.keep_newest = 1;
+  ActorHarness h(std::make_unique<GraphOptimizerActor>(o));
+  // Five laps over the same room: each submap starts where the previous one did.
+  for (int id = 0; id < 5; ++id) {
+    if (id > 0) pushConstraint(h, constraint(id - 1, id, Pose2(0.02, 0, 0), false));
+    lifelong_test::pushRoomSubmap(h, id, Pose2(0.02 * id, 0, 0));
+    h.runUntilIdle();
+  }
+  // A late loop closure naming a trimmed submap is refused, not kept waiting.
+  pushConstraint(h, constraint(4, 2, Pose2(-0.04, 0, 0), true));
+  h.runUntilIdle();
+  h.stop();
+  const auto published = h.published<msg::SubmapPoses>("submap_poses");
+  REQUIRE(!published.empty());
+  const auto last = published.back();
+  // The anchor (0) and the newest (4) stay; 1, 2 and 3 were each covered by a newer one.
+  REQUIRE(last->getTrimmed().size() == 3);
+  CHECK(last->getTrimmed()[0] == 1);
+  CHECK(last->getTrimmed()[2] == 3);
+  REQUIRE(last->getPoses().size() == 2);
+  CHECK(last->getPoses()[1].getId() == 4);
+  CHECK(last->getPoses()[1].getPose().getX() == Approx(0.08).margin(1e-6));
+  Summary s;
+  h.actor().summarize(s);
+  CHECK(count(s, "graph_nodes") == 2);
+  CHECK(count(s, "submaps_trimmed") == 3);
+  CHECK(count(s, "constraints_rejected") == 1);
+  CHECK(count(s, "constraints_unresolved") == 0);
+  CHECK(count(s, "trimmer_submaps") == 2);
+}
+
+TEST_CASE("graph_optimizer refuses lifelong mode with what keeps every scan",
+          "[graph_optimizer][lifelong]") {
+  GraphOptimizerActorOptions o;
+  o.lifelong.enabled = true;
+  o.scan_graph.enabled = true;
+  CHECK_THROWS_WITH(GraphOptimizerActor(o), Catch::Contains("scan_graph.enabled"));
+  o.scan_graph.enabled = false;
+  o.compose_trajectory = true;
+  CHECK_THROWS_WITH(GraphOptimizerActor(o), Catch::Contains("compose_trajectory"));
+  o.compose_trajectory = false;
+  o.lifelong.trimmer.min_own_fraction = -1;
+  CHECK_THROWS_WITH(GraphOptimizerActor(o), Catch::Contains("lifelong.min_own_fraction"));
+}
+
+TEST_CASE("loop_detector and map_assembler drop the submaps lifelong mapping trimmed",
+          "[loop_detector][lifelong]") {
+  laser_slam::LoopDetectorOptions lo;
+  lo.optimized_poses = true;
+  ActorHarness loops(std::make_unique<laser_slam::LoopDetectorActor>(lo));
+  laser_slam::MapAssemblerOptions ao;
+  ao.optimized_poses = true;
+  ActorHarness assembler(std::make_unique<laser_slam::MapAssemblerActor>(ao));
+  for (int id = 0; id < 3; ++id) {
+    lifelong_test::pushRoomSubmap(loops, id, Pose2(0.02 * id, 0, 0));
+    lifelong_test::pushRoomSubmap(assembler, id, Pose2(0.02 * id, 0, 0));
+    if (id > 0) pushConstraint(assembler, constraint(id - 1, id, Pose2(0.02, 0, 0), true));
+  }
+  loops.runUntilIdle();
+  assembler.runUntilIdle();
+  auto& a = static_cast<laser_slam::MapAssemblerActor&>(assembler.actor());
+  CHECK(a.assembler().size() == 3);
+  const std::vector<std::pair<int, Pose2>> kept = {{0, Pose2()}, {2, Pose2(0.04, 0, 0)}};
+  lifelong_test::pushTrimmed(loops, kept, {1});
+  lifelong_test::pushTrimmed(assembler, kept, {1});
+  loops.runUntilIdle();
+  assembler.runUntilIdle();
+  CHECK(a.assembler().size() == 2);
+  // A late message about the trimmed submap is ignored, not drawn again.
+  lifelong_test::pushRoomSubmap(assembler, 1, Pose2(0.02, 0, 0));
+  pushConstraint(assembler, constraint(1, 2, Pose2(0.02, 0, 0), true));
+  assembler.runUntilIdle();
+  CHECK(a.assembler().size() == 2);
+  loops.stop();
+  assembler.stop();
+  Summary ls, as;
+  loops.actor().summarize(ls);
+  assembler.actor().summarize(as);
+  CHECK(count(ls, "submaps_searched") == 2);
+  CHECK(count(ls, "submaps_trimmed") == 1);
+  CHECK(count(as, "submaps_trimmed") == 1);
+  CHECK(count(as, "submaps_held") == 2);
+  CHECK(count(as, "ignored_trimmed") == 2);
+  // The saved state holds no constraint naming the trimmed submap.
+  CHECK(count(as, "constraints_received") == 3);
+}
+
+TEST_CASE(
+    "loop_detector searches a just-finished submap where the graph last put it, not at its "
+    "chained pose",
+    "[loop_detector]") {
+  // The bug: between a submap's end and the next graph update, the finished submap was searched
+  // at its chained origin, which after laps of odometry drift is metres from the optimised one,
+  // so the robot's own estimate (chained from that submap) was off by as much and a look-alike
+  // place within the window could be accepted as a closure.
+  laser_slam::LoopDetectorOptions o;
+  o.optimized_poses = true;
+  o.publish_at_match = true;
+  ActorHarness h(std::make_unique<laser_slam::LoopDetectorActor>(o));
+  lifelong_test::pushRoomSubmap(h, 0, Pose2());
+  pushConstraint(h, constraint(0, 1, Pose2(5, 0, 0), false));  // submap 1 chained at (5, 0)
+  h.runUntilIdle();
+  // The graph moved submap 1 (still being built) to (5, 2).
+  lifelong_test::pushTrimmed(h, {{0, Pose2()}, {1, Pose2(5, 2, 0.1)}}, {});
+  h.runUntilIdle();
+  lifelong_test::pushRoomSubmap(h, 1, Pose2(5, 0, 0));  // finished, carrying its chained pose
+  h.runUntilIdle();
+  auto& actor = static_cast<laser_slam::LoopDetectorActor&>(h.actor());
+  REQUIRE(actor.searchOrigin(1).has_value());
+  CHECK(actor.searchOrigin(1)->y == Approx(2.0));
+  CHECK(actor.searchOrigin(1)->theta == Approx(0.1));
+  // A submap the graph never placed follows the newest finished one: chained from it.
+  pushConstraint(h, constraint(1, 2, Pose2(5, 0, 0), false));
+  lifelong_test::pushRoomSubmap(h, 2, Pose2(10, 0, 0));
+  h.runUntilIdle();
+  REQUIRE(actor.searchOrigin(2).has_value());
+  const Pose2 expected = Pose2(5, 2, 0.1) * Pose2(5, 0, 0);
+  CHECK(actor.searchOrigin(2)->x == Approx(expected.x));
+  CHECK(actor.searchOrigin(2)->y == Approx(expected.y));
+  CHECK(!actor.searchOrigin(7).has_value());
+  h.stop();
+}
+
+TEST_CASE("graph_optimizer in lifelong mode keeps a submap whose grid it cannot read",
+          "[graph_optimizer][lifelong]") {
+  GraphOptimizerActorOptions o;
+  o.lifelong.enabled = true;
+  o.lifelong.trimmer.keep_newest = 1;
+  ActorHarness h(std::make_unique<GraphOptimizerActor>(o));
+  lifelong_test::pushRoomSubmap(h, 0, Pose2());
+  pushConstraint(h, constraint(0, 1, Pose2(0.02, 0, 0), false));
+  // Submap 1: a truncated grid (3 cells for 2 x 2), then one with a NaN resolution.
+  h.push<msg::Submap>("submaps", [](auto& b) {
+    test::fillSubmap(b, 1, Pose2(0.02, 0, 0), 1001);
+    b.getGrid().initCells(3);
+  });
+  pushConstraint(h, constraint(1, 2, Pose2(0.02, 0, 0), false));
+  h.push<msg::Submap>("submaps", [](auto& b) {
+    test::fillSubmap(b, 2, Pose2(0.04, 0, 0), 1002);
+    b.getGrid().setResolution(std::numeric_limits<float>::quiet_NaN());
+  });
+  for (int id = 3; id < 5; ++id) {
+    pushConstraint(h, constraint(id - 1, id, Pose2(0.02, 0, 0), false));
+    lifelong_test::pushRoomSubmap(h, id, Pose2(0.02 * id, 0, 0));
+  }
+  h.runUntilIdle();
+  h.stop();
+  Summary s;
+  h.actor().summarize(s);
+  // 1 and 2 have no footprint: never trimmed; 3 is covered by 4.
+  CHECK(count(s, "submaps_trimmed") == 1);
+  CHECK(count(s, "graph_nodes") == 4);
+  CHECK(count(s, "trimmer_submaps") == 2);
+}

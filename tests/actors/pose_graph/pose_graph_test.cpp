@@ -329,3 +329,88 @@ TEST_CASE("Gauss-Newton reaches the g2o optimum on the badly started TORO Intel 
   CHECK_THAT(s.final_chi2, WithinRel(215.830235, 1e-6));
   CHECK(s.ceres_iterations <= 20);
 }
+
+TEST_CASE("chaining two measurements composes them and adds their covariances",
+          "[pose_graph][lifelong]") {
+  const double s = 0.1;
+  const Eigen::Matrix3d info = Eigen::Vector3d(1 / (s * s), 1 / (s * s), 1 / (s * s)).asDiagonal();
+  // Straight on: 1 m then 1 m along x. Along x the variances add; across, the first heading's
+  // uncertainty swings the second metre (lever arm 1 m): σy² = s² + s² + 1² s².
+  const pg::Measurement2D m = pg::chain({{1, 0, 0}, info}, {{1, 0, 0}, info});
+  CHECK_THAT(m.mean.x(), WithinAbs(2.0, 1e-12));
+  CHECK_THAT(m.mean.y(), WithinAbs(0.0, 1e-12));
+  const Eigen::Matrix3d cov = m.information.inverse();
+  CHECK_THAT(cov(0, 0), WithinRel(2 * s * s, 1e-9));
+  CHECK_THAT(cov(1, 1), WithinRel(3 * s * s, 1e-9));
+  CHECK_THAT(cov(2, 2), WithinRel(2 * s * s, 1e-9));
+  // A turn first: the second step goes along y.
+  const pg::Measurement2D t = pg::chain({{0, 0, std::numbers::pi / 2}, info}, {{1, 0, 0}, info});
+  CHECK_THAT(t.mean.x(), WithinAbs(0.0, 1e-12));
+  CHECK_THAT(t.mean.y(), WithinAbs(1.0, 1e-12));
+}
+
+TEST_CASE("marginalising a node keeps what its edges said and the graph as sparse",
+          "[pose_graph][lifelong]") {
+  // A chain 0 - 1 - 2 - 3 with exact measurements, plus 1 - 3: node 1 has three neighbours.
+  const std::vector<Eigen::Vector3d> truth = {{0, 0, 0}, {2, 0, 0.3}, {3, 1, 1.2}, {1, 3, 2.5}};
+  pg::Graph2D g;
+  for (int i = 0; i < 4; ++i) g.addNode(10 + i, truth[i]);
+  const auto edge = [&](int a, int b, double sigma) {
+    const Eigen::Matrix3d info =
+        Eigen::Vector3d(1 / (sigma * sigma), 1 / (sigma * sigma), 4 / (sigma * sigma)).asDiagonal();
+    g.edges.push_back({a, b, pg::between(truth[a], truth[b]), info, false});
+  };
+  edge(0, 1, 0.01);  // the tightest: node 0 becomes the hub
+  edge(1, 2, 0.05);
+  edge(2, 3, 0.05);
+  edge(1, 3, 0.1);
+  pg::marginalizeNode(g, 11);
+  REQUIRE(g.size() == 3);
+  CHECK(!g.contains(11));
+  CHECK(g.index(12) == 1);
+  CHECK(g.index(13) == 2);
+  // Edges 0-2 and 0-3 from the hub, 2-3 as it was: 3 edges, no clique.
+  REQUIRE(g.edges.size() == 3);
+  for (const auto& e : g.edges) {
+    // Exact measurements chain exactly: every edge agrees with the true poses.
+    const Eigen::Vector3d err = pg::edgeError(g, e);
+    CHECK(err.norm() < 1e-9);
+    CHECK(e.information.allFinite());
+    CHECK(e.information.determinant() > 0);
+  }
+  // The chained 0 -> 2 edge is less certain than either of the edges it came from.
+  const auto e02 = std::find_if(g.edges.begin(), g.edges.end(), [](const pg::Edge2D& e) {
+    return (e.from == 0 && e.to == 1) || (e.from == 1 && e.to == 0);
+  });
+  REQUIRE(e02 != g.edges.end());
+  CHECK(e02->information.inverse()(0, 0) > 0.05 * 0.05);
+  // Perturbed, the reduced graph still optimises back to the truth.
+  g.poses[1] += Eigen::Vector3d(0.3, -0.2, 0.05);
+  g.poses[2] += Eigen::Vector3d(-0.2, 0.3, -0.05);
+  pg::OptimizerOptions o;
+  o.solver = pg::Solver::kCeres;
+  pg::optimize(g, o);
+  CHECK((g.poses[1] - truth[2]).norm() < 1e-4);
+  CHECK((g.poses[2] - truth[3]).norm() < 1e-4);
+}
+
+TEST_CASE("marginalising refuses the anchor and an unknown node; a leaf just goes",
+          "[pose_graph][lifelong]") {
+  pg::Graph2D g;
+  g.addNode(0, {0, 0, 0});
+  g.addNode(1, {1, 0, 0});
+  g.addNode(2, {2, 0, 0});
+  g.edges.push_back({0, 1, {1, 0, 0}, Eigen::Matrix3d::Identity(), false});
+  g.edges.push_back({1, 2, {1, 0, 0}, Eigen::Matrix3d::Identity(), true});
+  CHECK_THROWS_WITH(pg::marginalizeNode(g, 0), Catch::Contains("anchors the frame"));
+  CHECK_THROWS_WITH(pg::marginalizeNode(g, 7), Catch::Contains("no node with id 7"));
+  pg::marginalizeNode(g, 2);  // a leaf: its one edge goes with it
+  CHECK(g.size() == 2);
+  CHECK(g.edges.size() == 1);
+  g.addNode(2, {2, 0, 0});
+  g.edges.push_back({1, 2, {1, 0, 0}, Eigen::Matrix3d::Identity(), true});
+  pg::marginalizeNode(g, 1);  // 0 - 1 - 2 becomes 0 - 2, robust as its loop-closure half was
+  REQUIRE(g.edges.size() == 1);
+  CHECK(g.edges[0].robust);
+  CHECK_THAT(pg::edgeError(g, g.edges[0]).norm(), WithinAbs(0.0, 1e-12));
+}

@@ -1,14 +1,17 @@
 #include <tessera/laser_slam/graph_optimizer_actor.hpp>
 
+#include <tessera/actor_common/map_message.hpp>
 #include <tessera/messages/types.hpp>
 #include <tessera/pose_graph/pose_graph_io.hpp>
 #include <tessera/runtime/options.hpp>
 #include <tessera/runtime/registry.hpp>
 
 #include <algorithm>
+#include <chrono>
 #include <cmath>
 #include <filesystem>
 #include <iostream>
+#include <set>
 #include <stdexcept>
 
 namespace tessera::laser_slam {
@@ -30,8 +33,17 @@ Graph checkedGraph(const char* group, const Options& options) {
 GraphOptimizerActor::GraphOptimizerActor(GraphOptimizerActorOptions options)
     : options_(std::move(options)),
       graph_(checkedGraph<SubmapGraph>("graph", options_.graph)),
-      scan_graph_(checkedGraph<ScanGraph>("scan_graph", options_.scan_graph.options)) {
+      scan_graph_(checkedGraph<ScanGraph>("scan_graph", options_.scan_graph.options)),
+      trimmer_(checkedGraph<SubmapTrimmer>("lifelong", options_.lifelong.trimmer)) {
   if (options_.frame_id.empty()) throw ConfigError("graph_optimizer: frame_id must not be empty");
+  if (options_.lifelong.enabled && options_.scan_graph.enabled)
+    throw ConfigError(
+        "graph_optimizer: lifelong.enabled and scan_graph.enabled cannot both be true: the scan "
+        "graph keeps every scan of every submap, which lifelong mapping must not");
+  if (options_.lifelong.enabled && options_.compose_trajectory)
+    throw ConfigError(
+        "graph_optimizer: lifelong.enabled and compose_trajectory cannot both be true: the "
+        "composed trajectory keeps every pose and needs the trimmed submaps");
 }
 
 void GraphOptimizerActor::configure(ActorContext& ctx) {
@@ -72,7 +84,37 @@ void GraphOptimizerActor::onSubmap(const Message<msg::Submap>& m) {
       ++scan_rejected_;
     }
   }
+  if (options_.lifelong.enabled && m->getFinished()) {
+    try {
+      trimmer_.addSubmap(static_cast<int>(m->getId()),
+                         trimmer_.footprint(toOccupancyMap(m->getGrid())));
+    } catch (const std::invalid_argument& e) {
+      // Kept, never trimmed: without its cells nothing says what it covers.
+      std::cerr << "[graph_optimizer] lifelong: submap " << m->getId() << " grid: " << e.what()
+                << "; it is never trimmed\n";
+    }
+    trimCovered();
+  }
   if (graph_.needsOptimization()) optimizeAndPublish();
+}
+
+bool GraphOptimizerActor::trimCovered() {
+  if (graph_.nodes() == 0) return false;
+  const auto t0 = std::chrono::steady_clock::now();
+  const std::set<int> keep = {static_cast<int>(graph_.graph().ids.front())};  // the anchor
+  bool any = false;
+  for (const int id : trimmer_.trim(graph_.poses(), keep)) {
+    if (!graph_.removeSubmap(id)) {
+      std::cerr << "[graph_optimizer] lifelong: " << graph_.lastError() << "; not trimmed\n";
+      continue;
+    }
+    spans_.erase(id);
+    trimmed_.push_back(static_cast<std::uint32_t>(id));
+    any = true;
+  }
+  std::sort(trimmed_.begin(), trimmed_.end());
+  trim_seconds_ += std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  return any;
 }
 
 void GraphOptimizerActor::onConstraint(const Message<msg::SubmapConstraint>& m) {
@@ -155,7 +197,7 @@ void GraphOptimizerActor::optimizeAndPublish() {
 
 void GraphOptimizerActor::publishPoses(const std::map<int, tessera::Pose2>& poses, double chi2,
                                        int iterations) {
-  auto loan = poses_pub_.loan(64 * poses.size() + 256);
+  auto loan = poses_pub_.loan(64 * poses.size() + 4 * trimmed_.size() + 256);
   setHeader(loan->initHeader(), last_stamp_, options_.frame_id, poses_pub_.nextSeq());
   auto list = loan->initPoses(static_cast<unsigned>(poses.size()));
   unsigned k = 0;
@@ -166,6 +208,10 @@ void GraphOptimizerActor::publishPoses(const std::map<int, tessera::Pose2>& pose
   }
   loan->setChi2(chi2);
   loan->setIterations(static_cast<std::uint32_t>(std::max(0, iterations)));
+  if (!trimmed_.empty()) {
+    auto t = loan->initTrimmed(static_cast<unsigned>(trimmed_.size()));
+    for (unsigned i = 0; i < trimmed_.size(); ++i) t.set(i, trimmed_[i]);
+  }
   poses_pub_.publish(std::move(loan));
   ++published_;
 }
@@ -255,6 +301,12 @@ void GraphOptimizerActor::summarize(Summary& out) const {
   out["optimize_s"] = optimize_seconds_;
   out["final_chi2"] = last_chi2_;
   if (solver_failures_ > 0) out["solver_failures"] = i64(solver_failures_);
+  if (options_.lifelong.enabled) {
+    out["submaps_trimmed"] = i64(trimmed_.size());
+    out["trimmer_submaps"] = i64(trimmer_.size());
+    out["trimmer_points"] = i64(trimmer_.points());
+    out["trim_s"] = trim_seconds_;
+  }
   if (options_.scan_graph.enabled) {
     out["scan_graph_optimized"] = std::int64_t{scan_optimized_ ? 1 : 0};
     out["scan_graph_nodes"] = i64(scan_graph_.nodes());

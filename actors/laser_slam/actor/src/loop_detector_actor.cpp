@@ -34,6 +34,10 @@ const LoopDetectorOptions& checked(const LoopDetectorOptions& o) {
     throw ConfigError("loop_detector: window growth rates must be >= 0");
   if (!non_negative(o.sigma_floor_linear) || !non_negative(o.sigma_floor_angular))
     throw ConfigError("loop_detector: sigma floors must be >= 0");
+  if (!non_negative(o.jump_check_distance) || !non_negative(o.jump_linear) ||
+      !non_negative(o.jump_growth) || !non_negative(o.jump_angular) ||
+      !non_negative(o.jump_angular_growth))
+    throw ConfigError("loop_detector: jump_check_distance and the jump_* tolerances must be >= 0");
   if (!positive(o.truth_tolerance_linear) || !positive(o.truth_tolerance_angular))
     throw ConfigError("loop_detector: truth tolerances must be > 0");
   if (o.scan_queue < 1 || o.pose_queue < 1)
@@ -216,6 +220,10 @@ void LoopDetectorActor::tryScan(const Message<msg::LaserScan>& scan,
     const Eigen::Matrix3d prior = sigma.cwiseAbs2().asDiagonal();
     const auto verdict = verifier_.verify(result, c.local, prior);
     if (!verdict.accepted) continue;
+    if (isJump(s, result.pose, robot_chained)) {
+      ++rejected_jump_;
+      continue;
+    }
     accepted.push_back(
         {result.score,
          {scan->getHeader().getStampNs(), s.id, result.pose, robot_chained, result.covariance}});
@@ -234,6 +242,11 @@ void LoopDetectorActor::tryScan(const Message<msg::LaserScan>& scan,
   const bool in_current = scan->getHeader().getStampNs() > last_end_;
   const auto origin = chained_origins_.find(current_submap_);
   const bool now = options_.publish_at_match && in_current && origin != chained_origins_.end();
+  if (!accepted.empty()) {
+    driven_at_closure_ = driven_;
+    last_closure_ = {accepted.front().second.matched, accepted.front().second.in_matched,
+                     robot_chained};
+  }
   for (const auto& [score, closure] : accepted) {
     if (options_.score_ground_truth) scoreClosure(closure);
     if (now && closure.matched != current_submap_) {
@@ -243,6 +256,27 @@ void LoopDetectorActor::tryScan(const Message<msg::LaserScan>& scan,
       pending_.push_back(closure);
     }
   }
+}
+
+bool LoopDetectorActor::isJump(const FinishedSubmap& s, const tessera::Pose2& in_matched,
+                               const tessera::Pose2& robot_chained) const {
+  if (!(options_.jump_check_distance > 0) || last_closure_.submap < 0) return false;
+  const double d = driven_ - driven_at_closure_;
+  if (d > options_.jump_check_distance) return false;
+  // The last closure's submap in this one's frame (identity for the same submap).
+  tessera::Pose2 last_in_this;
+  if (last_closure_.submap != s.id) {
+    const auto last = std::find_if(submaps_.begin(), submaps_.end(),
+                                   [&](const auto& x) { return x.id == last_closure_.submap; });
+    if (last == submaps_.end()) return false;  // trimmed since: nothing to compare with
+    last_in_this = s.optimized.inverse() * last->optimized;
+  }
+  const tessera::Pose2 predicted = last_in_this * last_closure_.in_matched *
+                                   (last_closure_.robot_chained.inverse() * robot_chained);
+  return std::hypot(predicted.x - in_matched.x, predicted.y - in_matched.y) >
+             options_.jump_linear + options_.jump_growth * d ||
+         std::abs(tessera::angleDiff(predicted.theta, in_matched.theta)) >
+             options_.jump_angular + options_.jump_angular_growth * d;
 }
 
 void LoopDetectorActor::onConstraint(const Message<msg::SubmapConstraint>& m) {
@@ -258,21 +292,29 @@ void LoopDetectorActor::onConstraint(const Message<msg::SubmapConstraint>& m) {
 void LoopDetectorActor::scoreClosure(const PendingClosure& c) {
   const auto& s = *std::find_if(submaps_.begin(), submaps_.end(),
                                 [&](const auto& x) { return x.id == c.matched; });
-  tessera::Pose2 now, origin;
-  if (truthAt(c.stamp, now) && truthAt(s.start, origin)) {
-    const tessera::Pose2 truth = origin.inverse() * now;
+  tessera::Pose2 now;
+  if (s.has_truth_origin && truthAt(c.stamp, now)) {
+    const tessera::Pose2 truth = s.truth_origin.inverse() * now;
     const bool ok = std::hypot(truth.x - c.in_matched.x, truth.y - c.in_matched.y) <=
                         options_.truth_tolerance_linear &&
                     std::abs(tessera::angleDiff(truth.theta, c.in_matched.theta)) <=
                         options_.truth_tolerance_angular;
     ++(ok ? truth_true_ : truth_false_);
+    if (!ok && truth_false_ <= 10)
+      std::cerr << "[loop_detector] false closure (by ground truth): scan at "
+                << nanosToSeconds(c.stamp) << " s in submap " << c.matched << " at ("
+                << c.in_matched.x << ", " << c.in_matched.y << ", " << c.in_matched.theta
+                << "), truly at (" << truth.x << ", " << truth.y << ", " << truth.theta << ")\n";
   } else {
     ++truth_unknown_;
   }
 }
 
 tessera::scan_matching::SearchWindow LoopDetectorActor::windowFor(const FinishedSubmap& s) const {
-  const double driven = driven_ - s.driven_at_finish;
+  const double since = options_.window_since_closure
+                           ? std::max(s.driven_at_finish, driven_at_closure_)
+                           : s.driven_at_finish;
+  const double driven = driven_ - since;
   return {std::min(options_.window_linear_max,
                    options_.window_linear + options_.window_growth * driven),
           std::min(options_.window_angular_max,
@@ -338,7 +380,15 @@ void LoopDetectorActor::onSubmap(const Message<msg::Submap>& m) {
     ++submaps_rejected_;
     return;
   }
-  s.optimized = chained;
+  // Searched where the graph last put it (as the submap being built), else chained from the
+  // newest finished submap's optimised origin: never at its chained origin, which drifts from
+  // the optimised frame lap after lap (only the very first submaps share the two frames).
+  if (const auto placed = current_optimized_.find(id); placed != current_optimized_.end())
+    s.optimized = placed->second;
+  else if (!submaps_.empty() && submaps_.back().id < id)
+    s.optimized = submaps_.back().optimized * (submaps_.back().chained.inverse() * chained);
+  else
+    s.optimized = chained;
   const double half_w = 0.5 * view.width * view.resolution,
                half_h = 0.5 * view.height * view.resolution;
   s.centre = view.origin * Eigen::Vector2d(half_w, half_h);
@@ -348,6 +398,26 @@ void LoopDetectorActor::onSubmap(const Message<msg::Submap>& m) {
   current_optimized_.erase(current_optimized_.begin(), current_optimized_.upper_bound(id));
   s.start = start;
   s.end = end;
+  if (options_.score_ground_truth) {
+    s.has_truth_origin = truthAt(start, s.truth_origin);
+    // How far the submap's own trajectory strays from the truth (both from its start): a
+    // closure into a submap the local SLAM distorted is judged against a wrong frame.
+    double drift = 0.0;
+    for (const auto p : trajectory) {
+      tessera::Pose2 truth;
+      if (!s.has_truth_origin || !truthAt(p.getStampNs(), truth)) continue;
+      const tessera::Pose2 rel = s.truth_origin.inverse() * truth;
+      drift = std::max(drift, std::hypot(rel.x - p.getX(), rel.y - p.getY()));
+    }
+    submap_drift_max_ = std::max(submap_drift_max_, drift);
+    if (drift > options_.truth_tolerance_linear) {
+      ++submaps_drifted_;
+      std::cerr << "[loop_detector] submap " << id << " strays " << drift
+                << " m from the truth inside itself\n";
+    }
+    // Truth is needed from the current submap's start on (its origin, its closures' scans).
+    truth_.erase(truth_.begin(), truth_.lower_bound(last_end_ - 1'000'000'000));
+  }
   s.cells = tessera::grid::PackedOccupancyMap(grid);  // consistent: checked above
   submaps_.push_back(std::move(s));
   notePeak();
@@ -430,6 +500,27 @@ void LoopDetectorActor::publishClosure(const PendingClosure& c, int current,
 }
 
 void LoopDetectorActor::onSubmapPoses(const Message<msg::SubmapPoses>& m) {
+  if (m->hasTrimmed() && m->getTrimmed().size() > 0) {
+    const auto trimmed = m->getTrimmed();
+    const auto is_trimmed = [&](int id) {
+      for (const auto t : trimmed)
+        if (static_cast<int>(t) == id) return true;
+      return false;
+    };
+    const std::size_t before = submaps_.size();
+    std::erase_if(submaps_, [&](const FinishedSubmap& s) { return is_trimmed(s.id); });
+    submaps_trimmed_ += before - submaps_.size();
+    if (before != submaps_.size()) {
+      std::erase_if(pyramids_, [&](const CachedPyramid& p) { return is_trimmed(p.id); });
+      for (auto it = chained_origins_.begin(); it != chained_origins_.end();)
+        it = is_trimmed(it->first) && it->first != current_submap_ ? chained_origins_.erase(it)
+                                                                   : std::next(it);
+    }
+    const std::size_t waiting = pending_.size() + ready_.size();
+    std::erase_if(pending_, [&](const PendingClosure& c) { return is_trimmed(c.matched); });
+    std::erase_if(ready_, [&](const ReadyClosure& r) { return is_trimmed(r.closure.matched); });
+    closures_dropped_trimmed_ += waiting - pending_.size() - ready_.size();
+  }
   for (const auto p : m->getPoses()) {
     const tessera::Pose2 pose = toPose2(p.getPose());
     if (!pose.isFinite()) continue;
@@ -465,6 +556,12 @@ bool LoopDetectorActor::truthAt(Nanos stamp, tessera::Pose2& out) const {
   return true;
 }
 
+std::optional<tessera::Pose2> LoopDetectorActor::searchOrigin(int id) const {
+  for (const auto& s : submaps_)
+    if (s.id == id) return s.optimized;
+  return std::nullopt;
+}
+
 void LoopDetectorActor::summarize(Summary& out) const {
   const auto i64 = [](std::uint64_t v) { return static_cast<std::int64_t>(v); };
   const auto& c = verifier_.counts();
@@ -477,6 +574,14 @@ void LoopDetectorActor::summarize(Summary& out) const {
   out["memory_mb"] = static_cast<double>(memoryBytes()) / (1024.0 * 1024.0);  // MiB, as peak_rss_mb
   out["memory_peak_mb"] = static_cast<double>(memory_peak_) / (1024.0 * 1024.0);
   out["loops_accepted"] = i64(c.accepted);
+  out["submaps_searched"] = i64(submaps_.size());
+  if (options_.score_ground_truth) {
+    out["submap_drift_max_m"] = submap_drift_max_;
+    out["submaps_drifted"] = i64(submaps_drifted_);
+  }
+  if (submaps_trimmed_ > 0) out["submaps_trimmed"] = i64(submaps_trimmed_);
+  if (closures_dropped_trimmed_ > 0)
+    out["closures_dropped_trimmed"] = i64(closures_dropped_trimmed_);
   out["loops_published"] = i64(published_);
   out["loops_published_smoothed"] = i64(published_smoothed_);
   if (options_.publish_at_match) out["loops_published_at_match"] = i64(published_at_match_);
@@ -485,6 +590,7 @@ void LoopDetectorActor::summarize(Summary& out) const {
   out["loops_rejected_ambiguous"] = i64(c.ambiguous);
   out["loops_rejected_unconstrained"] = i64(c.unconstrained);
   out["loops_rejected_inconsistent"] = i64(c.inconsistent);
+  if (options_.jump_check_distance > 0) out["loops_rejected_jump"] = i64(rejected_jump_);
   out["loops_unpublished"] = i64(pending_.size());
   if (submaps_rejected_ > 0) out["loop_submaps_rejected"] = i64(submaps_rejected_);
   if (options_.score_ground_truth) {

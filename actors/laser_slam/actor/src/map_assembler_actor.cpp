@@ -96,6 +96,10 @@ void MapAssemblerActor::configure(ActorContext& ctx) {
 
 void MapAssemblerActor::onSubmap(const Message<msg::Submap>& m) {
   const int id = static_cast<int>(m->getId());
+  if (trimmed_.count(id)) {
+    ++ignored_trimmed_;
+    return;
+  }
   const auto g = m->getGrid();
   tessera::grid::OccupancyMap grid;
   grid.resolution = g.getResolution();
@@ -127,6 +131,11 @@ void MapAssemblerActor::onSubmap(const Message<msg::Submap>& m) {
 
 void MapAssemblerActor::onConstraint(const Message<msg::SubmapConstraint>& m) {
   ++constraints_;
+  if (trimmed_.count(static_cast<int>(m->getFromId())) ||
+      trimmed_.count(static_cast<int>(m->getToId()))) {
+    ++ignored_trimmed_;
+    return;
+  }
   const tessera::Pose2 relative = toPose2(m->getRelative());
   keepConstraint(m, relative);
   if (m->getKind() != msg::SubmapConstraint::Kind::HAND_OVER) return;
@@ -172,6 +181,9 @@ void MapAssemblerActor::keepConstraint(const Message<msg::SubmapConstraint>& m,
 
 void MapAssemblerActor::onOptimizedPoses(const Message<msg::SubmapPoses>& m) {
   ++pose_updates_;
+  if (m->hasTrimmed())
+    for (const auto id : m->getTrimmed())
+      if (trimmed_.insert(static_cast<int>(id)).second) dropTrimmed(static_cast<int>(id));
   for (const auto p : m->getPoses()) {
     const tessera::Pose2 pose = toPose2(p.getPose());
     if (pose.isFinite()) optimized_[static_cast<int>(p.getId())] = pose;
@@ -179,6 +191,17 @@ void MapAssemblerActor::onOptimizedPoses(const Message<msg::SubmapPoses>& m) {
   last_stamp_ = std::max(last_stamp_, m->getHeader().getStampNs());
   placeChained();
   dirty_ = true;
+}
+
+void MapAssemblerActor::dropTrimmed(int id) {
+  assembler_.removeSubmap(id);
+  message_pose_.erase(id);
+  handover_.erase(id);
+  optimized_.erase(id);
+  finished_.erase(id);
+  std::erase_if(kept_, [id](const SavedConstraint& c) { return c.from == id || c.to == id; });
+  std::erase_if(kept_keys_,
+                [id](const auto& k) { return std::get<0>(k) == id || std::get<1>(k) == id; });
 }
 
 void MapAssemblerActor::onCameraCalibration(const Message<msg::CameraCalibration>& m) {
@@ -312,6 +335,11 @@ void MapAssemblerActor::summarize(Summary& out) const {
   out["memory_mb"] = static_cast<double>(gridBytes()) / (1024.0 * 1024.0);  // MiB, as peak_rss_mb
   out["memory_peak_mb"] = static_cast<double>(grid_bytes_peak_) / (1024.0 * 1024.0);
   if (constraints_rejected_ > 0) out["constraints_rejected"] = i64(constraints_rejected_);
+  if (!trimmed_.empty()) {
+    out["submaps_trimmed"] = i64(trimmed_.size());
+    out["submaps_held"] = i64(assembler_.size());
+    out["ignored_trimmed"] = i64(ignored_trimmed_);
+  }
   if (options_.optimized_poses) out["optimized_pose_updates"] = i64(pose_updates_);
   if (!loaded_) out["camera_calibrations_received"] = i64(calibrations_received_);
   if (calibrations_rejected_ > 0) out["camera_calibrations_rejected"] = i64(calibrations_rejected_);

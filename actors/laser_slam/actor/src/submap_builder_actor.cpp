@@ -200,8 +200,17 @@ void SubmapBuilderActor::publishPose(Nanos stamp, const tessera::Pose2& odometry
 }
 
 void SubmapBuilderActor::handOver(Nanos stamp, bool lost) {
-  appendBestTrajectory(finished_trajectory_);
+  if (options_.keep_trajectory) appendBestTrajectory(finished_trajectory_);
   const std::vector<Rbpf::StampedPose> smoothed = densify(rbpf_.bestTrajectory());
+  if (!options_.keep_trajectory && !scan_odometry_.empty()) {
+    // The next submap's trajectory starts at this hand-over's scan: the motion chain before the
+    // last scan at or before it is needed by nothing.
+    const double at = nanosToSeconds(stamp) + 1e-6;
+    auto keep = std::upper_bound(scan_odometry_.begin(), scan_odometry_.end(), at,
+                                 [](double t, const auto& e) { return t < e.first; });
+    if (keep != scan_odometry_.begin()) --keep;
+    scan_odometry_.erase(scan_odometry_.begin(), keep);
+  }
   const FinishedSubmap done = lost ? rbpf_.startSubmapLost() : rbpf_.startSubmap();
   publishSubmap(done, stamp, smoothed);
   auto loan = constraint_pub_.loan();

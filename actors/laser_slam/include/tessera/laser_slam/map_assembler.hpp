@@ -33,6 +33,8 @@ class MapAssembler {
   /// Places submap `id` (pose of its origin in the map frame). Submaps without a pose are not
   /// drawn.
   void setPose(int id, const tessera::Pose2& global_pose);
+  /// Forgets submap `id` (lifelong mapping trimmed it); false when there was none.
+  bool removeSubmap(int id) { return submaps_.erase(id) > 0; }
   bool hasPose(int id) const;
   tessera::Pose2 pose(int id) const;
   /// Submap `id`'s grid (unpacked: a copy the caller owns), or nullopt when it has no cells.

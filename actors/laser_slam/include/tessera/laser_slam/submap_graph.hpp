@@ -7,6 +7,10 @@
 // from the current poses) whenever a constraint can change the optimum: a new revisit or a fusion.
 // A hand-over to a new submap only extends the graph by a leaf and places it by composition.
 //
+// Lifelong mapping (docs/algorithms.md#lifelong-mapping): removeSubmap() marginalises a submap
+// out of the graph (its neighbours tied by chained constraints, pose_graph::marginalizeNode); any
+// later constraint naming it is rejected.
+//
 // Arrival order does not matter: a constraint naming a submap the graph does not know yet waits
 // (pending) until that submap appears, through addSubmap() or a hand-over that places it.
 // Frames: poses of submap origins in the map frame; a constraint i -> j is the pose of j's
@@ -20,6 +24,7 @@
 #include <Eigen/Core>
 
 #include <cstdint>
+#include <deque>
 #include <map>
 #include <set>
 #include <string>
@@ -80,6 +85,12 @@ class SubmapGraph {
   /// Adds or fuses a constraint (see Outcome). Pending constraints it unblocks are added too.
   Outcome addConstraint(const SubmapConstraintInput& c);
 
+  /// Removes submap `id` (lifelong mapping), keeping what its constraints said about its
+  /// neighbours. False (see lastError()) when it is unknown or is the anchor, the first node.
+  bool removeSubmap(int id);
+  bool removed(int id) const { return removed_.count(id) != 0; }
+  std::size_t removedCount() const { return removed_.size(); }
+
   /// True when a constraint since the last optimize() can move the optimum.
   bool needsOptimization() const { return dirty_; }
   pose_graph::OptimizerSummary optimize();
@@ -104,7 +115,11 @@ class SubmapGraph {
   SubmapGraphOptions options_;
   pose_graph::Graph2D graph_;
   std::vector<SubmapConstraintInput> pending_;
-  std::set<std::tuple<int, int, double, double, double>> seen_;  // exact repeats
+  // Exact repeats, bounded: the newest kMaxSeen keys (a re-send comes soon after the original).
+  static constexpr std::size_t kMaxSeen = 4096;
+  std::set<std::tuple<int, int, double, double, double>> seen_;
+  std::deque<std::tuple<int, int, double, double, double>> seen_order_;
+  std::set<int> removed_;
   bool dirty_ = false;
   std::string last_error_;
 };

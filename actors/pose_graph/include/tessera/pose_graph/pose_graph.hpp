@@ -60,6 +60,9 @@ struct Graph {
   /// Index of the node with this id; throws GraphError naming the id when there is none.
   int index(std::int64_t id) const;
   bool contains(std::int64_t id) const { return index_.count(id) != 0; }
+  /// Removes node `id` and every edge touching it; the nodes after it move down one index (edges
+  /// are renumbered). Throws GraphError when there is no such node.
+  void removeNode(std::int64_t id);
 
  private:
   std::unordered_map<std::int64_t, int> index_;
@@ -103,6 +106,19 @@ Measurement2D fuse(const Measurement2D& first, const Measurement2D& second);
 /// The same relative pose seen from the other end: Z⁻¹, with the information carried through
 /// the Jacobian of the inversion.
 Measurement2D invert(const Measurement2D& m);
+
+/// Chains two measurements: a -> x then x -> b gives a -> b, Z = Z1 ⊕ Z2, the covariances carried
+/// through the Jacobians of the composition (first order; the two taken as independent).
+Measurement2D chain(const Measurement2D& a_to_x, const Measurement2D& x_to_b);
+
+/// Removes node `id` and keeps what its edges said about its neighbours
+/// (docs/algorithms.md#lifelong-mapping): one neighbour, the one tied to it by the most informative
+/// edge (largest det Ω), becomes the hub, and each other neighbour n gets the chained edge hub ->
+/// id -> n, fused into an edge hub–n if there is one. A star rather than the dense clique exact
+/// marginalisation would give: the graph stays as sparse as it was (k neighbours give k − 1 edges),
+/// at the price of dropping the correlations between the new edges. A chained edge is robust if
+/// either input was. Throws GraphError for an unknown id or for index 0, which anchors the frame.
+void marginalizeNode(Graph2D& graph, std::int64_t id);
 
 /// Adds the edge, or fuses it into an existing edge between the same two nodes (in either
 /// direction) so revisits do not grow the graph. Returns true when it fused. The fused edge is

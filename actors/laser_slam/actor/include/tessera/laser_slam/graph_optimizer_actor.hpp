@@ -35,11 +35,18 @@
 // moved with its submap as without it). The online optimisations, and so the loop detector's
 // search centres, are the submap-level ones either way, and graph.g2o holds the submap-level
 // graph.
+//
+// With lifelong.enabled (docs/algorithms.md#lifelong-mapping), each finished submap's footprint
+// goes to a SubmapTrimmer; after it, the submaps newer ones cover are marginalised out of the
+// graph (SubmapGraph::removeSubmap), and every later submap_poses lists them in `trimmed`, so the
+// loop detector and the map assembler drop them too. The graph's anchor is never trimmed.
+// Lifelong mode keeps nothing per scan, so it refuses scan_graph.enabled and compose_trajectory.
 #pragma once
 
 #include <tessera/msg/submap.capnp.h>
 #include <tessera/laser_slam/scan_graph.hpp>
 #include <tessera/laser_slam/submap_graph.hpp>
+#include <tessera/laser_slam/submap_trimmer.hpp>
 #include <tessera/runtime/actor.hpp>
 #include <tessera/runtime/options.hpp>
 
@@ -65,9 +72,24 @@ struct ScanGraphStage {
   }
 };
 
+/// Lifelong mapping: off unless `enabled`; its other keys are SubmapTrimmer's own.
+struct LifelongStage {
+  bool enabled = false;
+  SubmapTrimmerOptions trimmer;
+
+  template <class V>
+  void visit(V& v) {
+    v("enabled", enabled,
+      "trim submaps that newer ones cover: removed from the graph (their constraints chained "
+      "onto their neighbours) and listed in submap_poses.trimmed");
+    trimmer.visit(v);
+  }
+};
+
 struct GraphOptimizerActorOptions {
   SubmapGraphOptions graph;
   ScanGraphStage scan_graph;
+  LifelongStage lifelong;
   std::string frame_id = "map";
   bool compose_trajectory = false;
   std::string g2o_file = "graph.g2o";
@@ -76,6 +98,7 @@ struct GraphOptimizerActorOptions {
   void visit(V& v) {
     v("graph", graph, "the submap-level graph, re-optimised online");
     v("scan_graph", scan_graph, "the scan-level graph, optimised once at stop");
+    v("lifelong", lifelong, "lifelong mapping: submaps covered by newer ones are trimmed");
     v("compose_trajectory", compose_trajectory,
       "subscribe to trajectory and publish it re-expressed in the optimised submaps at stop");
     v("frame_id", frame_id, "frame of the published poses");
@@ -117,6 +140,8 @@ class GraphOptimizerActor final : public Actor {
   void onSubmap(const Message<msg::Submap>& m);
   void onConstraint(const Message<msg::SubmapConstraint>& m);
   void optimizeAndPublish();
+  /// Lifelong: removes the submaps newer ones cover; true when it removed any.
+  bool trimCovered();
   void addToScanGraph(const Message<msg::SubmapConstraint>& m, const SubmapConstraintInput& c);
   /// At stop: the scan-level optimisation; false when it could not run.
   bool optimizeScanGraph();
@@ -127,6 +152,8 @@ class GraphOptimizerActor final : public Actor {
   GraphOptimizerActorOptions options_;
   SubmapGraph graph_;
   ScanGraph scan_graph_;
+  SubmapTrimmer trimmer_;
+  std::vector<std::uint32_t> trimmed_;  // every submap trimmed so far, by increasing id
   bool scan_optimized_ = false;
   Publisher<msg::SubmapPoses> poses_pub_;
   Publisher<msg::PoseStamped> trajectory_pub_;
@@ -140,7 +167,7 @@ class GraphOptimizerActor final : public Actor {
   std::string output_dir_, graph_path_, write_error_;
   std::uint64_t submaps_ = 0, constraints_ = 0, added_ = 0, fused_ = 0, duplicates_ = 0;
   std::uint64_t rejected_ = 0, optimizations_ = 0, published_ = 0, solver_failures_ = 0;
-  double optimize_seconds_ = 0.0, last_chi2_ = 0.0;
+  double optimize_seconds_ = 0.0, last_chi2_ = 0.0, trim_seconds_ = 0.0;
   std::uint64_t scan_rejected_ = 0, scan_composed_ = 0;
   double scan_seconds_ = 0.0, scan_chi2_ = 0.0;
   int scan_iterations_ = 0;

@@ -12,7 +12,9 @@
 //   submaps       msg::Submap           reliable                 finished submaps: searched, and
 //                                                                 the end of the current one
 //   submap_poses  msg::SubmapPoses      keep_latest(1), with optimized_poses: where the graph
-//                                       optimiser put the submaps (better search centres)
+//                                       optimiser put the submaps (better search centres), and
+//                                       the submaps lifelong mapping trimmed: forgotten here, with
+//                                       the closures waiting to be published against them
 //   ground_truth  msg::GroundTruthPose  keep_latest(1000), with score_ground_truth: scores every
 //                                       accepted closure (simulation): loops_true/loops_false
 // Publishes:
@@ -39,7 +41,10 @@
 // `skip_recent` most recent ones (linked to the current one by hand-overs already). Of the
 // verified matches, the best `closures_per_scan` are published. The window
 // grows with the distance driven since the submap was finished (odometry-style drift):
-// linear = min(window_linear_max, window_linear + window_growth · d), angular likewise.
+// linear = min(window_linear_max, window_linear + window_growth · d), angular likewise. With
+// window_since_closure, d counts from the last accepted closure too (whichever came later): a
+// robot that keeps revisiting mapped space is re-anchored at each closure, so its windows stay
+// small (lifelong mapping: fewer candidates, fewer chances of a false match).
 // Verification (LoopClosureVerifier): score, ambiguity (second best / best), how well the scan
 // pins the position (the match covariance's largest std: on the simulated office every false
 // closure slid along a corridor or past a submap's edge with a std above 0.125 m, while 2/3 of
@@ -47,6 +52,16 @@
 // decision is counted in the summary. Frames: submap grids in their own frame; robot poses in the
 // chained map frame (builder) or the optimised one; constraint = pose of the matched submap's
 // origin in the current submap's frame.
+//
+// Jumps (jump_check_distance > 0). An accepted closure places the robot in a submap; so does
+// the next one. Between them the builder's chained pose gives the motion, accurate over a few
+// metres. Within jump_check_distance metres driven of the last accepted closure, a verified match
+// is rejected (loops_rejected_jump) when it puts the robot farther than jump_linear +
+// jump_growth · d (or jump_angular + jump_angular_growth · d in heading) from where that closure
+// and the motion since put it: in the same submap this needs nothing but the two matches and
+// the motion; between two submaps it uses their optimised relative pose. A false match that
+// slides along a corridor or into a look-alike room is a jump; a robot does not jump. Beyond
+// the distance nothing is checked, so one false acceptance cannot lock true closures out.
 //
 // Memory. Each finished submap's int8 cells are kept zstd-compressed (grid::PackedOccupancyMap,
 // lossless; ~14x smaller on the Intel submaps, 0.5 MB instead of 6.8 MB), which still grows with
@@ -120,6 +135,12 @@ struct LoopDetectorOptions {
   int scan_queue = 20;
   int pose_queue = 20;
   int pyramid_cache = 4;
+  bool window_since_closure = false;
+  double jump_check_distance = 0.0;
+  double jump_linear = 0.3;
+  double jump_growth = 0.02;
+  double jump_angular = 0.1;
+  double jump_angular_growth = 0.005;
 
   template <class V>
   void visit(V& v) {
@@ -135,6 +156,16 @@ struct LoopDetectorOptions {
     v("window_angular", window_angular, "[rad] heading half-width right after a submap");
     v("window_angular_growth", window_angular_growth, "[rad per m driven] its growth");
     v("window_angular_max", window_angular_max, "[rad] largest heading half-width");
+    v("jump_check_distance", jump_check_distance,
+      "[m] a match within this distance driven of the last accepted closure must agree with it "
+      "and the motion since (0: off)");
+    v("jump_linear", jump_linear, "[m] allowed disagreement right after the last closure");
+    v("jump_growth", jump_growth, "[m per m driven] its growth");
+    v("jump_angular", jump_angular, "[rad] allowed heading disagreement");
+    v("jump_angular_growth", jump_angular_growth, "[rad per m driven] its growth");
+    v("window_since_closure", window_since_closure,
+      "grow the windows from the last accepted closure as well as from the submap's end "
+      "(whichever is later)");
     v("matcher", matcher, "correlative scan matcher (branch and bound)");
     v("verifier", verifier, "which matches become loop closures");
     v("sigma_floor_linear", sigma_floor_linear, "[m] added to the published std (quadrature)");
@@ -177,6 +208,10 @@ class LoopDetectorActor final : public Actor {
   void stop() override;
   void summarize(Summary& out) const override;
 
+  /// Where finished submap `id` is searched: its origin in the optimised frame (nullopt when it
+  /// is not held).
+  std::optional<tessera::Pose2> searchOrigin(int id) const;
+
  private:
   struct FinishedSubmap {
     int id = 0;
@@ -188,6 +223,8 @@ class LoopDetectorActor final : public Actor {
     double radius = 0.0;                               // [m] half-diagonal of the grid
     double driven_at_finish = 0.0;                     // [m] robot path length then
     Nanos start = 0, end = 0;                          // first and last scan stamps
+    bool has_truth_origin = false;  // score_ground_truth: the true pose at `start`
+    tessera::Pose2 truth_origin;
   };
   struct PendingClosure {
     Nanos stamp = 0;
@@ -263,6 +300,20 @@ class LoopDetectorActor final : public Actor {
   bool have_last_pose_ = false;
   tessera::Pose2 last_pose_;
   double driven_ = 0.0;
+  double driven_at_closure_ = -1.0;  // [m] driven_ at the last accepted closure (-1: none)
+  // The last accepted closure, for the jump check: matched submap, robot pose in it and in the
+  // chained frame.
+  struct LastClosure {
+    int submap = -1;
+    tessera::Pose2 in_matched, robot_chained;
+  } last_closure_;
+  /// True when a match of the robot in submap `s` at `in_matched` (chained pose
+  /// `robot_chained`) disagrees with the last accepted closure and the motion since.
+  bool isJump(const FinishedSubmap& s, const tessera::Pose2& in_matched,
+              const tessera::Pose2& robot_chained) const;
+  std::uint64_t rejected_jump_ = 0;
+  std::uint64_t submaps_trimmed_ = 0, closures_dropped_trimmed_ = 0, submaps_drifted_ = 0;
+  double submap_drift_max_ = 0.0;  // [m] score_ground_truth: worst submap trajectory vs truth
   std::uint64_t scans_seen_ = 0, scans_tried_ = 0, matches_run_ = 0, published_ = 0;
   std::uint64_t published_smoothed_ = 0;  // of published_: with the submap's smoothed scan pose
   std::uint64_t published_at_match_ = 0;  // of published_: at once (publish_at_match)

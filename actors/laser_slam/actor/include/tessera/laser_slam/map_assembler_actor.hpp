@@ -5,7 +5,10 @@
 //   constraints  msg::SubmapConstraint  reliable   hand-over constraints place each new submap
 //                                                  relative to the previous one (chained)
 //   submap_poses msg::SubmapPoses       keep_latest(1), only with optimized_poses: true — the
-//                                       graph optimiser's poses, which win over chaining
+//                                       graph optimiser's poses, which win over chaining; the
+//                                       submaps lifelong mapping trimmed are dropped (cells,
+//                                       poses and the constraints that name them), and so are
+//                                       later messages about them
 //   camera_calibrations msg::CameraCalibration  reliable, optional (none need be published):
 //                                       environment cameras' calibrations (camera_network_slam);
 //                                       the latest per camera id is kept for the saved state, an
@@ -92,6 +95,7 @@ class MapAssemblerActor final : public Actor {
   void onConstraint(const Message<msg::SubmapConstraint>& m);
   void keepConstraint(const Message<msg::SubmapConstraint>& m, const tessera::Pose2& relative);
   void onOptimizedPoses(const Message<msg::SubmapPoses>& m);
+  void dropTrimmed(int id);
   void onCameraCalibration(const Message<msg::CameraCalibration>& m);
   void placeChained();
   void publishMap();
@@ -111,6 +115,8 @@ class MapAssemblerActor final : public Actor {
   std::vector<SavedConstraint> kept_;  // distinct constraints with a valid covariance, in order
   std::set<std::tuple<int, int, double, double, double>> kept_keys_;
   std::map<int, SavedCamera> cameras_;  // latest calibration per camera id
+  std::set<int> trimmed_;               // submaps lifelong mapping removed
+  std::uint64_t ignored_trimmed_ = 0;   // messages about them after the trim
   std::string output_dir_, state_path_, state_error_;
   bool loaded_ = false;
   std::uint64_t constraints_unsaved_ = 0, state_submaps_ = 0, state_constraints_ = 0;

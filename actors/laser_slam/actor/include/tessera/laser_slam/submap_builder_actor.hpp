@@ -77,6 +77,7 @@ struct SubmapBuilderOptions {
   bool interpolate_updates = false;
   bool optimized_poses = false;
   int loop_scan_every = 0;
+  bool keep_trajectory = true;
   // Plumbing.
   std::string frame_id = "map";
   int scan_queue = 8;
@@ -101,6 +102,9 @@ struct SubmapBuilderOptions {
     v("loop_scan_every", loop_scan_every,
       "republish every n-th scan that got a pose on loop_scans (0 = off): what a loop detector "
       "on another host reads instead of every scan");
+    v("keep_trajectory", keep_trajectory,
+      "keep every scan's smoothed pose for final_poses at stop; false (lifelong mapping): only "
+      "the last submap's, so nothing grows with the length of the run");
     v("frame_id", frame_id, "global frame of the published poses");
     v("scan_queue", scan_queue, "scan mailbox size (keep-latest)");
     v("odom_queue", odom_queue, "odometry mailbox size (keep-latest)");
