@@ -15,6 +15,8 @@
 #include <tessera/pose_graph/pose_graph_io.hpp>
 #include <tessera/runtime/recording.hpp>
 
+#include <unistd.h>
+
 #include <cmath>
 #include <filesystem>
 #include <fstream>
@@ -248,7 +250,9 @@ void recording(const std::string& bytes) {
 
 // A small zstd recording of two topics over three blocks.
 std::string recordingSeed() {
-  const auto path = std::filesystem::temp_directory_path() / "tessera_fuzz_seed.trec";
+  // One name per process: ctest runs several fuzz processes at once, and each builds this seed.
+  const auto path = std::filesystem::temp_directory_path() /
+                    ("tessera_fuzz_seed_" + std::to_string(::getpid()) + ".trec");
   {
     RecordingWriterOptions options;
     options.block_bytes = 512;
