@@ -500,7 +500,10 @@ void LoopDetectorActor::publishClosure(const PendingClosure& c, int current,
 }
 
 void LoopDetectorActor::onSubmapPoses(const Message<msg::SubmapPoses>& m) {
-  if (m->hasTrimmed() && m->getTrimmed().size() > 0) {
+  // The list is cumulative: only a message that lists more (or, from a restarted optimiser,
+  // fewer) submaps than the last one can name a new trim.
+  if (m->hasTrimmed() && m->getTrimmed().size() != trimmed_listed_) {
+    trimmed_listed_ = m->getTrimmed().size();
     const auto trimmed = m->getTrimmed();
     const auto is_trimmed = [&](int id) {
       for (const auto t : trimmed)

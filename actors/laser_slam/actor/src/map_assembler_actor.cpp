@@ -181,9 +181,12 @@ void MapAssemblerActor::keepConstraint(const Message<msg::SubmapConstraint>& m,
 
 void MapAssemblerActor::onOptimizedPoses(const Message<msg::SubmapPoses>& m) {
   ++pose_updates_;
-  if (m->hasTrimmed())
+  // Cumulative: a list as long as the last one names nothing new.
+  if (m->hasTrimmed() && m->getTrimmed().size() != trimmed_listed_) {
+    trimmed_listed_ = m->getTrimmed().size();
     for (const auto id : m->getTrimmed())
       if (trimmed_.insert(static_cast<int>(id)).second) dropTrimmed(static_cast<int>(id));
+  }
   for (const auto p : m->getPoses()) {
     const tessera::Pose2 pose = toPose2(p.getPose());
     if (pose.isFinite()) optimized_[static_cast<int>(p.getId())] = pose;

@@ -313,7 +313,8 @@ class LoopDetectorActor final : public Actor {
               const tessera::Pose2& robot_chained) const;
   std::uint64_t rejected_jump_ = 0;
   std::uint64_t submaps_trimmed_ = 0, closures_dropped_trimmed_ = 0, submaps_drifted_ = 0;
-  double submap_drift_max_ = 0.0;  // [m] score_ground_truth: worst submap trajectory vs truth
+  std::size_t trimmed_listed_ = 0;  // length of the last submap_poses.trimmed handled
+  double submap_drift_max_ = 0.0;   // [m] score_ground_truth: worst submap trajectory vs truth
   std::uint64_t scans_seen_ = 0, scans_tried_ = 0, matches_run_ = 0, published_ = 0;
   std::uint64_t published_smoothed_ = 0;  // of published_: with the submap's smoothed scan pose
   std::uint64_t published_at_match_ = 0;  // of published_: at once (publish_at_match)

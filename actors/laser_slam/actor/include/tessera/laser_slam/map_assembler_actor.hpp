@@ -117,6 +117,7 @@ class MapAssemblerActor final : public Actor {
   std::map<int, SavedCamera> cameras_;  // latest calibration per camera id
   std::set<int> trimmed_;               // submaps lifelong mapping removed
   std::uint64_t ignored_trimmed_ = 0;   // messages about them after the trim
+  std::size_t trimmed_listed_ = 0;      // length of the last submap_poses.trimmed handled
   std::string output_dir_, state_path_, state_error_;
   bool loaded_ = false;
   std::uint64_t constraints_unsaved_ = 0, state_submaps_ = 0, state_constraints_ = 0;
