@@ -98,23 +98,17 @@ void GraphOptimizerActor::onSubmap(const Message<msg::Submap>& m) {
   if (graph_.needsOptimization()) optimizeAndPublish();
 }
 
-bool GraphOptimizerActor::trimCovered() {
-  if (graph_.nodes() == 0) return false;
+void GraphOptimizerActor::trimCovered() {
+  if (graph_.nodes() == 0) return;
   const auto t0 = std::chrono::steady_clock::now();
   const std::set<int> keep = {static_cast<int>(graph_.graph().ids.front())};  // the anchor
-  bool any = false;
   for (const int id : trimmer_.trim(graph_.poses(), keep)) {
-    if (!graph_.removeSubmap(id)) {
+    if (graph_.removeSubmap(id))
+      spans_.erase(id);
+    else
       std::cerr << "[graph_optimizer] lifelong: " << graph_.lastError() << "; not trimmed\n";
-      continue;
-    }
-    spans_.erase(id);
-    trimmed_.push_back(static_cast<std::uint32_t>(id));
-    any = true;
   }
-  std::sort(trimmed_.begin(), trimmed_.end());
   trim_seconds_ += std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-  return any;
 }
 
 void GraphOptimizerActor::onConstraint(const Message<msg::SubmapConstraint>& m) {
@@ -197,7 +191,8 @@ void GraphOptimizerActor::optimizeAndPublish() {
 
 void GraphOptimizerActor::publishPoses(const std::map<int, tessera::Pose2>& poses, double chi2,
                                        int iterations) {
-  auto loan = poses_pub_.loan(64 * poses.size() + 4 * trimmed_.size() + 256);
+  const std::set<int>& trimmed = graph_.removedSubmaps();
+  auto loan = poses_pub_.loan(64 * poses.size() + 4 * trimmed.size() + 256);
   setHeader(loan->initHeader(), last_stamp_, options_.frame_id, poses_pub_.nextSeq());
   auto list = loan->initPoses(static_cast<unsigned>(poses.size()));
   unsigned k = 0;
@@ -208,9 +203,10 @@ void GraphOptimizerActor::publishPoses(const std::map<int, tessera::Pose2>& pose
   }
   loan->setChi2(chi2);
   loan->setIterations(static_cast<std::uint32_t>(std::max(0, iterations)));
-  if (!trimmed_.empty()) {
-    auto t = loan->initTrimmed(static_cast<unsigned>(trimmed_.size()));
-    for (unsigned i = 0; i < trimmed_.size(); ++i) t.set(i, trimmed_[i]);
+  if (!trimmed.empty()) {
+    auto list_out = loan->initTrimmed(static_cast<unsigned>(trimmed.size()));
+    unsigned i = 0;
+    for (const int id : trimmed) list_out.set(i++, static_cast<std::uint32_t>(id));
   }
   poses_pub_.publish(std::move(loan));
   ++published_;
@@ -302,7 +298,7 @@ void GraphOptimizerActor::summarize(Summary& out) const {
   out["final_chi2"] = last_chi2_;
   if (solver_failures_ > 0) out["solver_failures"] = i64(solver_failures_);
   if (options_.lifelong.enabled) {
-    out["submaps_trimmed"] = i64(trimmed_.size());
+    out["submaps_trimmed"] = i64(graph_.removedSubmaps().size());
     out["trimmer_submaps"] = i64(trimmer_.size());
     out["trimmer_points"] = i64(trimmer_.points());
     out["trim_s"] = trim_seconds_;

@@ -89,7 +89,8 @@ class SubmapGraph {
   /// neighbours. False (see lastError()) when it is unknown or is the anchor, the first node.
   bool removeSubmap(int id);
   bool removed(int id) const { return removed_.count(id) != 0; }
-  std::size_t removedCount() const { return removed_.size(); }
+  /// Every submap removed so far, by increasing id.
+  const std::set<int>& removedSubmaps() const { return removed_; }
 
   /// True when a constraint since the last optimize() can move the optimum.
   bool needsOptimization() const { return dirty_; }

@@ -140,8 +140,8 @@ class GraphOptimizerActor final : public Actor {
   void onSubmap(const Message<msg::Submap>& m);
   void onConstraint(const Message<msg::SubmapConstraint>& m);
   void optimizeAndPublish();
-  /// Lifelong: removes the submaps newer ones cover; true when it removed any.
-  bool trimCovered();
+  /// Lifelong: removes the submaps newer ones cover (graph_.removedSubmaps() lists them).
+  void trimCovered();
   void addToScanGraph(const Message<msg::SubmapConstraint>& m, const SubmapConstraintInput& c);
   /// At stop: the scan-level optimisation; false when it could not run.
   bool optimizeScanGraph();
@@ -153,7 +153,6 @@ class GraphOptimizerActor final : public Actor {
   SubmapGraph graph_;
   ScanGraph scan_graph_;
   SubmapTrimmer trimmer_;
-  std::vector<std::uint32_t> trimmed_;  // every submap trimmed so far, by increasing id
   bool scan_optimized_ = false;
   Publisher<msg::SubmapPoses> poses_pub_;
   Publisher<msg::PoseStamped> trajectory_pub_;
