@@ -26,6 +26,7 @@ void addBenchCommands(CLI::App& app, int& result) {
   addBenchBatchCommand(*bench, result);
   addBenchOverloadCommand(*bench, result);
   addBenchSoakCommand(*bench, result);
+  addBenchChaosCommand(*bench, result);
 }
 
 }  // namespace tessera::app

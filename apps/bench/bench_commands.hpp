@@ -42,5 +42,7 @@ void addBenchBatchCommand(CLI::App& bench, int& result);
 void addBenchOverloadCommand(CLI::App& bench, int& result);
 /// tessera bench soak: lifelong mapping for H simulated hours (cmd_bench_soak.cpp).
 void addBenchSoakCommand(CLI::App& bench, int& result);
+/// tessera bench chaos: kills and stalls in a launch deployment (cmd_bench_chaos.cpp).
+void addBenchChaosCommand(CLI::App& bench, int& result);
 
 }  // namespace tessera::app

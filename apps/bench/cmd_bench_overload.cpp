@@ -5,7 +5,9 @@
 // reliable cycle that deadlocked would not: it is killed after a time limit), the keep_latest
 // evictions (the designed overflow), messages lost on reliable subscriptions (published in the
 // process but not handled: must be 0), the worst actor's inbox wait p99, and the data time
-// covered per wall second (below F when a reliable mailbox held its source back).
+// covered per wall second (below F when a reliable mailbox held its source back). With --launch
+// the profiles with process groups run as `tessera launch` deployments (one process per group),
+// and what crosses between processes is judged by the launch's delivery ledger.
 #include "bench_commands.hpp"
 #include "child_process.hpp"
 
@@ -36,6 +38,7 @@ struct Options {
   std::string data = "../shared/data";
   std::string out = "out/bench_overload";
   bool json = false;
+  bool launch = false;  // `tessera launch` the profiles with process groups, one process each
 };
 
 /// A profile and the settings it needs to run here; `needs` is a file that must exist.
@@ -83,6 +86,32 @@ std::vector<Case> allCases(const Options& o, const fs::path& out) {
   };
 }
 
+/// The profiles with process groups, for --launch: `tessera launch` runs each group as a process.
+std::vector<Case> launchCases(const Options& o) {
+  const std::string rgbd_dir = o.data + "/7scenes-redkitchen-rgbd";
+  return {
+      {"sim_mapping", {}, ""},     {"sim_slam_split", {}, ""},
+      {"sim_multi_robot", {}, ""}, {"sim_nav_launch", {}, ""},
+      {"chaos_mapping", {}, ""},   {"rgbd_slam_split", {"player.path=" + rgbd_dir}, rgbd_dir},
+  };
+}
+
+/// The run's command: `tessera run P --rate F`, or with --launch `tessera launch P` (the launch's
+/// workers take the rate from the profile's sim_rate).
+std::vector<std::string> commandFor(const Case& c, const Options& o, const fs::path& dir) {
+  std::vector<std::string> args = {"tessera", o.launch ? "launch" : "run", c.profile, "--set",
+                                   "clock=paced"};
+  if (o.launch) {
+    args.insert(args.end(), {"--set", "sim_rate=" + std::to_string(o.factor)});
+  } else {
+    args.insert(args.end(), {"--rate", std::to_string(o.factor), "--quiet"});
+  }
+  args.insert(args.end(), {"--set", "max_duration_s=" + std::to_string(o.factor * o.seconds),
+                           "--out", dir.string()});
+  for (const auto& s : c.sets) args.insert(args.end(), {"--set", s});
+  return args;
+}
+
 nlohmann::json measure(const Case& c, const Options& o, const fs::path& out) {
   nlohmann::json r = {{"profile", c.profile}};
   if (!c.needs.empty() && !fs::exists(c.needs)) {
@@ -92,24 +121,8 @@ nlohmann::json measure(const Case& c, const Options& o, const fs::path& out) {
   const fs::path dir = out / c.profile;
   fs::remove_all(dir);
   fs::create_directories(dir);
-  std::vector<std::string> args = {"tessera",
-                                   "run",
-                                   c.profile,
-                                   "--set",
-                                   "clock=paced",
-                                   "--rate",
-                                   std::to_string(o.factor),
-                                   "--set",
-                                   "max_duration_s=" + std::to_string(o.factor * o.seconds),
-                                   "--quiet",
-                                   "--out",
-                                   dir.string()};
-  for (const auto& s : c.sets) {
-    args.push_back("--set");
-    args.push_back(s);
-  }
   const double limit = 3 * o.seconds + 60;
-  const int code = runTesseraChild(args, dir / "run.log", limit);
+  const int code = runTesseraChild(commandFor(c, o, dir), dir / "run.log", limit);
   r["exit_code"] = code;
   r["finished"] = code == 0;
   if (code < 0) {
@@ -139,6 +152,8 @@ nlohmann::json measure(const Case& c, const Options& o, const fs::path& out) {
         continue;
       }
       reliable_drops += drops;
+      // A launch's summary holds one process's topic counts: its routes are counted below.
+      if (o.launch) continue;
       // Published in this process but never handled by this reliable subscriber.
       const auto t = s.at("topics").find(topic);
       const std::uint64_t published =
@@ -148,6 +163,22 @@ nlohmann::json measure(const Case& c, const Options& o, const fs::path& out) {
         reliable_lost += published - handled;
         lost_where = name + " <- " + topic;
       }
+    }
+  }
+  // Between processes (a launch): the delivery ledger's routes. A reliable route loses nothing
+  // while both ends live; a keep_latest one drops what its full queue evicted.
+  for (const auto& route : s.value("delivery", nlohmann::json::array())) {
+    const auto sent = route.value("sent", std::uint64_t{0});
+    const auto received = route.value("received", std::uint64_t{0});
+    if (route.value("reliable", false)) {
+      if (route.value("lost_live", std::uint64_t{0}) > 0) {
+        reliable_lost += route.value("lost_live", std::uint64_t{0});
+        lost_where = route.value("to", std::string()) + " <- " +
+                     route.value("topic", std::string()) + " from " +
+                     route.value("from", std::string());
+      }
+    } else if (sent > received) {
+      keep_latest_drops += sent - received;
     }
   }
   r["wall_s"] = s.value("wall_s", 0.0);
@@ -165,7 +196,7 @@ nlohmann::json measure(const Case& c, const Options& o, const fs::path& out) {
 int run(const Options& o) {
   const fs::path out = o.out;
   fs::create_directories(out);
-  std::vector<Case> cases = allCases(o, out);
+  std::vector<Case> cases = o.launch ? launchCases(o) : allCases(o, out);
   if (!o.profiles.empty()) {
     std::vector<Case> chosen;
     for (const auto& p : o.profiles) {
@@ -198,6 +229,7 @@ int run(const Options& o) {
   }
   const nlohmann::json j = {{"machine", machineDescription()},
                             {"factor", o.factor},
+                            {"command", o.launch ? "launch" : "run"},
                             {"seconds", o.seconds},
                             {"profiles", results}};
   if (o.json) {
@@ -243,6 +275,9 @@ void addBenchOverloadCommand(CLI::App& bench, int& result) {
       ->check(CLI::Range(1.0, 3600.0));
   cmd->add_option("--data", o->data, "datasets folder");
   cmd->add_option("--out", o->out, "folder for the runs' outputs");
+  cmd->add_flag("--launch", o->launch,
+                "`tessera launch` the profiles with process groups (one process each): drops and "
+                "losses between processes from the launch's delivery counts");
   cmd->add_flag("--json", o->json, "print one JSON object");
   cmd->callback([o, &result] { result = run(*o); });
 }

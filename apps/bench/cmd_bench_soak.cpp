@@ -9,6 +9,7 @@
 #include "bench_commands.hpp"
 #include "child_process.hpp"
 
+#include <tessera/evaluation/resource_log.hpp>
 #include <tessera/evaluation/trajectory_metrics.hpp>
 #include <tessera/io/atomic_file.hpp>
 #include <tessera/mapping/trajectory_io.hpp>
@@ -40,30 +41,6 @@ struct Options {
   std::string out = "out/bench_soak";
   bool json = false;
 };
-
-struct Row {
-  double t_s = 0, rss_mb = 0, cpu_s = 0;
-  double scans = 0, submaps = 0, graph_nodes = 0, trimmed = 0;
-};
-
-std::vector<Row> readResources(const fs::path& path) {
-  std::ifstream in(path);
-  if (!in) throw std::runtime_error(path.string() + ": cannot open (did the run write it?)");
-  std::string line;
-  std::getline(in, line);  // header
-  std::vector<Row> rows;
-  for (int n = 2; std::getline(in, line); ++n) {
-    std::replace(line.begin(), line.end(), ',', ' ');
-    std::istringstream s(line);
-    Row r;
-    if (!(s >> r.t_s >> r.rss_mb >> r.cpu_s >> r.scans >> r.submaps >> r.graph_nodes >> r.trimmed))
-      throw std::runtime_error(path.string() + ":" + std::to_string(n) +
-                               ": expected 7 numbers (t_s,rss_mb,cpu_s,scans,submaps,"
-                               "graph_nodes,trimmed)");
-    rows.push_back(r);
-  }
-  return rows;
-}
 
 /// RMSE of the errors whose estimate stamp falls in [from, to) seconds after the first.
 double windowRmse(const std::vector<mapping::TumPose>& est, const evaluation::AteResult& ate,
@@ -133,7 +110,7 @@ int run(const Options& o) {
               << "\n";
     return 1;
   }
-  const auto rows = readResources(dir / "resources.csv");
+  const auto rows = evaluation::readResourceLog(dir / "resources.csv");
   const auto est = mapping::readTum(dir / "trajectory.tum");
   const auto ref = mapping::readTum(dir / "ground_truth.tum");
   evaluation::AteOptions ate_options;
@@ -151,8 +128,8 @@ int run(const Options& o) {
   std::vector<double> hours, rss, cpu, ates, nodes;
   const double period_s = o.period_h * 3600.0;
   for (std::size_t i = 1; i < rows.size(); ++i) {
-    const Row& a = rows[i - 1];
-    const Row& b = rows[i];
+    const evaluation::ResourceSample& a = rows[i - 1];
+    const evaluation::ResourceSample& b = rows[i];
     if (b.t_s - a.t_s < 0.5 * period_s) continue;  // the row written at stop, just after the last
     const double scans = b.scans - a.scans;
     const double hour = b.t_s / 3600.0;

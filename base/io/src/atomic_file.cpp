@@ -3,13 +3,16 @@
 #include <tessera/io/atomic_file.hpp>
 
 #include <fcntl.h>
+#include <signal.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <atomic>
 #include <cerrno>
 #include <cstdio>
 #include <cstring>
 #include <string>
+#include <string_view>
 #include <utility>
 #include <vector>
 
@@ -51,6 +54,42 @@ fs::path tempName(const fs::path& target, bool keep_extension) {
   name += tag;
   name += target.extension();
   return target.parent_path() / name;
+}
+
+/// The pid in a temporary name's "<pid>.<n><suffix>" part, or 0 when `rest` is not one.
+pid_t temporaryOwner(std::string_view rest, std::string_view suffix) {
+  const auto digits = [](std::string_view t) {
+    return !t.empty() &&
+           std::all_of(t.begin(), t.end(), [](char c) { return c >= '0' && c <= '9'; });
+  };
+  if (rest.size() < suffix.size() || rest.substr(rest.size() - suffix.size()) != suffix) return 0;
+  rest.remove_suffix(suffix.size());
+  const auto dot = rest.find('.');
+  if (dot == std::string_view::npos || !digits(rest.substr(0, dot)) ||
+      !digits(rest.substr(dot + 1)) || dot > 9)
+    return 0;
+  return static_cast<pid_t>(std::stol(std::string(rest.substr(0, dot))));
+}
+
+/// Best effort: removes the temporary files of `target` (either naming) that a writer which no
+/// longer runs left behind, killed before it could commit or discard them. A process that still
+/// runs may be writing its own: those stay.
+void removeStaleTemporaries(const fs::path& target) {
+  const std::string name = target.filename().string();
+  const std::string by_name = name + ".tmp.";
+  const std::string by_stem = target.stem().string() + ".tmp.";
+  const std::string ext = target.extension().string();
+  std::error_code ec;
+  for (fs::directory_iterator it(folderOf(target), ec), end; !ec && it != end; it.increment(ec)) {
+    const std::string other = it->path().filename().string();
+    pid_t pid = 0;
+    if (other.rfind(by_name, 0) == 0)
+      pid = temporaryOwner(std::string_view(other).substr(by_name.size()), "");
+    if (pid == 0 && other.rfind(by_stem, 0) == 0)
+      pid = temporaryOwner(std::string_view(other).substr(by_stem.size()), ext);
+    if (pid <= 0 || pid == ::getpid()) continue;
+    if (::kill(pid, 0) != 0 && errno == ESRCH) ::unlink(it->path().c_str());
+  }
 }
 
 /// Best effort: makes the rename itself durable. A failure here loses nothing already renamed.
@@ -141,6 +180,7 @@ struct AtomicFile::Impl {
 };
 
 AtomicFile::AtomicFile(fs::path target) {
+  atomic_file_detail::removeStaleTemporaries(target);
   fs::path temp = atomic_file_detail::tempName(target, false);
   const int fd = ::open(temp.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0666);
   if (fd < 0) failWrite(target, atomic_file_detail::createProblem(target, errno));
@@ -207,6 +247,7 @@ void writeFileAtomically(const fs::path& target, std::string_view content) {
 
 void replaceFileAtomically(const fs::path& target,
                            const std::function<void(const fs::path&)>& write) {
+  atomic_file_detail::removeStaleTemporaries(target);
   const fs::path temp = atomic_file_detail::tempName(target, true);
   std::error_code ec;
   if (!fs::is_directory(atomic_file_detail::folderOf(target), ec))

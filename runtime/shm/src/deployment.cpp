@@ -177,11 +177,84 @@ DeploymentPlan planDeployment(const Profile& full_profile, const std::string& ho
       t.any_reliable = any_reliable || any_loop;
       plan.topics[process].push_back(t);
     }
+    for (const auto& pub : w.publishers) {
+      for (const auto& [sub, policy] : w.subscribers) {
+        const int from = plan.indexOf(pub), to = plan.indexOf(sub);
+        if (from < 0 || to < 0) continue;
+        plan.routes.push_back({name, from, to, policy.kind == MailboxPolicy::Kind::kReliable});
+      }
+    }
   }
   return plan;
 }
 
 // ------------------------------------------------------------------ control block
+
+namespace {
+/// What a control block's shared memory holds: the block, then the delivery ledger.
+struct ControlMemory {
+  SyncBlock block;
+  DeliveryLedger ledger;
+};
+}  // namespace
+
+RouteLedger routeLedger(const DeploymentPlan& plan, DeliveryLedger& ledger) {
+  // The routes are copied into the lookups: a transport may outlive the caller's plan.
+  std::vector<DeliveryRoute> routes(
+      plan.routes.begin(),
+      plan.routes.begin() +
+          std::min<std::ptrdiff_t>(static_cast<std::ptrdiff_t>(plan.routes.size()),
+                                   kMaxDeliveryRoutes));
+  RouteLedger l;
+  l.outgoing = [routes, &ledger](const std::string& topic, std::uint32_t from) {
+    std::vector<RouteCounters*> out;
+    for (std::size_t i = 0; i < routes.size(); ++i) {
+      if (routes[i].topic == topic && routes[i].from == static_cast<int>(from)) {
+        out.push_back(&ledger.routes[i]);
+      }
+    }
+    return out;
+  };
+  l.incoming = [routes, &ledger](const std::string& topic, std::uint32_t from,
+                                 std::uint32_t to) -> RouteCounters* {
+    for (std::size_t i = 0; i < routes.size(); ++i) {
+      if (routes[i].topic == topic && routes[i].from == static_cast<int>(from) &&
+          routes[i].to == static_cast<int>(to)) {
+        return &ledger.routes[i];
+      }
+    }
+    return nullptr;
+  };
+  return l;
+}
+
+std::vector<RouteDelivery> readDelivery(const DeploymentPlan& plan, const DeliveryLedger& ledger,
+                                        const std::vector<bool>& died) {
+  std::vector<RouteDelivery> out;
+  const auto dead = [&](int p) {
+    return p >= 0 && static_cast<std::size_t>(p) < died.size() && died[p];
+  };
+  for (std::size_t i = 0; i < plan.routes.size() && i < kMaxDeliveryRoutes; ++i) {
+    RouteDelivery d;
+    d.route = plan.routes[i];
+    d.sent = ledger.routes[i].sent.load();
+    d.received = ledger.routes[i].received.load();
+    const std::uint64_t gaps = ledger.routes[i].gaps.load();
+    // A sender killed between publishing and counting leaves one more received than sent.
+    const std::uint64_t missing = d.sent > d.received ? d.sent - d.received : 0;
+    if (dead(d.route.from)) d.dead.push_back(plan.processes[d.route.from]);
+    if (dead(d.route.to) && d.route.to != d.route.from)
+      d.dead.push_back(plan.processes[d.route.to]);
+    if (d.dead.empty()) {
+      d.lost_live = std::max(missing, gaps);
+    } else {
+      d.lost_live = std::min(gaps, missing);
+      d.lost_with_dead = missing - d.lost_live;
+    }
+    out.push_back(std::move(d));
+  }
+  return out;
+}
 
 SyncMemory::SyncMemory(const std::string& name, bool create) : name_(name), owner_(create) {
   const int fd = create ? ::shm_open(name.c_str(), O_CREAT | O_EXCL | O_RDWR, 0600)
@@ -189,23 +262,25 @@ SyncMemory::SyncMemory(const std::string& name, bool create) : name_(name), owne
   if (fd < 0) {
     throw std::runtime_error("shared memory '" + name + "': " + std::strerror(errno));
   }
-  if (create && ::ftruncate(fd, sizeof(SyncBlock)) != 0) {
+  if (create && ::ftruncate(fd, sizeof(ControlMemory)) != 0) {
     const int e = errno;
     ::close(fd);
     ::shm_unlink(name.c_str());
     throw std::runtime_error("shared memory '" + name + "': " + std::strerror(e));
   }
-  void* p = ::mmap(nullptr, sizeof(SyncBlock), PROT_READ | PROT_WRITE, MAP_SHARED, fd, 0);
+  void* p = ::mmap(nullptr, sizeof(ControlMemory), PROT_READ | PROT_WRITE, MAP_SHARED, fd, 0);
   ::close(fd);
   if (p == MAP_FAILED) {
     if (create) ::shm_unlink(name.c_str());
     throw std::runtime_error("shared memory '" + name + "': mmap failed");
   }
-  block_ = static_cast<SyncBlock*>(p);  // zero-filled by ftruncate: every atomic starts at 0
+  // Zero-filled by ftruncate: every atomic starts at 0.
+  block_ = &static_cast<ControlMemory*>(p)->block;
+  ledger_ = &static_cast<ControlMemory*>(p)->ledger;
 }
 
 SyncMemory::~SyncMemory() {
-  if (block_ != nullptr) ::munmap(block_, sizeof(SyncBlock));
+  if (block_ != nullptr) ::munmap(block_, sizeof(ControlMemory));
   if (owner_) ::shm_unlink(name_.c_str());
 }
 
@@ -264,6 +339,7 @@ WorkerCoordinator::WorkerCoordinator(SyncBlock& block, int index, std::vector<St
   s.stopped = 0;
   s.wants_stop = 0;
   s.ready = 0;
+  s.pid = ::getpid();
   s.sent = 0;
   s.received = 0;
   s.gen.fetch_add(1);

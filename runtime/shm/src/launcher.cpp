@@ -25,6 +25,7 @@
 #include <fstream>
 #include <iomanip>
 #include <limits>
+#include <set>
 #include <sstream>
 #include <stdexcept>
 #include <thread>
@@ -137,8 +138,10 @@ void spawnWorker(const SpawnArgs& a, Worker& w) {
   const pid_t pid = ::fork();
   if (pid < 0) throw std::runtime_error("fork: " + std::string(std::strerror(errno)));
   if (pid == 0) {
-    ::setpgid(0, 0);                     // Ctrl-C reaches the launcher only; it stops workers
-    ::prctl(PR_SET_PDEATHSIG, SIGTERM);  // the launcher (and its RouDi) died: stop
+    ::setpgid(0, 0);  // Ctrl-C reaches the launcher only; it stops workers
+    // The launcher (and its RouDi) died: stop cleanly. SIGHUP, not SIGTERM: the kernel sends it
+    // once per launcher thread as they die, and a worker takes a second SIGTERM as Ctrl-C twice.
+    ::prctl(PR_SET_PDEATHSIG, SIGHUP);
     ::dup2(fds[1], 1);
     ::dup2(fds[1], 2);
     // Nothing of the launcher's may outlive it through a worker: not RouDi's lock file (a
@@ -300,6 +303,58 @@ nlohmann::json mergeSummaries(const Profile& profile, const std::vector<Worker>&
   summary["realtime_factor"] = wall_s > 0 ? data / wall_s : 0.0;
   summary["actors"] = actors;
   return summary;
+}
+
+nlohmann::json deliveryJson(const std::vector<RouteDelivery>& delivery,
+                            const std::vector<std::string>& processes) {
+  nlohmann::json out = nlohmann::json::array();
+  for (const auto& d : delivery) {
+    out.push_back({{"topic", d.route.topic},
+                   {"from", processes.at(d.route.from)},
+                   {"to", processes.at(d.route.to)},
+                   {"reliable", d.route.reliable},
+                   {"sent", d.sent},
+                   {"received", d.received},
+                   {"lost_live", d.lost_live},
+                   {"lost_with_dead", d.lost_with_dead},
+                   {"dead", d.dead}});
+  }
+  return out;
+}
+
+/// One line for the reliable routes: what crossed, what was lost between live processes (never
+/// expected), and what was lost with a process that died, naming it.
+void logDelivery(const std::vector<RouteDelivery>& delivery, const Log& log) {
+  std::uint64_t sent = 0, received = 0, lost_live = 0, lost_dead = 0;
+  std::set<std::string> dead;
+  int routes = 0;
+  for (const auto& d : delivery) {
+    if (!d.route.reliable) continue;
+    ++routes;
+    sent += d.sent;
+    received += d.received;
+    lost_live += d.lost_live;
+    lost_dead += d.lost_with_dead;
+    if (d.lost_with_dead > 0) dead.insert(d.dead.begin(), d.dead.end());
+  }
+  if (routes == 0) return;
+  std::string line = "[launch] reliable topics: " + std::to_string(sent) + " sent, " +
+                     std::to_string(received) + " received over " + std::to_string(routes) +
+                     " routes; " + std::to_string(lost_live) + " lost between live processes";
+  if (lost_dead > 0) {
+    line += ", " + std::to_string(lost_dead) + " lost with processes that died (";
+    for (auto it = dead.begin(); it != dead.end(); ++it) {
+      line += (it == dead.begin() ? "'" : ", '") + *it + "'";
+    }
+    line += ")";
+  }
+  log(line);
+  for (const auto& d : delivery) {
+    if (d.route.reliable && d.lost_live > 0) {
+      log("[launch] warning: topic '" + d.route.topic + "' lost " + std::to_string(d.lost_live) +
+          " reliable messages between live processes");
+    }
+  }
 }
 
 }  // namespace
@@ -476,7 +531,15 @@ LaunchResult Launcher::run() {
   result.interrupted = handled_interrupts > 0;
   result.stop_reason = failed ? failure : clock.reason();
   for (const auto& w : workers) result.restarts[w.process] = w.incarnation;
+  std::vector<bool> died;
+  for (const auto& w : workers) {
+    const bool clean_end =
+        WIFEXITED(w.status) && (WEXITSTATUS(w.status) == 0 || WEXITSTATUS(w.status) == 130);
+    died.push_back(w.incarnation > 0 || !clean_end);
+  }
+  result.delivery = readDelivery(plan_, sync.ledger(), died);
   nlohmann::json summary = mergeSummaries(profile_, workers, out_dir, result.wall_s);
+  summary["delivery"] = deliveryJson(result.delivery, plan_.processes);
   summary["interrupted"] = failed || result.interrupted;
   summary["stop_reason"] = result.stop_reason;
   bool summary_failed = false;
@@ -494,6 +557,7 @@ LaunchResult Launcher::run() {
           << summary["cpu_s"].get<double>() << " s CPU over " << workers.size() << " processes";
   log("[launch] stopped: " + result.stop_reason);
   log(figures.str());
+  logDelivery(result.delivery, log);
   if (!out_dir.empty()) log("[launch] outputs in " + out_dir);
   result.exit_code = failed || summary_failed ? 1 : (result.interrupted ? 130 : 0);
   return result;

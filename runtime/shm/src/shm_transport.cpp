@@ -129,7 +129,7 @@ std::uint64_t SendGaps::account(std::uint64_t publisher, std::uint64_t sequence)
   auto it = std::find_if(next_.begin(), next_.end(),
                          [&](const auto& entry) { return entry.first == publisher; });
   if (it == next_.end()) {
-    next_.emplace_back(publisher, 0);  // a port numbers its sends from 0
+    next_.emplace_back(publisher, join_anywhere_ ? sequence : 0);  // a port numbers from 0
     it = next_.end() - 1;
   }
   if (it != next_.begin()) std::iter_swap(it, next_.begin());
@@ -226,6 +226,7 @@ struct ShmExport final : TopicExport, std::enable_shared_from_this<ShmExport> {
                                      ? iox::popo::ConsumerTooSlowPolicy::WAIT_FOR_CONSUMER
                                      : iox::popo::ConsumerTooSlowPolicy::DISCARD_OLDEST_DATA;
     publisher.emplace(serviceOf(t.name), po);
+    if (o.routes.outgoing) routes = o.routes.outgoing(t.name, o.process_index);
   }
 
   std::shared_ptr<detail::LoanStorage> loan(std::size_t size_hint_bytes,
@@ -253,6 +254,7 @@ struct ShmExport final : TopicExport, std::enable_shared_from_this<ShmExport> {
     }
     ++owner.sent;
     if (options.sent != nullptr) options.sent->fetch_add(topic.importing_processes);
+    for (RouteCounters* r : routes) r->sent.fetch_add(1);
   }
   void release(void* payload) {
     std::lock_guard lock(mutex);
@@ -264,6 +266,7 @@ struct ShmExport final : TopicExport, std::enable_shared_from_this<ShmExport> {
   ShmTransport::Impl& owner;
   std::mutex mutex;  // iceoryx ports are not thread-safe; actors may share a topic
   std::optional<iox::popo::UntypedPublisher> publisher;
+  std::vector<RouteCounters*> routes;  // the ledger's routes from here (may be empty)
 };
 
 ChunkLoan::ChunkLoan(std::shared_ptr<ShmExport> owner, void* payload, std::size_t segment_words,
@@ -407,6 +410,20 @@ struct ShmTransport::Impl::Import {
   std::mutex mutex;  // take and release from different threads
   std::optional<iox::popo::UntypedSubscriber> subscriber;
   detail::SendGaps gaps;  // receiving thread only
+  // The delivery ledger's view (receiving thread only): each sending process's route, resolved
+  // at its first message, and the gaps in each publisher port's numbering from where this
+  // process joined it.
+  std::vector<std::pair<std::uint32_t, RouteCounters*>> routes;
+  detail::SendGaps route_gaps{true};
+  RouteCounters* routeFrom(const ShmTransportOptions& o, std::uint32_t origin) {
+    for (const auto& [from, r] : routes) {
+      if (from == origin) return r;
+    }
+    RouteCounters* r =
+        o.routes.incoming ? o.routes.incoming(topic.name, origin, o.process_index) : nullptr;
+    routes.emplace_back(origin, r);
+    return r;
+  }
 };
 
 namespace {
@@ -617,6 +634,14 @@ std::size_t deliverArrived(ShmTransport::Impl* impl) {
         // Handled (dropped): the sender counted it, so must the in-flight accounting.
         countReceived(impl, counted ? 1 : 0);
         continue;
+      }
+      if (counted) {
+        if (RouteCounters* r = i->routeFrom(impl->options, prefix.origin)) {
+          const std::uint64_t missed = i->route_gaps.account(
+              static_cast<std::uint64_t>(header->originId()), header->sequenceNumber());
+          if (missed > 1) r->gaps.fetch_add(missed - 1);
+          r->received.fetch_add(1);
+        }
       }
       const bool loopback = prefix.origin == impl->options.process_index && i->topic.loopback();
       // A burst is queued whole and run once: one pass over the strands per batch.

@@ -111,6 +111,30 @@ TEST_CASE("AtomicFile: without commit the old file stays and no temporary file r
   CHECK(names(dir.path) == std::vector<std::string>{"map.yaml"});
 }
 
+TEST_CASE("AtomicFile: temporaries a killed writer left beside the target are removed",
+          "[atomic_file]") {
+  // A process SIGKILLed while writing (a restarted worker of a launch) cannot remove its
+  // temporary file; the next writer of the same target does, unless that process still runs.
+  Scratch dir;
+  const fs::path file = dir.path / "trajectory.tum";
+  const std::string dead = "trajectory.tum.tmp.999999999.3";  // above any pid_max: no such process
+  const std::string dead_ext = "trajectory.tmp.999999998.0.tum";
+  const std::string alive = "trajectory.tum.tmp." + std::to_string(::getppid()) + ".0";
+  const std::string other = "ground_truth.tum.tmp.999999999.0";
+  const std::string odd = "trajectory.tum.tmp.notapid.0";
+  for (const auto& n : {dead, dead_ext, alive, other, odd}) spit(dir.path / n, "half");
+  SECTION("AtomicFile") {
+    AtomicFile f(file);
+    f.write("complete\n");
+    f.commit();
+  }
+  SECTION("replaceFileAtomically") {
+    replaceFileAtomically(file, [](const fs::path& temp) { spit(temp, "complete\n"); });
+  }
+  CHECK(slurp(file) == "complete\n");
+  CHECK(names(dir.path) == std::vector<std::string>{other, "trajectory.tum", alive, odd});
+}
+
 TEST_CASE("AtomicFile: a missing folder names the file and the folder", "[atomic_file]") {
   Scratch dir;
   const fs::path file = dir.path / "x" / "map.yaml";

@@ -41,6 +41,56 @@ TEST_CASE("a deployment plan exports what crosses processes and stops publishers
   CHECK_FALSE(plan.demands.empty());
 }
 
+TEST_CASE("a deployment plan lists each route from a publishing to an importing process",
+          "[deployment]") {
+  const auto plan = planDeployment(simMapping());
+  const auto route = std::find_if(plan.routes.begin(), plan.routes.end(),
+                                  [](const DeliveryRoute& r) { return r.topic == "scan"; });
+  REQUIRE(route != plan.routes.end());
+  CHECK(route->from == plan.indexOf("robot"));
+  CHECK(route->to == plan.indexOf("mapping"));
+  for (const auto& r : plan.routes) CHECK(r.from != r.to);  // nothing loops back here
+}
+
+TEST_CASE("the delivery ledger tells loss between live processes from loss with a dead one",
+          "[deployment]") {
+  DeploymentPlan plan;
+  plan.processes = {"robot", "mapping"};
+  plan.routes = {{"scan", 0, 1, true}, {"odom", 0, 1, true}, {"pose", 1, 0, false}};
+  auto ledger = std::make_unique<DeliveryLedger>();
+  const RouteLedger view = routeLedger(plan, *ledger);
+  const auto out = view.outgoing("scan", 0);
+  REQUIRE(out.size() == 1);
+  CHECK(out[0] == &ledger->routes[0]);
+  CHECK(view.incoming("odom", 0, 1) == &ledger->routes[1]);
+  CHECK(view.incoming("odom", 1, 0) == nullptr);
+  CHECK(view.outgoing("map", 0).empty());
+  ledger->routes[0].sent = 100;
+  ledger->routes[0].received = 97;
+  ledger->routes[0].gaps = 1;
+  ledger->routes[1].sent = 50;
+  ledger->routes[1].received = 51;  // a sender killed between publishing and counting
+  ledger->routes[2].sent = 10;
+  ledger->routes[2].received = 10;
+
+  SECTION("nobody died: whatever was not received was lost between live processes") {
+    const auto d = readDelivery(plan, *ledger, {false, false});
+    REQUIRE(d.size() == 3);
+    CHECK(d[0].lost_live == 3);
+    CHECK(d[0].lost_with_dead == 0);
+    CHECK(d[0].dead.empty());
+    CHECK(d[1].lost_live == 0);
+    CHECK(d[2].lost_live == 0);
+  }
+  SECTION("the receiver died: only the gaps it saw were lost between live processes") {
+    const auto d = readDelivery(plan, *ledger, {false, true});
+    CHECK(d[0].lost_live == 1);
+    CHECK(d[0].lost_with_dead == 2);
+    CHECK(d[0].dead == std::vector<std::string>{"mapping"});
+    CHECK(d[2].dead == std::vector<std::string>{"mapping"});
+  }
+}
+
 TEST_CASE("topics used from outside the deployment cross shared memory without a second party",
           "[deployment]") {
   const auto plan = planDeployment(

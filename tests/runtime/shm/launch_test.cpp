@@ -313,7 +313,7 @@ TEST_CASE("when the launcher and its RouDi die the workers stop and the next lau
           "[launch]") {
   const auto dir = freshDir("launch_roudi_death");
   {
-    Launch launch({"sim_mapping", "--set", "sim_rate=1"}, dir);
+    Launch launch({"sim_mapping", "--set", "sim_rate=1", "--out", (dir / "out").string()}, dir);
     launch.keepLeftovers();
     const std::string robot = launch.waitFor(R"(started 'robot' \(pid (\d+)\))");
     const std::string mapping = launch.waitFor(R"(started 'mapping' \(pid (\d+)\))");
@@ -326,6 +326,13 @@ TEST_CASE("when the launcher and its RouDi die the workers stop and the next lau
     CHECK(Launch::reapAll(15s));
     CHECK(::kill(std::stoi(robot), 0) != 0);
     CHECK(::kill(std::stoi(mapping), 0) != 0);
+    // What they held was written whole (their output pipe to the dead launcher is broken: a
+    // write to it must not kill them before they finish), and no temporary file is left.
+    CHECK(fs::exists(dir / "out" / "map.pgm"));
+    CHECK(fs::exists(dir / "out" / "trajectory.tum"));
+    for (const auto& e : fs::directory_iterator(dir / "out")) {
+      CHECK(e.path().filename().string().find(".tmp.") == std::string::npos);
+    }
   }
   CHECK_FALSE(shmClean());  // RouDi had no chance to remove its shared memory
   const auto again = freshDir("launch_roudi_death_again");

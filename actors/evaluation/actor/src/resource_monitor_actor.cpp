@@ -1,3 +1,4 @@
+#include <tessera/evaluation/resource_log.hpp>
 #include <tessera/evaluation/resource_monitor_actor.hpp>
 
 #include <tessera/msg/sensor.capnp.h>
@@ -51,7 +52,7 @@ void ResourceMonitorActor::start() {
     path_ = (std::filesystem::path(ctx_->outputDir()) / options_.file).string();
     try {
       file_ = std::make_unique<io::AtomicFile>(path_);
-      file_->stream() << "t_s,rss_mb,cpu_s,scans,submaps,graph_nodes,trimmed\n";
+      file_->stream() << kResourceLogHeader << "\n";
     } catch (const io::FileWriteError& e) {
       error_ = e.what();
       std::cerr << ctx_->name() << ": " << error_ << "\n";

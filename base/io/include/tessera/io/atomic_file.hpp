@@ -6,7 +6,8 @@
 // AtomicFile owns its temporary file: commit() moves it to the target, and destroying it without
 // commit() (an exception while writing, an abandoned write) removes it and leaves any existing
 // target untouched. Rename is atomic only within one file system, so the temporary file lives
-// next to the target: "<target>.tmp.<pid>.<n>".
+// next to the target: "<target>.tmp.<pid>.<n>". A process killed mid-write (SIGKILL) leaves its
+// temporary file; the next writer of the same target removes the ones whose process is gone.
 //
 // Every failure throws FileWriteError whose message starts with the target file and gives the
 // reason from the system, e.g. "out/map.pgm: cannot write: No space left on device" or

@@ -40,6 +40,14 @@ struct StopStage {
   std::vector<std::string> actors;
 };
 
+/// A topic from one process of the deployment to one process that imports it (a process that
+/// both publishes and imports a topic has a route to itself).
+struct DeliveryRoute {
+  std::string topic;
+  int from = 0, to = 0;   // indices in DeploymentPlan::processes
+  bool reliable = false;  // the importing process reads it reliably (nothing may be dropped)
+};
+
 struct DeploymentPlan {
   /// Process names, upstream first; a process's index in this list is its id.
   std::vector<std::string> processes;
@@ -51,6 +59,9 @@ struct DeploymentPlan {
   std::map<std::string, std::vector<std::string>> actors;  // process -> actor names
   std::map<std::string, std::vector<ShmTopic>> topics;     // process -> crossing topics
   std::vector<ChunkDemand> demands;                        // shared-memory demand per topic
+  /// Every route between processes, by topic then sender then receiver (the delivery ledger's
+  /// order: launcher and workers derive the same list from the same profile).
+  std::vector<DeliveryRoute> routes;
   /// Actors of other process groups left out of a host's plan: actor -> why (see planDeployment).
   std::map<std::string, std::string> unchecked;
   int indexOf(const std::string& process) const;
@@ -78,6 +89,7 @@ struct SyncSlot {
   std::atomic<std::int64_t> finite, finished;
   std::atomic<std::uint64_t> sent, received;  // live counters (messages x importing processes)
   std::atomic<std::uint64_t> ready, stopped, wants_stop;
+  std::atomic<std::int64_t> pid;  // the worker's process id (a new one per incarnation)
   // The worker's doorbell (a futex word): rung by the launcher when it grants time or ends the
   // run, and by the worker's receiving thread for every message; `waiting` while it sleeps.
   std::atomic<std::uint32_t> bell, waiting;
@@ -109,7 +121,34 @@ struct SyncBlock {
 };
 // The block is shared between processes built from the same source; the layout is pinned all
 // the same, so that a change to it is a deliberate one.
-static_assert(sizeof(SyncBlock) == 3640 && offsetof(SyncBlock, command) == 32);
+static_assert(sizeof(SyncBlock) == 3896 && offsetof(SyncBlock, command) == 32);
+
+/// The delivery ledger: the counters of the plan's routes (DeploymentPlan::routes, in order; the
+/// first kMaxDeliveryRoutes are counted), in the control block's memory, so that they outlive
+/// the processes that count them (a SIGKILLed worker's figures are still read at the end).
+constexpr int kMaxDeliveryRoutes = 256;
+struct DeliveryLedger {
+  RouteCounters routes[kMaxDeliveryRoutes];
+};
+
+/// Process `process`'s view of the ledger, for ShmTransportOptions::routes.
+RouteLedger routeLedger(const DeploymentPlan& plan, DeliveryLedger& ledger);
+
+/// What the ledger says about one route at the end of a run.
+struct RouteDelivery {
+  DeliveryRoute route;
+  std::uint64_t sent = 0, received = 0;
+  /// Lost while both ends were alive: a gap in the sender's numbering the receiver saw, or, when
+  /// neither end ever died, anything sent and never received.
+  std::uint64_t lost_live = 0;
+  /// Not received because an end died: sent while the receiver was down, queued at a receiver
+  /// that died, or in flight when the sender died. Counted only when an end died.
+  std::uint64_t lost_with_dead = 0;
+  std::vector<std::string> dead;  // the ends that died at least once
+};
+/// The ledger read against the plan; `died[i]`: process i died at least once during the run.
+std::vector<RouteDelivery> readDelivery(const DeploymentPlan& plan, const DeliveryLedger& ledger,
+                                        const std::vector<bool>& died);
 
 /// Doorbells of the control block: futex words shared between processes. ringBell() wakes
 /// whoever waits on `bell` (when `waiting` says someone may); waitBell() sleeps until the bell
@@ -126,12 +165,15 @@ class SyncMemory {
   SyncMemory(const SyncMemory&) = delete;
   SyncMemory& operator=(const SyncMemory&) = delete;
   SyncBlock& block() { return *block_; }
+  /// The delivery ledger, mapped behind the block (zero when created).
+  DeliveryLedger& ledger() { return *ledger_; }
   const std::string& name() const { return name_; }
 
  private:
   std::string name_;
   bool owner_;
   SyncBlock* block_ = nullptr;
+  DeliveryLedger* ledger_ = nullptr;
 };
 
 /// A worker's side: implements the runtime's RunCoordinator over its slot.

@@ -6,7 +6,8 @@
 //  * the control block (SyncMemory "/tessera_sync_<pid>") and the thread that moves it
 //    (DeploymentClock: start, simulated time, end of the run, stop turns),
 //  * one worker process per process group, exec'd from LauncherOptions::worker_program in a process
-//    group of its own (so Ctrl-C reaches the launcher only) and sent SIGTERM if the launcher dies,
+//    group of its own (so Ctrl-C reaches the launcher only) and sent SIGHUP if the launcher dies
+//    (it then stops cleanly and writes its outputs),
 //  * the pipes carrying each worker's stdout and stderr, forwarded line by line to the log with
 //    the process name in front.
 // Workers the profile lists under `restart:` are started again when they die (wall clock only);
@@ -60,6 +61,9 @@ struct LaunchResult {
   /// Times each process was restarted, by name.
   std::map<std::string, int> restarts;
   double wall_s = 0;
+  /// Messages sent and received on every route between processes (also in summary.json,
+  /// "delivery"), with what was lost between live processes and what with a dead one.
+  std::vector<RouteDelivery> delivery;
 };
 
 class Launcher {

@@ -50,6 +50,24 @@ struct ShmTopic {
   bool loopback() const { return exported && imported; }
 };
 
+/// Delivery counters of one route (a topic from one process of a deployment to one process that
+/// imports it), kept in memory that outlives both ends (the launcher's control block), so that
+/// what a SIGKILLed process sent or took is still known: the sender counts each message it
+/// published, the receiver each one it took and each one missing from a publisher's numbering
+/// while it was subscribed (lost on the way, though both ends were alive).
+struct RouteCounters {
+  std::atomic<std::uint64_t> sent, received, gaps;
+};
+
+/// Where a process's routes count (all may be empty: nothing is counted). `outgoing`: the
+/// routes of `topic` from process `from` (one per importing process); `incoming`: the route of
+/// `topic` from `from` to `to`, or null.
+struct RouteLedger {
+  std::function<std::vector<RouteCounters*>(const std::string& topic, std::uint32_t from)> outgoing;
+  std::function<RouteCounters*(const std::string& topic, std::uint32_t from, std::uint32_t to)>
+      incoming;
+};
+
 /// ShmTransportOptions::process_index of a program outside the deployment (`tessera goal`):
 /// what it sends is delivered but not counted in flight, since no process counted it as sent.
 constexpr std::uint32_t kExternalProcess = 0xffffffffu;
@@ -66,6 +84,8 @@ struct ShmTransportOptions {
   std::atomic<std::uint64_t>* received = nullptr;
   /// Called after `received` counted (may be empty): e.g. to wake a process waiting for work.
   std::function<void()> arrived;
+  /// Per-route delivery counters (the launcher's ledger), resolved once per topic and sender.
+  RouteLedger routes;
 };
 
 struct ShmStats {
@@ -140,6 +160,9 @@ void recordChunkExtent(std::byte* payload, std::uint32_t origin, std::size_t ext
 /// is exactly what was lost (or sent before this process subscribed).
 class SendGaps {
  public:
+  /// `join_anywhere`: a port's first message taken starts its count wherever its numbering is
+  /// (what was sent before this process subscribed is no gap); otherwise ports count from 0.
+  explicit SendGaps(bool join_anywhere = false) : join_anywhere_(join_anywhere) {}
   /// The message numbered `sequence` from publisher port `publisher` was taken: returns how
   /// many sent messages it accounts for (1 plus those lost before it).
   std::uint64_t account(std::uint64_t publisher, std::uint64_t sequence);
@@ -148,6 +171,7 @@ class SendGaps {
   // (port, next expected number), the last port taken from first: a topic has few publishers,
   // and a scan of a short array is cheaper on the delivery path than hashing into a map.
   std::vector<std::pair<std::uint64_t, std::uint64_t>> next_;
+  bool join_anywhere_;
 };
 }  // namespace detail
 /// First-segment size used when a publisher gives no size hint.

@@ -1,7 +1,7 @@
 // resource_monitor actor: this process's memory and CPU over a run, sampled on the run's own
 // clock, for soak tests (`tessera bench soak`, docs/architecture.md#lifelong-operation). Every
 // period_s of run time (simulated or wall, as the profile's clock) and once at stop it appends a
-// row to `file` in the output folder (CSV, written as FILE.partial, renamed at stop):
+// row to `file` in the output folder (CSV, written to a temporary file, renamed at stop):
 //   t_s        run time since the first sample [s]
 //   rss_mb     resident memory now [MiB] (not the peak: a soak test asks whether it stays flat)
 //   cpu_s      process CPU time so far (every thread, user + system) [s]
