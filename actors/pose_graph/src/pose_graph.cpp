@@ -10,6 +10,7 @@
 #include <map>
 #include <numbers>
 #include <sstream>
+#include <type_traits>
 
 namespace tessera::pose_graph {
 namespace {
@@ -248,52 +249,21 @@ Measurement2D chain(const Measurement2D& a_to_x, const Measurement2D& x_to_b) {
   return out;
 }
 
-void marginalizeNode(Graph2D& graph, std::int64_t id) {
-  const int x = graph.index(id);
-  if (x == 0)
-    throw GraphError("pose graph: node " + std::to_string(id) +
-                     " anchors the frame (index 0) and cannot be marginalised");
-  // Every edge at x as a measurement x -> neighbour.
-  struct Tie {
-    int node = 0;
-    Measurement2D from_x;
-    bool robust = false;
-  };
-  std::vector<Tie> ties;
-  for (const auto& e : graph.edges) {
-    if (e.from == x)
-      ties.push_back({e.to, {e.measurement, e.information}, e.robust});
-    else if (e.to == x)
-      ties.push_back({e.from, invert({e.measurement, e.information}), e.robust});
-  }
-  std::vector<Edge2D> chained;
-  if (ties.size() > 1) {
-    const auto hub = std::max_element(ties.begin(), ties.end(), [](const Tie& a, const Tie& b) {
-      return a.from_x.information.determinant() < b.from_x.information.determinant();
-    });
-    const Measurement2D hub_to_x = invert(hub->from_x);
-    for (const auto& t : ties) {
-      if (&t == &*hub || t.node == hub->node) continue;
-      const Measurement2D m = chain(hub_to_x, t.from_x);
-      chained.push_back({hub->node, t.node, m.mean, m.information, hub->robust || t.robust});
-    }
-  }
-  graph.removeNode(id);
-  for (auto& e : chained) {
-    if (e.from > x) --e.from;
-    if (e.to > x) --e.to;
-    addOrFuse(graph, e);
-  }
-}
+namespace {
 
-bool addOrFuse(Graph2D& graph, const Edge2D& edge) {
+template <class G>
+using MeasurementOf = std::conditional_t<std::is_same_v<G, Graph2D>, Measurement2D, Measurement3D>;
+
+template <class G>
+bool addOrFuseEdge(G& graph, const typename G::EdgeType& edge) {
+  using M = MeasurementOf<G>;
   for (auto& e : graph.edges) {
     const bool same = e.from == edge.from && e.to == edge.to;
     const bool reversed = e.from == edge.to && e.to == edge.from;
     if (!same && !reversed) continue;
-    Measurement2D incoming{edge.measurement, edge.information};
+    M incoming{edge.measurement, edge.information};
     if (reversed) incoming = invert(incoming);
-    const Measurement2D fused = fuse({e.measurement, e.information}, incoming);
+    const M fused = fuse(M{e.measurement, e.information}, incoming);
     e.measurement = fused.mean;
     e.information = fused.information;
     e.robust = e.robust || edge.robust;
@@ -301,6 +271,132 @@ bool addOrFuse(Graph2D& graph, const Edge2D& edge) {
   }
   graph.edges.push_back(edge);
   return false;
+}
+
+template <class G>
+void marginalize(G& graph, std::int64_t id) {
+  using M = MeasurementOf<G>;
+  const int x = graph.index(id);
+  if (x == 0)
+    throw GraphError("pose graph: node " + std::to_string(id) +
+                     " anchors the frame (index 0) and cannot be marginalised");
+  // Every edge at x as a measurement x -> neighbour.
+  struct Tie {
+    int node = 0;
+    M from_x;
+    bool robust = false;
+  };
+  std::vector<Tie> ties;
+  for (const auto& e : graph.edges) {
+    if (e.from == x)
+      ties.push_back({e.to, M{e.measurement, e.information}, e.robust});
+    else if (e.to == x)
+      ties.push_back({e.from, invert(M{e.measurement, e.information}), e.robust});
+  }
+  std::vector<typename G::EdgeType> chained;
+  if (ties.size() > 1) {
+    const auto hub = std::max_element(ties.begin(), ties.end(), [](const Tie& a, const Tie& b) {
+      return a.from_x.information.determinant() < b.from_x.information.determinant();
+    });
+    const M hub_to_x = invert(hub->from_x);
+    for (const auto& t : ties) {
+      if (&t == &*hub || t.node == hub->node) continue;
+      const M m = chain(hub_to_x, t.from_x);
+      chained.push_back({hub->node, t.node, m.mean, m.information, hub->robust || t.robust});
+    }
+  }
+  graph.removeNode(id);
+  for (auto& e : chained) {
+    if (e.from > x) --e.from;
+    if (e.to > x) --e.to;
+    addOrFuseEdge(graph, e);
+  }
+}
+
+using Vector6d = Eigen::Matrix<double, 6, 1>;
+using Matrix6d = Eigen::Matrix<double, 6, 6>;
+
+/// The edge error's chart of a relative pose d: (translation, quaternion vector part, w >= 0).
+Vector6d chartOf(const Pose3& d) {
+  Vector6d v;
+  v.head<3>() = d.t;
+  v.tail<3>() = d.q.w() < 0.0 ? Eigen::Vector3d(-d.q.vec()) : d.q.vec();
+  return v;
+}
+
+/// z ⊞ δ = z · (δt, the unit quaternion whose vector part is δr).
+Pose3 boxplus(const Pose3& z, const Vector6d& d) {
+  const Eigen::Vector3d r = d.tail<3>();
+  const Eigen::Quaterniond q(std::sqrt(std::max(0.0, 1.0 - r.squaredNorm())), r.x(), r.y(), r.z());
+  return z * Pose3{d.head<3>(), q.normalized()};
+}
+
+/// Jacobian of `f` (chart -> chart, f(0) = 0) at 0, by central differences.
+template <class F>
+Matrix6d numericJacobian(const F& f) {
+  constexpr double h = 1e-6;
+  Matrix6d j;
+  for (int i = 0; i < 6; ++i) {
+    Vector6d d = Vector6d::Zero();
+    d(i) = h;
+    j.col(i) = (f(d) - f(-d)) / (2 * h);
+  }
+  return j;
+}
+
+Matrix6d symmetric(const Matrix6d& m) {
+  return 0.5 * (m + m.transpose());
+}
+
+}  // namespace
+
+void marginalizeNode(Graph2D& graph, std::int64_t id) {
+  marginalize(graph, id);
+}
+void marginalizeNode(Graph3D& graph, std::int64_t id) {
+  marginalize(graph, id);
+}
+bool addOrFuse(Graph2D& graph, const Edge2D& edge) {
+  return addOrFuseEdge(graph, edge);
+}
+bool addOrFuse(Graph3D& graph, const Edge3D& edge) {
+  return addOrFuseEdge(graph, edge);
+}
+
+Measurement3D fuse(const Measurement3D& first, const Measurement3D& second) {
+  Measurement3D out;
+  out.information = symmetric(first.information + second.information);
+  const Vector6d step = out.information.ldlt().solve(second.information *
+                                                     chartOf(first.mean.inverse() * second.mean));
+  out.mean = boxplus(first.mean, step);
+  return out;
+}
+
+Measurement3D invert(const Measurement3D& m) {
+  const Pose3 z_inv = m.mean.inverse();
+  // δ' with (Z ⊞ δ)⁻¹ = Z⁻¹ ⊞ δ'; Ω' = J⁻ᵀ Ω J⁻¹.
+  const Matrix6d j = numericJacobian(
+      [&](const Vector6d& d) { return chartOf(m.mean * boxplus(m.mean, d).inverse()); });
+  const Matrix6d j_inv = j.inverse();
+  Measurement3D out;
+  out.mean = z_inv;
+  out.information = symmetric(j_inv.transpose() * m.information * j_inv);
+  return out;
+}
+
+Measurement3D chain(const Measurement3D& a_to_x, const Measurement3D& x_to_b) {
+  const Pose3 z = a_to_x.mean * x_to_b.mean;
+  const Pose3 z_inv = z.inverse();
+  const Matrix6d j1 = numericJacobian(
+      [&](const Vector6d& d) { return chartOf(z_inv * boxplus(a_to_x.mean, d) * x_to_b.mean); });
+  const Matrix6d j2 = numericJacobian(
+      [&](const Vector6d& d) { return chartOf(z_inv * a_to_x.mean * boxplus(x_to_b.mean, d)); });
+  const Matrix6d cov = j1 * a_to_x.information.inverse() * j1.transpose() +
+                       j2 * x_to_b.information.inverse() * j2.transpose();
+  Measurement3D out;
+  out.mean = z;
+  out.information = symmetric(cov.inverse());
+  return out;
 }
 
 void initializeFromOdometry(Graph2D& graph) {

@@ -349,6 +349,23 @@ TEST_CASE("chaining two measurements composes them and adds their covariances",
   CHECK_THAT(t.mean.y(), WithinAbs(1.0, 1e-12));
 }
 
+namespace {
+/// The marginalisation tests' graph: nodes 10..13 at indices 0..3, edges 0-1 (the tightest, so
+/// node 0 becomes the hub), 1-2, 2-3 and 1-3 added by `edge(a, b, sigma)`; then node 11 goes.
+/// Edges 0-2 and 0-3 from the hub and 2-3 as it was remain: 3 edges, no clique.
+template <class G, class AddEdge>
+void marginaliseSecondOfFour(G& g, const AddEdge& edge) {
+  edge(0, 1, 0.01);
+  edge(1, 2, 0.05);
+  edge(2, 3, 0.05);
+  edge(1, 3, 0.1);
+  pg::marginalizeNode(g, 11);
+  REQUIRE(g.size() == 3);
+  CHECK(!g.contains(11));
+  REQUIRE(g.edges.size() == 3);
+}
+}  // namespace
+
 TEST_CASE("marginalising a node keeps what its edges said and the graph as sparse",
           "[pose_graph][lifelong]") {
   // A chain 0 - 1 - 2 - 3 with exact measurements, plus 1 - 3: node 1 has three neighbours.
@@ -360,17 +377,9 @@ TEST_CASE("marginalising a node keeps what its edges said and the graph as spars
         Eigen::Vector3d(1 / (sigma * sigma), 1 / (sigma * sigma), 4 / (sigma * sigma)).asDiagonal();
     g.edges.push_back({a, b, pg::between(truth[a], truth[b]), info, false});
   };
-  edge(0, 1, 0.01);  // the tightest: node 0 becomes the hub
-  edge(1, 2, 0.05);
-  edge(2, 3, 0.05);
-  edge(1, 3, 0.1);
-  pg::marginalizeNode(g, 11);
-  REQUIRE(g.size() == 3);
-  CHECK(!g.contains(11));
+  marginaliseSecondOfFour(g, edge);
   CHECK(g.index(12) == 1);
   CHECK(g.index(13) == 2);
-  // Edges 0-2 and 0-3 from the hub, 2-3 as it was: 3 edges, no clique.
-  REQUIRE(g.edges.size() == 3);
   for (const auto& e : g.edges) {
     // Exact measurements chain exactly: every edge agrees with the true poses.
     const Eigen::Vector3d err = pg::edgeError(g, e);
@@ -413,4 +422,93 @@ TEST_CASE("marginalising refuses the anchor and an unknown node; a leaf just goe
   REQUIRE(g.edges.size() == 1);
   CHECK(g.edges[0].robust);
   CHECK_THAT(pg::edgeError(g, g.edges[0]).norm(), WithinAbs(0.0, 1e-12));
+}
+
+namespace {
+tessera::Pose3 pose3(double x, double y, double z, double roll, double pitch, double yaw) {
+  const Eigen::Quaterniond q = Eigen::AngleAxisd(yaw, Eigen::Vector3d::UnitZ()) *
+                               Eigen::AngleAxisd(pitch, Eigen::Vector3d::UnitY()) *
+                               Eigen::AngleAxisd(roll, Eigen::Vector3d::UnitX());
+  return {Eigen::Vector3d(x, y, z), q};
+}
+Eigen::Matrix<double, 6, 6> info3(double sigma_t, double sigma_r) {
+  Eigen::Matrix<double, 6, 1> d;
+  d << Eigen::Vector3d::Constant(1 / (sigma_t * sigma_t)),
+      Eigen::Vector3d::Constant(1 / (sigma_r * sigma_r));
+  return d.asDiagonal();
+}
+}  // namespace
+
+TEST_CASE("SE(3) chaining agrees with SE(2) chaining on a planar path", "[pose_graph][lifelong]") {
+  // The same two planar steps and uncertainties in both: the 3D chart's rotation is the
+  // quaternion's vector part, half the angle, so a yaw sigma s is a chart sigma s / 2.
+  const double st = 0.05, sy = 0.1;
+  const Eigen::Matrix3d i2 =
+      Eigen::Vector3d(1 / (st * st), 1 / (st * st), 1 / (sy * sy)).asDiagonal();
+  Eigen::Matrix<double, 6, 1> d;
+  d << 1 / (st * st), 1 / (st * st), 1 / (st * st), 1e6, 1e6, 4 / (sy * sy);
+  const Eigen::Matrix<double, 6, 6> i3 = d.asDiagonal();
+  const pg::Measurement2D m2 = pg::chain({{1.0, 0.5, 0.4}, i2}, {{2.0, -0.3, -0.9}, i2});
+  const pg::Measurement3D m3 =
+      pg::chain({pose3(1.0, 0.5, 0, 0, 0, 0.4), i3}, {pose3(2.0, -0.3, 0, 0, 0, -0.9), i3});
+  CHECK_THAT(m3.mean.t.x(), WithinAbs(m2.mean.x(), 1e-12));
+  CHECK_THAT(m3.mean.t.y(), WithinAbs(m2.mean.y(), 1e-12));
+  const Eigen::Matrix3d c2 = m2.information.inverse();
+  const Eigen::Matrix<double, 6, 6> c3 = m3.information.inverse();
+  // The 2D covariance is over the end frame's (x, y) in the start frame; the 3D one over the
+  // end frame's own axes: rotate the 2D one into it before comparing.
+  const double c = std::cos(m2.mean.z()), s = std::sin(m2.mean.z());
+  Eigen::Matrix2d r;
+  r << c, -s, s, c;
+  const Eigen::Matrix2d c2_local = r.transpose() * c2.topLeftCorner<2, 2>() * r;
+  CHECK_THAT(c3(0, 0), WithinRel(c2_local(0, 0), 1e-5));
+  CHECK_THAT(c3(1, 1), WithinRel(c2_local(1, 1), 1e-5));
+  CHECK_THAT(c3(0, 1), WithinAbs(c2_local(0, 1), 1e-8));
+  CHECK_THAT(4 * c3(5, 5), WithinRel(c2(2, 2), 1e-5));
+}
+
+TEST_CASE("SE(3) inversion and fusion keep the measurement's meaning", "[pose_graph][lifelong]") {
+  const pg::Measurement3D m{pose3(1, 2, 0.5, 0.2, -0.1, 0.7), info3(0.05, 0.02)};
+  const pg::Measurement3D back = pg::invert(pg::invert(m));
+  CHECK((back.mean.t - m.mean.t).norm() < 1e-12);
+  CHECK(back.mean.q.angularDistance(m.mean.q) < 1e-12);
+  CHECK((back.information - m.information).norm() < 1e-4 * m.information.norm());
+  // Fusing a measurement with itself: the same pose, twice the information.
+  const pg::Measurement3D twice = pg::fuse(m, m);
+  CHECK((twice.mean.t - m.mean.t).norm() < 1e-12);
+  CHECK((twice.information - 2 * m.information).norm() < 1e-9);
+  // Two equally certain measurements either side of a pose meet in the middle.
+  const pg::Measurement3D a{pose3(1, 0, 0, 0, 0, 0.1), info3(0.1, 0.1)};
+  const pg::Measurement3D b{pose3(1.2, 0, 0, 0, 0, 0.3), info3(0.1, 0.1)};
+  const pg::Measurement3D mid = pg::fuse(a, b);
+  CHECK_THAT(mid.mean.t.x(), WithinAbs(1.1, 0.01));
+  CHECK_THAT(2 * std::atan2(mid.mean.q.z(), mid.mean.q.w()), WithinAbs(0.2, 1e-3));
+}
+
+TEST_CASE("marginalising an SE(3) node keeps what its edges said and the graph as sparse",
+          "[pose_graph][lifelong]") {
+  const std::vector<tessera::Pose3> truth = {pose3(0, 0, 0, 0, 0, 0), pose3(2, 0, 0.1, 0.1, 0, 0.3),
+                                             pose3(3, 1, 0.3, 0, 0.2, 1.2),
+                                             pose3(1, 3, 0.2, -0.1, 0.1, 2.5)};
+  pg::Graph3D g;
+  for (int i = 0; i < 4; ++i) g.addNode(10 + i, truth[i], i == 0);
+  const auto edge = [&](int a, int b, double sigma) {
+    g.edges.push_back({a, b, truth[a].inverse() * truth[b], info3(sigma, sigma / 2), false});
+  };
+  marginaliseSecondOfFour(g, edge);
+  for (const auto& e : g.edges) {
+    CHECK(pg::edgeError(g, e).norm() < 1e-9);
+    CHECK(e.information.allFinite());
+    CHECK(e.information.determinant() > 0);
+  }
+  // Perturbed, the reduced graph optimises back to the truth.
+  g.poses[1] = g.poses[1] * pose3(0.3, -0.2, 0.1, 0.05, -0.05, 0.1);
+  g.poses[2] = g.poses[2] * pose3(-0.2, 0.3, -0.1, -0.05, 0.02, -0.1);
+  pg::OptimizerOptions o;
+  o.solver = pg::Solver::kCeres;
+  pg::optimize(g, o);
+  CHECK((g.poses[1].t - truth[2].t).norm() < 1e-4);
+  CHECK((g.poses[2].t - truth[3].t).norm() < 1e-4);
+  CHECK(g.poses[2].q.angularDistance(truth[3].q) < 1e-4);
+  CHECK_THROWS_WITH(pg::marginalizeNode(g, 10), Catch::Contains("anchors the frame"));
 }

@@ -125,6 +125,22 @@ void marginalizeNode(Graph2D& graph, std::int64_t id);
 /// robust if either input was.
 bool addOrFuse(Graph2D& graph, const Edge2D& edge);
 
+// --- The same in SE(3) ------------------------------------------------------------------------
+// Uncertainty lives in the chart of the edge error: Z ⊞ δ = Z · (δt, unit quaternion with vector
+// part δr), so an information matrix means what it means on an edge (rotation as the imaginary
+// part of the quaternion, about half the angle). The Jacobians of inversion and composition are
+// taken numerically in that chart (central differences); first order, as in SE(2).
+struct Measurement3D {
+  Pose3 mean;
+  Eigen::Matrix<double, 6, 6> information = Eigen::Matrix<double, 6, 6>::Identity();
+};
+/// Ω = Ω1 + Ω2, Z = Z1 ⊞ Ω⁻¹ Ω2 (Z2 ⊟ Z1): one Gauss-Newton step from the first.
+Measurement3D fuse(const Measurement3D& first, const Measurement3D& second);
+Measurement3D invert(const Measurement3D& m);
+Measurement3D chain(const Measurement3D& a_to_x, const Measurement3D& x_to_b);
+void marginalizeNode(Graph3D& graph, std::int64_t id);
+bool addOrFuse(Graph3D& graph, const Edge3D& edge);
+
 /// Places every node by walking edges outward from node 0 (odometry edges i -> i+1 first, then
 /// a breadth-first walk over all edges), ignoring the current estimates: the "poor initial
 /// estimate" start of the SGD paper. Throws GraphError if some node is not connected.
