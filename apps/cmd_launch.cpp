@@ -118,32 +118,6 @@ struct WorkerArgs {
   std::_Exit(3);
 }
 
-/// The run a launcher's death stops (SIGHUP, the parent-death signal the launcher sets).
-std::atomic<Runtime*> g_orphaned_run{nullptr};
-extern "C" void onLauncherDeath(int) {
-  if (Runtime* rt = g_orphaned_run.load()) rt->requestStop();
-}
-
-/// While it lives, SIGHUP stops `runtime` cleanly. The kernel sends the parent-death signal once
-/// per thread of the launcher as they die, so it comes several times: unlike SIGTERM (a second
-/// one exits without writing outputs), any number of them only ask for the one clean stop.
-class StopOnLauncherDeath {
- public:
-  explicit StopOnLauncherDeath(Runtime& runtime) {
-    g_orphaned_run = &runtime;
-    struct sigaction sa {};
-    sa.sa_handler = onLauncherDeath;
-    sigemptyset(&sa.sa_mask);
-    ::sigaction(SIGHUP, &sa, nullptr);
-  }
-  ~StopOnLauncherDeath() {
-    ::signal(SIGHUP, SIG_IGN);  // outputs are being written: nothing left to stop
-    g_orphaned_run = nullptr;
-  }
-  StopOnLauncherDeath(const StopOnLauncherDeath&) = delete;
-  StopOnLauncherDeath& operator=(const StopOnLauncherDeath&) = delete;
-};
-
 int worker(const WorkerArgs& a) {
   ::prctl(PR_SET_TIMERSLACK, 1UL);  // waits for the deployment clock use short sleeps
   // Output goes to a pipe the launcher reads. When the launcher dies, the next line written to
@@ -182,8 +156,7 @@ int worker(const WorkerArgs& a) {
       !coordinator.ending()) {
     throw std::runtime_error("process '" + a.process + "': its peers did not connect within 30 s");
   }
-  runtime->installSignalHandlers();
-  StopOnLauncherDeath launcher_death(*runtime);
+  runtime->installSignalHandlers();  // SIGHUP: the launcher died (PR_SET_PDEATHSIG)
   if (!coordinator.readyAndWait()) {
     coordinator.slot().stopped = 1;  // nothing ran: nothing to stop
     if (coordinator.orphaned()) leaveOrphaned("before the run started");

@@ -1,5 +1,5 @@
-// Console: SIGINT/SIGTERM handling (first signal stops the run cleanly, the second exits at
-// once) and the progress line on stderr.
+// Console: signal handling (the first SIGINT/SIGTERM stops the run cleanly, the second exits at
+// once; SIGHUP, however often it comes, only stops it cleanly) and the progress line on stderr.
 #include "runtime_impl.hpp"
 
 #include <unistd.h>
@@ -23,6 +23,12 @@ extern "C" void onStopSignal(int) {
     (void)!write(2, msg, sizeof(msg) - 1);
     _exit(130);
   }
+  if (auto* rt = g_signal_target.load()) rt->requestStop();
+}
+// SIGHUP: the terminal hung up, or the launcher died (the parent-death signal it sets for its
+// workers). The kernel sends the parent-death signal once per thread of the dying launcher, so it
+// comes several times; unlike a second Ctrl-C it must not exit without writing outputs.
+extern "C" void onHangUp(int) {
   if (auto* rt = g_signal_target.load()) rt->requestStop();
 }
 }  // namespace
@@ -90,6 +96,8 @@ void Runtime::installSignalHandlers() {
   sigemptyset(&sa.sa_mask);
   sigaction(SIGINT, &sa, nullptr);
   sigaction(SIGTERM, &sa, nullptr);
+  sa.sa_handler = onHangUp;
+  sigaction(SIGHUP, &sa, nullptr);
 }
 
 }  // namespace tessera

@@ -5,6 +5,9 @@
 
 #include <catch2/catch.hpp>
 
+#include <signal.h>
+#include <unistd.h>
+
 #include <chrono>
 #include <condition_variable>
 #include <filesystem>
@@ -223,6 +226,35 @@ TEST_CASE("stopping drains every reliable mailbox before downstream actors stop"
   CHECK(rec.seen_at_stop == rec.seqs.size());
   CHECK(report.actors[1].messages_in == report.actors[0].messages_out);
   CHECK(report.actors[1].drops == 0);
+}
+
+TEST_CASE("any number of SIGHUPs stop the run once and cleanly", "[runtime]") {
+  // A worker receives the parent-death signal once per thread of its dying launcher: the
+  // repeats must not count as a second Ctrl-C, which exits without writing outputs.
+  struct sigaction saved_hup {
+  }, saved_int{}, saved_term{};
+  sigaction(SIGHUP, nullptr, &saved_hup);
+  sigaction(SIGINT, nullptr, &saved_int);
+  sigaction(SIGTERM, nullptr, &saved_term);
+  auto o = threadedOptions();
+  o.clock = ClockKind::kWall;
+  Runtime rt(o);
+  rt.add("src", std::make_unique<CountingSource>(1'000'000, 1'000'000));  // 1 kHz for 1000 s
+  rt.add("rec", std::make_unique<Recorder>(MailboxPolicy::reliable(1000)), {{"in", "out"}});
+  rt.installSignalHandlers();
+  std::thread hangups([] {
+    std::this_thread::sleep_for(std::chrono::milliseconds(50));
+    for (int i = 0; i < 4; ++i) ::kill(::getpid(), SIGHUP);
+  });
+  const auto report = rt.run();
+  hangups.join();
+  ::kill(::getpid(), SIGHUP);  // after the run: still handled, still harmless
+  sigaction(SIGHUP, &saved_hup, nullptr);
+  sigaction(SIGINT, &saved_int, nullptr);
+  sigaction(SIGTERM, &saved_term, nullptr);
+  CHECK(report.interrupted);
+  CHECK(report.actors[1].messages_in == report.actors[0].messages_out);
+  CHECK(report.actors[0].messages_out < 100'000);
 }
 
 TEST_CASE("fan-out shares one message: every subscriber sees the same bytes", "[runtime]") {

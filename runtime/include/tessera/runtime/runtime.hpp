@@ -127,7 +127,9 @@ class Runtime {
 
   /// Thread-safe and async-signal-safe: ask a running run() to stop cleanly.
   void requestStop();
-  /// Installs SIGINT/SIGTERM handlers that call requestStop() on this runtime.
+  /// Installs signal handlers that call requestStop() on this runtime: the first SIGINT/SIGTERM
+  /// stops cleanly and a second exits at once (no outputs); any number of SIGHUPs (a hung-up
+  /// terminal, a launcher's death) only stop cleanly.
   void installSignalHandlers();
 
   // ---- manual mode ----
