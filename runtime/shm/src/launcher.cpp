@@ -82,6 +82,11 @@ std::string describeStatus(int status) {
   return "ended (status " + std::to_string(status) + ")";
 }
 
+/// A worker's end that is not a failure: it finished (0) or stopped on an interrupt (130).
+bool exitedCleanly(int status) {
+  return WIFEXITED(status) && (WEXITSTATUS(status) == 0 || WEXITSTATUS(status) == 130);
+}
+
 using Log = std::function<void(const std::string&)>;
 
 /// One line written at once: RouDi's threads print to the same terminal, and a line written
@@ -465,9 +470,7 @@ LaunchResult Launcher::run() {
         pump(w, true, log);
         ::close(w.out);
         w.out = -1;
-        const bool clean = WIFEXITED(status) &&
-                           (WEXITSTATUS(status) == 0 || WEXITSTATUS(status) == 130) &&
-                           block.slots[w.index].stopped.load() == 1;
+        const bool clean = exitedCleanly(status) && block.slots[w.index].stopped.load() == 1;
         clock.markGone(w.index);
         if (clean) continue;
         log("[launch] process '" + w.process + "' (pid " + std::to_string(w.pid) + ") " +
@@ -532,11 +535,7 @@ LaunchResult Launcher::run() {
   result.stop_reason = failed ? failure : clock.reason();
   for (const auto& w : workers) result.restarts[w.process] = w.incarnation;
   std::vector<bool> died;
-  for (const auto& w : workers) {
-    const bool clean_end =
-        WIFEXITED(w.status) && (WEXITSTATUS(w.status) == 0 || WEXITSTATUS(w.status) == 130);
-    died.push_back(w.incarnation > 0 || !clean_end);
-  }
+  for (const auto& w : workers) died.push_back(w.incarnation > 0 || !exitedCleanly(w.status));
   result.delivery = readDelivery(plan_, sync.ledger(), died);
   nlohmann::json summary = mergeSummaries(profile_, workers, out_dir, result.wall_s);
   summary["delivery"] = deliveryJson(result.delivery, plan_.processes);
