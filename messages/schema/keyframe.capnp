@@ -61,7 +61,10 @@ struct KeyframePose {
   pose @1 :Image.Pose3D;                # camera-to-world
 }
 
-# All keyframe poses after an optimisation (or at stop).
+# The poses of every keyframe the graph holds, after an optimisation (or at stop). A keyframe
+# with an id below the newest listed that is missing has left the graph (lifelong mode trims
+# covered keyframes; a rejected one never entered it): its consumers may drop it. So any one
+# message says all there is, and a keep_latest subscriber misses nothing by skipping some.
 struct KeyframePoses {
   header @0 :Common.Header;             # stamp of the newest input; frameId = world frame
   poses @1 :List(KeyframePose);         # by increasing id

@@ -50,6 +50,13 @@ void CloudMap::setPose(std::uint64_t id, const Eigen::Isometry3d& camera_to_worl
   it->second.camera_to_world = camera_to_world;
 }
 
+std::vector<std::uint64_t> CloudMap::ids() const {
+  std::vector<std::uint64_t> out;
+  out.reserve(keyframes_.size());
+  for (const auto& [id, placed] : keyframes_) out.push_back(id);
+  return out;
+}
+
 std::size_t CloudMap::pointCount() const {
   std::size_t n = 0;
   for (const auto& [id, k] : keyframes_) n += k.cloud->size();

@@ -52,7 +52,23 @@ std::size_t KeyframeDatabase::add(BowVector bow) {
   }
   norms_.push_back(l1Norm(bow));
   entries_.push_back(std::move(bow));
+  is_removed_.push_back(0);
   return id;
+}
+
+bool KeyframeDatabase::remove(std::size_t i) {
+  if (i >= entries_.size() || is_removed_[i]) return false;
+  for (const auto& [word, weight] : entries_[i]) {
+    auto& postings = inverse_[word];
+    postings.erase(std::remove_if(postings.begin(), postings.end(),
+                                  [i](const Posting& p) { return p.entry == i; }),
+                   postings.end());
+  }
+  BowVector().swap(entries_[i]);  // release the memory, not just the size
+  norms_[i] = 0;
+  is_removed_[i] = 1;
+  ++removed_;
+  return true;
 }
 
 std::vector<std::size_t> KeyframeDatabase::entriesWith(WordId word) const {

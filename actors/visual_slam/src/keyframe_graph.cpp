@@ -34,6 +34,9 @@ void KeyframeGraphOptions::validate() const {
   if (!positive(odometry_sigma_rotation))
     throw std::invalid_argument("odometry_sigma_rotation must be > 0");
   if (reference_inliers < 1) throw std::invalid_argument("reference_inliers must be >= 1");
+  if (!positive(trimming.radius_m)) throw std::invalid_argument("trimming.radius_m must be > 0");
+  if (!positive(trimming.angle_rad)) throw std::invalid_argument("trimming.angle_rad must be > 0");
+  if (trimming.min_age < 1) throw std::invalid_argument("trimming.min_age must be >= 1");
   if (const std::string e = pose_graph::optionsError(optimizer); !e.empty())
     throw std::invalid_argument("optimizer." + e);
 }
@@ -106,6 +109,13 @@ KeyframeGraph::Outcome KeyframeGraph::addLoop(const LoopConstraint& loop) {
     error_ = "loop " + name + ": covariance is not symmetric positive definite";
     return Outcome::kRejected;
   }
+  for (const std::int64_t end : {loop.from, loop.to}) {
+    if (last_id_ && end <= *last_id_ && !graph_.contains(end)) {
+      error_ = "loop " + name + ": keyframe " + std::to_string(end) +
+               " is no longer in the graph (trimmed or rejected)";
+      return Outcome::kRejected;
+    }
+  }
   if (!graph_.contains(loop.from) || !graph_.contains(loop.to)) {
     pending_.push_back(loop);
     return Outcome::kPending;
@@ -132,6 +142,34 @@ pose_graph::OptimizerSummary KeyframeGraph::optimize() {
   const auto summary = pose_graph::optimize(graph_, options_.optimizer);
   dirty_ = false;
   return summary;
+}
+
+std::vector<std::int64_t> KeyframeGraph::trim() {
+  std::vector<std::int64_t> out;
+  const auto& t = options_.trimming;
+  const int n = graph_.size();
+  if (!t.enabled || n <= t.min_age + 1) return out;
+  // From the newest candidate back to the second keyframe: the keyframes newer than a candidate
+  // are decided before it, so a covering keyframe is one that stays.
+  std::vector<char> kept(static_cast<std::size_t>(n), 1);
+  const double cos_half = std::cos(0.5 * t.angle_rad);
+  for (int j = n - 1 - t.min_age; j >= 1; --j) {
+    const Pose3& pj = graph_.poses[static_cast<std::size_t>(j)];
+    for (int i = j + t.min_age; i < n; ++i) {
+      if (!kept[static_cast<std::size_t>(i)]) continue;
+      const Pose3& pi = graph_.poses[static_cast<std::size_t>(i)];
+      // |<q_i, q_j>| = cos(angle / 2) of the rotation between them.
+      if ((pi.t - pj.t).norm() < t.radius_m && std::abs(pi.q.dot(pj.q)) > cos_half) {
+        kept[static_cast<std::size_t>(j)] = 0;
+        break;
+      }
+    }
+  }
+  for (int j = 1; j < n; ++j)
+    if (!kept[static_cast<std::size_t>(j)]) out.push_back(graph_.ids[static_cast<std::size_t>(j)]);
+  for (const std::int64_t id : out) pose_graph::marginalizeNode(graph_, id);
+  trimmed_ += out.size();
+  return out;
 }
 
 std::map<std::int64_t, Pose3> KeyframeGraph::poses() const {

@@ -1,6 +1,7 @@
 // LoopDetector: vocabulary bootstrap, database queries and verification (see the header).
 #include <tessera/visual_slam/loop_detector.hpp>
 
+#include <algorithm>
 #include <chrono>
 #include <stdexcept>
 #include <utility>
@@ -68,6 +69,38 @@ std::vector<LoopQuery> LoopDetector::bootstrap() {
   return out;
 }
 
+bool LoopDetector::forget(std::int64_t id) {
+  const auto by_id = [](const LoopKeyframe& k, std::int64_t v) { return k.id < v; };
+  if (const auto h = std::lower_bound(held_.begin(), held_.end(), id, by_id);
+      h != held_.end() && h->id == id) {
+    held_.erase(h);
+    ++stats_.forgotten;
+    return true;
+  }
+  const auto e = live_.find(id);
+  if (e == live_.end()) return false;
+  database_.remove(e->second);
+  keyframes_.erase(e->second);
+  live_.erase(e);
+  ++stats_.forgotten;
+  return true;
+}
+
+std::vector<std::int64_t> LoopDetector::forgetAllBut(const std::vector<std::int64_t>& kept) {
+  std::vector<std::int64_t> out;
+  if (kept.empty()) return out;
+  const std::int64_t newest = kept.back();
+  std::vector<std::int64_t> candidates;
+  for (const auto& k : held_) candidates.push_back(k.id);
+  for (const auto& [id, entry] : live_) candidates.push_back(id);
+  for (const std::int64_t id : candidates) {
+    if (id > newest || std::binary_search(kept.begin(), kept.end(), id)) continue;
+    if (forget(id)) out.push_back(id);
+  }
+  std::sort(out.begin(), out.end());
+  return out;
+}
+
 LoopQuery LoopDetector::query(LoopKeyframe keyframe) {
   LoopQuery q;
   q.query = keyframe.id;
@@ -79,7 +112,8 @@ LoopQuery LoopDetector::query(LoopKeyframe keyframe) {
   q.status = r.status;
   if (r.status == QueryStatus::kAccepted && r.accepted) {
     ++stats_.candidates;
-    const LoopKeyframe& candidate = entries_.at(r.accepted->entry);
+    // Never a forgotten entry: the database no longer holds its words.
+    const LoopKeyframe& candidate = keyframes_.at(r.accepted->entry);
     q.candidate = candidate.id;
     const LoopVerifier verifier(options_.verifier, keyframe.camera);
     q.verification = verifier.verify(keyframe.view, candidate.view);
@@ -92,7 +126,9 @@ LoopQuery LoopDetector::query(LoopKeyframe keyframe) {
   } else {
     ++stats_.skipped[std::string(statusName(r.status))];
   }
-  entries_.push_back(std::move(keyframe));
+  const std::size_t entry = database_.size() - 1;  // detect() added it
+  live_[keyframe.id] = entry;
+  keyframes_.emplace(entry, std::move(keyframe));
   return q;
 }
 

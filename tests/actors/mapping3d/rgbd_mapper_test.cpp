@@ -136,6 +136,33 @@ TEST_CASE("rgbd_mapper maps keyframes and moves them with KeyframePoses",
   CHECK(summaryInt(h, "octomap_leaves") > 0);
 }
 
+TEST_CASE("rgbd_mapper drops the keyframes the graph trimmed and rebuilds without them",
+          "[actors][mapping3d][rgbd_mapper][lifelong]") {
+  const fs::path out = test::scratchDir("rgbd_mapper_trim");
+  ActorHarness h(std::make_unique<RgbdMapperActor>(RgbdMapperOptions{}), out.string());
+  auto& mapper = static_cast<RgbdMapperActor&>(h.actor());
+  for (std::uint32_t id = 0; id < 4; ++id) pushKeyframe(h, id, translation(3.0 * id, 0, 0));
+  CHECK(mapper.octomap().occupancy({3.0, 0, 2.01}) == Occupancy::kOccupied);
+  // The graph holds 0 and 2 (newest listed): 1 was trimmed; 3 is newer than the list, so stays.
+  pushPoses(h, {{0, translation(0, 0, 0)}, {2, translation(6, 0, 0)}});
+  CHECK(summaryInt(h, "keyframes_dropped") == 1);
+  CHECK(summaryInt(h, "keyframes_held") == 3);
+  CHECK_FALSE(mapper.cloudMap().contains(1));
+  CHECK(mapper.cloudMap().contains(3));
+  CHECK(summaryInt(h, "rebuilds") == 1);
+  // The same list again drops nothing more.
+  pushPoses(h, {{0, translation(0, 0, 0)}, {2, translation(6, 0, 0)}});
+  CHECK(summaryInt(h, "keyframes_dropped") == 1);
+  CHECK(summaryInt(h, "rebuilds") == 1);
+  h.stop();
+  const PointCloud saved = readPcd(out / "cloud.pcd");
+  CHECK(near(saved, {3.0f, 0, 2.0f}, 0.1f) == 0);  // only keyframe 1 saw x = 3
+  CHECK(near(saved, {0, 0, 2.0f}, 0.05f) > 0);
+  CHECK(near(saved, {9.0f, 0, 2.0f}, 0.05f) > 0);
+  CHECK(mapper.octomap().occupancy({3.0, 0, 2.01}) != Occupancy::kOccupied);
+  CHECK(mapper.octomap().occupancy({6.0, 0, 2.01}) == Occupancy::kOccupied);
+}
+
 TEST_CASE("rgbd_mapper counts and skips bad keyframes and poses",
           "[actors][mapping3d][rgbd_mapper]") {
   ActorHarness h(std::make_unique<RgbdMapperActor>(RgbdMapperOptions{}));

@@ -216,19 +216,30 @@ TEST_CASE("LoopVerifier and LoopView handle bad input", "[loop_closure]") {
   CHECK_THROWS_AS(vs::LoopVerifier(bad, kCamera), std::invalid_argument);
 }
 
-TEST_CASE("LoopDetector bootstraps a vocabulary and closes the loop at the revisit",
-          "[loop_closure]") {
-  const Wall wall(1);
+namespace {
+// A vocabulary bootstrapped on the first 12 keyframes: small, for the walk below.
+vs::LoopDetectorOptions bootstrapOptions() {
   vs::LoopDetectorOptions o;
   o.bootstrap_keyframes = 12;
   o.bootstrap_k = 8;
   o.bootstrap_levels = 4;
-  vs::LoopDetector detector(o, nullptr);
-
-  // Out along the wall in 0.4 m steps (x 1 ... 9.4), then back to the start.
+  return o;
+}
+// Out along the wall in 0.4 m steps (x 1 ... 9.4), then back to the start.
+std::vector<double> outAndBack() {
   std::vector<double> xs;
   for (int i = 0; i < 22; ++i) xs.push_back(1.0 + 0.4 * i);
   for (int i = 0; i < 6; ++i) xs.push_back(1.05 + 0.4 * i);
+  return xs;
+}
+}  // namespace
+
+TEST_CASE("LoopDetector bootstraps a vocabulary and closes the loop at the revisit",
+          "[loop_closure]") {
+  const Wall wall(1);
+  const vs::LoopDetectorOptions o = bootstrapOptions();
+  vs::LoopDetector detector(o, nullptr);
+  const std::vector<double> xs = outAndBack();
   std::vector<vs::LoopQuery> queries;
   std::vector<Eigen::Isometry3d> poses;
   for (std::size_t i = 0; i < xs.size(); ++i) {
@@ -265,6 +276,58 @@ TEST_CASE("LoopDetector bootstraps a vocabulary and closes the loop at the revis
   CHECK(accepted >= 3);
   CHECK(s.verified == static_cast<std::size_t>(accepted));
   CHECK(s.candidates == s.verified + s.rejected);
+}
+
+TEST_CASE("LoopDetector forgets trimmed keyframes: no loop to them, their views released",
+          "[loop_closure][lifelong]") {
+  const Wall wall(1);
+  const vs::LoopDetectorOptions o = bootstrapOptions();
+  // The same walk as above, twice: once with every keyframe, once forgetting the first six (the
+  // ones the way back revisits) before it comes back.
+  const std::vector<double> xs = outAndBack();
+  std::size_t accepted_all = 0, accepted_forgetting = 0, to_first_six = 0;
+  for (const bool forgetting : {false, true}) {
+    vs::LoopDetector detector(o, nullptr);
+    for (std::size_t i = 0; i < xs.size(); ++i) {
+      vs::LoopKeyframe k{static_cast<std::int64_t>(i), kCamera,
+                         view(wall, cameraAt(xs[i], 0.02 * std::sin(static_cast<double>(i))),
+                              static_cast<std::uint32_t>(100 + i))};
+      for (const auto& q : detector.add(std::move(k))) {
+        if (!q.accepted()) continue;
+        (forgetting ? accepted_forgetting : accepted_all) += 1;
+        if (forgetting) CHECK(*q.candidate >= 6);
+        if (!forgetting && *q.candidate < 6) ++to_first_six;
+      }
+      if (forgetting && i == 21) {
+        // The graph keeps 0 and 6..21: ids 1..5 are forgotten; 22 and on are not listed yet.
+        std::vector<std::int64_t> kept{0};
+        for (std::int64_t id = 6; id <= 21; ++id) kept.push_back(id);
+        const auto gone = detector.forgetAllBut(kept);
+        CHECK(gone == std::vector<std::int64_t>{1, 2, 3, 4, 5});
+        CHECK(detector.held() == 17);
+        CHECK(detector.forget(0));
+        CHECK_FALSE(detector.forget(0));   // twice
+        CHECK_FALSE(detector.forget(3));   // forgotten already
+        CHECK_FALSE(detector.forget(99));  // never seen
+        CHECK(detector.held() == 16);
+        CHECK(detector.stats().forgotten == 6);
+        CHECK(detector.forgetAllBut({}).empty());
+      }
+    }
+  }
+  // Keyframes still waiting for the vocabulary bootstrap are forgotten too: it trains without them.
+  vs::LoopDetector early(o, nullptr);
+  for (std::int64_t i = 0; i < 5; ++i)
+    CHECK(early.add({i, kCamera, view(wall, cameraAt(1.0 + 0.4 * i), 7)}).empty());
+  CHECK(early.forget(2));
+  CHECK(early.held() == 4);
+  CHECK(early.stats().forgotten == 1);
+
+  // With every keyframe the way back finds the first six; forgetting them, it finds later ones
+  // (the wall is seen widely), never them.
+  CHECK(accepted_all >= 3);
+  CHECK(to_first_six >= 1);
+  CHECK(accepted_forgetting >= 1);
 }
 
 TEST_CASE("LoopDetector without a vocabulary and without bootstrap finds nothing",

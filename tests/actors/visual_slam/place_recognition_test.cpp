@@ -359,6 +359,38 @@ TEST_CASE("keyframe database: temporal consistency accepts after k consecutive m
   CHECK(r.status == vs::QueryStatus::kNotConsistent);
 }
 
+TEST_CASE("keyframe database: a removed entry is never a candidate and keeps its number",
+          "[visual_slam][bow][lifelong]") {
+  vs::KeyframeDatabaseOptions o;
+  o.recent_excluded = 1;
+  o.alpha = 0.1;
+  vs::KeyframeDatabase db(o);
+  db.add({{1, 1.0}});            // 0
+  db.add({{1, 0.5}, {2, 0.5}});  // 1
+  db.add({{3, 1.0}});            // 2
+  db.add({{3, 0.5}, {4, 0.5}});  // 3 (latest)
+  const vs::BowVector v{{1, 0.4}, {2, 0.2}, {4, 0.4}};
+  auto r = db.query(v);
+  REQUIRE(r.candidates.size() == 2);
+  CHECK(r.candidates[0].entry == 1);
+  CHECK(r.candidates[1].entry == 0);
+  REQUIRE(db.remove(1));
+  CHECK(db.size() == 4);
+  CHECK(db.live() == 3);
+  CHECK(db.entry(1).empty());
+  CHECK(db.entriesWith(2).empty());
+  CHECK(db.entriesWith(1) == std::vector<std::size_t>{0});
+  r = db.query(v);
+  REQUIRE(r.candidates.size() == 1);
+  CHECK(r.candidates[0].entry == 0);
+  CHECK(r.candidates[0].score == Approx(0.4));
+  // Removed twice, or out of range: refused. New entries go on numbering after the removed one.
+  CHECK_FALSE(db.remove(1));
+  CHECK_FALSE(db.remove(4));
+  CHECK(db.add({{5, 1.0}}) == 4);
+  CHECK(db.live() == 4);
+}
+
 TEST_CASE("7-Scenes RedKitchen: whole-image scores with the DBoW3 vocabulary",
           "[visual_slam][bow][dataset][slow]") {
   TESSERA_SHARED_DATA(folder, "7scenes-redkitchen-rgbd");

@@ -264,6 +264,20 @@ void RgbdMapperActor::onPoses(const Message<msg::KeyframePoses>& m) {
             rotationAngle(now, *pose) > options_.move_threshold_rad;
     valid.emplace_back(id, *pose);
   }
+  // Keyframes the graph no longer holds (lifelong mode trimmed them): listed ids only grow, so a
+  // mapped keyframe below the newest listed that is missing left the graph. Its cloud goes, and
+  // the OctoMap is rebuilt without it.
+  if (!valid.empty()) {
+    std::vector<std::uint64_t> listed;
+    for (const auto& [id, pose] : valid) listed.push_back(id);
+    std::sort(listed.begin(), listed.end());
+    for (const std::uint64_t id : cloud_map_.ids()) {
+      if (id > listed.back() || std::binary_search(listed.begin(), listed.end(), id)) continue;
+      cloud_map_.removeKeyframe(id);
+      ++keyframes_dropped_;
+      moved = true;
+    }
+  }
   // Below the threshold nothing changes (a rebuild re-inserts every keyframe); above it every
   // pose of the message is applied, so small corrections are not lost either.
   if (!moved) return;
@@ -368,6 +382,8 @@ void RgbdMapperActor::summarize(Summary& out) const {
   };
   counts("keyframes_bad", keyframes_bad_);
   out["keyframes_empty"] = i64(empty_clouds_);
+  if (keyframes_dropped_ > 0) out["keyframes_dropped"] = i64(keyframes_dropped_);
+  out["keyframes_held"] = i64(cloud_map_.keyframeCount());
   out["points"] = i64(cloud_map_.pointCount());
   const OctoMapStats s = octomap_->stats();
   out["octomap_leaves"] = i64(s.leaves);

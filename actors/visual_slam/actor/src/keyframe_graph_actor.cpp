@@ -108,6 +108,13 @@ void KeyframeGraphActor::optimizeAndPublish() {
     ++optimizations_;
     optimize_seconds_ += s.seconds;
     last_chi2_ = s.final_chi2;
+    // Lifelong mode: the keyframes newer ones now cover leave the graph, and with them their
+    // stamps and tracked poses (frames then follow the latest kept keyframe before them).
+    for (const std::int64_t id : graph_.trim()) {
+      by_stamp_.erase(stamps_.at(id));
+      stamps_.erase(id);
+      tracked_.erase(id);
+    }
     publishPoses(s.final_chi2, s.iterations);
   } catch (const pose_graph::GraphError& e) {
     // Keep the last poses; the next loop tries again.
@@ -184,6 +191,7 @@ void KeyframeGraphActor::summarize(Summary& out) const {
   out["constraints_bad"] = i64(constraints_bad_);
   out["loops_added"] = i64(graph_.loops());
   out["constraints_unresolved"] = i64(graph_.pending());
+  if (options_.graph.trimming.enabled) out["keyframes_trimmed"] = i64(graph_.trimmed());
   out["optimizations"] = i64(optimizations_);
   out["optimize_s"] = optimize_seconds_;
   out["final_chi2"] = last_chi2_;

@@ -6,6 +6,7 @@
 #include <tessera/runtime/registry.hpp>
 #include <tessera/visual_slam/keyframe_message.hpp>
 
+#include <algorithm>
 #include <cctype>
 #include <cmath>
 #include <cstring>
@@ -91,6 +92,9 @@ LoopDetectorActor::LoopDetectorActor(LoopDetectorActorOptions options)
 void LoopDetectorActor::configure(ActorContext& ctx) {
   ctx.subscribe<msg::Keyframe>("keyframes", MailboxPolicy::reliable(),
                                [this](const Message<msg::Keyframe>& m) { onKeyframe(m); });
+  if (options_.forget_trimmed)
+    ctx.subscribe<msg::KeyframePoses>("keyframe_poses", MailboxPolicy::keepLatest(1),
+                                      [this](const Message<msg::KeyframePoses>& m) { onPoses(m); });
   pub_ = ctx.advertise<msg::KeyframeConstraint>("loop_constraints");
   if (!options_.loops_file.empty() && !ctx.outputDir().empty()) {
     loops_path_ = (std::filesystem::path(ctx.outputDir()) / options_.loops_file).string();
@@ -150,6 +154,13 @@ void LoopDetectorActor::onKeyframe(const Message<msg::Keyframe>& m) {
   }
 }
 
+void LoopDetectorActor::onPoses(const Message<msg::KeyframePoses>& m) {
+  std::vector<std::int64_t> kept;
+  for (const auto entry : m->getPoses()) kept.push_back(entry.getId());
+  if (!std::is_sorted(kept.begin(), kept.end())) std::sort(kept.begin(), kept.end());
+  for (const std::int64_t id : detector_->forgetAllBut(kept)) stamps_.erase(id);
+}
+
 void LoopDetectorActor::publish(const LoopQuery& q) {
   const LoopVerification& v = *q.verification;
   auto loan = pub_.loan(1024);
@@ -183,6 +194,10 @@ void LoopDetectorActor::summarize(Summary& out) const {
   for (const auto& [reason, n] : s.rejected_by) out["rejected_" + reason] = i64(n);
   for (const auto& [status, n] : s.skipped) out["skipped_" + status] = i64(n);
   out["published"] = i64(published_);
+  if (options_.forget_trimmed) {
+    out["keyframes_forgotten"] = i64(s.forgotten);
+    out["keyframes_held"] = i64(detector_->held());
+  }
   out["vocabulary"] = vocabulary_source_;
   if (const Vocabulary* voc = detector_->vocabulary())
     out["vocabulary_words"] = i64(voc->wordCount());

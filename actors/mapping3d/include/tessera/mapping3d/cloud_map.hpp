@@ -49,8 +49,13 @@ class CloudMap {
   /// bad pose (as setKeyframe).
   void setPose(std::uint64_t id, const Eigen::Isometry3d& camera_to_world);
 
+  /// Drops keyframe `id` and its cloud (lifelong mode: the graph trimmed it); false when unknown.
+  bool removeKeyframe(std::uint64_t id) { return keyframes_.erase(id) != 0; }
+
   bool contains(std::uint64_t id) const { return keyframes_.count(id) != 0; }
   std::size_t keyframeCount() const { return keyframes_.size(); }
+  /// The keyframes' ids, ascending.
+  std::vector<std::uint64_t> ids() const;
   /// Points over all keyframes' clouds, before the global filter.
   std::size_t pointCount() const;
   /// Throws std::out_of_range for an unknown id.

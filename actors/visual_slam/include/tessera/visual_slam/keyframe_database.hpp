@@ -13,6 +13,10 @@
 // `consistency_window` entries of it; detect() accepts the best candidate once consistency >=
 // `min_consistency`. Geometric verification of the accepted candidate is the caller's step.
 //
+// remove() forgets an entry (lifelong mode: its keyframe was trimmed): its postings leave the
+// inverse index and its vector is released, so it is never a candidate again; the entry keeps its
+// number (a few bytes), so the numbering and the consistency window stay as they were.
+//
 // Not thread-safe: one owner (the loop detector) adds and queries.
 #pragma once
 
@@ -86,7 +90,13 @@ class KeyframeDatabase {
   /// query(), then temporal consistency against the previous detect(), then add(v).
   QueryResult detect(const BowVector& v);
 
+  /// Forgets entry `i`; false when it is out of range or already removed.
+  bool remove(std::size_t i);
+
+  /// Entries added, removed ones included (the numbering).
   std::size_t size() const { return entries_.size(); }
+  /// Entries not removed.
+  std::size_t live() const { return entries_.size() - removed_; }
   const BowVector& entry(std::size_t i) const { return entries_.at(i); }
   const KeyframeDatabaseOptions& options() const { return options_; }
   /// Entries holding `word` (ascending).
@@ -102,6 +112,8 @@ class KeyframeDatabase {
   std::vector<double> norms_;                  ///< L1 norm of each entry
   std::vector<std::vector<Posting>> inverse_;  ///< index = word id
   std::vector<LoopCandidate> previous_;        ///< candidates of the previous detect()
+  std::vector<char> is_removed_;
+  std::size_t removed_ = 0;
 };
 
 }  // namespace tessera::visual_slam

@@ -10,9 +10,10 @@
 // the run; it separates places less well than one trained on many images, so verification
 // carries the precision.
 //
-// Keyframes are identified by the caller's ids; a detection names the candidate's id. Keyframes
-// that cannot be used (view check fails, no descriptors) are counted and skipped. Keeps every
-// keyframe's view (descriptors, pixels, points: ~50 kB per keyframe of 1000 features).
+// Keyframes are identified by the caller's ids, which grow; a detection names the candidate's id.
+// Keyframes that cannot be used (view check fails, no descriptors) are counted and skipped. Keeps
+// every keyframe's view (descriptors, pixels, points: ~50 kB per keyframe of 1000 features) until
+// forget() releases it (lifelong mode: the keyframe graph trimmed it).
 // Not thread-safe: one owner.
 #pragma once
 
@@ -77,6 +78,7 @@ struct LoopQuery {
 
 struct LoopDetectorStats {
   std::size_t keyframes = 0, bad = 0, queries = 0, candidates = 0, verified = 0, rejected = 0;
+  std::size_t forgotten = 0;
   std::map<std::string, std::size_t> skipped;      ///< queries without a candidate, by status
   std::map<std::string, std::size_t> rejected_by;  ///< verification failures, by reason
   bool bootstrapped = false;                       ///< the vocabulary was trained here
@@ -93,6 +95,15 @@ class LoopDetector {
   /// keyframe was skipped ("" otherwise).
   std::vector<LoopQuery> add(LoopKeyframe keyframe, std::string* error = nullptr);
 
+  /// Releases keyframe `id` (its view and database entry): it is never a candidate again. False
+  /// when the detector does not hold it (unknown, skipped, or forgotten before).
+  bool forget(std::int64_t id);
+  /// forget() for every keyframe held with an id up to kept.back() that is not in `kept`
+  /// (ascending ids: what a keyframe graph still holds). Returns the ids forgotten.
+  std::vector<std::int64_t> forgetAllBut(const std::vector<std::int64_t>& kept);
+  /// Keyframes held (indexed or waiting for the bootstrap), forgotten ones not counted.
+  std::size_t held() const { return database_.live() + held_.size(); }
+
   const LoopDetectorStats& stats() const { return stats_; }
   const Vocabulary* vocabulary() const { return vocabulary_.get(); }
   std::size_t indexed() const { return database_.size(); }
@@ -105,8 +116,9 @@ class LoopDetector {
   LoopDetectorOptions options_;
   std::shared_ptr<const Vocabulary> vocabulary_;
   KeyframeDatabase database_;
-  std::vector<LoopKeyframe> entries_;  ///< index = database entry
-  std::vector<LoopKeyframe> held_;     ///< waiting for the bootstrap
+  std::map<std::int64_t, std::size_t> live_;       ///< id -> database entry, of those held
+  std::map<std::size_t, LoopKeyframe> keyframes_;  ///< database entry -> keyframe held
+  std::vector<LoopKeyframe> held_;                 ///< waiting for the bootstrap
   LoopDetectorStats stats_;
 };
 

@@ -9,7 +9,10 @@
 //   keyframe_poses   msg::KeyframePoses  reliable: optimised poses; when one moves a keyframe by
 //                                        more than move_threshold_m / move_threshold_rad, every
 //                                        pose of the message is applied (the clouds move) and the
-//                                        OctoMap is rebuilt in the background
+//                                        OctoMap is rebuilt in the background; a mapped
+//                                        keyframe missing from it (id below its newest) left the
+//                                        graph (lifelong mode): its cloud is dropped and the
+//                                        OctoMap rebuilt without it
 //                                        (OctoMapBuilder::rebuild: the mailbox is not blocked;
 //                                        the old tree is served until the new one swaps in; a
 //                                        request made meanwhile follows it)
@@ -127,7 +130,7 @@ class RgbdMapperActor final : public Actor {
   std::size_t preview_points_ = 0;
   double preview_voxel_m_ = 0, preview_ms_total_ = 0, preview_ms_max_ = 0;
 
-  std::uint64_t keyframes_ = 0, mapped_ = 0, empty_clouds_ = 0;
+  std::uint64_t keyframes_ = 0, mapped_ = 0, empty_clouds_ = 0, keyframes_dropped_ = 0;
   std::uint64_t pose_messages_ = 0, keyframes_moved_ = 0, rebuilds_ = 0, saves_ = 0;
   std::map<std::string, std::uint64_t> keyframes_bad_, poses_bad_;
   double cloud_ms_total_ = 0, insert_ms_total_ = 0, insert_ms_max_ = 0, write_ms_ = 0;

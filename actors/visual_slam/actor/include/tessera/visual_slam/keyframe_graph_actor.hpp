@@ -10,7 +10,12 @@
 //   camera_pose        msg::PoseStamped3D       reliable, only with `frames_file`: the front
 //                                               end's pose of every frame
 // Publishes:
-//   keyframe_poses     msg::KeyframePoses       after every optimisation, and in stop()
+//   keyframe_poses     msg::KeyframePoses       after every optimisation, and in stop(): every
+//                                               keyframe the graph holds. In lifelong mode
+//                                               (graph.trimming) an optimisation is followed by
+//                                               KeyframeGraph::trim(), and a keyframe missing
+//                                               from the list (id below its newest) was trimmed:
+//                                               the mapper and the loop detector drop it
 // Writes (with an output directory, in stop()): keyframes.tum (keyframes_file: the optimised
 // camera-to-world of every keyframe at its stamp, TUM format) and keyframe_graph.g2o (g2o_file:
 // VERTEX_SE3:QUAT per keyframe, EDGE_SE3:QUAT per odometry and loop edge, FIX for the first)

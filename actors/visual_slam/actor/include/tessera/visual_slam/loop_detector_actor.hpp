@@ -7,6 +7,13 @@
 //                                               (eta, temporal consistency), the accepted
 //                                               candidate verified (direct-index matching,
 //                                               RANSAC PnP, 3D check), then indexed
+//   keyframe_poses     msg::KeyframePoses       keep_latest, only with forget_trimmed (lifelong
+//                                               mode): a keyframe held with an id below the
+//                                               newest listed that is missing was trimmed from
+//                                               the graph, and is forgotten (LoopDetector::
+//                                               forgetAllBut): never a candidate again, its view
+//                                               released. keep_latest: any one message says all,
+//                                               and the detector never holds up the graph
 // Publishes:
 //   loop_constraints   msg::KeyframeConstraint  reliable, each verified loop: from = the earlier
 //                                               (candidate) keyframe, to = the query, relative =
@@ -52,6 +59,7 @@ struct LoopDetectorActorOptions {
   VocabularySource vocabulary;
   LoopDetectorOptions detector;
   std::string loops_file = "loops.csv";
+  bool forget_trimmed = false;
 
   template <class V>
   void visit(V& v) {
@@ -59,6 +67,8 @@ struct LoopDetectorActorOptions {
     v("detector", detector, "candidates, verification and the vocabulary bootstrap");
     v("loops_file", loops_file,
       "CSV of every verified candidate in the output directory; empty: none");
+    v("forget_trimmed", forget_trimmed,
+      "lifelong mode: subscribe to keyframe_poses and forget the keyframes the graph trimmed");
   }
 };
 
@@ -76,6 +86,7 @@ class LoopDetectorActor final : public Actor {
 
  private:
   void onKeyframe(const Message<msg::Keyframe>& m);
+  void onPoses(const Message<msg::KeyframePoses>& m);
   void publish(const LoopQuery& q);
   void writeRow(const LoopQuery& q);
 
