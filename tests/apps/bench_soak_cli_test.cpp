@@ -61,3 +61,29 @@ TEST_CASE("bench soak names a bad option and a profile it cannot soak", "[bench_
   CHECK(other.exit_code != 0);
   CHECK(other.err.find("run.log") != std::string::npos);
 }
+
+TEST_CASE("bench soak of the RGB-D profile counts keyframes and judges its loops",
+          "[bench_soak][lifelong]") {
+  // Two and a half minutes of simulated time: the short loop once (~107 s), then back into it,
+  // where loops tie the revisit to the first lap and its keyframes are trimmed.
+  const auto dir = tessera::test::scratchDir("bench_soak_rgbd");
+  const auto run = runCli(
+      "bench soak --json --profile sim_rgbd_lifelong --hours 0.042 "
+      "--period-hours 0.014 --out " +
+          (dir / "soak").string(),
+      dir);
+  INFO(run.err);
+  REQUIRE(run.exit_code == 0);
+  const auto j = nlohmann::json::parse(run.out);
+  CHECK(j["false_loops"].get<std::int64_t>() == 0);
+  const auto& series = j["series"];
+  REQUIRE(series.size() == 3);
+  const auto& last = series[2];
+  CHECK(last["ate_m"].get<double>() >= 0.0);
+  CHECK(last["ate_m"].get<double>() < 0.5);
+  // Keyframes made (submaps) against kept (graph_nodes): the first lap's covered ones are gone.
+  CHECK(last["submaps"].get<double>() > 300);
+  CHECK(last["graph_nodes"].get<double>() < last["submaps"].get<double>() - 20);
+  CHECK(std::filesystem::exists(dir / "soak" / "run" / "trajectory_optimized.tum"));
+  CHECK(std::filesystem::exists(dir / "soak" / "run" / "loops.csv"));
+}

@@ -186,6 +186,7 @@ Tracker::Attempt Tracker::trackLocalMap(const Features& f, const Eigen::Isometry
   for (std::size_t k = first; k < keyframes_.size(); ++k) chosen.push_back(k);
   std::vector<std::pair<double, std::size_t>> nearby;
   for (std::size_t k = 0; k < first; ++k) {
+    if (keyframes_[k].points_world.empty()) continue;  // forgotten (lifelong mode)
     const double e = motionSize(keyframes_[k].camera_to_world.inverse() * predicted);
     if (e < options_.local_map_nearby_motion) nearby.emplace_back(e, k);
   }
@@ -382,6 +383,7 @@ TrackResult Tracker::track(const RgbdFrame& frame) {
     std::size_t best_kf = 0;
     for (std::size_t c = 0; c < cands && c * stride < n; ++c) {
       const std::size_t k = n - 1 - c * stride;
+      if (keyframes_[k].points_world.empty()) continue;  // forgotten (lifelong mode)
       Attempt t = trackFrame(f, keyframes_[k], std::nullopt, r.timing);
       if (t.estimate.ok && t.estimate.inliers.size() > best.estimate.inliers.size()) {
         best = std::move(t);
@@ -458,6 +460,27 @@ TrackResult Tracker::track(const RgbdFrame& frame) {
   previous_ = std::move(current);
   r.timing.total_ms = msSince(t0);
   return r;
+}
+
+bool Tracker::forgetKeyframe(std::size_t id) {
+  // The newest keyframes stay: the local map and bundle adjustment (with its fixed ones) use them.
+  const int adjusted = options_.local_ba.keyframes > 0
+                           ? options_.local_ba.keyframes + options_.local_ba.fixed_keyframes
+                           : 0;
+  const auto recent = static_cast<std::size_t>(std::max(options_.local_map_keyframes, adjusted));
+  if (id >= keyframes_.size() || id + recent >= keyframes_.size() || id == reference_keyframe_)
+    return false;
+  Keyframe& k = keyframes_[id];
+  if (k.points_world.empty() && k.keypoints.empty()) return false;
+  // Swapped with empty ones, so the memory goes, not just the sizes; the pose and the numbering
+  // stay (ids are indices).
+  std::vector<cv::KeyPoint>().swap(k.keypoints);
+  k.descriptors = cv::Mat();
+  std::vector<Eigen::Vector3d>().swap(k.points_camera);
+  std::vector<Eigen::Vector3d>().swap(k.points_world);
+  std::vector<std::int64_t>().swap(k.point_ids);
+  ++forgotten_;
+  return true;
 }
 
 }  // namespace tessera::visual_slam

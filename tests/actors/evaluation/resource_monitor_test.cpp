@@ -1,4 +1,5 @@
 // resource_monitor: rows on the run's clock, the counts it reads, and a write that fails.
+#include <tessera/msg/keyframe.capnp.h>
 #include <tessera/msg/sensor.capnp.h>
 #include <tessera/msg/submap.capnp.h>
 #include <tessera/evaluation/resource_monitor_actor.hpp>
@@ -78,6 +79,29 @@ TEST_CASE("resource_monitor writes a row every period of run time and one at sto
   CHECK(integer(s, "scans") == 25);
 }
 
+TEST_CASE("resource_monitor counts keyframes from keyframe_poses in an RGB-D profile",
+          "[resource_monitor][lifelong]") {
+  const auto dir = test::scratchDir("resource_monitor_keyframes");
+  evaluation::ResourceMonitorOptions o;
+  o.period_s = 10;
+  o.graph = false;
+  o.keyframes = true;
+  ActorHarness h(std::make_unique<evaluation::ResourceMonitorActor>(o), dir.string());
+  h.runUntilIdle();
+  // The graph holds keyframes 0, 5 and 9: ten made, seven gone (trimmed).
+  h.push<msg::KeyframePoses>("keyframe_poses", [](auto& b) {
+    auto poses = b.initPoses(3);
+    poses[0].setId(0);
+    poses[1].setId(5);
+    poses[2].setId(9);
+  });
+  h.runUntilIdle();
+  h.stop();
+  const auto rows = lines(dir / "resources.csv");
+  REQUIRE(rows.size() == 3);
+  CHECK(rows[2].substr(rows[2].size() - 9) == ",0,10,3,7");
+}
+
 TEST_CASE("resource_monitor refuses bad options and reports a folder it cannot write",
           "[resource_monitor]") {
   evaluation::ResourceMonitorOptions o;
@@ -88,6 +112,9 @@ TEST_CASE("resource_monitor refuses bad options and reports a folder it cannot w
   o = {};
   o.file = "";
   CHECK_THROWS_WITH(evaluation::ResourceMonitorActor(o), Catch::Contains("file"));
+  o = {};
+  o.keyframes = true;  // and graph, by default: two sources for the same counts
+  CHECK_THROWS_WITH(evaluation::ResourceMonitorActor(o), Catch::Contains("graph and keyframes"));
   o = {};
   o.file = "no_such_folder/resources.csv";
   const auto dir = test::scratchDir("resource_monitor_bad");

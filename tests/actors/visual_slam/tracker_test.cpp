@@ -125,3 +125,40 @@ TEST_CASE("tracker on 7-Scenes RedKitchen frames 0-449, colour as if registered"
   report("7-Scenes RedKitchen 0-449 (colour as if registered)", f);
   CHECK(f.stats.lost == 0);
 }
+
+TEST_CASE("tracker forgets trimmed keyframes and tracks on without them",
+          "[visual_slam][dataset][lifelong]") {
+  TESSERA_SHARED_DATA(folder, "7scenes-redkitchen-rgbd");
+  const auto seq = tessera::datasets::readRgbdSequence(folder);
+  REQUIRE(seq.frames.size() >= 120);
+  const auto calib = vs::sevenScenesColorCalibration();
+  const auto& k = seq.intrinsics;
+  const vs::PinholeCamera depth_cam{k.fx, k.fy, k.cx, k.cy, k.width, k.height};
+  vs::Tracker tracker({}, calib.color);
+  auto track = [&](std::size_t i) {
+    auto images = tessera::datasets::loadRgbdImages(seq, i);
+    vs::RgbdFrame frame{cv::Mat(images.height, images.width, CV_8UC3, images.color.data()),
+                        cv::Mat(images.height, images.width, CV_16UC1, images.depth.data()),
+                        images.depth_scale, seq.frames[i].timestamp};
+    frame.depth = vs::registerDepth(frame.depth, depth_cam, calib);
+    return tracker.track(frame);
+  };
+  for (std::size_t i = 0; i < 80; ++i) track(i);
+  const std::size_t n = tracker.keyframes().size();
+  REQUIRE(n > 8);
+  // The older keyframes go; the newest (local map) and unknown ids are refused.
+  std::size_t forgotten = 0;
+  for (std::size_t id = 0; id + 6 < n; ++id) forgotten += tracker.forgetKeyframe(id) ? 1 : 0;
+  CHECK(forgotten >= n - 8);
+  CHECK(tracker.forgottenKeyframes() == forgotten);
+  CHECK(tracker.keyframes()[1].points_world.empty());
+  CHECK(tracker.keyframes()[1].descriptors.empty());
+  CHECK_FALSE(tracker.forgetKeyframe(1));      // twice
+  CHECK_FALSE(tracker.forgetKeyframe(n - 1));  // the newest
+  CHECK_FALSE(tracker.forgetKeyframe(n + 5));  // unknown
+  // Tracking goes on against the keyframes kept.
+  const auto lost_before = tracker.stats().lost;
+  for (std::size_t i = 80; i < 120; ++i) track(i);
+  CHECK(tracker.stats().lost == lost_before);
+  CHECK(tracker.keyframes().size() > n);
+}

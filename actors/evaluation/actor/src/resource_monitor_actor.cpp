@@ -1,6 +1,7 @@
 #include <tessera/evaluation/resource_log.hpp>
 #include <tessera/evaluation/resource_monitor_actor.hpp>
 
+#include <tessera/msg/keyframe.capnp.h>
 #include <tessera/msg/sensor.capnp.h>
 #include <tessera/msg/submap.capnp.h>
 #include <tessera/io/atomic_file.hpp>
@@ -22,6 +23,8 @@ ResourceMonitorActor::ResourceMonitorActor(ResourceMonitorOptions options)
     throw ConfigError("resource_monitor: period_s must be > 0 s, got " +
                       std::to_string(options_.period_s));
   if (options_.file.empty()) throw ConfigError("resource_monitor: file must not be empty");
+  if (options_.graph && options_.keyframes)
+    throw ConfigError("resource_monitor: graph and keyframes both true; the counts are of one");
 }
 
 ResourceMonitorActor::~ResourceMonitorActor() = default;
@@ -43,6 +46,16 @@ void ResourceMonitorActor::configure(ActorContext& ctx) {
             submaps_ = std::max<std::uint64_t>(submaps_, t[t.size() - 1] + 1);
           }
         });
+  if (options_.keyframes)
+    ctx.subscribe<msg::KeyframePoses>("keyframe_poses", MailboxPolicy::keepLatest(1),
+                                      [this](const Message<msg::KeyframePoses>& m) {
+                                        const auto poses = m->getPoses();
+                                        graph_nodes_ = poses.size();
+                                        if (poses.size() > 0)
+                                          submaps_ = std::max<std::uint64_t>(
+                                              submaps_, poses[poses.size() - 1].getId() + 1);
+                                        trimmed_ = submaps_ - std::min(submaps_, graph_nodes_);
+                                      });
   addPeriodicTimer(ctx, options_.period_s, [this] { sample(); });
 }
 

@@ -94,8 +94,23 @@ RgbdFrontEndActor::~RgbdFrontEndActor() = default;
 void RgbdFrontEndActor::configure(ActorContext& ctx) {
   ctx.subscribe<msg::RgbdFrame>("rgbd", MailboxPolicy::keepLatest(1),
                                 [this](const Message<msg::RgbdFrame>& m) { onFrame(m); });
+  if (options_.forget_trimmed)
+    ctx.subscribe<msg::KeyframePoses>("keyframe_poses", MailboxPolicy::keepLatest(1),
+                                      [this](const Message<msg::KeyframePoses>& m) { onPoses(m); });
   pose_pub_ = ctx.advertise<msg::PoseStamped3D>("camera_pose");
   keyframe_pub_ = ctx.advertise<msg::Keyframe>("keyframes");
+}
+
+void RgbdFrontEndActor::onPoses(const Message<msg::KeyframePoses>& m) {
+  const auto poses = m->getPoses();
+  if (!tracker_ || poses.size() == 0) return;
+  std::vector<std::size_t> kept;
+  for (const auto p : poses) kept.push_back(p.getId());
+  std::sort(kept.begin(), kept.end());
+  // Keyframe ids are the tracker's indices; below the newest listed, the missing ones were
+  // trimmed (ones forgotten before, or too recent to forget yet, are refused and not counted).
+  for (std::size_t id = 0; id < kept.back(); ++id)
+    if (!std::binary_search(kept.begin(), kept.end(), id)) tracker_->forgetKeyframe(id);
 }
 
 void RgbdFrontEndActor::skip(const std::string& reason) {
@@ -194,8 +209,8 @@ void RgbdFrontEndActor::onFrame(const Message<msg::RgbdFrame>& m) {
     pose_pub_.publish(std::move(loan));
     ++published_;
   }
-  estimate_.push_back({stamp, camera});
-  if (f.getHasGroundTruth()) {
+  if (options_.keep_trajectory) estimate_.push_back({stamp, camera});
+  if (options_.keep_trajectory && f.getHasGroundTruth()) {
     const Eigen::Isometry3d gt = isometry(f.getGroundTruth());
     if (gt.matrix().allFinite()) truth_.push_back({stamp, gt});
   }
@@ -235,6 +250,7 @@ void RgbdFrontEndActor::summarize(Summary& out) const {
     out["relocalised"] = i64(s.relocalised);
     out["forced_keyframes"] = i64(s.forced_keyframes);
     out["local_ba_runs"] = i64(s.local_ba_runs);
+    if (options_.forget_trimmed) out["keyframes_forgotten"] = i64(tracker_->forgottenKeyframes());
     out["depth_registered"] = std::int64_t{calibration_ ? 1 : 0};
   }
   if (!ms_.empty()) {

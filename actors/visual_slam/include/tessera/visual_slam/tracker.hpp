@@ -186,6 +186,13 @@ class Tracker {
 
   TrackResult track(const RgbdFrame& frame);
 
+  /// Lifelong mode: releases keyframe `id`'s features and points (the keyframe graph trimmed it;
+  /// a newer keyframe covers its place), keeping its pose and number. It is no longer in a local
+  /// map or a relocalisation candidate. False for an unknown or already forgotten id, one of the
+  /// newest (local map, bundle adjustment window) or the current reference keyframe.
+  bool forgetKeyframe(std::size_t id);
+  std::size_t forgottenKeyframes() const { return forgotten_; }
+
   const std::vector<Keyframe>& keyframes() const { return keyframes_; }
   const TrackerStats& stats() const { return stats_; }
   const KeyframeCounts& keyframeCounts() const { return selector_.counts(); }
@@ -219,6 +226,7 @@ class Tracker {
   std::vector<Keyframe> keyframes_;
   std::size_t frame_counter_ = 0;
   std::int64_t next_point_id_ = 0;
+  std::size_t forgotten_ = 0;
   TrackerStats stats_;
 };
 

@@ -9,9 +9,12 @@
 //   submaps    submaps made so far (the largest id in submap_poses + 1)
 //   graph_nodes submaps in the latest optimised graph (what lifelong mapping keeps bounded)
 //   trimmed    submaps lifelong mapping removed so far
+// With keyframes: true (an RGB-D profile) the last three count keyframes instead: made (the
+// largest id in keyframe_poses + 1), in the graph, and the rest (trimmed, or rejected).
 // Subscribes:
-//   scan          msg::LaserScan    reliable       counted (the handler only counts)
-//   submap_poses  msg::SubmapPoses  keep_latest(1) with graph: true, the graph's size
+//   scan            msg::LaserScan      reliable       counted (the handler only counts)
+//   submap_poses    msg::SubmapPoses    keep_latest(1) with graph: true, the graph's size
+//   keyframe_poses  msg::KeyframePoses  keep_latest(1) with keyframes: true, likewise
 // Nothing is published. Without an output folder nothing is written; the summary still has
 // the last row's figures.
 #pragma once
@@ -32,12 +35,15 @@ struct ResourceMonitorOptions {
   double period_s = 3600.0;
   std::string file = "resources.csv";
   bool graph = true;
+  bool keyframes = false;
 
   template <class V>
   void visit(V& v) {
     v("period_s", period_s, "[s of run time] between rows (> 0)");
     v("file", file, "CSV written in the output folder");
     v("graph", graph, "subscribe to submap_poses for the submap and graph-node counts");
+    v("keyframes", keyframes,
+      "subscribe to keyframe_poses instead: the counts are of keyframes (RGB-D profiles)");
   }
 };
 

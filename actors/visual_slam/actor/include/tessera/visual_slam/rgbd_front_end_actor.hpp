@@ -3,6 +3,10 @@
 // Subscribes:
 //   rgbd          msg::RgbdFrame          keep_latest(1): a frame that arrives while one is being
 //                                         tracked replaces the waiting one (counted as dropped)
+//   keyframe_poses msg::KeyframePoses     keep_latest(1), only with forget_trimmed (lifelong
+//                                         mode): a keyframe missing below the newest listed id
+//                                         was trimmed from the graph; the tracker releases its
+//                                         features and points (Tracker::forgetKeyframe)
 // Publishes:
 //   camera_pose   msg::PoseStamped3D      every tracked frame: camera-to-world of the dataset's
 //                                         camera (the depth camera when colour and depth are not
@@ -19,7 +23,7 @@
 // A frame the actor cannot read (unknown encoding, sizes that disagree, data shorter than
 // height x step) is skipped and counted by reason, as are the tracker's own skips; never an
 // exception. Ground truth carried by the frames gives the ATE (rigid alignment, evaluation core)
-// in the summary.
+// in the summary; keep_trajectory: false (lifelong) keeps no per-frame poses for it.
 #pragma once
 
 #include <tessera/msg/image.capnp.h>
@@ -43,6 +47,8 @@ struct RgbdFrontEndOptions {
   int keyframe_depth_step = 4;
   std::string world_frame = "world";
   std::string frame_id = "camera";
+  bool forget_trimmed = false;
+  bool keep_trajectory = true;
   /// register_depth moved into the tracker's options (shared with `bench rgbd`).
   static constexpr RenamedKey kRenamedKeys[] = {{"register_depth", "tracker.register_depth"}};
 
@@ -53,6 +59,10 @@ struct RgbdFrontEndOptions {
       "keyframe messages keep every n-th depth pixel of every n-th row (0 = no depth)");
     v("world_frame", world_frame, "frame of the published poses");
     v("frame_id", frame_id, "child frame of the published poses");
+    v("forget_trimmed", forget_trimmed,
+      "lifelong mode: subscribe to keyframe_poses and release the keyframes the graph trimmed");
+    v("keep_trajectory", keep_trajectory,
+      "keep every frame's pose for the summary's ATE (false: memory stays flat in long runs)");
   }
 };
 
@@ -70,6 +80,7 @@ class RgbdFrontEndActor final : public Actor {
 
  private:
   void onFrame(const Message<msg::RgbdFrame>& m);
+  void onPoses(const Message<msg::KeyframePoses>& m);
   void skip(const std::string& reason);
   /// Builds the tracker on the first frame (intrinsics come with the frames); "" or why not.
   std::string setUp(msg::RgbdFrame::Reader f);
