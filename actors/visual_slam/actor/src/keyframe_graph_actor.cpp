@@ -10,6 +10,7 @@
 #include <algorithm>
 #include <filesystem>
 #include <iostream>
+#include <limits>
 #include <stdexcept>
 
 namespace tessera::visual_slam {
@@ -52,6 +53,7 @@ void KeyframeGraphActor::onFramePose(const Message<msg::PoseStamped3D>& m) {
     return;
   }
   frames_.emplace_back(m->getHeader().getStampNs(), p);
+  baked_.push_back(0);
 }
 
 void KeyframeGraphActor::onKeyframe(const Message<msg::Keyframe>& m) {
@@ -102,6 +104,26 @@ void KeyframeGraphActor::onConstraint(const Message<msg::KeyframeConstraint>& m)
   if (graph_.needsOptimization()) optimizeAndPublish();
 }
 
+void KeyframeGraphActor::bakeFrames(std::int64_t id, const Pose3& optimised) {
+  if (frames_.empty()) return;
+  // The frames that follow keyframe `id`: from its stamp to the next keyframe's.
+  const std::int64_t from = stamps_.at(id);
+  const auto next = by_stamp_.upper_bound(from);
+  const std::int64_t to =
+      next == by_stamp_.end() ? std::numeric_limits<std::int64_t>::max() : next->first;
+  const Pose3 correction = optimised * tracked_.at(id).inverse();
+  const auto by_time = [](const std::pair<std::int64_t, Pose3>& f, std::int64_t t) {
+    return f.first < t;
+  };
+  auto i = static_cast<std::size_t>(
+      std::lower_bound(frames_.begin(), frames_.end(), from, by_time) - frames_.begin());
+  for (; i < frames_.size() && frames_[i].first < to; ++i) {
+    if (baked_[i]) continue;
+    frames_[i].second = correction * frames_[i].second;
+    baked_[i] = 1;
+  }
+}
+
 void KeyframeGraphActor::optimizeAndPublish() {
   try {
     const auto s = graph_.optimize();
@@ -109,11 +131,17 @@ void KeyframeGraphActor::optimizeAndPublish() {
     optimize_seconds_ += s.seconds;
     last_chi2_ = s.final_chi2;
     // Lifelong mode: the keyframes newer ones now cover leave the graph, and with them their
-    // stamps and tracked poses (frames then follow the latest kept keyframe before them).
-    for (const std::int64_t id : graph_.trim()) {
-      by_stamp_.erase(stamps_.at(id));
-      stamps_.erase(id);
-      tracked_.erase(id);
+    // stamps and tracked poses. Their frames keep the correction they have now (a loop has just
+    // tied them to the newer views): it is baked into them, as the best that was known of them.
+    if (options_.graph.trimming.enabled) {
+      const auto optimised = graph_.poses();
+      const std::vector<std::int64_t> gone = graph_.trim();
+      for (const std::int64_t id : gone) bakeFrames(id, optimised.at(id));
+      for (const std::int64_t id : gone) {
+        by_stamp_.erase(stamps_.at(id));
+        stamps_.erase(id);
+        tracked_.erase(id);
+      }
     }
     publishPoses(s.final_chi2, s.iterations);
   } catch (const pose_graph::GraphError& e) {
@@ -170,8 +198,10 @@ void KeyframeGraphActor::writeFiles() {
           corrections.push_back({stamp, tracked_.at(id), it->second});
       const std::vector<Pose3> corrected = correctFramePoses(frames_, std::move(corrections));
       mapping::TumWriter writer(dir / options_.frames_file);
-      for (std::size_t i = 0; i < frames_.size(); ++i)
-        writer.write({frames_[i].first, corrected[i].t, corrected[i].q});
+      for (std::size_t i = 0; i < frames_.size(); ++i) {
+        const Pose3& p = baked_[i] ? frames_[i].second : corrected[i];
+        writer.write({frames_[i].first, p.t, p.q});
+      }
       writer.close();
       frames_path_ = (dir / options_.frames_file).string();
     }

@@ -159,7 +159,8 @@ struct KeyframeCorrection {
 };
 
 /// Every frame's pose moved with the optimisation of the keyframes: a frame follows the latest
-/// keyframe at or before its time (of those given: in lifelong mode, the latest kept one), T' =
+/// keyframe at or before its time (of those given; the keyframe_graph actor bakes a trimmed
+/// keyframe's correction into its frames when it trims it), T' =
 /// T_k,optimised · T_k,tracked⁻¹ · T. The correction acts in the world frame, so frames may be
 /// reported in another camera frame than the keyframes (7-Scenes: the depth camera). Frames before
 /// the first keyframe stay as they are. `frames`: (time [ns], tracked camera-to-world); `keyframes`

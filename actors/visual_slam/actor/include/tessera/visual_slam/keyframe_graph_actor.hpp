@@ -21,7 +21,8 @@
 // VERTEX_SE3:QUAT per keyframe, EDGE_SE3:QUAT per odometry and loop edge, FIX for the first)
 // and, with frames_file, every frame's pose corrected by the optimisation: a frame moves with the
 // latest keyframe at or before its stamp, T' = T_k,optimised · T_k,tracked⁻¹ · T (a correction in
-// the world frame, so it holds whichever camera frame the front end reports poses in).
+// the world frame, so it holds whichever camera frame the front end reports poses in). In lifelong
+// mode a trimmed keyframe's frames keep the correction it had when it was trimmed.
 // A bad message (no keypoints or descriptors, counts that disagree, a non-finite pose or
 // covariance, a constraint naming itself) is counted by kind and skipped, never a crash. A
 // constraint naming a keyframe not seen yet waits for it; at stop the ones still waiting are
@@ -79,6 +80,8 @@ class KeyframeGraphActor final : public Actor {
   void onConstraint(const Message<msg::KeyframeConstraint>& m);
   void onFramePose(const Message<msg::PoseStamped3D>& m);
   void optimizeAndPublish();
+  /// Applies trimmed keyframe `id`'s correction (its optimised pose now) to its frames for good.
+  void bakeFrames(std::int64_t id, const Pose3& optimised);
   void publishPoses(double chi2, int iterations);
   void writeFiles();
 
@@ -86,10 +89,13 @@ class KeyframeGraphActor final : public Actor {
   KeyframeGraph graph_;
   Publisher<msg::KeyframePoses> poses_pub_;
   std::string output_dir_;
-  std::map<std::int64_t, std::int64_t> stamps_;         ///< keyframe id -> header stamp [ns]
-  std::map<std::int64_t, std::int64_t> by_stamp_;       ///< keyframe header stamp [ns] -> id
-  std::map<std::int64_t, Pose3> tracked_;               ///< keyframe id -> the tracker's pose
-  std::vector<std::pair<std::int64_t, Pose3>> frames_;  ///< (stamp, tracked pose) per frame
+  std::map<std::int64_t, std::int64_t> stamps_;    ///< keyframe id -> header stamp [ns]
+  std::map<std::int64_t, std::int64_t> by_stamp_;  ///< keyframe header stamp [ns] -> id
+  std::map<std::int64_t, Pose3> tracked_;          ///< keyframe id -> the tracker's pose
+  /// (stamp, pose) per frame, in time order: tracked, or baked (below)
+  std::vector<std::pair<std::int64_t, Pose3>> frames_;
+  /// Per frame: its keyframe was trimmed, and its pose holds the correction it had then
+  std::vector<char> baked_;
   std::uint64_t frames_bad_ = 0;
   std::int64_t last_stamp_ = 0;
   std::uint64_t keyframes_ = 0, keyframes_bad_ = 0, constraints_ = 0, constraints_bad_ = 0;
