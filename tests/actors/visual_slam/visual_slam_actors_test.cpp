@@ -14,6 +14,7 @@
 #include <yaml-cpp/yaml.h>
 #include <catch2/catch.hpp>
 
+#include <chrono>
 #include <cmath>
 #include <cstring>
 #include <functional>
@@ -133,6 +134,30 @@ TEST_CASE("rgbd_front_end tracks the TUM fr1/desk frames and publishes poses and
   CHECK(std::get<double>(s.at("ate_rmse_m")) < 0.02);
   CHECK(s.count("ms_per_frame_p95"));
   CHECK(s.count("ms_extraction_mean"));
+}
+
+TEST_CASE("rgbd_front_end forget_trimmed bounds a keyframe_poses list by its own keyframes",
+          "[visual_slam][actors][lifelong]") {
+  TESSERA_SHARED_DATA(dir, "tum-rgbd-fr1-desk-9frames");
+  const auto frames = playerFrames(dir);
+  RgbdFrontEndOptions o;
+  o.forget_trimmed = true;
+  ActorHarness h(std::make_unique<RgbdFrontEndActor>(o));
+  for (const auto& f : frames) {
+    h.push("rgbd", f);
+    h.runUntilIdle();
+  }
+  // A list whose newest id (4e9) the front end never made: it must not walk every id below it,
+  // and forgets nothing it does not hold.
+  const auto start = std::chrono::steady_clock::now();
+  h.push<msg::KeyframePoses>("keyframe_poses", [](msg::KeyframePoses::Builder b) {
+    auto poses = b.initPoses(2);
+    poses[0].setId(0);
+    poses[1].setId(4000000000u);
+  });
+  h.runUntilIdle();
+  CHECK(std::chrono::steady_clock::now() - start < std::chrono::seconds(2));
+  CHECK(summaryInt(summaryOf(h), "keyframes_forgotten") == 0);  // all within the local map
 }
 
 TEST_CASE("rgbd_front_end options: registration and matching live in the tracker's options",

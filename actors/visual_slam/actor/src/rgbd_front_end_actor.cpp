@@ -109,7 +109,9 @@ void RgbdFrontEndActor::onPoses(const Message<msg::KeyframePoses>& m) {
   std::sort(kept.begin(), kept.end());
   // Keyframe ids are the tracker's indices; below the newest listed, the missing ones were
   // trimmed (ones forgotten before, or too recent to forget yet, are refused and not counted).
-  for (std::size_t id = 0; id < kept.back(); ++id)
+  // The ids come from a message: only those the tracker made are walked.
+  const std::size_t newest = std::min(kept.back(), tracker_->keyframes().size());
+  for (std::size_t id = 0; id < newest; ++id)
     if (!std::binary_search(kept.begin(), kept.end(), id)) tracker_->forgetKeyframe(id);
 }
 
