@@ -4,6 +4,7 @@
 #include <algorithm>
 #include <chrono>
 #include <stdexcept>
+#include <string>
 #include <utility>
 
 namespace tessera::visual_slam {
@@ -29,7 +30,11 @@ LoopDetector::LoopDetector(const LoopDetectorOptions& options,
 
 std::vector<LoopQuery> LoopDetector::add(LoopKeyframe keyframe, std::string* error) {
   ++stats_.keyframes;
-  std::string why = keyframe.view.check();
+  std::string why;
+  if (last_id_ && keyframe.id <= *last_id_)
+    why = "keyframe " + std::to_string(keyframe.id) + ": id out of order; " +
+          std::to_string(*last_id_) + " was taken before";
+  if (why.empty()) why = keyframe.view.check();
   if (why.empty() && keyframe.view.size() == 0) why = "no features";
   if (why.empty()) {
     try {
@@ -43,6 +48,7 @@ std::vector<LoopQuery> LoopDetector::add(LoopKeyframe keyframe, std::string* err
     ++stats_.bad;
     return {};
   }
+  last_id_ = keyframe.id;
   keyframe.view.features.clear();  // ours to fill, whatever the caller left there
   if (vocabulary_) return {query(std::move(keyframe))};
   if (options_.bootstrap_keyframes == 0) return {};
@@ -77,27 +83,20 @@ bool LoopDetector::forget(std::int64_t id) {
     ++stats_.forgotten;
     return true;
   }
-  const auto e = live_.find(id);
-  if (e == live_.end()) return false;
-  database_.remove(e->second);
-  keyframes_.erase(e->second);
+  const auto e = std::lower_bound(live_.begin(), live_.end(), id,
+                                  [](const Indexed& k, auto v) { return k.keyframe.id < v; });
+  if (e == live_.end() || e->keyframe.id != id) return false;
+  database_.remove(e->entry);
   live_.erase(e);
   ++stats_.forgotten;
   return true;
 }
 
-std::vector<std::int64_t> LoopDetector::forgetAllBut(const std::vector<std::int64_t>& kept) {
+std::vector<std::int64_t> LoopDetector::ids() const {
   std::vector<std::int64_t> out;
-  if (kept.empty()) return out;
-  const std::int64_t newest = kept.back();
-  std::vector<std::int64_t> candidates;
-  for (const auto& k : held_) candidates.push_back(k.id);
-  for (const auto& [id, entry] : live_) candidates.push_back(id);
-  for (const std::int64_t id : candidates) {
-    if (id > newest || std::binary_search(kept.begin(), kept.end(), id)) continue;
-    if (forget(id)) out.push_back(id);
-  }
-  std::sort(out.begin(), out.end());
+  out.reserve(held_.size() + live_.size());
+  for (const auto& k : held_) out.push_back(k.id);
+  for (const auto& k : live_) out.push_back(k.keyframe.id);
   return out;
 }
 
@@ -113,7 +112,12 @@ LoopQuery LoopDetector::query(LoopKeyframe keyframe) {
   if (r.status == QueryStatus::kAccepted && r.accepted) {
     ++stats_.candidates;
     // Never a forgotten entry: the database no longer holds its words.
-    const LoopKeyframe& candidate = keyframes_.at(r.accepted->entry);
+    const auto c = std::lower_bound(live_.begin(), live_.end(), r.accepted->entry,
+                                    [](const Indexed& k, std::size_t v) { return k.entry < v; });
+    if (c == live_.end() || c->entry != r.accepted->entry)
+      throw std::logic_error("loop detector: database entry " + std::to_string(r.accepted->entry) +
+                             " has no keyframe");
+    const LoopKeyframe& candidate = c->keyframe;
     q.candidate = candidate.id;
     const LoopVerifier verifier(options_.verifier, keyframe.camera);
     q.verification = verifier.verify(keyframe.view, candidate.view);
@@ -127,8 +131,7 @@ LoopQuery LoopDetector::query(LoopKeyframe keyframe) {
     ++stats_.skipped[std::string(statusName(r.status))];
   }
   const std::size_t entry = database_.size() - 1;  // detect() added it
-  live_[keyframe.id] = entry;
-  keyframes_.emplace(entry, std::move(keyframe));
+  live_.push_back({entry, std::move(keyframe)});
   return q;
 }
 

@@ -345,6 +345,7 @@ TrackResult Tracker::track(const RgbdFrame& frame) {
     initialised_ = true;
     pose_ = initial_pose_;
     keyframes_.push_back(makeKeyframe(f, pose_, r.frame, frame.timestamp, nullptr));
+    held_.insert(keyframes_.size() - 1);
     keyframes_.back().id = 0;
     for (auto& id : keyframes_.back().point_ids) id = next_point_id_++;
     reference_keyframe_ = 0;
@@ -437,6 +438,7 @@ TrackResult Tracker::track(const RgbdFrame& frame) {
     for (auto& id : current.point_ids)
       if (id < 0) id = next_point_id_++;
     keyframes_.push_back(current);
+    held_.insert(keyframes_.size() - 1);
     reference_keyframe_ = keyframes_.size() - 1;
     ++stats_.keyframes;
     if (forced && decision != KeyframeDecision::kKeyframe) ++stats_.forced_keyframes;
@@ -468,10 +470,9 @@ bool Tracker::forgetKeyframe(std::size_t id) {
                            ? options_.local_ba.keyframes + options_.local_ba.fixed_keyframes
                            : 0;
   const auto recent = static_cast<std::size_t>(std::max(options_.local_map_keyframes, adjusted));
-  if (id >= keyframes_.size() || id + recent >= keyframes_.size() || id == reference_keyframe_)
+  if (!held_.contains(id) || id + recent >= keyframes_.size() || id == reference_keyframe_)
     return false;
   Keyframe& k = keyframes_[id];
-  if (k.points_world.empty() && k.keypoints.empty()) return false;
   // Swapped with empty ones, so the memory goes, not just the sizes; the pose and the numbering
   // stay (ids are indices).
   std::vector<cv::KeyPoint>().swap(k.keypoints);
@@ -479,6 +480,7 @@ bool Tracker::forgetKeyframe(std::size_t id) {
   std::vector<Eigen::Vector3d>().swap(k.points_camera);
   std::vector<Eigen::Vector3d>().swap(k.points_world);
   std::vector<std::int64_t>().swap(k.point_ids);
+  held_.erase(id);
   ++forgotten_;
   return true;
 }

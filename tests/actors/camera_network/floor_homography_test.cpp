@@ -2,6 +2,7 @@
 // camera localisation (camera_localization.hpp), against the simulator's true cameras.
 #include <tessera/camera_network/camera_localization.hpp>
 #include <tessera/camera_network/floor_homography.hpp>
+#include <tessera/geometry/pose2.hpp>
 #include <tessera/sim/camera_network.hpp>
 
 #include <Eigen/Geometry>
@@ -16,10 +17,12 @@
 
 namespace camera_network_homography_test {
 
+using tessera::Pose2;
 using tessera::camera_network::estimateFloorHomography;
 using tessera::camera_network::FloorHomographyOptions;
 using tessera::camera_network::FloorPixelPair;
 using tessera::camera_network::localizeMarker;
+using tessera::camera_network::localizeMarkerPose;
 
 tessera::sim::EnvironmentCamera tiltedCamera() {
   tessera::sim::CameraSite site;

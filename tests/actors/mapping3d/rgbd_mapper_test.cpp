@@ -163,6 +163,20 @@ TEST_CASE("rgbd_mapper drops the keyframes the graph trimmed and rebuilds withou
   CHECK(mapper.octomap().occupancy({6.0, 0, 2.01}) == Occupancy::kOccupied);
 }
 
+TEST_CASE("rgbd_mapper keeps a listed keyframe whose pose entry is unreadable",
+          "[actors][mapping3d][rgbd_mapper][lifelong]") {
+  // A NaN pose is a bad entry, not a keyframe the graph let go: its cloud stays.
+  ActorHarness h(std::make_unique<RgbdMapperActor>(RgbdMapperOptions{}));
+  auto& mapper = static_cast<RgbdMapperActor&>(h.actor());
+  for (std::uint32_t id = 0; id < 3; ++id) pushKeyframe(h, id, translation(3.0 * id, 0, 0));
+  pushPoses(h,
+            {{0, translation(0, 0, 0)}, {1, translation(kNaN, 0, 0)}, {2, translation(6, 0, 0.5)}});
+  CHECK(summaryInt(h, "keyframes_held") == 3);
+  CHECK(mapper.cloudMap().contains(1));
+  CHECK(summaryInt(h, "poses_bad_pose") == 1);
+  CHECK(summaryInt(h, "rebuilds") == 1);  // keyframe 2 moved
+}
+
 TEST_CASE("rgbd_mapper counts and skips bad keyframes and poses",
           "[actors][mapping3d][rgbd_mapper]") {
   ActorHarness h(std::make_unique<RgbdMapperActor>(RgbdMapperOptions{}));

@@ -12,7 +12,9 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <numeric>
 #include <random>
+#include <string>
 
 namespace vs = tessera::visual_slam;
 
@@ -299,19 +301,20 @@ TEST_CASE("LoopDetector forgets trimmed keyframes: no loop to them, their views 
         if (!forgetting && *q.candidate < 6) ++to_first_six;
       }
       if (forgetting && i == 21) {
-        // The graph keeps 0 and 6..21: ids 1..5 are forgotten; 22 and on are not listed yet.
-        std::vector<std::int64_t> kept{0};
-        for (std::int64_t id = 6; id <= 21; ++id) kept.push_back(id);
-        const auto gone = detector.forgetAllBut(kept);
-        CHECK(gone == std::vector<std::int64_t>{1, 2, 3, 4, 5});
+        // The graph trimmed 1..5.
+        std::vector<std::int64_t> all(22);
+        std::iota(all.begin(), all.end(), 0);
+        CHECK(detector.ids() == all);
+        for (std::int64_t id = 1; id <= 5; ++id) CHECK(detector.forget(id));
         CHECK(detector.held() == 17);
+        CHECK(detector.ids().front() == 0);
+        CHECK(detector.ids()[1] == 6);
         CHECK(detector.forget(0));
         CHECK_FALSE(detector.forget(0));   // twice
         CHECK_FALSE(detector.forget(3));   // forgotten already
         CHECK_FALSE(detector.forget(99));  // never seen
         CHECK(detector.held() == 16);
         CHECK(detector.stats().forgotten == 6);
-        CHECK(detector.forgetAllBut({}).empty());
       }
     }
   }
@@ -328,6 +331,23 @@ TEST_CASE("LoopDetector forgets trimmed keyframes: no loop to them, their views 
   CHECK(accepted_all >= 3);
   CHECK(to_first_six >= 1);
   CHECK(accepted_forgetting >= 1);
+}
+
+TEST_CASE("LoopDetector refuses a keyframe whose id does not grow, keeping the one it holds",
+          "[loop_closure]") {
+  const Wall wall(1);
+  vs::LoopDetector detector(bootstrapOptions(), nullptr);
+  CHECK(detector.add({4, kCamera, view(wall, cameraAt(1.0), 7)}).empty());
+  std::string why;
+  CHECK(detector.add({4, kCamera, view(wall, cameraAt(1.4), 7)}, &why).empty());
+  CHECK(why == "keyframe 4: id out of order; 4 was taken before");
+  CHECK(detector.add({2, kCamera, view(wall, cameraAt(1.8), 7)}, &why).empty());
+  CHECK(why == "keyframe 2: id out of order; 4 was taken before");
+  CHECK(detector.stats().bad == 2);
+  CHECK(detector.ids() == std::vector<std::int64_t>{4});
+  CHECK(detector.add({5, kCamera, view(wall, cameraAt(2.2), 7)}, &why).empty());
+  CHECK(why.empty());
+  CHECK(detector.ids() == std::vector<std::int64_t>{4, 5});
 }
 
 TEST_CASE("LoopDetector without a vocabulary and without bootstrap finds nothing",

@@ -110,10 +110,12 @@ TEST_CASE("rgbd_loop_detector counts and skips keyframes it cannot use",
   pushKeyframe(h, k, [](msg::Keyframe::Builder b) { b.setDescriptorType("f32"); });
   pushKeyframe(h, k, [](msg::Keyframe::Builder b) { b.setDescriptorRows(3); });
   pushKeyframe(h, k);  // a good one: held for the bootstrap
+  pushKeyframe(h, k);  // the same id again: out of order
   Summary s;
   h.actor().summarize(s);
-  CHECK(summaryInt(s, "keyframes_received") == 5);
-  CHECK(summaryInt(s, "keyframes_bad") == 4);
+  CHECK(summaryInt(s, "keyframes_received") == 6);
+  CHECK(summaryInt(s, "keyframes_bad") == 5);
+  CHECK(summaryInt(s, "bad_id_out_of_order_was_taken_before") == 1);
   CHECK(summaryInt(s, "queries") == 0);
   CHECK(h.publishedCount("loop_constraints") == 0);
 }

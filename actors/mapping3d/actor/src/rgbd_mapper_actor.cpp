@@ -3,6 +3,7 @@
 #include <tessera/mapping3d/rgbd_mapper_actor.hpp>
 
 #include <tessera/messages/geometry.hpp>
+#include <tessera/messages/keyframe_poses.hpp>
 #include <tessera/messages/types.hpp>
 #include <tessera/runtime/registry.hpp>
 
@@ -264,19 +265,14 @@ void RgbdMapperActor::onPoses(const Message<msg::KeyframePoses>& m) {
             rotationAngle(now, *pose) > options_.move_threshold_rad;
     valid.emplace_back(id, *pose);
   }
-  // Keyframes the graph no longer holds (lifelong mode trimmed them): listed ids only grow, so a
-  // mapped keyframe below the newest listed that is missing left the graph. Its cloud goes, and
-  // the OctoMap is rebuilt without it.
-  if (!valid.empty()) {
-    std::vector<std::uint64_t> listed;
-    for (const auto& [id, pose] : valid) listed.push_back(id);
-    std::sort(listed.begin(), listed.end());
-    for (const std::uint64_t id : cloud_map_.ids()) {
-      if (id > listed.back() || std::binary_search(listed.begin(), listed.end(), id)) continue;
-      cloud_map_.removeKeyframe(id);
-      ++keyframes_dropped_;
-      moved = true;
-    }
+  // Keyframes the graph no longer holds (lifelong mode trimmed them, KeptKeyframes): the cloud
+  // goes, and the OctoMap is rebuilt without it.
+  const KeptKeyframes kept(*m);
+  for (const std::uint64_t id : cloud_map_.ids()) {
+    if (!kept.leftGraph(id)) continue;
+    cloud_map_.removeKeyframe(id);
+    ++keyframes_dropped_;
+    moved = true;
   }
   // Below the threshold nothing changes (a rebuild re-inserts every keyframe); above it every
   // pose of the message is applied, so small corrections are not lost either.

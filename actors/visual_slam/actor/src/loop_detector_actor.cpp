@@ -2,6 +2,7 @@
 #include <tessera/visual_slam/loop_detector_actor.hpp>
 
 #include <tessera/messages/geometry.hpp>
+#include <tessera/messages/keyframe_poses.hpp>
 #include <tessera/messages/types.hpp>
 #include <tessera/runtime/registry.hpp>
 #include <tessera/visual_slam/keyframe_message.hpp>
@@ -142,11 +143,14 @@ void LoopDetectorActor::onKeyframe(const Message<msg::Keyframe>& m) {
   LoopKeyframe k;
   std::string why = toLoopKeyframe(*m, k);
   if (why.empty()) {
-    stamps_[k.id] = m->getHeader().getStampNs();
+    // A keyframe refused for its id (out of order) must not overwrite the stamp of the one held.
+    const std::int64_t id = k.id;
+    const bool fresh = stamps_.emplace(id, m->getHeader().getStampNs()).second;
     for (const auto& q : detector_->add(std::move(k), &why)) {
       writeRow(q);
       if (q.accepted()) publish(q);
     }
+    if (!why.empty() && fresh) stamps_.erase(id);
   }
   if (!why.empty()) {
     std::cerr << "[rgbd_loop_detector] " << why << "; skipped\n";
@@ -155,10 +159,9 @@ void LoopDetectorActor::onKeyframe(const Message<msg::Keyframe>& m) {
 }
 
 void LoopDetectorActor::onPoses(const Message<msg::KeyframePoses>& m) {
-  std::vector<std::int64_t> kept;
-  for (const auto entry : m->getPoses()) kept.push_back(entry.getId());
-  if (!std::is_sorted(kept.begin(), kept.end())) std::sort(kept.begin(), kept.end());
-  for (const std::int64_t id : detector_->forgetAllBut(kept)) stamps_.erase(id);
+  const KeptKeyframes kept(*m);
+  for (const std::int64_t id : detector_->ids())
+    if (kept.leftGraph(static_cast<std::uint64_t>(id)) && detector_->forget(id)) stamps_.erase(id);
 }
 
 void LoopDetectorActor::publish(const LoopQuery& q) {

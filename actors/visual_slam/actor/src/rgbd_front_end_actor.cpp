@@ -2,6 +2,7 @@
 #include <tessera/visual_slam/rgbd_front_end_actor.hpp>
 
 #include <tessera/evaluation/trajectory_metrics.hpp>
+#include <tessera/messages/keyframe_poses.hpp>
 #include <tessera/messages/types.hpp>
 #include <tessera/runtime/registry.hpp>
 #include <tessera/visual_slam/keyframe_message.hpp>
@@ -102,17 +103,14 @@ void RgbdFrontEndActor::configure(ActorContext& ctx) {
 }
 
 void RgbdFrontEndActor::onPoses(const Message<msg::KeyframePoses>& m) {
-  const auto poses = m->getPoses();
-  if (!tracker_ || poses.size() == 0) return;
-  std::vector<std::size_t> kept;
-  for (const auto p : poses) kept.push_back(p.getId());
-  std::sort(kept.begin(), kept.end());
-  // Keyframe ids are the tracker's indices; below the newest listed, the missing ones were
-  // trimmed (ones forgotten before, or too recent to forget yet, are refused and not counted).
-  // The ids come from a message: only those the tracker made are walked.
-  const std::size_t newest = std::min(kept.back(), tracker_->keyframes().size());
-  for (std::size_t id = 0; id < newest; ++id)
-    if (!std::binary_search(kept.begin(), kept.end(), id)) tracker_->forgetKeyframe(id);
+  if (!tracker_) return;
+  // Keyframe ids are the tracker's indices. Only the keyframes it still holds are walked; those
+  // too recent to forget yet are refused now and released by a later message.
+  const KeptKeyframes kept(*m);
+  std::vector<std::size_t> gone;
+  for (const std::size_t id : tracker_->heldKeyframes())
+    if (kept.leftGraph(id)) gone.push_back(id);
+  for (const std::size_t id : gone) tracker_->forgetKeyframe(id);
 }
 
 void RgbdFrontEndActor::skip(const std::string& reason) {

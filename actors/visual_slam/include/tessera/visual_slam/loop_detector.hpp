@@ -10,8 +10,9 @@
 // the run; it separates places less well than one trained on many images, so verification
 // carries the precision.
 //
-// Keyframes are identified by the caller's ids, which grow; a detection names the candidate's id.
-// Keyframes that cannot be used (view check fails, no descriptors) are counted and skipped. Keeps
+// Keyframes are identified by the caller's ids, which must grow (a keyframe whose id is not above
+// the last one taken is refused); a detection names the candidate's id. Keyframes that cannot be
+// used (view check fails, no descriptors, id out of order) are counted and skipped. Keeps
 // every keyframe's view (descriptors, pixels, points: ~50 kB per keyframe of 1000 features) until
 // forget() releases it (lifelong mode: the keyframe graph trimmed it).
 // Not thread-safe: one owner.
@@ -98,9 +99,8 @@ class LoopDetector {
   /// Releases keyframe `id` (its view and database entry): it is never a candidate again. False
   /// when the detector does not hold it (unknown, skipped, or forgotten before).
   bool forget(std::int64_t id);
-  /// forget() for every keyframe held with an id up to kept.back() that is not in `kept`
-  /// (ascending ids: what a keyframe graph still holds). Returns the ids forgotten.
-  std::vector<std::int64_t> forgetAllBut(const std::vector<std::int64_t>& kept);
+  /// The ids of the keyframes held, ascending: what forget() would release.
+  std::vector<std::int64_t> ids() const;
   /// Keyframes held (indexed or waiting for the bootstrap), forgotten ones not counted.
   std::size_t held() const { return database_.live() + held_.size(); }
 
@@ -116,9 +116,15 @@ class LoopDetector {
   LoopDetectorOptions options_;
   std::shared_ptr<const Vocabulary> vocabulary_;
   KeyframeDatabase database_;
-  std::map<std::int64_t, std::size_t> live_;       ///< id -> database entry, of those held
-  std::map<std::size_t, LoopKeyframe> keyframes_;  ///< database entry -> keyframe held
-  std::vector<LoopKeyframe> held_;                 ///< waiting for the bootstrap
+  struct Indexed {
+    std::size_t entry;  ///< in database_
+    LoopKeyframe keyframe;
+  };
+  /// The keyframes indexed and not forgotten. Ids grow and entries are numbered as they come, so
+  /// this is sorted by both, and either finds a keyframe by binary search.
+  std::vector<Indexed> live_;
+  std::vector<LoopKeyframe> held_;       ///< waiting for the bootstrap, ascending ids
+  std::optional<std::int64_t> last_id_;  ///< of the last keyframe taken
   LoopDetectorStats stats_;
 };
 

@@ -48,6 +48,7 @@
 #include <cstddef>
 #include <cstdint>
 #include <optional>
+#include <set>
 #include <string>
 #include <string_view>
 #include <vector>
@@ -192,6 +193,8 @@ class Tracker {
   /// newest (local map, bundle adjustment window) or the current reference keyframe.
   bool forgetKeyframe(std::size_t id);
   std::size_t forgottenKeyframes() const { return forgotten_; }
+  /// The ids of the keyframes not forgotten, ascending: what forgetKeyframe may still release.
+  const std::set<std::size_t>& heldKeyframes() const { return held_; }
 
   const std::vector<Keyframe>& keyframes() const { return keyframes_; }
   const TrackerStats& stats() const { return stats_; }
@@ -227,6 +230,7 @@ class Tracker {
   std::size_t frame_counter_ = 0;
   std::int64_t next_point_id_ = 0;
   std::size_t forgotten_ = 0;
+  std::set<std::size_t> held_;  ///< keyframes not forgotten
   TrackerStats stats_;
 };
 

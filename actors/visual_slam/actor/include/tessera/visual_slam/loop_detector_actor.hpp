@@ -8,10 +8,10 @@
 //                                               candidate verified (direct-index matching,
 //                                               RANSAC PnP, 3D check), then indexed
 //   keyframe_poses     msg::KeyframePoses       keep_latest, only with forget_trimmed (lifelong
-//                                               mode): a keyframe held with an id below the
-//                                               newest listed that is missing was trimmed from
-//                                               the graph, and is forgotten (LoopDetector::
-//                                               forgetAllBut): never a candidate again, its view
+//                                               mode): a keyframe the message says left the
+//                                               graph (KeptKeyframes, messages/
+//                                               keyframe_poses.hpp) is forgotten (LoopDetector::
+//                                               forget): never a candidate again, its view
 //                                               released. keep_latest: any one message says all,
 //                                               and the detector never holds up the graph
 // Publishes:

@@ -4,9 +4,9 @@
 //   rgbd          msg::RgbdFrame          keep_latest(1): a frame that arrives while one is being
 //                                         tracked replaces the waiting one (counted as dropped)
 //   keyframe_poses msg::KeyframePoses     keep_latest(1), only with forget_trimmed (lifelong
-//                                         mode): a keyframe missing below the newest listed id
-//                                         was trimmed from the graph; the tracker releases its
-//                                         features and points (Tracker::forgetKeyframe)
+//                                         mode): a keyframe the message says left the graph
+//                                         (KeptKeyframes, messages/keyframe_poses.hpp) has its
+//                                         features and points released (Tracker::forgetKeyframe)
 // Publishes:
 //   camera_pose   msg::PoseStamped3D      every tracked frame: camera-to-world of the dataset's
 //                                         camera (the depth camera when colour and depth are not
