@@ -79,7 +79,7 @@ bool sameBits(const std::vector<float>& a, const std::vector<float>& b) {
 }
 
 TEST_CASE("urg_scip_rbpf maps from the URG log streamed through SCIP by an emulated URG-04LX",
-          "[e2e][drivers][urg_scip]") {
+          "[e2e][drivers][urg_scip][wall_clock]") {
   TESSERA_SHARED_DATA(log, "mines-paristech-urg04lx-odometry/exp2.dat.gz");
   const auto dir = test::scratchDir("urg_scip");
   const double seconds = 15;

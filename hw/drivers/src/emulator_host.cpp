@@ -95,11 +95,6 @@ void EmulatorHost::unplug(double down_s) {
   [[maybe_unused]] const auto n = ::write(wake_fd_, &one, sizeof one);
 }
 
-void EmulatorHost::withDevice(const std::function<void()>& f) {
-  std::lock_guard lock(mutex_);
-  f();
-}
-
 void EmulatorHost::run() {
   std::mt19937 rng(7);
   bool plugged = true;

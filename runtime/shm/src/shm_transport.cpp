@@ -6,6 +6,7 @@
 #include <tessera/shm/shm_transport.hpp>
 
 #include "runtime_impl.hpp"
+#include "tsan_handoff.hpp"
 
 #include <iceoryx_posh/mepoo/chunk_header.hpp>
 #include <iceoryx_posh/popo/untyped_publisher.hpp>
@@ -248,6 +249,7 @@ struct ShmExport final : TopicExport, std::enable_shared_from_this<ShmExport> {
     }
   }
   void publishChunk(void* payload) {
+    detail::chunkHandedOff(payload);
     {
       std::lock_guard lock(mutex);
       publisher->publish(payload);
@@ -257,6 +259,7 @@ struct ShmExport final : TopicExport, std::enable_shared_from_this<ShmExport> {
     for (RouteCounters* r : routes) r->sent.fetch_add(1);
   }
   void release(void* payload) {
+    detail::chunkHandedOff(payload);
     std::lock_guard lock(mutex);
     publisher->release(payload);
   }
@@ -327,7 +330,10 @@ void* ShmExport::tryLoan(std::size_t payload_bytes, bool& exhausted) {
   exhausted = false;
   std::lock_guard lock(mutex);
   auto r = publisher->loan(static_cast<std::uint32_t>(payload_bytes), alignof(capnp::word));
-  if (!r.has_error()) return r.value();
+  if (!r.has_error()) {
+    detail::chunkTakenOver(r.value());
+    return r.value();
+  }
   exhausted = r.get_error() == iox::popo::AllocationError::RUNNING_OUT_OF_CHUNKS;
   return nullptr;
 }
@@ -468,6 +474,7 @@ class ChunkView final : public MessageStorage {
       reader_.reset();
     } catch (...) {
     }
+    detail::chunkHandedOff(payload_);
     std::lock_guard lock(import_->mutex);
     import_->subscriber->release(payload_);
   }
@@ -589,6 +596,7 @@ std::size_t deliverArrived(ShmTransport::Impl* impl) {
         }
         payload = r.value();
       }
+      detail::chunkTakenOver(payload);
       ++taken;
       const auto* header = iox::mepoo::ChunkHeader::fromUserPayload(payload);
       const std::size_t size = header->userPayloadSize();
@@ -611,6 +619,7 @@ std::size_t deliverArrived(ShmTransport::Impl* impl) {
       if (size < kShmChunkOverhead || prefix.magic != kChunkMagic) {
         std::fprintf(stderr, "warning: topic '%s': dropped a chunk that is not a Tessera message\n",
                      i->topic.name.c_str());
+        detail::chunkHandedOff(payload);
         std::lock_guard lock(i->mutex);
         i->subscriber->release(payload);
         continue;
@@ -627,6 +636,7 @@ std::size_t deliverArrived(ShmTransport::Impl* impl) {
         // The view was not built, so its destructor will not release the chunk.
         std::fprintf(stderr, "warning: topic '%s': dropped a malformed message: %s\n",
                      i->topic.name.c_str(), e.getDescription().cStr());
+        detail::chunkHandedOff(payload);
         {
           std::lock_guard lock(i->mutex);
           i->subscriber->release(payload);

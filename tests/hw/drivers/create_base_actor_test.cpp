@@ -81,6 +81,8 @@ TEST_CASE("create_base drives an emulated Create 2, stops it on its watchdog and
     }
   };
   const auto wait = [](int ms) { std::this_thread::sleep_for(std::chrono::milliseconds(ms)); };
+  // The device runs on the host's thread: read it under the host's lock.
+  const auto speed = [&] { return host.withDevice([&] { return device.rightSpeed(); }); };
   const auto snapshot = [&l] {
     std::lock_guard lock(l.mutex);
     return std::make_pair(l.left, l.reason);
@@ -90,23 +92,23 @@ TEST_CASE("create_base drives an emulated Create 2, stops it on its watchdog and
   send(0.2, 0, 20);  // 1 s at 0.2 m/s
   const double counts_per_m = 508.8 / (std::numbers::pi * 0.072);
   const double moved = (snapshot().first - start) / counts_per_m;
-  CHECK(device.rightSpeed() == Approx(200));
+  CHECK(speed() == Approx(200));
   wait(500);  // no command: the watchdog stops it
-  CHECK(device.rightSpeed() == 0);
+  CHECK(speed() == 0);
   CHECK_THAT(snapshot().second, Catch::Contains("watchdog"));
   send(0.2, 0, 4);
   host.withDevice([&] { device.world().bump_left = true; });
   wait(100);
-  CHECK(device.rightSpeed() == 0);
+  CHECK(speed() == 0);
   send(0.2, 0, 2);  // refused while pressed
-  CHECK(device.rightSpeed() == 0);
+  CHECK(speed() == 0);
   CHECK_THAT(snapshot().second, Catch::Contains("bumper left"));
   host.withDevice([&] { device.world().bump_left = false; });
   // Unplugged: the robot restarts (Off); the driver reconnects and starts it again.
   host.unplug(0.2);
   wait(1500);
   send(0.1, 0, 4);
-  CHECK(device.rightSpeed() == Approx(100));
+  CHECK(speed() == Approx(100));
   rt.requestStop();
   runner.join();
   CHECK(moved == Approx(0.2).margin(0.06));

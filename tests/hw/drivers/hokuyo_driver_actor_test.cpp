@@ -168,8 +168,10 @@ TEST_CASE("hokuyo_scip streams over TCP", "[drivers][hokuyo_scip]") {
 TEST_CASE("hokuyo_scip drops garbage and corrupt replies and publishes only genuine scans",
           "[drivers][hokuyo_scip]") {
   Device dev;
-  dev.device.faults().garbage_probability = 0.3;
-  dev.device.faults().corrupt_probability = 0.3;
+  dev.host.withDevice([&] {
+    dev.device.faults().garbage_probability = 0.3;
+    dev.device.faults().corrupt_probability = 0.3;
+  });
   HokuyoDriverOptions o;
   o.device = dev.host.devicePath();
   o.retry_initial_s = 0.05;

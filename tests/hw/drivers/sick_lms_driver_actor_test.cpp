@@ -113,7 +113,7 @@ TEST_CASE("sick_lms finds an LMS200 at 9600 baud, switches it to 500 kBd and str
   CHECK(rate > 60);  // 75 Hz, less the scheduling of a busy machine
   CHECK(after >= before + 20);
   CHECK(c.bad == 0);
-  CHECK(lms.device.millimetres());
+  CHECK(lms.host.withDevice([&] { return lms.device.millimetres(); }));
   const auto& s = report.actors.at(0).summary;
   CHECK(std::get<std::int64_t>(s.at("baud")) == 500000);
   CHECK(std::get<std::int64_t>(s.at("reconnects")) >= 2);

@@ -50,8 +50,13 @@ class EmulatorHost {
   std::string devicePath() const;
   /// Unplugs the device for `down_s` seconds, then plugs it back in (restarted).
   void unplug(double down_s);
-  /// Runs `f` while the host's thread is not touching the device (to change its faults).
-  void withDevice(const std::function<void()>& f);
+  /// Runs `f` while the host's thread is not touching the device, and returns what it returns:
+  /// the only safe way to change a running device's faults or read its state from elsewhere.
+  template <class F>
+  auto withDevice(F&& f) {
+    std::lock_guard lock(mutex_);
+    return f();
+  }
   std::int64_t bytesIn() const { return bytes_in_; }
   std::int64_t bytesOut() const { return bytes_out_; }
   std::int64_t plugs() const { return plugs_; }
