@@ -107,8 +107,9 @@ TEST_CASE("vectornav streams an emulated VN-100 at 100 Hz and finds it again aft
   CHECK(c.wrong == 0);
   CHECK(c.out_of_order == 0);
   CHECK(c.wrong_frame == 0);
-  CHECK(device.baud() == 230400);
-  CHECK(device.outputType() == vn::kTypeImu);
+  // The emulator's thread still runs the device: read it under the host's lock.
+  CHECK(host.withDevice([&] { return device.baud(); }) == 230400);
+  CHECK(host.withDevice([&] { return device.outputType(); }) == vn::kTypeImu);
   const auto& s = report.actors.at(0).summary;
   CHECK(std::get<std::int64_t>(s.at("baud")) == 230400);
   CHECK(std::get<std::int64_t>(s.at("reconnects")) >= 1);
