@@ -416,6 +416,12 @@ struct ShmTransport::Impl::Import {
   std::mutex mutex;  // take and release from different threads
   std::optional<iox::popo::UntypedSubscriber> subscriber;
   detail::SendGaps gaps;  // receiving thread only
+  /// Gives a taken chunk back to iceoryx, from whichever thread read it last.
+  void release(const void* payload) {
+    detail::chunkHandedOff(payload);
+    std::lock_guard lock(mutex);
+    subscriber->release(payload);
+  }
   // The delivery ledger's view (receiving thread only): each sending process's route, resolved
   // at its first message, and the gaps in each publisher port's numbering from where this
   // process joined it.
@@ -474,9 +480,7 @@ class ChunkView final : public MessageStorage {
       reader_.reset();
     } catch (...) {
     }
-    detail::chunkHandedOff(payload_);
-    std::lock_guard lock(import_->mutex);
-    import_->subscriber->release(payload_);
+    import_->release(payload_);
   }
   capnp::AnyPointer::Reader root() const override {
     return const_cast<capnp::SegmentArrayMessageReader&>(*reader_).getRoot<capnp::AnyPointer>();
@@ -619,9 +623,7 @@ std::size_t deliverArrived(ShmTransport::Impl* impl) {
       if (size < kShmChunkOverhead || prefix.magic != kChunkMagic) {
         std::fprintf(stderr, "warning: topic '%s': dropped a chunk that is not a Tessera message\n",
                      i->topic.name.c_str());
-        detail::chunkHandedOff(payload);
-        std::lock_guard lock(i->mutex);
-        i->subscriber->release(payload);
+        i->release(payload);
         continue;
       }
       const auto* words = reinterpret_cast<const capnp::word*>(
@@ -636,11 +638,7 @@ std::size_t deliverArrived(ShmTransport::Impl* impl) {
         // The view was not built, so its destructor will not release the chunk.
         std::fprintf(stderr, "warning: topic '%s': dropped a malformed message: %s\n",
                      i->topic.name.c_str(), e.getDescription().cStr());
-        detail::chunkHandedOff(payload);
-        {
-          std::lock_guard lock(i->mutex);
-          i->subscriber->release(payload);
-        }
+        i->release(payload);
         // Handled (dropped): the sender counted it, so must the in-flight accounting.
         countReceived(impl, counted ? 1 : 0);
         continue;
