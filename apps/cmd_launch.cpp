@@ -21,12 +21,17 @@
 
 #include <atomic>
 #include <chrono>
+#include <condition_variable>
 #include <cstdio>
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
+#include <functional>
 #include <iostream>
 #include <memory>
+#include <mutex>
+#include <thread>
+#include <utility>
 
 namespace tessera::app {
 
@@ -40,6 +45,7 @@ struct LaunchArgs {
   std::string out;
   int threads = 0;
   std::string shm_log = "error";
+  double orphan_grace_s = LauncherOptions{}.orphan_grace_s;
   RunSettings view;  // only the --view options
   std::string host;  // --host: this host's part only, the others over DDS
   int wait_peers_s = 60;
@@ -97,6 +103,7 @@ int launch(const LaunchArgs& a) {
   o.out_dir = a.out;
   o.threads = a.threads;
   o.shm_log = a.shm_log;
+  o.orphan_grace_s = a.orphan_grace_s;
   Launcher launcher(std::move(o));
   const int code = launcher.run().exit_code;
   if (!copy.empty()) fs::remove(copy);
@@ -108,12 +115,66 @@ struct WorkerArgs {
   std::vector<std::string> sets;
   std::size_t max_chunk = 0;
   int incarnation = 0, threads = 0;
+  double orphan_grace_s = LauncherOptions{}.orphan_grace_s;
+};
+
+/// Watches for the launcher's death on a thread of its own. Then `cut_off` runs at once and the
+/// process has `grace` to stop by itself (writing what it holds); after that it leaves without
+/// the rest. The grace is the last resort: a thread already blocked in a send to a peer that
+/// died with a full queue can never return, as only RouDi (gone with the launcher) could remove
+/// that queue.
+class OrphanWatch {
+ public:
+  OrphanWatch(double grace_s, std::function<void()> cut_off)
+      : launcher_(::getppid()),
+        grace_(std::chrono::duration_cast<std::chrono::nanoseconds>(
+            std::chrono::duration<double>(grace_s))),
+        cut_off_(std::move(cut_off)),
+        thread_([this] { watch(); }) {}
+  ~OrphanWatch() {
+    {
+      std::lock_guard lock(mutex_);
+      quit_ = true;
+    }
+    wake_.notify_all();
+    thread_.join();
+  }
+  OrphanWatch(const OrphanWatch&) = delete;
+  OrphanWatch& operator=(const OrphanWatch&) = delete;
+
+ private:
+  void watch() {
+    std::unique_lock lock(mutex_);
+    // getppid() is a cheap system call; the parent-death signal (SIGHUP) stops the run at the
+    // same moment, and the coordinator cuts the transport off before any stop stage.
+    while (!wake_.wait_for(lock, std::chrono::milliseconds(50), [this] { return quit_; })) {
+      if (::getppid() == launcher_) continue;
+      cut_off_();
+      if (wake_.wait_for(lock, grace_, [this] { return quit_; })) return;
+      const std::string msg =
+          "the launcher (and its RouDi) died and this process did not stop "
+          "within its " +
+          std::to_string(std::chrono::duration<double>(grace_).count()) +
+          " s grace (a send to a dead peer never returns): leaving\n";
+      (void)!::write(2, msg.data(), msg.size());
+      std::_Exit(3);
+    }
+  }
+
+  const pid_t launcher_;
+  const std::chrono::nanoseconds grace_;
+  const std::function<void()> cut_off_;
+  std::mutex mutex_;
+  std::condition_variable wake_;
+  bool quit_ = false;
+  std::thread thread_;  // last: starts once the rest is set
 };
 
 /// RouDi died with the launcher: iceoryx's teardown (deregistering from RouDi) could now block
 /// for ever, so the worker leaves without it.
-[[noreturn]] void leaveOrphaned(const std::string& what) {
-  std::cerr << "the launcher (and its RouDi) died: stopped (" << what << ")\n";
+[[noreturn]] void leaveOrphaned(const std::string& what, std::uint64_t unsent) {
+  std::cerr << "the launcher (and its RouDi) died: stopped (" << what << "); " << unsent
+            << " messages to other processes were not sent\n";
   std::fflush(nullptr);
   std::_Exit(3);
 }
@@ -140,6 +201,8 @@ int worker(const WorkerArgs& a) {
   so.arrived = [&coordinator] { coordinator.messageArrived(); };
   so.routes = routeLedger(plan, sync.ledger());
   ShmTransport transport(so);
+  coordinator.whenOrphaned([&transport] { transport.cutOff(); });
+  const OrphanWatch orphan_watch(a.orphan_grace_s, [&transport] { transport.cutOff(); });
   RuntimeOptions options;
   options.threads = a.threads;
   options.show_progress = false;
@@ -159,11 +222,12 @@ int worker(const WorkerArgs& a) {
   runtime->installSignalHandlers();  // SIGHUP: the launcher died (PR_SET_PDEATHSIG)
   if (!coordinator.readyAndWait()) {
     coordinator.slot().stopped = 1;  // nothing ran: nothing to stop
-    if (coordinator.orphaned()) leaveOrphaned("before the run started");
+    if (coordinator.orphaned()) leaveOrphaned("before the run started", transport.stats().unsent);
     return 130;
   }
   const RunReport report = runtime->run();
-  if (coordinator.orphaned()) leaveOrphaned(report.stop_reason);  // outputs written in run()
+  if (coordinator.orphaned())
+    leaveOrphaned(report.stop_reason, transport.stats().unsent);  // outputs written
   transport.stopReceiving();
   const auto stats = transport.stats();
   std::cerr << report.table();
@@ -199,6 +263,10 @@ void addLaunchCommand(CLI::App& app, int& result) {
   cmd->add_option("--out", args->out, "output folder (created); default: none, nothing is written");
   cmd->add_option("--threads", args->threads, "executor threads per process (0: all cores)");
   cmd->add_option("--shm-log", args->shm_log, "iceoryx log level: off, error, warn, info");
+  cmd->add_option("--orphan-grace", args->orphan_grace_s,
+                  "seconds a process whose launcher died may take to write what it holds and "
+                  "stop before it leaves without the rest (default 30)")
+      ->check(CLI::PositiveNumber);
   cmd->add_option("--host", args->host,
                   "run only process group NAME here; topics to the other groups cross hosts over "
                   "DDS (profile section dds:)");
@@ -219,6 +287,7 @@ void addLaunchCommand(CLI::App& app, int& result) {
   w->add_option("--out", wargs->out);
   w->add_option("--shm-log", wargs->shm_log);
   w->add_option("--set", wargs->sets);
+  w->add_option("--orphan-grace", wargs->orphan_grace_s);
   w->callback([wargs, &result] {
     try {
       result = worker(*wargs);

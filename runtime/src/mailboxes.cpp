@@ -47,13 +47,17 @@ void Runtime::Impl::publish(detail::TopicState* topic, std::uint32_t owner,
     // import has queued it.
     const bool loops = topic->exporter->loopsBack();
     if (loops) pending.fetch_add(1);
+    bool sent = false;
     try {
-      topic->exporter->send(message);
+      sent = topic->exporter->send(message);
     } catch (...) {
       if (loops) releaseWork(1);
       throw;
     }
-    return;
+    if (sent) return;
+    // Not sent (the transport is cut off from the other processes): it will not come back, so
+    // this process's own subscribers get it here.
+    if (loops) releaseWork(1);
   }
   deliver(topic, std::move(message));
 }

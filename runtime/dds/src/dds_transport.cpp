@@ -273,7 +273,7 @@ struct DdsTransport::Impl::Export final : TopicExport {
   }
   bool loopsBack() const override { return false; }
 
-  void send(const std::shared_ptr<const MessageStorage>& message) override {
+  bool send(const std::shared_ptr<const MessageStorage>& message) override {
     // Local subscribers first, straight from the publisher's storage.
     local(message, false, ImportDelivery::kSchedule);
 
@@ -291,7 +291,7 @@ struct DdsTransport::Impl::Export final : TopicExport {
       const auto segment = std::as_bytes(std::span(segments[0].begin(), segments[0].size()));
       write(kCodecSegment, segment, segment.size());
       counted(bytes, segment.size());
-      return;
+      return true;
     }
     // The framing is built in a buffer kept by the export (under its lock): a fresh one per
     // message costs page faults on every large message.
@@ -318,6 +318,7 @@ struct DdsTransport::Impl::Export final : TopicExport {
     const std::span<const std::byte> payload = level > 0 ? std::span<const std::byte>(packed) : raw;
     write(level > 0 ? kCodecZstd : kCodecRaw, payload, bytes);
     counted(bytes, payload.size());
+    return true;
   }
 
   /// Ends the stream: a sample without a message, after the last one.

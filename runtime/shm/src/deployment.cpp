@@ -363,7 +363,10 @@ bool WorkerCoordinator::ending() {
 
 bool WorkerCoordinator::orphaned() {
   // The launcher owns RouDi: when it is gone nobody moves time or ends the run.
-  if (!orphaned_ && ++checks_ % 64 == 0) orphaned_ = ::getppid() != launcher_;
+  if (!orphaned_ && ++checks_ % 64 == 0 && ::getppid() != launcher_) {
+    if (on_orphaned_) on_orphaned_();
+    orphaned_ = true;
+  }
   return orphaned_;
 }
 

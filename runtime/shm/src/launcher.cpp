@@ -126,7 +126,8 @@ void spawnWorker(const SpawnArgs& a, Worker& w) {
        {o.profile_path, std::string("--process"), w.process, std::string("--sync"), a.sync_name,
         std::string("--max-chunk"), std::to_string(a.max_chunk), std::string("--incarnation"),
         std::to_string(w.incarnation), std::string("--threads"), std::to_string(o.threads),
-        std::string("--shm-log"), o.shm_log}) {
+        std::string("--shm-log"), o.shm_log, std::string("--orphan-grace"),
+        std::to_string(o.orphan_grace_s)}) {
     args.push_back(s);
   }
   if (!a.out_dir.empty()) {
@@ -435,6 +436,7 @@ LaunchResult Launcher::run() {
     ClockThread clock_thread(block, clock, static_cast<int>(workers.size()), sim);
 
     Nanos stopping_since = 0, next_stop_report = 0;
+    bool announced_start = false;
     for (;;) {
       std::vector<pollfd> fds;
       for (auto& w : workers) {
@@ -443,6 +445,12 @@ LaunchResult Launcher::run() {
       ::poll(fds.data(), fds.size(), 20);
       for (auto& w : workers) {
         if (w.out >= 0) pump(w, false, log);
+      }
+      // Starting a process (loading, connecting its topics) can take seconds on a loaded
+      // machine: say when the run itself begins.
+      if (!announced_start && block.go.load() != 0) {
+        announced_start = true;
+        log("[launch] every process connected: the run starts");
       }
       const int interrupts = interrupts_.load();
       if (interrupts > handled_interrupts) {

@@ -153,7 +153,9 @@ struct ShmTransport::Impl {
   std::vector<std::shared_ptr<ShmExport>> exports;
   struct Import;
   std::vector<std::shared_ptr<Import>> imports;
-  std::atomic<std::uint64_t> copies{0}, drops{0}, heap_fallbacks{0}, sent{0}, received{0};
+  std::atomic<std::uint64_t> copies{0}, drops{0}, heap_fallbacks{0}, sent{0}, received{0},
+      unsent{0};
+  std::atomic<bool> cut_off{false};  // cutOff(): nothing more leaves this process
   std::optional<iox::popo::UserTrigger> wake;
   std::thread receiver;
   // receiveHere()'s; reset when the receiving thread starts (a subscriber has one WaitSet).
@@ -232,7 +234,7 @@ struct ShmExport final : TopicExport, std::enable_shared_from_this<ShmExport> {
 
   std::shared_ptr<detail::LoanStorage> loan(std::size_t size_hint_bytes,
                                             std::size_t blob_bytes) override;
-  void send(const std::shared_ptr<const MessageStorage>& message) override;
+  bool send(const std::shared_ptr<const MessageStorage>& message) override;
   bool loopsBack() const override { return topic.loopback(); }
 
   /// Loans a chunk of `payload_bytes`; nullptr when every chunk of this publisher is in use
@@ -360,14 +362,18 @@ std::shared_ptr<detail::LoanStorage> ShmExport::loan(std::size_t size_hint_bytes
   return detail::makeBuilderStorage(size_hint_bytes, blob_bytes);
 }
 
-void ShmExport::send(const std::shared_ptr<const MessageStorage>& message) {
+bool ShmExport::send(const std::shared_ptr<const MessageStorage>& message) {
+  if (owner.cut_off.load()) {
+    ++owner.unsent;  // the message keeps its storage (a loaned chunk too) for local delivery
+    return false;
+  }
   if (auto* chunk = dynamic_cast<const ChunkLoan*>(message.get())) {
     auto* mine = const_cast<ChunkLoan*>(chunk);
     if (mine->finishInPlace(options.process_index)) {
       void* payload = mine->payload();
       mine->disown();
       publishChunk(payload);
-      return;
+      return true;
     }
   }
   // Copy once into a chunk of the exact size (standard framing after the prefix).
@@ -406,6 +412,7 @@ void ShmExport::send(const std::shared_ptr<const MessageStorage>& message) {
   }
   ++owner.copies;
   publishChunk(payload);
+  return true;
 }
 
 // ------------------------------------------------------------------ imports
@@ -726,7 +733,12 @@ ShmStats ShmTransport::stats() const {
   s.heap_fallbacks = impl_->heap_fallbacks.load();
   s.received = impl_->received.load();
   s.sent = impl_->sent.load();
+  s.unsent = impl_->unsent.load();
   return s;
+}
+
+void ShmTransport::cutOff() {
+  impl_->cut_off = true;
 }
 
 }  // namespace tessera

@@ -9,6 +9,7 @@
 
 #include <catch2/catch.hpp>
 
+#include <algorithm>
 #include <atomic>
 #include <chrono>
 #include <cmath>
@@ -33,6 +34,7 @@ class Listener final : public Actor {
           ++frames;
           registered = m->getColorRegistered();
           fx = m->getIntrinsics().getFx();
+          worst_offset_s = std::max(worst_offset_s, std::abs(m->getDepthTimeOffsetS()));
           const auto c = m->getColor().getData();
           const auto d = m->getDepth().getData();
           color_ok = color_ok && c.size() == 640 * 480 * 3 && c[0] == (frames_seen_first() & 0xff);
@@ -53,13 +55,19 @@ class Listener final : public Actor {
   int frames = 0;
   bool registered = true, color_ok = true;
   double fx = 0;
+  double worst_offset_s = 0;  ///< the largest |depth time - colour time| of a pair
   int wall_mm = -1, box_mm = -1, hole_mm = -1;
   std::string encodings;
 };
 
 constexpr int kFrames = 20;
 
-fs::path writeRecording(const std::string& name, const KinectDepthModel& model) {
+/// A recording of kFrames pairs: colour taken 2 ms after its depth (the device's counter) and
+/// reaching the host `color_late_s` after it. With `lead_in`, a lone depth frame comes 0.1 s
+/// before them (fakenect plays its first entry at once, so only entries after it keep their
+/// recorded lateness).
+fs::path writeRecording(const std::string& name, const KinectDepthModel& model,
+                        double color_late_s = 0.002, bool lead_in = false) {
   const auto folder = fs::temp_directory_path() / ("tessera_kinect_" + name);
   fs::remove_all(folder);
   FakenectRecordingWriter w(folder);
@@ -71,11 +79,12 @@ fs::path writeRecording(const std::string& name, const KinectDepthModel& model) 
           static_cast<std::uint16_t>(model.disparity(box ? 0.8 : 3.0));
     }
   depth[0] = KinectDepthModel::kNoReading;
+  const auto ticks = [](double s) { return static_cast<std::uint32_t>(std::llround(s * 60e6)); };
+  if (lead_in) w.addDepth(0, 0, depth);
   for (int k = 0; k < kFrames; ++k) {
-    const double t = k / 30.0;
-    const auto ticks = [](double s) { return static_cast<std::uint32_t>(std::llround(s * 60e6)); };
+    const double t = (lead_in ? 0.1 : 0.0) + k / 30.0;
     w.addDepth(t, ticks(t), depth);
-    w.addColor(t + 0.002, ticks(t + 0.002),
+    w.addColor(t + color_late_s, ticks(t + 0.002),
                std::vector<std::uint8_t>(640 * 480 * 3, static_cast<std::uint8_t>(k)));
   }
   return folder;
@@ -148,6 +157,7 @@ TEST_CASE("kinect plays a fakenect recording: colour as sent, raw depth in milli
     CHECK_FALSE(l.registered);
     CHECK(l.fx == 585);  // the IR camera's intrinsics: the depth is in that camera
     CHECK(l.encodings == "rgb8/16UC1");
+    CHECK_THAT(l.worst_offset_s, Catch::WithinAbs(0.002, 1e-4));
     // One disparity step at 3 m is 26 mm; at 0.8 m under 2 mm.
     CHECK(std::abs(l.wall_mm - 3000) <= 13);
     CHECK(std::abs(l.box_mm - 800) <= 1);
@@ -156,6 +166,30 @@ TEST_CASE("kinect plays a fakenect recording: colour as sent, raw depth in milli
     CHECK(std::get<std::int64_t>(s.at("frames")) == kFrames);
     CHECK(std::get<std::int64_t>(s.at("dropped_unpaired")) == 0);
     CHECK(std::get<double>(s.at("latency_ms_max")) < 100);
+  });
+}
+
+// Both streams carry the one device counter: how late a frame reaches the host (a busy host, a
+// slow USB transfer) must not decide whether it pairs. Colour here arrives 25 ms after its
+// depth, beyond max_pair_gap_s, though taken 2 ms after it.
+TEST_CASE("kinect pairs by the device's counter: colour that reaches the host late still pairs",
+          "[drivers][kinect]") {
+  KinectActorOptions o;
+  o.recording = writeRecording("late_color", o.depth, 0.025, true).string();
+  o.registration = "none";
+  REQUIRE(o.max_pair_gap_s < 0.025);
+  const std::string folder = o.recording;
+  runFor(o, 20, [&](const RunReport& report, Listener& l) {
+    fs::remove_all(folder);
+    INFO(report.table());
+    CHECK_FALSE(report.interrupted);
+    std::lock_guard lock(l.mutex);
+    CHECK(l.frames == kFrames);
+    CHECK(l.color_ok);
+    const auto& s = report.actors.at(0).summary;
+    // Each colour frame with its own depth, taken 2 ms before it, not with the next one.
+    CHECK_THAT(l.worst_offset_s, Catch::WithinAbs(0.002, 1e-4));
+    CHECK(std::get<std::int64_t>(s.at("dropped_unpaired")) == 1);  // the lead-in
   });
 }
 

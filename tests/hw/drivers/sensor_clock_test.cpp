@@ -84,4 +84,28 @@ TEST_CASE("a 60 MHz 32-bit counter (Kinect v1) maps to host time across its wrap
   CHECK(clock.wraps() == 1);
 }
 
+TEST_CASE(
+    "one clock for two streams of one counter: a reading a little behind is earlier, "
+    "not a wrap",
+    "[drivers][sensor_clock]") {
+  // The Kinect's colour and depth frames carry one 60 MHz counter, but the host may get a
+  // frame after a later-taken frame of the other stream.
+  auto clock = SensorClock::withTickRate(32, 60'000'000);
+  clock.allowBackSteps(60'000'000);  // up to 1 s
+  const std::int64_t host0 = 1'000'000'000'000;
+  const std::int64_t color = clock.stamp(1'120'000, host0);  // taken 2 ms after the depth
+  const std::int64_t depth = clock.stamp(1'000'000, host0 + 1'000'000);
+  CHECK(color - depth == 2'000'000);
+  CHECK(clock.wraps() == 0);
+  // The next frame steps on from the newest reading, not from the late one.
+  CHECK(std::llabs(clock.stamp(3'000'000, host0 + 33'000'000) - depth - 33'333'333) <= 1);
+  // A step back beyond the allowance is a wrap, as without it.
+  clock.stamp(60'000'000u * 2, host0 + 2'000'000'000);
+  clock.stamp(1'000, host0 + 2'100'000'000);
+  CHECK(clock.wraps() == 1);
+  // Nonsense allowances are refused: none, or half the counter's range or more.
+  CHECK_THROWS_WITH(clock.allowBackSteps(0x80000000u), Catch::Contains("half"));
+  CHECK_THROWS_WITH(SensorClock(24, kMs).allowBackSteps(1u << 23), Catch::Contains("half"));
+}
+
 }  // namespace sensor_clock_test

@@ -17,6 +17,7 @@
 #include <chrono>
 #include <filesystem>
 #include <fstream>
+#include <iterator>
 #include <regex>
 #include <sstream>
 #include <thread>
@@ -56,7 +57,11 @@ class Launch {
       ::kill(pid_, SIGTERM);
       if (wait(15s) < 0) ::kill(pid_, SIGKILL);
     }
-    reapAll(10s);
+    // Workers that did not stop by themselves (re-parented here) must not outlive the test.
+    if (!reapAll(10s)) {
+      killChildren();
+      reapAll(10s);
+    }
     if (!clean_up_) return;
     try {
       tessera::removeStaleShm();
@@ -96,6 +101,22 @@ class Launch {
     }
     reaped_ = true;
     return WIFEXITED(status) ? WEXITSTATUS(status) : 128 + WTERMSIG(status);
+  }
+  /// SIGKILLs every process whose parent is this one.
+  static void killChildren() {
+    for (const auto& e : fs::directory_iterator("/proc")) {
+      const std::string name = e.path().filename().string();
+      if (name.find_first_not_of("0123456789") != std::string::npos) continue;
+      std::ifstream stat(e.path() / "stat");
+      std::string text((std::istreambuf_iterator<char>(stat)), std::istreambuf_iterator<char>());
+      const auto close = text.rfind(')');  // the command name may hold spaces
+      if (close == std::string::npos) continue;
+      std::istringstream rest(text.substr(close + 1));
+      std::string state;
+      pid_t parent = 0;
+      rest >> state >> parent;
+      if (parent == ::getpid()) ::kill(std::stoi(name), SIGKILL);
+    }
   }
   /// Reaps every child of this process; false when some still run after `timeout`.
   static bool reapAll(std::chrono::seconds timeout) {
@@ -221,7 +242,7 @@ TEST_CASE(
 TEST_CASE("Ctrl-C stops a launched deployment cleanly and its outputs are written", "[launch]") {
   const auto dir = freshDir("launch_interrupt");
   Launch launch({"sim_mapping", "--out", (dir / "out").string(), "--set", "sim_rate=2"}, dir);
-  REQUIRE(!launch.waitFor(R"(started 'mapping')").empty());
+  REQUIRE(!launch.waitFor(R"(the run starts)").empty());
   std::this_thread::sleep_for(1500ms);
   ::kill(launch.pid(), SIGINT);
   const int rc = launch.wait(60s);
@@ -241,7 +262,9 @@ const std::string kWallMapping = tessera::test::wallMappingProfile("restart: [ro
 void killRobotAndAwaitRestart(Launch& launch, std::chrono::milliseconds run_for) {
   const std::string robot = launch.waitFor(R"(started 'robot' \(pid (\d+)\))");
   REQUIRE(!robot.empty());
-  REQUIRE(!launch.waitFor(R"(started 'mapping')").empty());
+  // Run for a while from the start of the run, not of the processes (which can take seconds
+  // on a loaded machine).
+  REQUIRE(!launch.waitFor(R"(the run starts)").empty());
   std::this_thread::sleep_for(run_for);
   ::kill(std::stoi(robot), SIGKILL);
   CHECK(!launch.waitFor(R"(process 'robot' \(pid \d+\) was killed by SIGKILL)", 10s).empty());
@@ -319,6 +342,7 @@ TEST_CASE("when the launcher and its RouDi die the workers stop and the next lau
     const std::string mapping = launch.waitFor(R"(started 'mapping' \(pid (\d+)\))");
     REQUIRE(!robot.empty());
     REQUIRE(!mapping.empty());
+    REQUIRE(!launch.waitFor(R"(the run starts)").empty());
     std::this_thread::sleep_for(1000ms);
     ::kill(launch.pid(), SIGKILL);
     CHECK(launch.wait(10s) == 128 + SIGKILL);
@@ -344,6 +368,45 @@ TEST_CASE("when the launcher and its RouDi die the workers stop and the next lau
       launch.output().find("removed stale shared memory of a crashed run: /dev/shm/iceoryx_mgmt") !=
       std::string::npos);
   CHECK(shmClean());
+}
+
+TEST_CASE("a worker blocked sending to a dead peer leaves within its grace after the launcher dies",
+          "[launch]") {
+  // The writer stops taking poses (frozen), so the robot's reliable publisher waits for room in
+  // its queue; then the launcher, with RouDi, and the writer die. Only RouDi could remove the
+  // dead writer's full queue: the robot's send never returns, and only its grace ends it.
+  const auto dir = freshDir("launch_orphan_blocked");
+  std::ofstream(dir / "writer.yaml") << R"(name: blocked_writer
+clock: wall
+actors:
+  sim:
+    type: simulator
+    process: robot
+    params: {world: builtin:office, laps: 1, scan_hz: 10, step_hz: 200, odom_hz: 200}
+  writer:
+    type: trajectory_writer
+    process: writer
+    remap: {poses: ground_truth}
+)";
+  Launch launch({(dir / "writer.yaml").string(), "--orphan-grace", "2"}, dir);
+  launch.keepLeftovers();
+  const std::string robot = launch.waitFor(R"(started 'robot' \(pid (\d+)\))");
+  const std::string writer = launch.waitFor(R"(started 'writer' \(pid (\d+)\))");
+  REQUIRE(!robot.empty());
+  REQUIRE(!writer.empty());
+  REQUIRE(!launch.waitFor(R"(the run starts)").empty());
+  ::kill(std::stoi(writer), SIGSTOP);
+  // 200 poses a second fill the writer's queue (64) within 0.35 s. Not much longer: RouDi takes
+  // a process that sent no heartbeat for 1.5 s for dead and removes its queue.
+  std::this_thread::sleep_for(800ms);
+  ::kill(launch.pid(), SIGKILL);
+  CHECK(launch.wait(10s) == 128 + SIGKILL);
+  ::kill(std::stoi(writer), SIGKILL);
+  const auto killed = std::chrono::steady_clock::now();
+  CHECK(Launch::reapAll(20s));
+  CHECK(std::chrono::steady_clock::now() - killed < 15s);
+  CHECK(::kill(std::stoi(robot), 0) != 0);
+  tessera::removeStaleShm();
 }
 
 TEST_CASE("tessera goal without a running deployment fails at once instead of waiting",

@@ -168,6 +168,7 @@ TEST_CASE("a SIGKILLed receiver's deliveries are still counted, and what died wi
   Launcher launcher(o);
   std::thread killer([&] {
     const std::string pid = lines.waitFor(R"(started 'mapping' \(pid (\d+)\))");
+    lines.waitFor(R"(the run starts)");
     std::this_thread::sleep_for(4s);
     if (!pid.empty()) ::kill(std::stoi(pid), SIGKILL);
   });

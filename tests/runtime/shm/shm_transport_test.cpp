@@ -1,4 +1,5 @@
 #include "../test_actors.hpp"
+#include "launch_fixtures.hpp"
 #include "processes.hpp"
 
 #include <tessera/messages/types.hpp>
@@ -443,6 +444,78 @@ TEST_CASE("a process without a receiving thread gets its messages on the thread 
       },
 
       [&] { return send("here", MailboxPolicy::reliable(8), kCount, 64, max_chunk, 60000ms); });
+}
+
+TEST_CASE(
+    "a transport cut off from the others never blocks and its own subscribers still "
+    "get every message",
+    "[shm]") {
+  // The receiver takes nothing until the sender is done, so its reliable queue (16) fills: a
+  // send after that would wait for it for ever. Cut off, the sender's messages stay in its
+  // process and go to its own subscriber only.
+  const auto pools = smallPools();
+  const auto max_chunk = maxChunk(pools);
+  const auto done = test::freshDir("shm_cut_off") / "sender_done";
+  constexpr int kBefore = 10, kAfter = 100;
+  checkPair(
+      pools,
+      [&] {
+        ReceiverProcess rx(processOptions("tessera_test_cut_rx", 1, max_chunk), "cut",
+                           MailboxPolicy::reliable(4),
+                           std::make_unique<test::Recorder>(MailboxPolicy::reliable(4)));
+        if (!rx.transport.waitForPublishers(10s)) return 5;
+        const auto deadline = std::chrono::steady_clock::now() + 30s;
+        while (!std::filesystem::exists(done) && std::chrono::steady_clock::now() < deadline)
+          std::this_thread::sleep_for(10ms);
+        for (int i = 0; i < 20; ++i) rx.transport.receiveHere(std::chrono::milliseconds(50));
+        rx.rt.stop();
+        const auto seen = rx.actor<test::Recorder>().seqs.size();
+        std::printf("rx: %zu messages\n", seen);
+        return seen == kBefore ? 0 : 2;
+      },
+      [&] {
+        ShmTransport transport(processOptions("tessera_test_cut_tx", 0, max_chunk));
+        Runtime rt(manualSenderRuntime());
+        auto& local = static_cast<test::Recorder&>(
+            rt.add("local", std::make_unique<test::Recorder>(MailboxPolicy::reliable(1000)),
+                   {{"in", "cut"}}));
+        auto t = topic("cut", true, true, MailboxPolicy::reliable(1000));
+        t.importing_processes = 2;
+        transport.attach(rt, {t});
+        auto pub = rt.externalPublisher<msg::Blob>("cut");
+        rt.configure(true);
+        rt.start();
+        transport.startReceiving();
+        if (!transport.waitForPublishers(10s)) return 5;
+        const auto publish = [&](int i) {
+          auto loan = pub.loan(64);
+          setHeader(loan->initHeader(), i, "test", pub.nextSeq());
+          loan->initPayload(64);
+          pub.publish(std::move(loan));
+        };
+        for (int i = 0; i < kBefore; ++i) publish(i);
+        // The messages sent before come back through the import.
+        const auto deadline = std::chrono::steady_clock::now() + 10s;
+        while (transport.stats().received < kBefore && std::chrono::steady_clock::now() < deadline)
+          std::this_thread::sleep_for(5ms);
+        transport.cutOff();
+        const auto t0 = std::chrono::steady_clock::now();
+        for (int i = kBefore; i < kBefore + kAfter; ++i) publish(i);
+        const auto took = std::chrono::steady_clock::now() - t0;
+        rt.stop();  // nothing is left pending: what was not sent is not waited for
+        transport.stopReceiving();
+        std::ofstream(done) << "done\n";
+        std::printf("tx: %llu sent, %llu unsent, %zu handled here, cut-off sends took %.1f ms\n",
+                    static_cast<unsigned long long>(transport.stats().sent),
+                    static_cast<unsigned long long>(transport.stats().unsent), local.seqs.size(),
+                    std::chrono::duration<double, std::milli>(took).count());
+        if (took > 5s) return 6;
+        if (transport.stats().sent != kBefore || transport.stats().unsent != kAfter) return 7;
+        if (local.seqs.size() != kBefore + kAfter) return 8;
+        for (std::size_t i = 1; i < local.seqs.size(); ++i)
+          if (local.seqs[i] <= local.seqs[i - 1]) return 9;  // in the order sent
+        return 0;
+      });
 }
 
 TEST_CASE("malformed messages from another process are dropped and later ones still arrive",

@@ -149,11 +149,15 @@ void KinectDriverActor::run() {
   };
   RgbdPairer pairer(nanosOf(options_.max_pair_gap_s));
   std::int64_t depth_count = 0, color_count = 0;
-  // Each stream's frames carry the device's 60 MHz counter: stamped by it, frames keep the
-  // device's timing instead of the host's (USB, scheduling) jitter.
+  // Both streams' frames carry the device's one 60 MHz counter: stamped by it, frames keep the
+  // device's timing instead of the host's (USB, scheduling) jitter, and colour and depth pair by
+  // when they were taken, however late either reached the host. One clock for both: per-stream
+  // offsets would differ by how much later one stream arrives, which would decide the pairing.
+  // The host may get a frame after a later-taken one of the other stream: up to a second back
+  // is earlier, not a wrap.
   constexpr std::int64_t kKinectTicksPerSecond = 60'000'000;
-  SensorClock depth_clock = SensorClock::withTickRate(32, kKinectTicksPerSecond);
-  SensorClock color_clock = SensorClock::withTickRate(32, kKinectTicksPerSecond);
+  SensorClock device_clock = SensorClock::withTickRate(32, kKinectTicksPerSecond);
+  device_clock.allowBackSteps(kKinectTicksPerSecond);
   constexpr std::size_t kPixels = std::size_t{kKinectWidth} * kKinectHeight;
   // Frames are copied out of libfreenect's buffer (valid only during the callback) into what
   // is published: colour as it is, depth converted to millimetres on the way. The buffers of a
@@ -167,7 +171,7 @@ void KinectDriverActor::run() {
   const auto colorImage = [&](const void* data, std::size_t bytes, std::uint32_t timestamp) {
     KinectImage im = std::move(spare_color);
     im.bytes.clear();
-    im.stamp_ns = color_clock.stamp(timestamp, ctx_->now());
+    im.stamp_ns = device_clock.stamp(timestamp, ctx_->now());
     if (bytes >= kPixels * 3)
       im.bytes.assign(static_cast<const std::uint8_t*>(data),
                       static_cast<const std::uint8_t*>(data) + kPixels * 3);
@@ -176,7 +180,7 @@ void KinectDriverActor::run() {
   const auto depthImage = [&](const void* data, std::size_t bytes, std::uint32_t timestamp) {
     KinectImage im = std::move(spare_depth);
     im.depth.clear();
-    im.stamp_ns = depth_clock.stamp(timestamp, ctx_->now());
+    im.stamp_ns = device_clock.stamp(timestamp, ctx_->now());
     if (bytes < kPixels * 2) return im;
     im.depth.resize(kPixels);
     if (registered_) {
@@ -258,8 +262,7 @@ void KinectDriverActor::run() {
     }
     camera->close();
     pairer.reset();
-    depth_clock.reset();  // a Kinect plugged in again starts its counter anew
-    color_clock.reset();
+    device_clock.reset();  // a Kinect plugged in again starts its counter anew
     if (stop_) break;
     if (!options_.recording.empty()) {
       if (depth_count + color_count == 0) {

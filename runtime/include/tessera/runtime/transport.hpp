@@ -32,7 +32,10 @@ class TopicExport {
   virtual std::shared_ptr<detail::LoanStorage> loan(std::size_t size_hint_bytes,
                                                     std::size_t blob_bytes) = 0;
   /// Sends a sealed message (loaned here, or any other storage, which is then copied once).
-  virtual void send(const std::shared_ptr<const MessageStorage>& message) = 0;
+  /// Returns false when it was not sent (the transport was cut off from the other processes):
+  /// the message, and its storage, stay the caller's, and the runtime delivers it to this
+  /// process's own subscribers only.
+  virtual bool send(const std::shared_ptr<const MessageStorage>& message) = 0;
   /// True when this process imports the topic too: send() comes back through the import, and
   /// the runtime counts the message as pending work until it does.
   virtual bool loopsBack() const = 0;

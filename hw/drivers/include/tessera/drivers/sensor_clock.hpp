@@ -35,6 +35,12 @@ class SensorClock {
   /// restarts).
   std::int64_t stamp(std::uint32_t ticks, std::int64_t host_ns);
 
+  /// Several streams sharing the counter (the Kinect's colour and depth): the host may get a
+  /// reading after a later-taken one of another stream. A reading up to `ticks` behind the
+  /// newest is then earlier, not a wrap, and the counter steps on from the newest. Throws
+  /// std::invalid_argument for half the counter's range or more (it could not tell a wrap).
+  void allowBackSteps(std::uint32_t ticks);
+
   /// Forgets the counter and the offset (a reconnect: the device may have restarted).
   void reset();
 
@@ -47,7 +53,8 @@ class SensorClock {
   int bits_;
   std::int64_t tick_ns_, window_ns_;
   std::int64_t tick_den_ = 1;  // a tick is tick_ns_ / tick_den_ ns
-  std::optional<std::uint32_t> last_ticks_;
+  std::uint32_t max_back_ticks_ = 0;
+  std::optional<std::uint32_t> last_ticks_;  // the newest reading's
   std::int64_t unwrapped_ticks_ = 0, wraps_ = 0;
   struct Sample {
     std::int64_t host_ns, offset_ns;

@@ -26,10 +26,12 @@
 #include <chrono>
 #include <cstddef>
 #include <cstdint>
+#include <functional>
 #include <map>
 #include <memory>
 #include <mutex>
 #include <string>
+#include <utility>
 #include <vector>
 
 namespace tessera {
@@ -194,6 +196,9 @@ class WorkerCoordinator final : public RunCoordinator {
   SyncSlot& slot() { return block_.slots[index_]; }
   /// True once the launcher died (this process was re-parented).
   bool orphaned();
+  /// Called once, on the thread that first finds the launcher dead, before that finding
+  /// changes any decision (so before the stop stages it ends): e.g. to cut the transport off.
+  void whenOrphaned(std::function<void()> f) { on_orphaned_ = std::move(f); }
   /// A message reached this process (its receiving thread calls this): wakes idle().
   void messageArrived() { ringBell(slot().bell, slot().waiting); }
 
@@ -206,6 +211,7 @@ class WorkerCoordinator final : public RunCoordinator {
   int index_;
   int launcher_;
   bool orphaned_ = false;
+  std::function<void()> on_orphaned_;
   std::uint64_t checks_ = 0;
   std::uint64_t last_grant_ = 0;
   std::vector<StopStage> stages_;

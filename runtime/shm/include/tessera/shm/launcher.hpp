@@ -37,10 +37,13 @@ struct LauncherOptions {
   int threads = 0;
   /// iceoryx log level of RouDi and the workers: off, error, warn, info.
   std::string shm_log = "error";
+  /// Seconds a worker whose launcher died may take to write what it holds and stop before it
+  /// leaves without the rest (a thread blocked in a send to a dead peer never returns).
+  double orphan_grace_s = 30;
   /// The worker: the program exec'd and its argv up to the worker's own arguments (argv[0]
   /// first). The launcher appends the profile path, then --process, --sync, --max-chunk,
-  /// --incarnation, --threads, --shm-log, --out (when set) and each --set. Default: this
-  /// executable's `tessera worker` command.
+  /// --incarnation, --threads, --shm-log, --orphan-grace, --out (when set) and each --set. Default:
+  /// this executable's `tessera worker` command.
   std::string worker_program = "/proc/self/exe";
   std::vector<std::string> worker_argv = {"tessera", "worker"};
   /// Receives every line the launcher prints and every line of the workers' output (prefixed

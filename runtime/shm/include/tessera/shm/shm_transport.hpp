@@ -93,6 +93,7 @@ struct ShmStats {
   std::uint64_t copies = 0;          // messages copied into a chunk (did not fit their loan)
   std::uint64_t drops = 0;           // messages a full keep_latest queue discarded
   std::uint64_t heap_fallbacks = 0;  // loans built on the heap (all chunks of a publisher busy)
+  std::uint64_t unsent = 0;          // messages not sent after cutOff()
 };
 
 class ShmTransport {
@@ -124,6 +125,12 @@ class ShmTransport {
   /// (logic_error; startReceiving() afterwards takes over); from one thread at a time.
   void receiveHere(std::chrono::microseconds timeout);
   ShmStats stats() const;
+  /// The deployment is gone (its launcher, and RouDi with it, died): from now on nothing is
+  /// sent to other processes; a send returns false (the runtime delivers the message to this
+  /// process's own subscribers) and is counted in `unsent`. Without RouDi a dead subscriber's
+  /// full queue is never removed, so a publisher waiting on it (a reliable topic) would wait for
+  /// ever. Any thread.
+  void cutOff();
 
   struct Impl;
 
