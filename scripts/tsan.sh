@@ -27,12 +27,15 @@ fi
 # still checked for races and lock-order inversions).
 export TSAN_OPTIONS="halt_on_error=1 report_mutex_bugs=0 second_deadlock_stack=1 history_size=4 suppressions=$PWD/scripts/tsan.supp"
 build-tsan/bin/tessera_unit_tests "[runtime],[recording],[messages]"
-build-tsan/bin/tessera_shm_tests
+# Without the two whole-SLAM launches ([slow]: minutes each under TSan, on the code paths the
+# shorter launches cover).
+build-tsan/bin/tessera_shm_tests "~[slow]"
 # The actors that run threads or TBB inside (particles, features, matching, rebuilds, servers,
 # device loops) and the profiles that run them, in process and as `tessera run`. Without the
 # soak benchmarks, [slow] cases (TSan runs 5-15x slower; they add nothing the others miss) and
 # [wall_clock] ones (they check timing against the wall clock, which TSan stretches), and the
-# emulated Kinect robot, whose colour and depth frames pair by their arrival on the wall clock.
+# emulated Kinect robot, whose tracker takes the frames as they come on the wall clock
+# (keep_latest): slowed down 10x it skips most of them, and its check counts them.
 if [ $# -gt 0 ]; then
   spec="$1"
 else

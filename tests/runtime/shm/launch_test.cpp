@@ -219,7 +219,7 @@ void checkSlamLaunchMatchesOneProcess(const std::string& name,
 }  // namespace
 
 TEST_CASE("laser SLAM split over three processes gives the same trajectories and map as one",
-          "[launch]") {
+          "[launch][slow]") {
   // Submaps, constraints and the final poses published in stop() cross processes; the
   // optimiser's stop-time output must still reach the writer in the last process.
   checkSlamLaunchMatchesOneProcess(
@@ -230,7 +230,7 @@ TEST_CASE("laser SLAM split over three processes gives the same trajectories and
 
 TEST_CASE(
     "laser SLAM with the map and trajectory writers beside the builder gives the same outputs",
-    "[launch]") {
+    "[launch][slow]") {
   // The README split: main both sends and reads back submaps, poses and constraints, and reads
   // the optimiser's poses from global through a keep_latest queue (whose discards must still
   // count as received, or the clock stalls); the optimiser's stop-time output must reach the
