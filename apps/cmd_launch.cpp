@@ -30,6 +30,7 @@
 #include <iostream>
 #include <memory>
 #include <mutex>
+#include <stop_token>
 #include <thread>
 #include <utility>
 
@@ -126,48 +127,28 @@ struct WorkerArgs {
 class OrphanWatch {
  public:
   OrphanWatch(double grace_s, std::function<void()> cut_off)
-      : launcher_(::getppid()),
-        grace_(std::chrono::duration_cast<std::chrono::nanoseconds>(
-            std::chrono::duration<double>(grace_s))),
-        cut_off_(std::move(cut_off)),
-        thread_([this] { watch(); }) {}
-  ~OrphanWatch() {
-    {
-      std::lock_guard lock(mutex_);
-      quit_ = true;
-    }
-    wake_.notify_all();
-    thread_.join();
-  }
-  OrphanWatch(const OrphanWatch&) = delete;
-  OrphanWatch& operator=(const OrphanWatch&) = delete;
+      : thread_([launcher = ::getppid(), grace_s,
+                 cut_off = std::move(cut_off)](const std::stop_token& stop) {
+          std::mutex mutex;
+          std::condition_variable_any wake;  // woken only by the stop request (the destructor)
+          std::unique_lock lock(mutex);
+          const auto stopped = [&] { return stop.stop_requested(); };
+          // getppid() is a cheap system call; the parent-death signal (SIGHUP) stops the run at
+          // the same moment, and the coordinator cuts the transport off before any stop stage.
+          while (!wake.wait_for(lock, stop, std::chrono::milliseconds(50), stopped)) {
+            if (::getppid() == launcher) continue;
+            cut_off();
+            if (wake.wait_for(lock, stop, std::chrono::duration<double>(grace_s), stopped)) return;
+            std::fprintf(stderr,
+                         "the launcher (and its RouDi) died and this process did not stop within "
+                         "its %g s grace (a send to a dead peer never returns): leaving\n",
+                         grace_s);
+            std::_Exit(3);
+          }
+        }) {}
 
  private:
-  void watch() {
-    std::unique_lock lock(mutex_);
-    // getppid() is a cheap system call; the parent-death signal (SIGHUP) stops the run at the
-    // same moment, and the coordinator cuts the transport off before any stop stage.
-    while (!wake_.wait_for(lock, std::chrono::milliseconds(50), [this] { return quit_; })) {
-      if (::getppid() == launcher_) continue;
-      cut_off_();
-      if (wake_.wait_for(lock, grace_, [this] { return quit_; })) return;
-      const std::string msg =
-          "the launcher (and its RouDi) died and this process did not stop "
-          "within its " +
-          std::to_string(std::chrono::duration<double>(grace_).count()) +
-          " s grace (a send to a dead peer never returns): leaving\n";
-      (void)!::write(2, msg.data(), msg.size());
-      std::_Exit(3);
-    }
-  }
-
-  const pid_t launcher_;
-  const std::chrono::nanoseconds grace_;
-  const std::function<void()> cut_off_;
-  std::mutex mutex_;
-  std::condition_variable wake_;
-  bool quit_ = false;
-  std::thread thread_;  // last: starts once the rest is set
+  std::jthread thread_;  // its destructor asks the watch to stop and joins it
 };
 
 /// RouDi died with the launcher: iceoryx's teardown (deregistering from RouDi) could now block
