@@ -83,6 +83,16 @@ TEST_CASE("launch --host refuses a profile it cannot split over hosts, naming wh
   }
 }
 
+TEST_CASE("launch refuses an --orphan-grace that is not a positive number of seconds", "[cli]") {
+  const auto dir = freshDir("orphan_grace");
+  for (const std::string value : {"-1", "0", "nan", "soon", "''"}) {
+    INFO(value);
+    const auto run = runCli("launch sim_mapping --orphan-grace " + value, dir);
+    CHECK(run.exit_code != 0);
+    CHECK(run.err.find("--orphan-grace") != std::string::npos);
+  }
+}
+
 TEST_CASE("launch --host without its peers gives up naming the topics it waited for",
           "[cli][dds]") {
   const auto dir = freshDir("no_peer");
