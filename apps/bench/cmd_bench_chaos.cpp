@@ -1,14 +1,15 @@
 // tessera bench chaos: a multi-process deployment under fire (docs/benchmarks.md#chaos). Runs
 // `tessera launch` of a wall-clock profile whose processes are listed under restart: and, at
-// random moments, SIGKILLs a random worker or stalls one (SIGSTOP, then SIGCONT a moment later,
-// wherever it was: in a handler, in a send). Each kill is timed until the new incarnation is back
-// (its control-block slot names a new pid and says it is connected and ready). The launch's
-// summary.json gives what each route between processes sent and received (its delivery ledger
-// survives a SIGKILLed process), so what was lost between live processes and what was lost with
-// a dead one are told apart. Then the launcher itself (which hosts RouDi) is SIGKILLed a few
-// times mid-run, the orphaned workers must stop on their own, and the next launch in the same
-// folder must start (clearing the dead RouDi's shared memory). Every output file left behind is
-// checked to be complete. Writes chaos.json in the output folder; --json prints it.
+// random moments, SIGKILLs a random worker or stalls one (SIGSTOP, then SIGCONT 0.05-3 s later,
+// wherever it was: in a handler, in a send; longer than RouDi's heartbeat timeout too). Each kill
+// is timed until the new incarnation is back (its control-block slot names a new pid and says it is
+// connected and ready). The launch's summary.json gives what each route between processes sent and
+// received (its delivery ledger survives a SIGKILLed process), so what was lost between live
+// processes and what was lost with a dead one are told apart. Then the launcher itself (which hosts
+// RouDi) is SIGKILLed a few times mid-run, the orphaned workers must stop on their own, and the
+// next launch in the same folder must start (clearing the dead RouDi's shared memory). Every output
+// file left behind is checked to be complete. Writes chaos.json in the output folder; --json prints
+// it.
 #include "bench_commands.hpp"
 #include "bench_util.hpp"
 #include "child_process.hpp"
@@ -54,7 +55,9 @@ struct Options {
   int kills = 100;
   int stalls = 20;
   int roudi_kills = 5;
-  double max_stall_s = 0.5;
+  // Stalls straddle RouDi's 1.5 s heartbeat timeout: a stopped process must keep its queues.
+  double min_stall_s = 0.05;
+  double max_stall_s = 3.0;
   unsigned seed = 1;
   int threads = 1;
   std::string out = "out/bench_chaos";
@@ -221,6 +224,7 @@ nlohmann::json chaosRun(const Options& o, const DeploymentPlan& plan,
   std::vector<double> recovery;
   std::map<std::string, int> kills_of;
   int kills = 0, stalls = 0, deferred = 0;
+  std::vector<double> stall_s;
   std::size_t next = 0;
   int launch_status = 0;
   bool launch_ended = false;
@@ -272,7 +276,9 @@ nlohmann::json chaosRun(const Options& o, const DeploymentPlan& plan,
           ++kills_of[plan.processes[slot]];
         } else {
           ::kill(pid, SIGSTOP);
-          const double hold = std::uniform_real_distribution<double>(0.05, o.max_stall_s)(rng);
+          const double hold =
+              std::uniform_real_distribution<double>(o.min_stall_s, o.max_stall_s)(rng);
+          stall_s.push_back(hold);
           stalled.push_back({pid, Clock::now() + std::chrono::duration_cast<Clock::duration>(
                                                      std::chrono::duration<double>(hold))});
           ++stalls;
@@ -315,6 +321,11 @@ nlohmann::json chaosRun(const Options& o, const DeploymentPlan& plan,
   return {{"exit_code", exitCodeOf(launch_status)},
           {"kills", kills},
           {"stalls", stalls},
+          {"stall_s",
+           {{"median", median(stall_s)},
+            {"max", stall_s.empty() ? 0.0 : *std::max_element(stall_s.begin(), stall_s.end())},
+            {"over_1_5s",
+             std::count_if(stall_s.begin(), stall_s.end(), [](double h) { return h > 1.5; })}}},
           {"kills_by_process", kills_of},
           {"restarts", restarts},
           {"not_back", static_cast<int>(pending.size())},
@@ -421,6 +432,12 @@ nlohmann::json roudiKills(const Options& o, const fs::path& dir, std::mt19937& r
 }
 
 int run(const Options& o) {
+  if (o.min_stall_s > o.max_stall_s) {
+    std::ostringstream m;
+    m << "bench chaos: --min-stall " << o.min_stall_s << " s is longer than --max-stall "
+      << o.max_stall_s << " s";
+    throw ConfigError(m.str());
+  }
   const std::string path = resolveProfilePath(o.profile, profileSearchDirs());
   const Profile profile = loadProfile(path, o.sets);
   if (profile.clock != ClockKind::kWall) {
@@ -464,7 +481,9 @@ int run(const Options& o) {
     const auto& r = run_json;
     const auto& rel = r["reliable"];
     std::cout << std::fixed << std::setprecision(3) << "  kills " << r["kills"] << ", stalls "
-              << r["stalls"] << ", restarts " << r["restarts"].dump() << "\n"
+              << r["stalls"] << " (median " << r["stall_s"]["median"].get<double>() << " s, max "
+              << r["stall_s"]["max"].get<double>() << " s, " << r["stall_s"]["over_1_5s"]
+              << " over RouDi's 1.5 s heartbeat timeout), restarts " << r["restarts"].dump() << "\n"
               << "  back after a kill: median " << r["recovery_s"]["median"].get<double>()
               << " s, p99 " << r["recovery_s"]["p99"].get<double>() << " s, max "
               << r["recovery_s"]["max"].get<double>() << " s (" << r["recovery_s"]["over_2s"]
@@ -509,8 +528,11 @@ void addBenchChaosCommand(CLI::App& bench, int& result) {
   cmd->add_option("--stalls", o->stalls, "SIGSTOP/SIGCONT stalls of random workers")
       ->check(CLI::Range(0, 100000))
       ->capture_default_str();
+  cmd->add_option("--min-stall", o->min_stall_s, "shortest stall, seconds")
+      ->check(CLI::Range(0.01, 60.0))
+      ->capture_default_str();
   cmd->add_option("--max-stall", o->max_stall_s, "longest stall, seconds")
-      ->check(CLI::Range(0.05, 60.0))
+      ->check(CLI::Range(0.01, 60.0))
       ->capture_default_str();
   cmd->add_option("--launcher-kills", o->roudi_kills,
                   "SIGKILLs of the launcher (and its RouDi), each followed by a new launch")

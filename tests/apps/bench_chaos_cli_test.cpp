@@ -1,5 +1,5 @@
-// `tessera bench chaos` end to end on a short run (12 s, 6 kills, 3 stalls, one kill of the
-// launcher): the report's fields, every kill recovered, nothing reliable lost between live
+// `tessera bench chaos` end to end on a short run (12 s, 6 kills, 3 stalls of 2-3 s, one kill
+// of the launcher): the report's fields, every kill recovered, nothing reliable lost between live
 // processes, and outputs that are complete. Runs launches, so it is one of the shared-memory
 // tests (one at a time).
 #include <nlohmann/json.hpp>
@@ -17,7 +17,7 @@ TEST_CASE("bench chaos kills and stalls workers and the launcher, and reports wh
           "[bench_chaos]") {
   const auto dir = tessera::test::freshDir("bench_chaos");
   const auto run = runCli(
-      "bench chaos --json --duration 12 --kills 6 --stalls 3 "
+      "bench chaos --json --duration 12 --kills 6 --stalls 3 --min-stall 2 --max-stall 3 "
       "--launcher-kills 1 --out " +
           (dir / "chaos").string(),
       dir);
@@ -30,6 +30,8 @@ TEST_CASE("bench chaos kills and stalls workers and the launcher, and reports wh
   CHECK(r["exit_code"] == 0);
   CHECK(r["kills"] == 6);
   CHECK(r["stalls"] == 3);
+  // Each stall outlasts RouDi's 1.5 s heartbeat timeout: the stopped process keeps its queues.
+  CHECK(r["stall_s"]["over_1_5s"] == 3);
   CHECK(r["not_back"] == 0);
   int restarts = 0;
   for (const auto& [process, n] : r["restarts"].items()) restarts += n.get<int>();
@@ -64,4 +66,7 @@ TEST_CASE("bench chaos refuses a simulated-time profile and one with nothing to 
   const auto bad = runCli("bench chaos --kills -1", dir);
   CHECK(bad.exit_code != 0);
   CHECK(bad.err.find("kills") != std::string::npos);
+  const auto stalls = runCli("bench chaos --min-stall 4 --max-stall 3", dir);
+  CHECK(stalls.exit_code != 0);
+  CHECK(stalls.err.find("--min-stall 4") != std::string::npos);
 }

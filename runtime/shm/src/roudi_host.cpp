@@ -19,8 +19,11 @@
 #include <cerrno>
 #include <cstdlib>
 #include <filesystem>
+#include <fstream>
 #include <map>
+#include <mutex>
 #include <optional>
+#include <sstream>
 #include <stdexcept>
 
 namespace tessera {
@@ -134,11 +137,115 @@ std::vector<MemPool> memPoolsFor(const std::vector<ChunkDemand>& demands,
   return pools;
 }
 
+namespace {
+
+/// When the process started (clock ticks since boot, /proc/<pid>/stat field 22), or nothing when
+/// it no longer runs: gone, or a zombie waiting for its parent. A stopped process runs.
+std::optional<unsigned long long> processStart(std::uint32_t pid) {
+  std::ifstream in("/proc/" + std::to_string(pid) + "/stat");
+  std::string text;
+  if (!std::getline(in, text)) return std::nullopt;
+  const auto close = text.rfind(')');  // the command name may hold spaces and parentheses
+  if (close == std::string::npos) return std::nullopt;
+  std::istringstream rest(text.substr(close + 1));
+  std::string state;
+  rest >> state;
+  if (state == "Z" || state == "X") return std::nullopt;
+  std::string skip;
+  for (int field = 4; field < 22; ++field) rest >> skip;
+  unsigned long long start = 0;
+  if (!(rest >> start)) return std::nullopt;
+  return start;
+}
+
+}  // namespace
+
+// Named (not anonymous): RouDiHost::Impl holds one.
+namespace detail {
+
+/// The processes that registered with RouDi: runtime name -> pid and start time.
+struct RegisteredProcesses {
+  struct Entry {
+    std::uint32_t pid = 0;
+    unsigned long long start = 0;
+  };
+  std::mutex mutex;
+  std::map<std::string, Entry> by_name;
+};
+
+/// RouDi whose process monitor takes a process for dead when it no longer exists, not when its
+/// heartbeats stop: iceoryx 2.0 drops a process that sent none for 1.5 s, and with it the ports
+/// of one that is only stopped (SIGSTOP, a debugger, swapping). The reliable messages waiting
+/// in its queues were lost, and the deployment could not stop once it ran again
+/// (docs/architecture.md#processes-that-stall). Each monitor cycle (0.1 s) renews the heartbeat
+/// of every registered process that still runs, so RouDi's own clean-up reaches only the dead.
+///
+/// The registry is a base constructed before RouDi's, whose constructor starts the monitor
+/// thread that calls cyclicUpdateHook().
+class HostedRouDi : private RegisteredProcesses, public iox::roudi::RouDi {
+ public:
+  HostedRouDi(iox::roudi::IceOryxRouDiComponents& components, bool monitor)
+      : RouDi(components.rouDiMemoryManager, components.portManager,
+              RoudiStartupParameters{
+                  monitor ? iox::roudi::MonitoringMode::ON : iox::roudi::MonitoringMode::OFF,
+                  // Processes are stopped by their owner (the launcher), not by RouDi.
+                  false,
+                  // processMessage() below must not run before this object is complete.
+                  RuntimeMessagesThreadStart::DEFER_START}) {
+    startProcessRuntimeMessagesThread();
+  }
+  ~HostedRouDi() override {
+    shutdown();  // joins RouDi's threads while the overrides below can still run
+  }
+  HostedRouDi(const HostedRouDi&) = delete;
+  HostedRouDi& operator=(const HostedRouDi&) = delete;
+
+ protected:
+  void processMessage(const iox::runtime::IpcMessage& message,
+                      const iox::runtime::IpcMessageType& cmd,
+                      const iox::RuntimeName_t& name) noexcept override {
+    if (cmd == iox::runtime::IpcMessageType::REG && message.getNumberOfElements() == 6) {
+      std::uint32_t pid = 0;
+      uid_t user = 0;
+      std::int64_t sent_at = 0;
+      static_cast<void>(parseRegisterMessage(message, pid, user, sent_at));
+      const auto start = processStart(pid);
+      std::lock_guard lock(mutex);
+      if (start) by_name[name.c_str()] = {pid, *start};
+    } else if (cmd == iox::runtime::IpcMessageType::TERMINATION) {
+      std::lock_guard lock(mutex);
+      by_name.erase(name.c_str());
+    }
+    RouDi::processMessage(message, cmd, name);
+  }
+
+  void cyclicUpdateHook() noexcept override {
+    std::vector<std::string> running;
+    {
+      std::lock_guard lock(mutex);
+      for (auto it = by_name.begin(); it != by_name.end();) {
+        const auto start = processStart(it->second.pid);
+        if (start && *start == it->second.start) {  // the same process, not a reused pid
+          running.push_back(it->first);
+          ++it;
+        } else {
+          it = by_name.erase(it);
+        }
+      }
+    }
+    for (const auto& name : running) {
+      m_prcMgr->updateLivelinessOfProcess(iox::RuntimeName_t(iox::cxx::TruncateToCapacity, name));
+    }
+  }
+};
+
+}  // namespace detail
+
 struct RouDiHost::Impl {
   std::vector<std::string> removed;
   std::size_t max_chunk = 0;
   std::optional<iox::roudi::IceOryxRouDiComponents> components;
-  std::optional<iox::roudi::RouDi> roudi;
+  std::optional<detail::HostedRouDi> roudi;
 };
 
 RouDiHost::RouDiHost(RouDiHostOptions options) : impl_(std::make_unique<Impl>()) {
@@ -162,12 +269,7 @@ RouDiHost::RouDiHost(RouDiHostOptions options) : impl_(std::make_unique<Impl>())
   config.m_sharedMemorySegments.push_back({group, group, mepoo});
   config.optimize();
   impl_->components.emplace(config);
-  // Processes are stopped by their owner (the launcher), not by RouDi's destructor.
-  impl_->roudi.emplace(impl_->components->rouDiMemoryManager, impl_->components->portManager,
-                       iox::roudi::RouDi::RoudiStartupParameters{
-                           options.monitor_processes ? iox::roudi::MonitoringMode::ON
-                                                     : iox::roudi::MonitoringMode::OFF,
-                           false});
+  impl_->roudi.emplace(*impl_->components, options.monitor_processes);
   // iceoryx 2.0 creates its segments for the user's group (plus ACL entries); a deployment is
   // one user's processes, so narrow them to the owner. Processes open them after this.
   namespace fs = std::filesystem;

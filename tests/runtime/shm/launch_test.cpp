@@ -370,24 +370,33 @@ TEST_CASE("when the launcher and its RouDi die the workers stop and the next lau
   CHECK(shmClean());
 }
 
+namespace {
+/// A wall-clock profile of two processes: the simulator in 'robot' sends `hz` ground-truth
+/// poses a second over a reliable topic to a trajectory writer in 'writer'.
+std::string poseWriterProfile(int hz) {
+  return R"(name: pose_writer
+clock: wall
+actors:
+  sim:
+    type: simulator
+    process: robot
+    params: {world: builtin:office, laps: 1, scan_hz: 10, step_hz: )" +
+         std::to_string(hz) + ", odom_hz: " + std::to_string(hz) + R"(}
+  writer:
+    type: trajectory_writer
+    process: writer
+    remap: {poses: ground_truth}
+)";
+}
+}  // namespace
+
 TEST_CASE("a worker blocked sending to a dead peer leaves within its grace after the launcher dies",
           "[launch]") {
   // The writer stops taking poses (frozen), so the robot's reliable publisher waits for room in
   // its queue; then the launcher, with RouDi, and the writer die. Only RouDi could remove the
   // dead writer's full queue: the robot's send never returns, and only its grace ends it.
   const auto dir = freshDir("launch_orphan_blocked");
-  std::ofstream(dir / "writer.yaml") << R"(name: blocked_writer
-clock: wall
-actors:
-  sim:
-    type: simulator
-    process: robot
-    params: {world: builtin:office, laps: 1, scan_hz: 10, step_hz: 200, odom_hz: 200}
-  writer:
-    type: trajectory_writer
-    process: writer
-    remap: {poses: ground_truth}
-)";
+  std::ofstream(dir / "writer.yaml") << poseWriterProfile(200);
   Launch launch({(dir / "writer.yaml").string(), "--orphan-grace", "2"}, dir);
   launch.keepLeftovers();
   const std::string robot = launch.waitFor(R"(started 'robot' \(pid (\d+)\))");
@@ -407,6 +416,42 @@ actors:
   CHECK(std::chrono::steady_clock::now() - killed < 15s);
   CHECK(::kill(std::stoi(robot), 0) != 0);
   tessera::removeStaleShm();
+}
+
+TEST_CASE(
+    "a worker frozen longer than RouDi's keep-alive keeps its topics and the run stops cleanly",
+    "[launch]") {
+  // A stopped process (SIGSTOP, a debugger's breakpoint, swapping) sends RouDi no heartbeat, but
+  // it is alive: its queues must stay, the reliable poses must wait for it, and Ctrl-C must stop
+  // the deployment once it runs again. RouDi's own monitor took it for dead after 1.5 s.
+  const auto dir = freshDir("launch_frozen_worker");
+  std::ofstream(dir / "writer.yaml") << poseWriterProfile(100);
+  Launch launch({(dir / "writer.yaml").string(), "--out", (dir / "out").string()}, dir);
+  const std::string writer = launch.waitFor(R"(started 'writer' \(pid (\d+)\))");
+  REQUIRE(!writer.empty());
+  REQUIRE(!launch.waitFor(R"(the run starts)").empty());
+  std::this_thread::sleep_for(500ms);
+  ::kill(std::stoi(writer), SIGSTOP);
+  std::this_thread::sleep_for(3500ms);  // more than twice RouDi's 1.5 s keep-alive
+  ::kill(std::stoi(writer), SIGCONT);
+  std::this_thread::sleep_for(1000ms);
+  ::kill(launch.pid(), SIGINT);
+  const int rc = launch.wait(30s);
+  INFO(launch.output());
+  CHECK(rc == 130);
+  const auto summary = nlohmann::json::parse(readFile(dir / "out" / "summary.json"));
+  REQUIRE(summary["delivery"].size() == 1);
+  const auto& poses = summary["delivery"][0];
+  CHECK(poses["topic"] == "ground_truth");
+  // 0.5 s before the freeze and 1 s after it at 100 Hz, plus the 64 the writer's queue held
+  // while the robot waited for room: it ran on after the freeze.
+  CHECK(poses["sent"].get<int>() > 150);
+  CHECK(poses["lost_live"] == 0);
+  CHECK(poses["received"] == poses["sent"]);
+  CHECK(poses["dead"].empty());
+  CHECK(readNumbers(dir / "out" / "trajectory.tum").size() == 8 * poses["received"].get<size_t>());
+  CHECK(Launch::reapAll(10s));
+  CHECK(shmClean());
 }
 
 TEST_CASE("tessera goal without a running deployment fails at once instead of waiting",

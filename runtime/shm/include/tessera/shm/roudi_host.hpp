@@ -40,7 +40,8 @@ std::vector<MemPool> memPoolsFor(const std::vector<ChunkDemand>& demands,
 
 struct RouDiHostOptions {
   std::vector<MemPool> pools;
-  /// Detect processes that died without deregistering and free their ports.
+  /// Free the ports of processes that died without deregistering, within about 1.5 s of their
+  /// death. A process that still exists is alive, even when stopped (SIGSTOP, a debugger).
   bool monitor_processes = true;
   /// Print iceoryx's own log at this level and above: "off", "error", "warn", "info".
   std::string log_level = "error";
