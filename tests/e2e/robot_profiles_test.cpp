@@ -58,7 +58,7 @@ std::vector<mapping::TumPose> onClockOf(std::vector<mapping::TumPose> estimate,
 }
 
 TEST_CASE("robot_create_kinect tracks 7-Scenes played through fakenect as rgbd_slam does",
-          "[e2e][drivers][kinect]") {
+          "[e2e][drivers][kinect][serial]") {
   TESSERA_SHARED_DATA(dir, "7scenes-redkitchen-rgbd");
   const fs::path out = test::scratchDir("e2e_robot_kinect");
   const fs::path recording = out / "recording";
