@@ -3,7 +3,10 @@
 #include <tessera/datasets/relations.hpp>
 #include <tessera/runtime/options.hpp>
 
+#include <cmath>
+#include <cstdlib>
 #include <filesystem>
+#include <sstream>
 
 namespace tessera::app {
 
@@ -14,6 +17,22 @@ void requireFile(const std::string& path, const char* option) {
   if (!fs::is_regular_file(path, ec))
     throw ConfigError(std::string(option) + " " + path +
                       (fs::exists(path, ec) ? ": not a regular file" : ": no such file"));
+}
+
+CLI::Validator finiteNumberIn(double lo, double hi, bool above) {
+  std::ostringstream range;
+  range << (above ? "(" : "[") << lo << ", " << hi << "]";
+  const std::string expected = "a finite number in " + range.str();
+  return CLI::Validator(
+      [lo, hi, above, expected](std::string& value) -> std::string {
+        char* end = nullptr;
+        const double v = std::strtod(value.c_str(), &end);
+        const bool whole = !value.empty() && *end == '\0';
+        if (!whole || !std::isfinite(v) || v < lo || (above && v == lo) || v > hi)
+          return "expected " + expected + ", got '" + value + "'";
+        return {};
+      },
+      "NUMBER in " + range.str());
 }
 
 std::vector<std::string> profileSearchDirs() {

@@ -4,6 +4,8 @@
 
 #include <tessera/evaluation/trajectory_metrics.hpp>
 
+#include <CLI/CLI.hpp>
+
 #include <string>
 #include <vector>
 
@@ -11,6 +13,10 @@ namespace tessera::app {
 
 /// Throws ConfigError "OPTION PATH: no such file" (or "not a regular file").
 void requireFile(const std::string& path, const char* option);
+/// A check for a number option: finite and within [lo, hi], or above lo when `above` is set
+/// (lo excluded). CLI::Range and CLI::PositiveNumber let NaN through (it compares neither below
+/// nor above), so every floating-point option of the CLI is checked with this instead.
+CLI::Validator finiteNumberIn(double lo, double hi, bool above = false);
 /// Folders searched for profile names: the source tree's apps/profiles and ./apps/profiles.
 std::vector<std::string> profileSearchDirs();
 /// A Kuemmerle et al. relations file as planar relations (checked with requireFile).

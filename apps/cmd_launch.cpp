@@ -21,7 +21,6 @@
 
 #include <atomic>
 #include <chrono>
-#include <cmath>
 #include <condition_variable>
 #include <cstdio>
 #include <cstdlib>
@@ -248,16 +247,7 @@ void addLaunchCommand(CLI::App& app, int& result) {
   cmd->add_option("--orphan-grace", args->orphan_grace_s,
                   "seconds a process whose launcher died may take to write what it holds and "
                   "stop before it leaves without the rest (default 30)")
-      ->check(CLI::Validator(
-          [](std::string& value) -> std::string {
-            // CLI::PositiveNumber lets NaN through (it only refuses what compares below 0).
-            char* end = nullptr;
-            const double s = std::strtod(value.c_str(), &end);
-            if (end == value.c_str() || *end != '\0' || !std::isfinite(s) || s <= 0)
-              return "expected a finite number of seconds > 0, got '" + value + "'";
-            return {};
-          },
-          "SECONDS > 0"));
+      ->check(finiteNumberIn(0.0, 1e6, true));
   cmd->add_option("--host", args->host,
                   "run only process group NAME here; topics to the other groups cross hosts over "
                   "DDS (profile section dds:)");

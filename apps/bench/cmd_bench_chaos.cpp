@@ -520,7 +520,7 @@ void addBenchChaosCommand(CLI::App& bench, int& result) {
   cmd->add_option("--profile", o->profile, "wall-clock profile with restart: entries")
       ->capture_default_str();
   cmd->add_option("--duration", o->duration_s, "seconds of the main run")
-      ->check(CLI::Range(5.0, 86400.0))
+      ->check(finiteNumberIn(5.0, 86400.0))
       ->capture_default_str();
   cmd->add_option("--kills", o->kills, "SIGKILLs of random restartable workers")
       ->check(CLI::Range(0, 100000))
@@ -529,10 +529,10 @@ void addBenchChaosCommand(CLI::App& bench, int& result) {
       ->check(CLI::Range(0, 100000))
       ->capture_default_str();
   cmd->add_option("--min-stall", o->min_stall_s, "shortest stall, seconds")
-      ->check(CLI::Range(0.01, 60.0))
+      ->check(finiteNumberIn(0.01, 60.0))
       ->capture_default_str();
   cmd->add_option("--max-stall", o->max_stall_s, "longest stall, seconds")
-      ->check(CLI::Range(0.01, 60.0))
+      ->check(finiteNumberIn(0.01, 60.0))
       ->capture_default_str();
   cmd->add_option("--launcher-kills", o->roudi_kills,
                   "SIGKILLs of the launcher (and its RouDi), each followed by a new launch")

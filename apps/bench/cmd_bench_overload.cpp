@@ -10,6 +10,7 @@
 // and what crosses between processes is judged by the launch's delivery ledger.
 #include "bench_commands.hpp"
 #include "child_process.hpp"
+#include "cli_inputs.hpp"
 
 #include <tessera/runtime/process_stats.hpp>
 
@@ -270,9 +271,9 @@ void addBenchOverloadCommand(CLI::App& bench, int& result) {
   cmd->add_option("--profiles", o->profiles, "profiles to run (default: all that can run here)")
       ->delimiter(',');
   cmd->add_option("--factor", o->factor, "sensor rate factor (the run's --rate)")
-      ->check(CLI::Range(0.1, 1000.0));
+      ->check(finiteNumberIn(0.1, 1000.0));
   cmd->add_option("--seconds", o->seconds, "wall seconds of data per profile")
-      ->check(CLI::Range(1.0, 3600.0));
+      ->check(finiteNumberIn(1.0, 3600.0));
   cmd->add_option("--data", o->data, "datasets folder");
   cmd->add_option("--out", o->out, "folder for the runs' outputs");
   cmd->add_flag("--launch", o->launch,

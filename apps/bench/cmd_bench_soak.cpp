@@ -11,6 +11,7 @@
 // keyframes; 3D, rigid alignment) and its loops.csv's accepted loops against ground_truth.tum.
 #include "bench_commands.hpp"
 #include "child_process.hpp"
+#include "cli_inputs.hpp"
 
 #include <tessera/evaluation/loop_log.hpp>
 #include <tessera/evaluation/loop_metrics.hpp>
@@ -216,9 +217,10 @@ void addBenchSoakCommand(CLI::App& bench, int& result) {
       "lifelong operation: the simulated office driven for H simulated hours; RSS, CPU per "
       "scan, ATE and graph size per hour, false loop closures (soak.json, soak.svg)");
   auto o = std::make_shared<Options>();
-  cmd->add_option("--hours", o->hours, "simulated hours to drive")->check(CLI::Range(0.01, 1000.0));
+  cmd->add_option("--hours", o->hours, "simulated hours to drive")
+      ->check(finiteNumberIn(0.01, 1000.0));
   cmd->add_option("--period-hours", o->period_h, "hours between samples (1: one row per hour)")
-      ->check(CLI::Range(0.001, 1000.0));
+      ->check(finiteNumberIn(0.001, 1000.0));
   cmd->add_option("--profile", o->profile,
                   "profile to soak (needs the resource_monitor actor 'monitor', a 'sim' "
                   "simulator and trajectory.tum / ground_truth.tum writers); sim_rgbd_lifelong: "

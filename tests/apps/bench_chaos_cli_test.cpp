@@ -69,4 +69,13 @@ TEST_CASE("bench chaos refuses a simulated-time profile and one with nothing to 
   const auto stalls = runCli("bench chaos --min-stall 4 --max-stall 3", dir);
   CHECK(stalls.exit_code != 0);
   CHECK(stalls.err.find("--min-stall 4") != std::string::npos);
+  for (const std::string option : {"--min-stall", "--max-stall", "--duration"}) {
+    for (const std::string value : {"nan", "''", "3s"}) {
+      INFO(option << " " << value);
+      const auto bad = runCli("bench chaos " + option + " " + value, dir);
+      CHECK(bad.exit_code != 0);
+      CHECK(bad.err.find(option) != std::string::npos);
+      CHECK(bad.err.find("finite number") != std::string::npos);
+    }
+  }
 }

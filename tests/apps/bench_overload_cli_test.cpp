@@ -41,4 +41,7 @@ TEST_CASE("bench overload names a bad option", "[bench_overload]") {
   const auto bad = runCli("bench overload --factor 0", dir);
   CHECK(bad.exit_code != 0);
   CHECK(bad.err.find("factor") != std::string::npos);
+  const auto nan = runCli("bench overload --factor nan", dir);
+  CHECK(nan.exit_code != 0);
+  CHECK(nan.err.find("finite number") != std::string::npos);
 }

@@ -90,6 +90,7 @@ TEST_CASE("launch refuses an --orphan-grace that is not a positive number of sec
     const auto run = runCli("launch sim_mapping --orphan-grace " + value, dir);
     CHECK(run.exit_code != 0);
     CHECK(run.err.find("--orphan-grace") != std::string::npos);
+    CHECK(run.err.find("finite number") != std::string::npos);
   }
 }
 
