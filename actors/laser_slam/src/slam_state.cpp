@@ -247,18 +247,160 @@ void writeCells(const fs::path& path, const std::vector<std::int8_t>& cells) {
   writeStateFile(path, {reinterpret_cast<const char*>(cells.data()), cells.size()});
 }
 
+std::string versionProblem(int version) {
+  if (version >= SlamState::kOldestFormatVersion && version <= SlamState::kFormatVersion) return {};
+  return "version: this build writes version " + std::to_string(SlamState::kFormatVersion) +
+         " (from states of versions " + std::to_string(SlamState::kOldestFormatVersion) + " to " +
+         std::to_string(SlamState::kFormatVersion) + "), the state says " + std::to_string(version);
+}
+
+std::string cameraAt(std::size_t k, const SavedCamera& c) {
+  return "cameras[" + std::to_string(k) + "] (camera " + std::to_string(c.camera) + "): ";
+}
+
 }  // namespace
 
+/// What state.yaml says of a submap once its cells are on disk.
+struct SlamStateWriter::Impl {
+  struct SubmapHeader {
+    tessera::Pose2 origin;
+    bool finished = true;
+    double resolution = 0;
+    int width = 0;
+    int height = 0;
+    tessera::Pose2 grid_origin;
+    std::string file;
+    std::uint64_t checksum = 0;
+  };
+  fs::path dir;
+  fs::path yaml_path;
+  std::string frame_id;
+  std::map<int, SubmapHeader> submaps;
+  std::set<int> ids;
+  std::vector<SavedConstraint> constraints;
+  std::map<int, SavedCamera> cameras;
+  std::size_t cameras_added = 0;
+  bool dir_ready = false;
+  bool finished = false;
+
+  void ensureDirectory() {
+    if (dir_ready) return;
+    std::error_code ec;
+    fs::create_directories(dir, ec);
+    if (ec) fail(dir, "cannot create directory: " + ec.message());
+    dir_ready = true;
+  }
+  void checkOpen() const {
+    if (finished) fail(yaml_path, "already written: a writer writes one state");
+  }
+};
+
+SlamStateWriter::SlamStateWriter(fs::path dir, std::string frame_id, int format_version)
+    : impl_(std::make_unique<Impl>()) {
+  impl_->yaml_path = dir / kStateFile;
+  impl_->dir = std::move(dir);
+  if (const std::string p = versionProblem(format_version); !p.empty()) fail(impl_->yaml_path, p);
+  if (frame_id.empty()) fail(impl_->yaml_path, "frame_id: must not be empty");
+  impl_->frame_id = std::move(frame_id);
+}
+
+SlamStateWriter::~SlamStateWriter() = default;
+
+std::size_t SlamStateWriter::submaps() const {
+  return impl_->submaps.size();
+}
+
+void SlamStateWriter::addSubmap(const SavedSubmap& s) {
+  Impl& m = *impl_;
+  m.checkOpen();
+  if (const std::string p = submapProblem(s); !p.empty())
+    fail(m.yaml_path, "submap " + std::to_string(s.id) + ": " + p);
+  if (m.ids.count(s.id)) fail(m.yaml_path, "submap " + std::to_string(s.id) + ": id: twice");
+  m.ensureDirectory();
+  Impl::SubmapHeader h{s.origin,      s.finished,    s.grid.resolution,  s.grid.width,
+                       s.grid.height, s.grid.origin, cellFileName(s.id), fnv1a64(s.grid.cells)};
+  writeCells(m.dir / h.file, s.grid.cells);
+  m.submaps.emplace(s.id, std::move(h));
+  m.ids.insert(s.id);
+}
+
+void SlamStateWriter::addConstraint(const SavedConstraint& c) {
+  Impl& m = *impl_;
+  m.checkOpen();
+  if (const std::string p = constraintProblem(c, m.ids); !p.empty())
+    fail(m.yaml_path, "constraints[" + std::to_string(m.constraints.size()) + "]: " + p);
+  m.constraints.push_back(c);
+}
+
+void SlamStateWriter::addCamera(const SavedCamera& c) {
+  Impl& m = *impl_;
+  m.checkOpen();
+  const std::string at = cameraAt(m.cameras_added, c);
+  if (const std::string p = cameraProblem(c, m.ids); !p.empty()) fail(m.yaml_path, at + p);
+  if (!m.cameras.emplace(c.camera, c).second) fail(m.yaml_path, at + "id: twice");
+  ++m.cameras_added;
+}
+
+void SlamStateWriter::finish() {
+  Impl& m = *impl_;
+  m.checkOpen();
+  m.ensureDirectory();
+  std::ostringstream y;
+  YAML::Emitter frame;
+  frame << m.frame_id;
+  y << "# Tessera laser SLAM state (docs/architecture.md#saved-slam-state)\n"
+    << "format: " << SlamState::kFormatName << "\n"
+    << "version: " << SlamState::kFormatVersion << "\n"
+    << "frame_id: " << frame.c_str() << "\n"
+    << "submaps:" << (m.submaps.empty() ? " []" : "") << "\n";
+  for (const auto& [id, s] : m.submaps) {
+    y << "  - id: " << id << "\n"
+      << "    origin: " << poseText(s.origin) << "\n"
+      << "    finished: " << (s.finished ? "true" : "false") << "\n"
+      << "    resolution: " << numberText(s.resolution) << "\n"
+      << "    width: " << s.width << "\n"
+      << "    height: " << s.height << "\n"
+      << "    grid_origin: " << poseText(s.grid_origin) << "\n"
+      << "    file: " << s.file << "\n"
+      << "    fnv1a64: \"" << hexText(s.checksum) << "\"\n";
+  }
+  y << "constraints:" << (m.constraints.empty() ? " []" : "") << "\n";
+  for (const SavedConstraint& c : m.constraints) {
+    y << "  - from: " << c.from << "\n"
+      << "    to: " << c.to << "\n"
+      << "    kind: " << (c.revisit ? "revisit" : "hand_over") << "\n"
+      << "    relative: " << poseText(c.relative) << "\n"
+      << "    information: [";
+    for (int r = 0; r < 3; ++r)
+      for (int k = 0; k < 3; ++k)
+        y << numberText(c.information(r, k)) << (r == 2 && k == 2 ? "" : ", ");
+    y << "]\n";
+  }
+  y << "cameras:" << (m.cameras.empty() ? " []" : "") << "\n";
+  for (const auto& [id, c] : m.cameras) {
+    y << "  - id: " << c.camera << "\n"
+      << "    submap: " << c.submap << "\n"
+      << "    stamp_ns: " << c.stamp_ns << "\n"
+      << "    homography: [";
+    for (int r = 0; r < 3; ++r)
+      for (int k = 0; k < 3; ++k)
+        y << numberText(c.floor_to_pixel(r, k)) << (r == 2 && k == 2 ? "" : ", ");
+    y << "]\n"
+      << "    rms_px: " << numberText(c.rms_px) << "\n"
+      << "    coverage: " << numberText(c.coverage) << "\n"
+      << "    condition: " << numberText(c.condition) << "\n"
+      << "    pairs: " << c.pairs << "\n"
+      << "    inliers: " << c.inliers << "\n";
+  }
+  // state.yaml appears only once complete: written aside, then renamed over any older one.
+  writeStateFile(m.yaml_path, y.str());
+  m.finished = true;
+}
+
 void saveSlamState(const SlamState& state, const fs::path& dir) {
+  SlamStateWriter writer(dir, state.frame_id, state.format_version);
+  // The whole state is checked before any file is written; the writer checks each part again.
   const fs::path yaml_path = dir / kStateFile;
-  if (state.format_version < SlamState::kOldestFormatVersion ||
-      state.format_version > SlamState::kFormatVersion)
-    fail(yaml_path, "version: this build writes version " +
-                        std::to_string(SlamState::kFormatVersion) + " (from states of versions " +
-                        std::to_string(SlamState::kOldestFormatVersion) + " to " +
-                        std::to_string(SlamState::kFormatVersion) + "), the state says " +
-                        std::to_string(state.format_version));
-  if (state.frame_id.empty()) fail(yaml_path, "frame_id: must not be empty");
   std::vector<const SavedSubmap*> submaps;
   std::set<int> ids;
   for (const SavedSubmap& s : state.submaps) {
@@ -272,74 +414,17 @@ void saveSlamState(const SlamState& state, const fs::path& dir) {
   for (std::size_t k = 0; k < state.constraints.size(); ++k)
     if (const std::string p = constraintProblem(state.constraints[k], ids); !p.empty())
       fail(yaml_path, "constraints[" + std::to_string(k) + "]: " + p);
-  std::vector<const SavedCamera*> cameras;
   std::set<int> camera_ids;
   for (std::size_t k = 0; k < state.cameras.size(); ++k) {
     const SavedCamera& c = state.cameras[k];
-    const std::string at =
-        "cameras[" + std::to_string(k) + "] (camera " + std::to_string(c.camera) + "): ";
-    if (const std::string p = cameraProblem(c, ids); !p.empty()) fail(yaml_path, at + p);
-    if (!camera_ids.insert(c.camera).second) fail(yaml_path, at + "id: twice");
-    cameras.push_back(&c);
+    if (const std::string p = cameraProblem(c, ids); !p.empty())
+      fail(yaml_path, cameraAt(k, c) + p);
+    if (!camera_ids.insert(c.camera).second) fail(yaml_path, cameraAt(k, c) + "id: twice");
   }
-  std::sort(cameras.begin(), cameras.end(),
-            [](const SavedCamera* a, const SavedCamera* b) { return a->camera < b->camera; });
-
-  std::error_code ec;
-  fs::create_directories(dir, ec);
-  if (ec) fail(dir, "cannot create directory: " + ec.message());
-
-  std::ostringstream y;
-  YAML::Emitter frame;
-  frame << state.frame_id;
-  y << "# Tessera laser SLAM state (docs/architecture.md#saved-slam-state)\n"
-    << "format: " << SlamState::kFormatName << "\n"
-    << "version: " << SlamState::kFormatVersion << "\n"
-    << "frame_id: " << frame.c_str() << "\n"
-    << "submaps:" << (submaps.empty() ? " []" : "") << "\n";
-  for (const SavedSubmap* s : submaps) {
-    const std::string file = cellFileName(s->id);
-    writeCells(dir / file, s->grid.cells);
-    y << "  - id: " << s->id << "\n"
-      << "    origin: " << poseText(s->origin) << "\n"
-      << "    finished: " << (s->finished ? "true" : "false") << "\n"
-      << "    resolution: " << numberText(s->grid.resolution) << "\n"
-      << "    width: " << s->grid.width << "\n"
-      << "    height: " << s->grid.height << "\n"
-      << "    grid_origin: " << poseText(s->grid.origin) << "\n"
-      << "    file: " << file << "\n"
-      << "    fnv1a64: \"" << hexText(fnv1a64(s->grid.cells)) << "\"\n";
-  }
-  y << "constraints:" << (state.constraints.empty() ? " []" : "") << "\n";
-  for (const SavedConstraint& c : state.constraints) {
-    y << "  - from: " << c.from << "\n"
-      << "    to: " << c.to << "\n"
-      << "    kind: " << (c.revisit ? "revisit" : "hand_over") << "\n"
-      << "    relative: " << poseText(c.relative) << "\n"
-      << "    information: [";
-    for (int r = 0; r < 3; ++r)
-      for (int k = 0; k < 3; ++k)
-        y << numberText(c.information(r, k)) << (r == 2 && k == 2 ? "" : ", ");
-    y << "]\n";
-  }
-  y << "cameras:" << (cameras.empty() ? " []" : "") << "\n";
-  for (const SavedCamera* c : cameras) {
-    y << "  - id: " << c->camera << "\n"
-      << "    submap: " << c->submap << "\n"
-      << "    stamp_ns: " << c->stamp_ns << "\n"
-      << "    homography: [";
-    for (int r = 0; r < 3; ++r)
-      for (int k = 0; k < 3; ++k)
-        y << numberText(c->floor_to_pixel(r, k)) << (r == 2 && k == 2 ? "" : ", ");
-    y << "]\n"
-      << "    rms_px: " << numberText(c->rms_px) << "\n"
-      << "    coverage: " << numberText(c->coverage) << "\n"
-      << "    condition: " << numberText(c->condition) << "\n"
-      << "    pairs: " << c->pairs << "\n"
-      << "    inliers: " << c->inliers << "\n";
-  }
-  // state.yaml appears only once complete: written aside, then renamed over any older one.
-  writeStateFile(yaml_path, y.str());
+  for (const SavedSubmap* s : submaps) writer.addSubmap(*s);
+  for (const SavedConstraint& c : state.constraints) writer.addConstraint(c);
+  for (const SavedCamera& c : state.cameras) writer.addCamera(c);
+  writer.finish();
 }
 
 SlamState loadSlamState(const fs::path& dir) {

@@ -428,3 +428,65 @@ TEST_CASE("slam state asymmetric or indefinite information is refused on save", 
                     Contains("constraints[1]") && Contains("positive semidefinite"));
   CHECK_FALSE(fs::exists(dir / "state.yaml"));
 }
+
+TEST_CASE("slam state writer fed one submap at a time writes what saveSlamState writes",
+          "[slam_state]") {
+  const fs::path root = test::scratchDir("slam_state_writer");
+  const SlamState state = sampleState();
+  laser_slam::saveSlamState(state, root / "whole");
+  {
+    laser_slam::SlamStateWriter writer(root / "streamed", state.frame_id);
+    // Out of id order, each grid a temporary the writer does not keep.
+    for (const int k : {2, 0, 1}) writer.addSubmap(SavedSubmap(state.submaps[k]));
+    CHECK(writer.submaps() == 3);
+    CHECK_FALSE(fs::exists(root / "streamed" / "state.yaml"));  // only once finished
+    for (const SavedConstraint& c : state.constraints) writer.addConstraint(c);
+    for (const SavedCamera& c : state.cameras) writer.addCamera(c);
+    writer.finish();
+    CHECK_THROWS_WITH(writer.finish(), Contains("already written"));
+  }
+  CHECK(readText(root / "streamed" / "state.yaml") == readText(root / "whole" / "state.yaml"));
+  for (const char* f : {"submap_0000.cells", "submap_0001.cells", "submap_0003.cells"})
+    CHECK(readText(root / "streamed" / f) == readText(root / "whole" / f));
+  const SlamState loaded = laser_slam::loadSlamState(root / "streamed");
+  REQUIRE(loaded.submaps.size() == 3);
+  CHECK(loaded.submaps[2].grid.cells == state.submaps[2].grid.cells);
+}
+
+TEST_CASE(
+    "slam state writer refuses parts that name submaps not yet added and writes no "
+    "state.yaml",
+    "[slam_state]") {
+  const fs::path root = test::scratchDir("slam_state_writer_bad");
+  const SlamState state = sampleState();
+  CHECK_THROWS_WITH(laser_slam::SlamStateWriter(root / "a", ""), Contains("frame_id"));
+  CHECK_THROWS_WITH(laser_slam::SlamStateWriter(root / "a", "map", 3),
+                    Contains("state.yaml") && Contains("the state says 3"));
+  CHECK_FALSE(fs::exists(root / "a"));  // nothing created for a refused writer
+
+  laser_slam::SlamStateWriter writer(root / "b", "map");
+  writer.addSubmap(state.submaps[0]);
+  CHECK_THROWS_WITH(writer.addSubmap(state.submaps[0]), Contains("submap 0: id: twice"));
+  // Constraint 0 -> 1 before submap 1 was added.
+  CHECK_THROWS_WITH(writer.addConstraint(state.constraints[0]),
+                    Contains("constraints[0]") && Contains("to: names submap 1, not saved"));
+  CHECK_THROWS_WITH(writer.addCamera(state.cameras[1]),
+                    Contains("cameras[0] (camera 2)") && Contains("names submap 1, not saved"));
+  SavedSubmap bad = state.submaps[1];
+  bad.grid.cells[7] = 101;
+  CHECK_THROWS_WITH(writer.addSubmap(bad), Contains("submap 1: cells: value 101 at index 7"));
+  bad.grid.cells.pop_back();
+  CHECK_THROWS_WITH(writer.addSubmap(bad), Contains("submap 1: cells:"));
+  bad = state.submaps[1];
+  bad.origin.x = std::numeric_limits<double>::quiet_NaN();
+  CHECK_THROWS_WITH(writer.addSubmap(bad), Contains("submap 1: origin: must be finite"));
+  CHECK_FALSE(fs::exists(root / "b" / "submap_0001.cells"));
+  CHECK_FALSE(fs::exists(root / "b" / "state.yaml"));
+  // The refused parts left the writer usable.
+  writer.addSubmap(state.submaps[1]);
+  writer.addConstraint(state.constraints[0]);
+  writer.finish();
+  const SlamState loaded = laser_slam::loadSlamState(root / "b");
+  CHECK(loaded.submaps.size() == 2);
+  CHECK(loaded.constraints.size() == 1);
+}

@@ -284,43 +284,48 @@ void MapAssemblerActor::stop() {
 }
 
 void MapAssemblerActor::writeState() {
-  SlamState state;
-  state.frame_id = options_.frame_id;
-  std::set<int> ids;
-  for (const auto& [id, finished] : finished_) {
-    if (!assembler_.hasPose(id)) continue;
-    std::optional<tessera::grid::OccupancyMap> grid = assembler_.grid(id);  // unpacked
-    if (!grid) continue;
-    state.submaps.push_back({id, assembler_.pose(id), std::move(*grid), finished});
-    ids.insert(id);
-  }
-  if (state.submaps.empty()) return;
-  for (const SavedConstraint& c : kept_) {
-    if (ids.count(c.from) && ids.count(c.to)) {
-      state.constraints.push_back(c);
-    } else {
-      std::cerr << "[map_assembler] constraint " << c.from << " -> " << c.to
-                << " names a submap that never arrived; not saved\n";
-      ++constraints_unsaved_;
-    }
-  }
-  for (const auto& [id, c] : cameras_) {
-    if (ids.count(c.submap)) {
-      state.cameras.push_back(c);
-    } else {
-      std::cerr << "[map_assembler] camera " << id << " was calibrated in submap " << c.submap
-                << ", which never arrived; not saved\n";
-      ++cameras_unsaved_;
-    }
-  }
+  // Written one submap at a time: only one submap is unpacked at once (the packed cells stay in
+  // the assembler), so saving adds one grid to the end-of-run peak, not the whole map.
   // stop() must not throw: a failed write is logged and reported in the summary.
   const std::filesystem::path dir = std::filesystem::path(output_dir_) / options_.state_dir;
   try {
-    saveSlamState(state, dir);
+    SlamStateWriter writer(dir, options_.frame_id);  // creates nothing until the first submap
+    std::set<int> ids;
+    for (const auto& [id, finished] : finished_) {
+      if (!assembler_.hasPose(id)) continue;
+      std::optional<tessera::grid::OccupancyMap> grid = assembler_.grid(id);  // unpacked
+      if (!grid) continue;
+      writer.addSubmap({id, assembler_.pose(id), std::move(*grid), finished});
+      ids.insert(id);
+    }
+    if (ids.empty()) return;
+    std::size_t constraints = 0;
+    for (const SavedConstraint& c : kept_) {
+      if (ids.count(c.from) && ids.count(c.to)) {
+        writer.addConstraint(c);
+        ++constraints;
+      } else {
+        std::cerr << "[map_assembler] constraint " << c.from << " -> " << c.to
+                  << " names a submap that never arrived; not saved\n";
+        ++constraints_unsaved_;
+      }
+    }
+    std::size_t cameras = 0;
+    for (const auto& [id, c] : cameras_) {
+      if (ids.count(c.submap)) {
+        writer.addCamera(c);
+        ++cameras;
+      } else {
+        std::cerr << "[map_assembler] camera " << id << " was calibrated in submap " << c.submap
+                  << ", which never arrived; not saved\n";
+        ++cameras_unsaved_;
+      }
+    }
+    writer.finish();
     state_path_ = dir.string();
-    state_submaps_ = state.submaps.size();
-    state_constraints_ = state.constraints.size();
-    state_cameras_ = state.cameras.size();
+    state_submaps_ = ids.size();
+    state_constraints_ = constraints;
+    state_cameras_ = cameras;
   } catch (const std::exception& e) {
     state_error_ = e.what();
     std::cerr << "[map_assembler] saving the SLAM state failed: " << state_error_ << "\n";

@@ -31,6 +31,7 @@
 
 #include <cstdint>
 #include <filesystem>
+#include <memory>
 #include <stdexcept>
 #include <string>
 #include <vector>
@@ -77,9 +78,37 @@ struct SlamState {
 };
 
 /// Writes `state` into directory `dir` (created if needed): the cell files first, state.yaml
-/// last, so an interrupted save leaves no state.yaml that names missing files. Checks the state
-/// as loadSlamState() would first. Throws SlamStateError.
+/// last, so an interrupted save leaves no state.yaml that names missing files. Checks the whole
+/// state as loadSlamState() would before writing anything. Throws SlamStateError.
 void saveSlamState(const SlamState& state, const std::filesystem::path& dir);
+
+/// Writes a state one submap at a time, for a caller that keeps its submaps packed
+/// (MapAssembler) and should not hold them all unpacked at once: addSubmap() checks a submap and
+/// writes its cell file at once, so the grid can be freed right after; addConstraint() and
+/// addCamera() need the submaps they name added before; finish() writes state.yaml, last. The
+/// files, checks and error texts are saveSlamState()'s (which uses this writer); a check that
+/// fails throws SlamStateError and leaves no new state.yaml. Holds only each submap's header.
+class SlamStateWriter {
+ public:
+  /// Checks `format_version` and `frame_id`; the directory is created at the first write.
+  SlamStateWriter(std::filesystem::path dir, std::string frame_id,
+                  int format_version = SlamState::kFormatVersion);
+  ~SlamStateWriter();
+  SlamStateWriter(const SlamStateWriter&) = delete;
+  SlamStateWriter& operator=(const SlamStateWriter&) = delete;
+
+  void addSubmap(const SavedSubmap& submap);
+  void addConstraint(const SavedConstraint& constraint);
+  void addCamera(const SavedCamera& camera);
+  /// Writes state.yaml (submaps and cameras by increasing id, constraints as added); once.
+  void finish();
+
+  std::size_t submaps() const;
+
+ private:
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
+};
 
 /// Reads a state written by saveSlamState() (version 1 or 2); submaps and cameras by increasing
 /// id. Throws SlamStateError.
