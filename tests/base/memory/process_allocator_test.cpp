@@ -59,7 +59,8 @@ TEST_CASE("tuned allocator maps a 1 MiB block on its own after an 8 MiB block wa
   CHECK(ownMappedBytes() == before);  // unmapped: back to the system
 }
 
-TEST_CASE("tuned allocator leaves a setting the environment makes to the environment", "[memory]") {
+TEST_CASE("tuned allocator leaves a setting the environment makes to the environment",
+          "[memory]") {
   if (kSanitizerAllocator) return;
   const char* had = std::getenv("MALLOC_ARENA_MAX");
   setenv("MALLOC_ARENA_MAX", "4", 1);
