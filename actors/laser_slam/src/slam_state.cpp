@@ -279,7 +279,6 @@ struct SlamStateWriter::Impl {
   std::set<int> ids;
   std::vector<SavedConstraint> constraints;
   std::map<int, SavedCamera> cameras;
-  std::size_t cameras_added = 0;
   bool dir_ready = false;
   bool finished = false;
 
@@ -335,10 +334,9 @@ void SlamStateWriter::addConstraint(const SavedConstraint& c) {
 void SlamStateWriter::addCamera(const SavedCamera& c) {
   Impl& m = *impl_;
   m.checkOpen();
-  const std::string at = cameraAt(m.cameras_added, c);
+  const std::string at = cameraAt(m.cameras.size(), c);
   if (const std::string p = cameraProblem(c, m.ids); !p.empty()) fail(m.yaml_path, at + p);
   if (!m.cameras.emplace(c.camera, c).second) fail(m.yaml_path, at + "id: twice");
-  ++m.cameras_added;
 }
 
 void SlamStateWriter::finish() {
