@@ -14,6 +14,7 @@ namespace tessera::camera_network {
 ConfigCheck CameraConstraintBuilderOptions::check() const {
   if (ConfigCheck c = calibration.check(); c.problem()) return c;
   if (ConfigCheck c = revisit.check(); c.problem()) return c;
+  if (ConfigCheck c = visit_path.check(); c.problem()) return c;
   ConfigCheck c;
   c.require(marker.size() == 2 && std::isfinite(marker[0]) && std::isfinite(marker[1]), "marker",
             "must be [x, y] with finite values, got size", static_cast<double>(marker.size()))
@@ -143,7 +144,7 @@ std::vector<CameraOutput> CameraConstraintBuilder::release(bool all) {
 
 std::optional<CameraOutput> CameraConstraintBuilder::calibrate(
     int camera, const std::vector<CameraSighting>& sightings, std::uint32_t submap,
-    std::int64_t stamp_ns) {
+    std::int64_t stamp_ns, const std::vector<Pose2>* slam) {
   std::vector<FloorPixelPair> pairs;
   double pixel_std = 0;
   for (const auto& s : sightings) {
@@ -159,8 +160,37 @@ std::optional<CameraOutput> CameraConstraintBuilder::calibrate(
     o.reason = "no sightings";
     return o;
   }
-  const auto r = estimateFloorHomography(pairs, options_.image_width_px, options_.image_height_px,
-                                         pixel_std, options_.calibration);
+  auto r = estimateFloorHomography(pairs, options_.image_width_px, options_.image_height_px,
+                                   pixel_std, options_.calibration);
+  if (r.homography && slam && slam->size() == sightings.size() && options_.visit_path.enabled) {
+    std::vector<std::int64_t> stamps;
+    std::vector<Pose2> poses, anchor;
+    std::vector<Eigen::Vector2d> pixels;
+    const auto origin = origins_.find(submap);
+    const Pose2 from_chained =
+        origin == origins_.end() ? Pose2::identity() : origin->second.inverse();
+    for (std::size_t k = 0; k < sightings.size(); ++k) {
+      stamps.push_back(sightings[k].stamp_ns);
+      poses.push_back(from_chained * sightings[k].robot);
+      anchor.push_back(from_chained * (*slam)[k]);
+      pixels.push_back(sightings[k].pixel);
+    }
+    const auto path =
+        refineVisitPath(stamps, poses, anchor, pixels, marker_, *r.homography, pixel_std,
+                        options_.calibration.ransac_threshold_px, options_.visit_path);
+    if (!path.poses.empty()) {
+      std::vector<FloorPixelPair> refined;
+      for (std::size_t k = 0; k < sightings.size(); ++k)
+        refined.push_back({path.poses[k] * marker_, sightings[k].pixel});
+      auto again =
+          estimateFloorHomography(refined, options_.image_width_px, options_.image_height_px,
+                                  pixel_std, options_.calibration);
+      if (again.homography) {
+        r = std::move(again);
+        ++refined_paths_;
+      }
+    }
+  }
   if (!r.homography) {
     o.kind = CameraOutput::Kind::kCalibrationRefused;
     o.reason = r.refusal;
@@ -244,14 +274,24 @@ bool CameraConstraintBuilder::placeOdometryShape(std::vector<CameraSighting>& si
 
 std::vector<CameraOutput> CameraConstraintBuilder::process(HeldVisit visit) {
   std::vector<CameraOutput> out;
-  if (options_.odometry_shape && placeOdometryShape(visit.sightings)) ++odometry_shaped_;
+  // The SLAM's poses of a visit whose whole path becomes the odometry's (visit_path).
+  std::vector<Pose2> slam;
+  for (const auto& s : visit.sightings) slam.push_back(s.robot);
+  bool shaped = false;
+  if (options_.odometry_shape && placeOdometryShape(visit.sightings)) {
+    ++odometry_shaped_;
+    shaped = std::all_of(visit.sightings.begin(), visit.sightings.end(),
+                         [](const CameraSighting& s) { return s.odometry.has_value(); });
+  }
+  const std::vector<Pose2>* shaped_from = shaped ? &slam : nullptr;
   const int camera = visit.camera;
   const std::int64_t stamp_ns = visit.stamp_ns;
   const std::vector<CameraSighting>& sightings = visit.sightings;
 
   const auto cal = calibrations_.find(camera);
   if (cal == calibrations_.end()) {
-    if (auto o = calibrate(camera, sightings, visit.submap, stamp_ns)) out.push_back(std::move(*o));
+    if (auto o = calibrate(camera, sightings, visit.submap, stamp_ns, shaped_from))
+      out.push_back(std::move(*o));
     return out;
   }
   const CameraCalibration calibration = cal->second;
@@ -290,7 +330,7 @@ std::vector<CameraOutput> CameraConstraintBuilder::process(HeldVisit visit) {
     out.push_back(o);
     if (disagrees && ++strikes_[camera] >= options_.stale_visits) {
       calibrations_.erase(camera);
-      if (auto c = calibrate(camera, sightings, visit.submap, stamp_ns))
+      if (auto c = calibrate(camera, sightings, visit.submap, stamp_ns, shaped_from))
         out.push_back(std::move(*c));
     } else if (!disagrees) {
       strikes_[camera] = 0;
@@ -307,7 +347,7 @@ std::vector<CameraOutput> CameraConstraintBuilder::process(HeldVisit visit) {
                            fit.measured.extent_m >= options_.revisit.min_extent_m;
     if (disagrees && ++strikes_[camera] >= options_.stale_visits) {
       calibrations_.erase(camera);
-      if (auto c = calibrate(camera, sightings, visit.submap, stamp_ns))
+      if (auto c = calibrate(camera, sightings, visit.submap, stamp_ns, shaped_from))
         out.push_back(std::move(*c));
     }
     return out;

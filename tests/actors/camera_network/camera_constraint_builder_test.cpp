@@ -412,12 +412,14 @@ TEST_CASE("odometry that is not finite is ignored and long visits keep the SLAM'
 
 TEST_CASE("the odometry path is placed where the SLAM's is", "[camera_network][revisit]") {
   // Exact SLAM and exact odometry in another frame: the calibration and the revisit after it are
-  // the same as from the SLAM alone.
+  // the same as from the SLAM alone (without the visit path's refinement, which would fit the
+  // pixels' noise into the path).
   const Pose2 odom_frame(3.0, -2.0, -0.6);
   const auto run = [&](bool shape) {
     CameraWorld w;
     CameraConstraintBuilderOptions o = onlineOptions();
     o.odometry_shape = shape;
+    o.visit_path.enabled = false;
     CameraConstraintBuilder b(o);
     const auto withOdometry = [&](CameraSighting s) {
       s.odometry = odom_frame * s.robot;
@@ -440,6 +442,30 @@ TEST_CASE("the odometry path is placed where the SLAM's is", "[camera_network][r
   CHECK(std::abs(tessera::angleDiff(a.theta, b.theta)) < 1e-8);
 }
 
+TEST_CASE("only a calibration visit shaped by the odometry has its path refined",
+          "[camera_network][revisit]") {
+  const Pose2 odom_frame(3.0, -2.0, -0.6);
+  const auto run = [&](bool shape, bool refine) {
+    CameraWorld w;
+    CameraConstraintBuilderOptions o = onlineOptions();
+    o.odometry_shape = shape;
+    o.visit_path.enabled = refine;
+    CameraConstraintBuilder b(o);
+    b.enter(w.camera.id(), w.t);
+    w.drive(1.0, 0.0, true, Pose2(), [&](CameraSighting s) {
+      s.odometry = odom_frame * s.robot;
+      b.add(s);
+    });
+    const auto out = b.leave(w.camera.id(), w.t);
+    REQUIRE(out.size() == 1);
+    CHECK(out[0].kind == CameraOutput::Kind::kCalibrated);
+    return b.refinedVisitPaths();
+  };
+  CHECK(run(true, true) == 1);
+  CHECK(run(true, false) == 0);
+  CHECK(run(false, true) == 0);
+}
+
 TEST_CASE("camera constraint builder options are checked", "[camera_network][revisit]") {
   CameraConstraintBuilderOptions o;
   o.marker = {0.1};
@@ -450,6 +476,9 @@ TEST_CASE("camera constraint builder options are checked", "[camera_network][rev
   o = {};
   o.revisit.max_rms_m = std::nan("");
   CHECK_THROWS_WITH(CameraConstraintBuilder(o), Catch::Contains("max_rms_m"));
+  o = {};
+  o.visit_path.distance_var_per_m = -1;
+  CHECK_THROWS_WITH(CameraConstraintBuilder(o), Catch::Contains("distance_var_per_m"));
   o = {};
   o.relocalisation_covariance_scale = 0.5;
   CHECK_THROWS_WITH(CameraConstraintBuilder(o), Catch::Contains("relocalisation_covariance_scale"));

@@ -330,6 +330,7 @@ void CameraNetworkSlamActor::summarize(Summary& out) const {
     out["sightings_with_odometry"] = sightings_with_odometry_;
     out["odometry_ignored"] = odom_ignored_;
     out["visits_odometry_shaped"] = static_cast<std::int64_t>(builder_.odometryShapedVisits());
+    out["calibration_paths_refined"] = static_cast<std::int64_t>(builder_.refinedVisitPaths());
   }
   out["sightings_unpaired"] = static_cast<std::int64_t>(pairing_.unpaired());
   out["sightings_ignored"] = static_cast<std::int64_t>(builder_.ignoredSightings());

@@ -45,12 +45,18 @@
 // scan matching wanders by centimetres (docs/algorithms.md#camera-network-calibration); the SLAM
 // still says where the path is in its submap. Sightings without odometry keep the SLAM's pose,
 // and visits longer than odometry_shape_max_s (where odometry drifts) are not reshaped.
+// Visit path (visit_path, the default): a calibration visit shaped by the odometry is first
+// calibrated as it is; then its path and the homography are refined together
+// (refineVisitPath: the wheels' random error bends the path by about a pixel over a loop) and
+// the camera is calibrated again on the corrected path, placed on the SLAM's poses of the visit;
+// it is kept if that calibration is accepted. Revisits keep the odometry's path.
 // Nothing throws for bad data: non-finite sightings and sightings of unknown cameras are counted
 // and ignored.
 #pragma once
 
 #include <tessera/camera_network/camera_localization.hpp>
 #include <tessera/camera_network/floor_homography.hpp>
+#include <tessera/camera_network/visit_path.hpp>
 #include <tessera/config/config_check.hpp>
 #include <tessera/geometry/pose2.hpp>
 
@@ -87,6 +93,8 @@ struct CameraConstraintBuilderOptions {
   int max_visit_sightings = 3000;  ///< a visit keeps at most this many (later ones are dropped)
   bool odometry_shape = true;
   double odometry_shape_max_s = 120.0;  ///< longer visits keep the SLAM's poses
+  /// An odometry-shaped calibration visit's path is refined with the camera's pixels first.
+  VisitPathOptions visit_path;
   /// The relocalisation's revisit (online poses) has its covariance multiplied by this (>= 1).
   double relocalisation_covariance_scale = 100.0;
 
@@ -110,6 +118,8 @@ struct CameraConstraintBuilderOptions {
       "path (sightings that carry odometry)");
     v("odometry_shape_max_s", odometry_shape_max_s,
       "visits longer than this [s] keep the SLAM's poses (odometry drifts)");
+    v("visit_path", visit_path,
+      "refine an odometry-shaped calibration visit's path with the camera's pixels");
     v("relocalisation_covariance_scale", relocalisation_covariance_scale,
       "multiply the covariance of a relocalisation's revisit (online poses, provisional) by this; "
       "the same visit refit on smoothed poses follows and outweighs it (smoothed_poses)");
@@ -189,6 +199,8 @@ class CameraConstraintBuilder {
   std::uint64_t ignoredSightings() const { return ignored_; }
   /// Visits whose path was the odometry's (odometry_shape).
   std::uint64_t odometryShapedVisits() const { return odometry_shaped_; }
+  /// Calibrations made on a path refined with the camera's pixels (visit_path).
+  std::uint64_t refinedVisitPaths() const { return refined_paths_; }
   /// Visits ended but held for their submaps' smoothed trajectories.
   std::size_t heldVisits() const { return held_.size(); }
 
@@ -207,8 +219,11 @@ class CameraConstraintBuilder {
   std::vector<CameraOutput> endVisit(int camera, std::int64_t stamp_ns);
   std::vector<CameraOutput> release(bool all);
   std::vector<CameraOutput> process(HeldVisit visit);
+  /// `slam`: set when every sighting's pose is the odometry's, the SLAM's poses they replaced
+  /// (visit_path refines the odometry's path and places it on them).
   std::optional<CameraOutput> calibrate(int camera, const std::vector<CameraSighting>& s,
-                                        std::uint32_t submap, std::int64_t stamp_ns);
+                                        std::uint32_t submap, std::int64_t stamp_ns,
+                                        const std::vector<Pose2>* slam);
   /// The chained pose at `stamp` from the smoothed trajectories (the first to end at or after it,
   /// if it has begun by then), or `online` when none holds it.
   Pose2 smoothed(std::int64_t stamp, const Pose2& online) const;
@@ -232,6 +247,7 @@ class CameraConstraintBuilder {
   std::map<int, int> strikes_;
   std::uint64_t ignored_ = 0;
   std::uint64_t odometry_shaped_ = 0;
+  std::uint64_t refined_paths_ = 0;
   std::optional<std::uint32_t> unanchored_since_;
 };
 
