@@ -455,7 +455,12 @@ TEST_CASE(
   // process and go to its own subscriber only.
   const auto pools = smallPools();
   const auto max_chunk = maxChunk(pools);
-  const auto done = test::freshDir("shm_cut_off") / "sender_done";
+  // The sender imports its own topic too, so its publisher has a subscriber before the receiver's
+  // has connected: it waits for the receiver's word (a file) before sending, or the first
+  // messages could go to its own import only (1 run in 6 did, receiving 0 of 10).
+  const auto dir = test::freshDir("shm_cut_off");
+  const auto done = dir / "sender_done";
+  const auto ready = dir / "receiver_ready";
   constexpr int kBefore = 10, kAfter = 100;
   checkPair(
       pools,
@@ -464,6 +469,7 @@ TEST_CASE(
                            MailboxPolicy::reliable(4),
                            std::make_unique<test::Recorder>(MailboxPolicy::reliable(4)));
         if (!rx.transport.waitForPublishers(10s)) return 5;
+        std::ofstream(ready) << "ready\n";
         const auto deadline = std::chrono::steady_clock::now() + 30s;
         while (!std::filesystem::exists(done) && std::chrono::steady_clock::now() < deadline)
           std::this_thread::sleep_for(10ms);
@@ -487,6 +493,10 @@ TEST_CASE(
         rt.start();
         transport.startReceiving();
         if (!transport.waitForPublishers(10s)) return 5;
+        const auto ready_by = std::chrono::steady_clock::now() + 10s;
+        while (!std::filesystem::exists(ready) && std::chrono::steady_clock::now() < ready_by)
+          std::this_thread::sleep_for(2ms);
+        if (!std::filesystem::exists(ready)) return 10;
         const auto publish = [&](int i) {
           auto loan = pub.loan(64);
           setHeader(loan->initHeader(), i, "test", pub.nextSeq());
