@@ -46,11 +46,15 @@ bool CameraConstraintBuilder::addSubmap(std::uint32_t id, const Pose2& origin, b
   return true;
 }
 
-Eigen::Vector2d CameraConstraintBuilder::markerIn(std::uint32_t submap,
-                                                  const Pose2& chained_robot) const {
+Pose2 CameraConstraintBuilder::poseIn(std::uint32_t submap, const Pose2& chained) const {
   const auto it = origins_.find(submap);
   const Pose2 origin = it == origins_.end() ? Pose2::identity() : it->second;
-  return (origin.inverse() * chained_robot) * marker_;
+  return origin.inverse() * chained;
+}
+
+Eigen::Vector2d CameraConstraintBuilder::markerIn(std::uint32_t submap,
+                                                  const Pose2& chained_robot) const {
+  return poseIn(submap, chained_robot) * marker_;
 }
 
 std::vector<CameraOutput> CameraConstraintBuilder::enter(int camera, std::int64_t stamp_ns) {
@@ -166,13 +170,10 @@ std::optional<CameraOutput> CameraConstraintBuilder::calibrate(
     std::vector<std::int64_t> stamps;
     std::vector<Pose2> poses, anchor;
     std::vector<Eigen::Vector2d> pixels;
-    const auto origin = origins_.find(submap);
-    const Pose2 from_chained =
-        origin == origins_.end() ? Pose2::identity() : origin->second.inverse();
     for (std::size_t k = 0; k < sightings.size(); ++k) {
       stamps.push_back(sightings[k].stamp_ns);
-      poses.push_back(from_chained * sightings[k].robot);
-      anchor.push_back(from_chained * (*slam)[k]);
+      poses.push_back(poseIn(submap, sightings[k].robot));
+      anchor.push_back(poseIn(submap, (*slam)[k]));
       pixels.push_back(sightings[k].pixel);
     }
     const auto path =
@@ -276,14 +277,15 @@ std::vector<CameraOutput> CameraConstraintBuilder::process(HeldVisit visit) {
   std::vector<CameraOutput> out;
   // The SLAM's poses of a visit whose whole path becomes the odometry's (visit_path).
   std::vector<Pose2> slam;
-  for (const auto& s : visit.sightings) slam.push_back(s.robot);
+  if (options_.odometry_shape && options_.visit_path.enabled)
+    for (const auto& s : visit.sightings) slam.push_back(s.robot);
   bool shaped = false;
   if (options_.odometry_shape && placeOdometryShape(visit.sightings)) {
     ++odometry_shaped_;
     shaped = std::all_of(visit.sightings.begin(), visit.sightings.end(),
                          [](const CameraSighting& s) { return s.odometry.has_value(); });
   }
-  const std::vector<Pose2>* shaped_from = shaped ? &slam : nullptr;
+  const std::vector<Pose2>* shaped_from = shaped && !slam.empty() ? &slam : nullptr;
   const int camera = visit.camera;
   const std::int64_t stamp_ns = visit.stamp_ns;
   const std::vector<CameraSighting>& sightings = visit.sightings;

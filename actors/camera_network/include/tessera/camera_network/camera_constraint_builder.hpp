@@ -227,6 +227,8 @@ class CameraConstraintBuilder {
   /// The chained pose at `stamp` from the smoothed trajectories (the first to end at or after it,
   /// if it has begun by then), or `online` when none holds it.
   Pose2 smoothed(std::int64_t stamp, const Pose2& online) const;
+  /// A chained-frame pose in submap `submap`'s frame (origin_s⁻¹ ⊕ pose).
+  Pose2 poseIn(std::uint32_t submap, const Pose2& chained) const;
   Eigen::Vector2d markerIn(std::uint32_t submap, const Pose2& chained_robot) const;
   /// odometry_shape: replaces the robot poses of the sightings that carry odometry by the
   /// odometry's, rigidly placed on the SLAM's. False when the visit is left as it is.
