@@ -63,7 +63,9 @@ TEST_CASE("sim_camera_slam calibrates the cameras and sends only true revisit co
       tessera::evaluation::computeAte(tessera::mapping::readTum(out / "trajectory_final.tum"),
                                       tessera::mapping::readTum(out / "ground_truth.tum"));
   INFO("final ATE " << final_ate.translation.rmse << " m");
-  CHECK(final_ate.translation.rmse < 0.3);
+  // 0.12 m with the profile's free check three cells back, srr 0.02 and the jump check; 0.23 m
+  // without them (the map 0.2 % too small, docs/benchmarks.md).
+  CHECK(final_ate.translation.rmse < 0.18);
   fs::remove_all(out);
 }
 
