@@ -276,8 +276,9 @@ bool CameraConstraintBuilder::placeOdometryShape(std::vector<CameraSighting>& si
 std::vector<CameraOutput> CameraConstraintBuilder::process(HeldVisit visit) {
   std::vector<CameraOutput> out;
   // The SLAM's poses of a visit whose whole path becomes the odometry's (visit_path).
+  const bool refine_path = options_.odometry_shape && options_.visit_path.enabled;
   std::vector<Pose2> slam;
-  if (options_.odometry_shape && options_.visit_path.enabled)
+  if (refine_path)
     for (const auto& s : visit.sightings) slam.push_back(s.robot);
   bool shaped = false;
   if (options_.odometry_shape && placeOdometryShape(visit.sightings)) {
@@ -285,7 +286,7 @@ std::vector<CameraOutput> CameraConstraintBuilder::process(HeldVisit visit) {
     shaped = std::all_of(visit.sightings.begin(), visit.sightings.end(),
                          [](const CameraSighting& s) { return s.odometry.has_value(); });
   }
-  const std::vector<Pose2>* shaped_from = shaped && !slam.empty() ? &slam : nullptr;
+  const std::vector<Pose2>* shaped_from = shaped && refine_path ? &slam : nullptr;
   const int camera = visit.camera;
   const std::int64_t stamp_ns = visit.stamp_ns;
   const std::vector<CameraSighting>& sightings = visit.sightings;

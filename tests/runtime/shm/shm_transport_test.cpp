@@ -10,13 +10,26 @@
 #include <catch2/catch.hpp>
 #include <iceoryx_posh/popo/untyped_publisher.hpp>
 
+#include <chrono>
 #include <filesystem>
 #include <fstream>
+#include <thread>
 
 using namespace tessera;
 using namespace std::chrono_literals;
 
 namespace {
+
+/// Polls until `file` exists (the test's processes signal each other by files) or `deadline`
+/// passes; true when it exists.
+bool waitForFile(const std::filesystem::path& file,
+                 std::chrono::steady_clock::time_point deadline) {
+  while (!std::filesystem::exists(file)) {
+    if (std::chrono::steady_clock::now() >= deadline) return false;
+    std::this_thread::sleep_for(2ms);
+  }
+  return true;
+}
 
 RouDiHostOptions smallPools() {
   RouDiHostOptions o;
@@ -287,8 +300,7 @@ TEST_CASE("messages a full keep_latest queue discarded still count as received f
         auto& rec = rx.actor<test::Recorder>();
         if (!rx.transport.waitForPublishers(10s)) return 5;
         const auto deadline = std::chrono::steady_clock::now() + 20s;
-        while (!std::filesystem::exists(sent_flag) && std::chrono::steady_clock::now() < deadline)
-          std::this_thread::sleep_for(5ms);
+        waitForFile(sent_flag, deadline);
         rx.transport.startReceiving();
         while (received.load() < kCount && std::chrono::steady_clock::now() < deadline)
           std::this_thread::sleep_for(5ms);
@@ -470,9 +482,7 @@ TEST_CASE(
                            std::make_unique<test::Recorder>(MailboxPolicy::reliable(4)));
         if (!rx.transport.waitForPublishers(10s)) return 5;
         std::ofstream(ready) << "ready\n";
-        const auto deadline = std::chrono::steady_clock::now() + 30s;
-        while (!std::filesystem::exists(done) && std::chrono::steady_clock::now() < deadline)
-          std::this_thread::sleep_for(10ms);
+        waitForFile(done, std::chrono::steady_clock::now() + 30s);
         for (int i = 0; i < 20; ++i) rx.transport.receiveHere(std::chrono::milliseconds(50));
         rx.rt.stop();
         const auto seen = rx.actor<test::Recorder>().seqs.size();
@@ -493,10 +503,7 @@ TEST_CASE(
         rt.start();
         transport.startReceiving();
         if (!transport.waitForPublishers(10s)) return 5;
-        const auto ready_by = std::chrono::steady_clock::now() + 10s;
-        while (!std::filesystem::exists(ready) && std::chrono::steady_clock::now() < ready_by)
-          std::this_thread::sleep_for(2ms);
-        if (!std::filesystem::exists(ready)) return 10;
+        if (!waitForFile(ready, std::chrono::steady_clock::now() + 10s)) return 10;
         const auto publish = [&](int i) {
           auto loan = pub.loan(64);
           setHeader(loan->initHeader(), i, "test", pub.nextSeq());
