@@ -242,7 +242,9 @@ void addLaunchCommand(CLI::App& app, int& result) {
       ->required();
   cmd->add_option("--set", args->sets, "override: ACTOR.KEY=VALUE, KEY=VALUE (repeatable)");
   cmd->add_option("--out", args->out, "output folder (created); default: none, nothing is written");
-  cmd->add_option("--threads", args->threads, "executor threads per process (0: all cores)");
+  cmd->add_option(
+      "--threads", args->threads,
+      "executor threads per process (0: one with a simulated clock, all cores otherwise)");
   cmd->add_option("--shm-log", args->shm_log, "iceoryx log level: off, error, warn, info");
   cmd->add_option("--orphan-grace", args->orphan_grace_s,
                   "seconds a process whose launcher died may take to write what it holds and "

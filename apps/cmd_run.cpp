@@ -76,7 +76,8 @@ nlohmann::json summaryJson(const Profile& profile, const RunReport& r) {
 
 void addRunOptions(CLI::App& cmd, RunSettings& s) {
   cmd.add_option("--set", s.sets, "override: ACTOR.KEY=VALUE, KEY=VALUE (repeatable)");
-  cmd.add_option("--threads", s.threads, "executor threads (0: all cores)");
+  cmd.add_option("--threads", s.threads,
+                 "executor threads (0: one with a simulated clock, all cores otherwise)");
   cmd.add_flag("--quiet", s.quiet, "no progress line and no metrics table");
   addViewOptions(cmd, s);
 }

@@ -92,8 +92,14 @@ void StrandPool::loop() {
 }  // namespace detail
 
 void Runtime::Impl::startExecutor() {
-  const int threads = options.threads > 0
-                          ? options.threads
+  // With a simulated clock, time waits for every handler, so a second executor thread only
+  // overlaps handlers of the same instant, and then the order in which an actor sees that
+  // instant's messages (a scan against the optimiser's answer to the last one) depends on thread
+  // timing: the run is no longer repeatable (docs/architecture.md#runtime). Handlers keep TBB's
+  // workers for their own parallel work either way.
+  const int threads = options.threads > 0 ? options.threads
+                      : options.clock == ClockKind::kSimulated
+                          ? 1
                           : static_cast<int>(std::max(2u, std::thread::hardware_concurrency()));
   if (options.executor == RuntimeOptions::Executor::kThreadPool) {
     pool = std::make_unique<detail::StrandPool>(

@@ -28,7 +28,9 @@ struct RuntimeOptions {
   double sim_rate = 0.0;
   /// Where actors write files; "" for none.
   std::string output_dir;
-  /// Executor threads; 0 uses every core.
+  /// Executor threads; 0 = one with a simulated clock (a repeatable run: time waits for every
+  /// handler anyway, so more threads would only reorder one instant's messages), every core
+  /// with a wall or paced clock.
   int threads = 0;
   /// Who runs the actors' strands. kThreadPool: dedicated threads woken by a condition variable
   /// (measured wake-up close to a bare hand-off). kTbbArena: tasks enqueued on a TBB task_arena
