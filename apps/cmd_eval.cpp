@@ -591,7 +591,9 @@ void addMerged(CLI::App& eval, int& result) {
       s.row("false wall cells", std::to_string(walls->false_wall_cells) + " of " +
                                     std::to_string(walls->occupied_cells) + " occupied, " +
                                     std::to_string(walls->doubled_wall_cells) +
-                                    " of them doubled walls (within 1 m of a true wall)");
+                                    " of them a wall drawn twice, " +
+                                    std::to_string(walls->displaced_wall_cells) +
+                                    " a wall drawn once beside its place (within 1 m)");
     }
     s.print(a->json);
     if (a->json) {
@@ -603,6 +605,7 @@ void addMerged(CLI::App& eval, int& result) {
         j["occupied_cells"] = walls->occupied_cells;
         j["false_wall_cells"] = walls->false_wall_cells;
         j["doubled_wall_cells"] = walls->doubled_wall_cells;
+        j["displaced_wall_cells"] = walls->displaced_wall_cells;
       }
       std::cout << j.dump(2) << "\n";
     }

@@ -8,7 +8,10 @@
 // --submap-distance metres; with cameras every configuration cuts a submap on entering a camera,
 // and the cameras calibrate themselves and add revisit constraints (SGD graph for the first two).
 // Each run is a profile derived from sim_camera_slam, run as its own `tessera run` child process
-// (peak RSS and CPU are that run's). Scored: ATE of trajectory_final.tum against the truth, the
+// (peak RSS and CPU are that run's). A run is repeatable (simulated clock), but one seed is one
+// draw of the noise: --seeds runs each configuration once per seed (simulator, cameras and
+// filter), and a configuration's figures are then the mean over seeds (CPU, RSS, submaps and
+// constraints: the median). Scored: ATE of trajectory_final.tum against the truth, the
 // map against the world's true walls moved by the same rigid alignment
 // (evaluation/map_metrics.hpp), and the cameras' figures.
 #include "bench_commands.hpp"
@@ -29,6 +32,7 @@
 #include <opencv2/imgproc.hpp>
 
 #include <algorithm>
+#include <cmath>
 #include <filesystem>
 #include <fstream>
 #include <iomanip>
@@ -47,6 +51,7 @@ struct Options {
   std::vector<std::string> configurations{"scan_matching", "rbpf50", "two_level_sgd",
                                           "two_level_ceres"};
   std::string cameras = "both";
+  std::vector<int> seeds{1};
   double max_duration_s = 0;
   double submap_distance = 30;
   std::string out = "out/bench_camera_network";
@@ -58,7 +63,7 @@ const std::set<std::string> kConfigurations = {"scan_matching", "rbpf50", "two_l
                                                "two_level_ceres"};
 
 /// The profile of one run: sim_camera_slam changed as the configuration says.
-YAML::Node deriveProfile(YAML::Node base, const std::string& config, bool cameras,
+YAML::Node deriveProfile(YAML::Node base, const std::string& config, bool cameras, int seed,
                          const Options& o) {
   YAML::Node p = YAML::Clone(base);
   p["name"] = "bench_" + config + (cameras ? "_cameras" : "");
@@ -69,6 +74,9 @@ YAML::Node deriveProfile(YAML::Node base, const std::string& config, bool camera
       throw ConfigError("bench camera_network: profile " + o.profile + " has no actor '" + needed +
                         "'");
   YAML::Node slam = actors["slam"]["params"];
+  slam["rbpf"]["seed"] = seed;
+  for (const char* noisy : {"sim", "cameras"})
+    if (actors[noisy]) actors[noisy]["params"]["seed"] = seed;
   const bool two_level = config == "two_level_sgd" || config == "two_level_ceres";
   slam["rbpf"]["particles"] = config == "scan_matching" ? 1 : config == "rbpf50" ? 50 : 10;
   slam["camera_trigger"] = cameras;
@@ -127,6 +135,7 @@ nlohmann::json scoreRun(const fs::path& dir, const std::string& config, bool cam
                      {"wall_cells_found", map.wall_cells_found},
                      {"false_wall_cells", map.false_wall_cells},
                      {"doubled_wall_cells", map.doubled_wall_cells},
+                     {"displaced_wall_cells", map.displaced_wall_cells},
                      {"peak_rss_mb", value(summary, "peak_rss_mb")},
                      {"cpu_s", value(summary, "cpu_s")},
                      {"submaps", static_cast<int>(value(slam, "submaps"))},
@@ -138,6 +147,51 @@ nlohmann::json scoreRun(const fs::path& dir, const std::string& config, bool cam
     row["camera_localisation_error_m"] = optional(cams, "camera_localisation_rms_m");
     row["revisits"] = static_cast<int>(value(cams, "revisits"));
     row["false_revisit_constraints"] = static_cast<int>(value(cams, "revisits_false"));
+  }
+  return row;
+}
+
+/// One configuration's row from its runs over seeds: accuracy and map figures are the mean,
+/// resources and counts the median, false revisits the sum; the maps are the first seed's.
+nlohmann::json combineSeeds(const std::vector<nlohmann::json>& runs) {
+  nlohmann::json row = runs.front();
+  nlohmann::json ates = nlohmann::json::array();
+  for (const auto& r : runs) ates.push_back(r["ate_rmse_m"]);
+  row["ate_per_seed"] = ates;
+  if (runs.size() == 1) return row;
+  const auto numbers = [&](const char* key) {
+    std::vector<double> v;
+    for (const auto& r : runs)
+      if (r.contains(key) && r[key].is_number()) v.push_back(r[key].get<double>());
+    return v;
+  };
+  const auto mean = [&](const char* key) -> nlohmann::json {
+    const auto v = numbers(key);
+    if (v.empty()) return nullptr;
+    double sum = 0;
+    for (double x : v) sum += x;
+    return sum / static_cast<double>(v.size());
+  };
+  const auto median = [&](const char* key) {
+    auto v = numbers(key);
+    std::sort(v.begin(), v.end());
+    const std::size_t n = v.size();
+    return n % 2 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]);
+  };
+  for (const char* key : {"ate_rmse_m", "max_error_m", "wall_cells_found"}) row[key] = mean(key);
+  for (const char* key : {"false_wall_cells", "doubled_wall_cells", "displaced_wall_cells"})
+    row[key] = static_cast<std::size_t>(std::llround(mean(key).get<double>()));
+  for (const char* key : {"peak_rss_mb", "cpu_s"}) row[key] = median(key);
+  for (const char* key : {"submaps", "constraints"})
+    row[key] = static_cast<int>(std::lround(median(key)));
+  if (row["cameras"].get<bool>()) {
+    for (const char* key : {"calibration_rms_px", "camera_localisation_error_m"})
+      row[key] = mean(key);
+    for (const char* key : {"camera_calibrations", "revisits"})
+      row[key] = static_cast<int>(std::lround(median(key)));
+    int false_revisits = 0;
+    for (const auto& r : runs) false_revisits += r["false_revisit_constraints"].get<int>();
+    row["false_revisit_constraints"] = false_revisits;
   }
   return row;
 }
@@ -201,6 +255,11 @@ void addBenchCameraNetworkCommand(CLI::App& bench, int& result) {
       ->delimiter(',')
       ->capture_default_str();
   cmd->add_option("--cameras", o->cameras, "both, on or off")->capture_default_str();
+  cmd->add_option("--seeds", o->seeds,
+                  "seeds of the simulator, the cameras and the filter; one run of each "
+                  "configuration per seed, figures averaged (resources: median)")
+      ->delimiter(',')
+      ->capture_default_str();
   cmd->add_option("--max-duration", o->max_duration_s,
                   "stop each run after this much simulated time [s]; 0 = the whole route")
       ->capture_default_str();
@@ -219,6 +278,7 @@ void addBenchCameraNetworkCommand(CLI::App& bench, int& result) {
                           "' (scan_matching, rbpf50, two_level_sgd, two_level_ceres)");
     if (o->cameras != "both" && o->cameras != "on" && o->cameras != "off")
       throw ConfigError("--cameras must be both, on or off, got '" + o->cameras + "'");
+    if (o->seeds.empty()) throw ConfigError("--seeds needs at least one value");
     if (!(o->max_duration_s >= 0) || !(o->submap_distance > 0))
       throw ConfigError("--max-duration must be >= 0 and --submap-distance > 0");
     const std::string path = resolveProfilePath(o->profile, profileSearchDirs());
@@ -227,31 +287,41 @@ void addBenchCameraNetworkCommand(CLI::App& bench, int& result) {
     if (o->cameras != "on") camera_modes.push_back(false);
     if (o->cameras != "off") camera_modes.push_back(true);
 
-    nlohmann::json rows = nlohmann::json::array();
-    const std::size_t total = o->configurations.size() * camera_modes.size();
-    std::size_t done = 0;
+    std::vector<std::pair<std::string, bool>> runs_of;  // (configuration, cameras), in order
     for (const auto& config : o->configurations)
-      for (bool cameras : camera_modes) {
+      for (bool cameras : camera_modes) runs_of.emplace_back(config, cameras);
+    std::vector<std::vector<nlohmann::json>> runs(runs_of.size());
+    const std::size_t total = runs_of.size() * o->seeds.size();
+    std::size_t done = 0;
+    // Seeds outermost: the configurations compared see the machine alike.
+    for (const int seed : o->seeds)
+      for (std::size_t k = 0; k < runs_of.size(); ++k) {
+        const auto& [config, cameras] = runs_of[k];
         const std::string name = config + (cameras ? "_cameras" : "");
-        const fs::path dir = fs::path(o->out) / name;
+        const fs::path dir = o->seeds.size() > 1
+                                 ? fs::path(o->out) / name / ("seed_" + std::to_string(seed))
+                                 : fs::path(o->out) / name;
         fs::create_directories(dir);
         const fs::path profile = dir / "profile.yaml";
         {
           YAML::Emitter e;
-          e << deriveProfile(base, config, cameras, *o);
+          e << deriveProfile(base, config, cameras, seed, *o);
           std::ofstream(profile) << e.c_str() << "\n";
         }
         ++done;
         if (!o->json)
-          std::cerr << "[bench camera_network] " << done << "/" << total << " " << name << " ...\n";
+          std::cerr << "[bench camera_network] " << done << "/" << total << " " << name << " seed "
+                    << seed << " ...\n";
         const int code =
             runTesseraChild({"tessera", "run", profile.string(), "--quiet", "--out", dir.string()},
                             dir / "run.log");
         if (code != 0)
           throw std::runtime_error("bench camera_network: run " + name + " failed (exit " +
                                    std::to_string(code) + "), see " + (dir / "run.log").string());
-        rows.push_back(scoreRun(dir, config, cameras));
+        runs[k].push_back(scoreRun(dir, config, cameras));
       }
+    nlohmann::json rows = nlohmann::json::array();
+    for (const auto& r : runs) rows.push_back(combineSeeds(r));
 
     if (!o->montage.empty()) writeMontage(rows, fs::path(o->out) / o->montage);
 
@@ -287,13 +357,13 @@ void addBenchCameraNetworkCommand(CLI::App& bench, int& result) {
     }
     std::cout << "machine: " << machineDescription() << "\n"
               << "seed 000 camera floor (" << o->profile
-              << "); ATE of trajectory_final.tum; walls found / false / doubled against the "
-                 "true walls\n\n"
+              << "); ATE of trajectory_final.tum; walls found / false / doubled (a wall drawn "
+                 "twice) / displaced (drawn once, beside its place) against the true walls\n\n"
               << std::left << std::setw(17) << "configuration" << std::setw(9) << "cameras"
               << std::right << std::setw(8) << "ATE m" << std::setw(8) << "max m" << std::setw(8)
-              << "walls" << std::setw(8) << "false" << std::setw(9) << "doubled" << std::setw(9)
-              << "RSS MB" << std::setw(8) << "CPU s" << std::setw(9) << "submaps" << std::setw(8)
-              << "edges\n";
+              << "walls" << std::setw(8) << "false" << std::setw(9) << "doubled" << std::setw(8)
+              << "displ." << std::setw(9) << "RSS MB" << std::setw(8) << "CPU s" << std::setw(9)
+              << "submaps" << std::setw(8) << "edges\n";
     for (const auto& r : rows) {
       std::cout << std::left << std::setw(17) << r["name"].get<std::string>() << std::setw(9)
                 << (r["cameras"].get<bool>() ? "yes" : "no") << std::right << std::fixed
@@ -301,7 +371,8 @@ void addBenchCameraNetworkCommand(CLI::App& bench, int& result) {
                 << std::setw(8) << r["max_error_m"].get<double>() << std::setw(8)
                 << r["wall_cells_found"].get<double>() << std::setw(8)
                 << r["false_wall_cells"].get<std::size_t>() << std::setw(9)
-                << r["doubled_wall_cells"].get<std::size_t>() << std::setprecision(1)
+                << r["doubled_wall_cells"].get<std::size_t>() << std::setw(8)
+                << r["displaced_wall_cells"].get<std::size_t>() << std::setprecision(1)
                 << std::setw(9) << r["peak_rss_mb"].get<double>() << std::setw(8)
                 << r["cpu_s"].get<double>() << std::setw(9) << r["submaps"].get<int>()
                 << std::setw(8) << r["constraints"].get<int>() << "\n";
@@ -312,6 +383,18 @@ void addBenchCameraNetworkCommand(CLI::App& bench, int& result) {
       s << std::fixed << std::setprecision(precision) << v.get<double>();
       return s.str();
     };
+    if (o->seeds.size() > 1) {
+      std::cout << "\nmeans over seeds";
+      for (const int seed : o->seeds) std::cout << " " << seed;
+      std::cout << " (CPU, RSS, submaps, edges: medians); ATE per seed:\n";
+      for (const auto& r : rows) {
+        std::cout << "  " << std::left << std::setw(17) << r["name"].get<std::string>()
+                  << std::setw(9) << (r["cameras"].get<bool>() ? "yes" : "no") << std::right
+                  << std::setprecision(3);
+        for (const auto& a : r["ate_per_seed"]) std::cout << std::setw(8) << a.get<double>();
+        std::cout << "\n";
+      }
+    }
     for (const auto& r : rows)
       if (r["cameras"].get<bool>())
         std::cout << "cameras in " << r["name"].get<std::string>() << ": "

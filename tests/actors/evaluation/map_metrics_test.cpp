@@ -47,6 +47,23 @@ TEST_CASE("map quality finds true walls, false walls and doubled walls", "[evalu
   CHECK_THROWS(scoreMapAgainstWalls(tessera::grid::OccupancyMap{}, walls));
 }
 
+TEST_CASE("a wall drawn once beside its place is displaced, not doubled", "[evaluation][map]") {
+  // Two true walls along y = 0 and y = 3. The first drawn in place and again 0.4 m beside it
+  // (a misaligned pass), the second only 0.4 m off (the map bent there).
+  const std::vector<WallSegment> walls = {{{-2, 0}, {2, 0}}, {{-2, 3}, {2, 3}}};
+  auto m = freeMap();
+  for (int k = 0; k < 40; ++k) {
+    occupy(m, -1.95 + 0.1 * k, 0.05);
+    occupy(m, -1.95 + 0.1 * k, 0.45);
+    occupy(m, -1.95 + 0.1 * k, 3.45);
+  }
+  const auto s = scoreMapAgainstWalls(m, walls);
+  CHECK(s.false_wall_cells == 80);
+  CHECK(s.doubled_wall_cells == 40);
+  CHECK(s.displaced_wall_cells == 40);
+  CHECK(s.wall_cells_found == Approx(0.5).margin(0.03));
+}
+
 TEST_CASE("walls files: comments, malformed, NaN, truncated and empty", "[evaluation][map]") {
   const auto dir = tessera::test::scratchDir("map_metrics_walls");
   auto write = [&](const std::string& name, const std::string& text) {

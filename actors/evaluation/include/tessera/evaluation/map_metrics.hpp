@@ -7,8 +7,11 @@
 //    occupied cell within `tolerance_m`;
 //  * false_wall_cells: occupied cells farther than `tolerance_m` from every true wall (walls drawn
 //    where there are none);
-//  * doubled_wall_cells: the false wall cells within `doubled_range_m` of a true wall, i.e. a wall
-//    drawn a second time beside itself by a misaligned pass.
+//  * doubled_wall_cells: the false wall cells within `doubled_range_m` of a true wall that is also
+//    drawn where it is (an occupied cell within `tolerance_m` of the wall point nearest the
+//    cell): a wall drawn a second time beside itself by a misaligned pass;
+//  * displaced_wall_cells: the other false wall cells within `doubled_range_m` of a true wall:
+//    a wall drawn once, beside its place (a map bent or scaled there, or an unseen wall end).
 // Occupied = cell value >= occupied_threshold (ROS percent).
 #pragma once
 
@@ -28,7 +31,7 @@ struct WallSegment {
 
 struct MapWallOptions {
   double tolerance_m = 0.15;     ///< a cell this close to a wall is on it
-  double doubled_range_m = 1.0;  ///< false wall cells this close to a wall count as doubled
+  double doubled_range_m = 1.0;  ///< false wall cells this close to a wall: doubled or displaced
   int occupied_threshold = 65;   ///< ROS percent
 };
 
@@ -39,6 +42,7 @@ struct MapWallScore {
   std::size_t occupied_cells = 0;
   std::size_t false_wall_cells = 0;
   std::size_t doubled_wall_cells = 0;
+  std::size_t displaced_wall_cells = 0;
 };
 
 /// Throws std::invalid_argument for an empty map or non-positive tolerances.
