@@ -15,6 +15,7 @@
 // map against the world's true walls moved by the same rigid alignment
 // (evaluation/map_metrics.hpp), and the cameras' figures.
 #include "bench_commands.hpp"
+#include "bench_util.hpp"
 #include "child_process.hpp"
 #include "cli_inputs.hpp"
 
@@ -172,23 +173,17 @@ nlohmann::json combineSeeds(const std::vector<nlohmann::json>& runs) {
     for (double x : v) sum += x;
     return sum / static_cast<double>(v.size());
   };
-  const auto median = [&](const char* key) {
-    auto v = numbers(key);
-    std::sort(v.begin(), v.end());
-    const std::size_t n = v.size();
-    return n % 2 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]);
-  };
   for (const char* key : {"ate_rmse_m", "max_error_m", "wall_cells_found"}) row[key] = mean(key);
   for (const char* key : {"false_wall_cells", "doubled_wall_cells", "displaced_wall_cells"})
     row[key] = static_cast<std::size_t>(std::llround(mean(key).get<double>()));
-  for (const char* key : {"peak_rss_mb", "cpu_s"}) row[key] = median(key);
+  for (const char* key : {"peak_rss_mb", "cpu_s"}) row[key] = median(numbers(key));
   for (const char* key : {"submaps", "constraints"})
-    row[key] = static_cast<int>(std::lround(median(key)));
+    row[key] = static_cast<int>(std::lround(median(numbers(key))));
   if (row["cameras"].get<bool>()) {
     for (const char* key : {"calibration_rms_px", "camera_localisation_error_m"})
       row[key] = mean(key);
     for (const char* key : {"camera_calibrations", "revisits"})
-      row[key] = static_cast<int>(std::lround(median(key)));
+      row[key] = static_cast<int>(std::lround(median(numbers(key))));
     int false_revisits = 0;
     for (const auto& r : runs) false_revisits += r["false_revisit_constraints"].get<int>();
     row["false_revisit_constraints"] = false_revisits;
@@ -259,6 +254,15 @@ void addBenchCameraNetworkCommand(CLI::App& bench, int& result) {
                   "seeds of the simulator, the cameras and the filter; one run of each "
                   "configuration per seed, figures averaged (resources: median)")
       ->delimiter(',')
+      ->check(CLI::Validator(
+          [](std::string& v) {
+            const bool digits = !v.empty() && v.size() <= 9 &&
+                                v.find_first_not_of("0123456789") == std::string::npos;
+            return digits ? std::string()
+                          : "expected seeds as non-negative integers separated by commas, got '" +
+                                v + "'";
+          },
+          "SEED[,SEED...]"))
       ->capture_default_str();
   cmd->add_option("--max-duration", o->max_duration_s,
                   "stop each run after this much simulated time [s]; 0 = the whole route")

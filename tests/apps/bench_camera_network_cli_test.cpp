@@ -60,6 +60,12 @@ TEST_CASE("bench camera_network names a bad option", "[bench_camera_network]") {
   const auto cams = runCli("bench camera_network --cameras maybe", dir);
   CHECK(cams.exit_code != 0);
   CHECK(cams.err.find("--cameras") != std::string::npos);
+  for (const char* seeds : {"abc", "''", "1.5", "nan", "-1"}) {
+    const auto bad = runCli(std::string("bench camera_network --seeds ") + seeds, dir);
+    INFO("--seeds " << seeds);
+    CHECK(bad.exit_code != 0);
+    CHECK(bad.err.find("--seeds") != std::string::npos);
+  }
 }
 
 TEST_CASE("bench camera_network runs each seed, and a seed repeats exactly",

@@ -41,10 +41,11 @@ Eigen::Vector2d cellCentre(const grid::OccupancyMap& m, int col, int row) {
 struct Near {
   bool known = false, occupied = false;
 };
-Near lookNear(const grid::OccupancyMap& map, const Eigen::Vector2d& p,
+/// `to_grid` is map.origin's inverse, computed once by the caller.
+Near lookNear(const grid::OccupancyMap& map, const Pose2& to_grid, const Eigen::Vector2d& p,
               const MapWallOptions& options) {
   const int reach = static_cast<int>(std::ceil(options.tolerance_m / map.resolution));
-  const Eigen::Vector2d g = map.origin.inverse() * p / map.resolution;
+  const Eigen::Vector2d g = to_grid * p / map.resolution;
   const int c0 = static_cast<int>(std::floor(g.x())), r0 = static_cast<int>(std::floor(g.y()));
   Near n;
   for (int r = r0 - reach; r <= r0 + reach && !n.occupied; ++r)
@@ -68,11 +69,13 @@ MapWallScore scoreMapAgainstWalls(const grid::OccupancyMap& map,
   if (!(options.tolerance_m > 0) || !(options.doubled_range_m > 0))
     throw std::invalid_argument("map quality: tolerance_m and doubled_range_m must be > 0");
   MapWallScore s;
+  const Pose2 to_grid = map.origin.inverse();
   for (const auto& w : walls) {
     const double len = (w.b - w.a).norm();
     const int n = std::max(1, static_cast<int>(std::ceil(len / (0.5 * map.resolution))));
     for (int k = 0; k <= n; ++k) {
-      const Near near = lookNear(map, w.a + (w.b - w.a) * (static_cast<double>(k) / n), options);
+      const Near near =
+          lookNear(map, to_grid, w.a + (w.b - w.a) * (static_cast<double>(k) / n), options);
       if (!near.known) continue;
       ++s.wall_points_seen;
       if (near.occupied) ++s.wall_points_found;
@@ -91,7 +94,7 @@ MapWallScore scoreMapAgainstWalls(const grid::OccupancyMap& map,
       ++s.false_wall_cells;
       if (d > options.doubled_range_m) continue;
       // Beside a wall: drawn twice if the wall is also drawn where it is, else drawn once, off.
-      if (lookNear(map, q, options).occupied)
+      if (lookNear(map, to_grid, q, options).occupied)
         ++s.doubled_wall_cells;
       else
         ++s.displaced_wall_cells;
