@@ -3,7 +3,8 @@
 //   scan_matching    one particle: incremental scan matching (Vasco-like);
 //   rbpf50           one RBPF with 50 particles (GMapping-like);
 //   two_level_sgd    RBPF submaps of 10 particles, loop detector, SGD graph;
-//   two_level_ceres  the same with Ceres.
+//   two_level_ceres  the same with Ceres, and the profile's scan-level graph at the end (if on;
+//                    a Ceres problem, so the other configurations leave it off).
 // Without cameras the first two build one map and the two-level ones cut a submap every
 // --submap-distance metres; with cameras every configuration cuts a submap on entering a camera,
 // and the cameras calibrate themselves and add revisit constraints (SGD graph for the first two).
@@ -86,6 +87,8 @@ YAML::Node deriveProfile(YAML::Node base, const std::string& config, bool camera
   if (!two_level) actors.remove("loops");
   actors["optimizer"]["params"]["graph"]["optimizer"]["solver"] =
       config == "two_level_ceres" ? "ceres" : "sgd";
+  // The scan-level graph of the final optimisation is solved by Ceres: the others stay SGD only.
+  if (config != "two_level_ceres") actors["optimizer"]["params"]["scan_graph"]["enabled"] = false;
   // The true walls, for the map score.
   YAML::Node walls;
   walls["type"] = "world_writer";
@@ -148,6 +151,7 @@ nlohmann::json scoreRun(const fs::path& dir, const std::string& config, bool cam
     row["camera_localisation_error_m"] = optional(cams, "camera_localisation_rms_m");
     row["revisits"] = static_cast<int>(value(cams, "revisits"));
     row["false_revisit_constraints"] = static_cast<int>(value(cams, "revisits_false"));
+    row["revisit_nees"] = optional(cams, "revisit_nees");
   }
   return row;
 }
@@ -180,7 +184,7 @@ nlohmann::json combineSeeds(const std::vector<nlohmann::json>& runs) {
   for (const char* key : {"submaps", "constraints"})
     row[key] = static_cast<int>(std::lround(median(numbers(key))));
   if (row["cameras"].get<bool>()) {
-    for (const char* key : {"calibration_rms_px", "camera_localisation_error_m"})
+    for (const char* key : {"calibration_rms_px", "camera_localisation_error_m", "revisit_nees"})
       row[key] = mean(key);
     for (const char* key : {"camera_calibrations", "revisits"})
       row[key] = static_cast<int>(std::lround(median(numbers(key))));
@@ -406,7 +410,8 @@ void addBenchCameraNetworkCommand(CLI::App& bench, int& result) {
                   << figure(r["calibration_rms_px"], 2) << " px), localisation RMS "
                   << figure(r["camera_localisation_error_m"], 3) << " m, "
                   << r["revisits"].get<int>() << " revisit constraints, "
-                  << r["false_revisit_constraints"].get<int>() << " false\n";
+                  << r["false_revisit_constraints"].get<int>() << " false, NEES "
+                  << figure(r["revisit_nees"], 1) << " (3 when consistent)\n";
     result = 0;
   });
 }

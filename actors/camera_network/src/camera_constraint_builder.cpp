@@ -21,6 +21,8 @@ ConfigCheck CameraConstraintBuilderOptions::check() const {
       .require(image_width_px > 0, "image_width_px", "must be > 0", image_width_px)
       .require(image_height_px > 0, "image_height_px", "must be > 0", image_height_px)
       .positive("slam_position_std_m", slam_position_std_m)
+      .nonNegative("slam_anchor_std_m", slam_anchor_std_m)
+      .nonNegative("slam_anchor_std_rad", slam_anchor_std_rad)
       .require(stale_visits >= 1, "stale_visits", "must be >= 1", stale_visits)
       .require(max_visit_sightings >= 1, "max_visit_sightings", "must be >= 1", max_visit_sightings)
       .positive("odometry_shape_max_s", odometry_shape_max_s)
@@ -389,6 +391,18 @@ std::vector<CameraOutput> CameraConstraintBuilder::process(HeldVisit visit) {
   o.kind = CameraOutput::Kind::kRevisit;
   o.relative = fit.fit->transform;
   o.covariance = fit.fit->covariance + jh * h.covariance * jh.transpose();
+  // The SLAM's rigid error of the whole path in i: a turn φ about the path's centroid c and a
+  // shift d move T to (R(φ)(t - c) + c + d, θ + φ).
+  Eigen::Vector2d centroid = Eigen::Vector2d::Zero();
+  for (const auto& p : points) centroid += p.parent;
+  centroid /= static_cast<double>(points.size());
+  const Eigen::Vector2d arm =
+      Eigen::Vector2d(fit.fit->transform.x, fit.fit->transform.y) - centroid;
+  Eigen::Matrix3d ja = Eigen::Matrix3d::Identity();
+  ja(0, 2) = -arm.y();
+  ja(1, 2) = arm.x();
+  const double sm = options_.slam_anchor_std_m, sr = options_.slam_anchor_std_rad;
+  o.covariance += ja * Eigen::Vector3d(sm * sm, sm * sm, sr * sr).asDiagonal() * ja.transpose();
   o.covariance = 0.5 * (o.covariance + o.covariance.transpose()).eval();
   o.robot_in_to = o.relative.inverse() * (origins_.count(i) ? origins_.at(i).inverse() : Pose2()) *
                   used.back()->robot;

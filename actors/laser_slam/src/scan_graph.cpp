@@ -89,6 +89,7 @@ bool ScanGraph::addConstraint(const SubmapConstraintInput& c) {
   }
   if (!checkCovariance(c.covariance, what)) return false;
   constraints_.push_back(c);
+  if (!c.revisit && c.lost) lost_starts_.insert(c.to);
   return true;
 }
 
@@ -137,7 +138,14 @@ void ScanGraph::addScanNodes(int submap, Trajectory& t, const std::vector<std::i
     // The scan that ended the previous submap starts this one: one node, an edge from each.
     int node = -1;
     const auto same = node_by_stamp.lower_bound(stamp - tol);
-    if (same != node_by_stamp.end() && same->first <= stamp + tol) {
+    const bool taken = same != node_by_stamp.end() && same->first <= stamp + tol;
+    if (taken && lost_starts_.count(submap)) {
+      // Started lost: its own node where its submap puts it (the stamp stays the other's).
+      node = graph_.addNode(
+          -1 - static_cast<std::int64_t>(scan_nodes_),
+          pose_graph::compose(graph_.poses[static_cast<std::size_t>(k)], vec(t.scans[i].pose)));
+      ++scan_nodes_;
+    } else if (taken) {
       node = same->second;
       // The node's own submap is the one whose intra edge made it: the first edge into it.
       for (const auto& e : graph_.edges)

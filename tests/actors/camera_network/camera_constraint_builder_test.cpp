@@ -174,6 +174,59 @@ TEST_CASE("a camera calibrated at its first visit gives the true revisit constra
   CHECK(out[0].robot_in_to.isFinite());
 }
 
+TEST_CASE("a revisit's covariance holds the SLAM's one error of the whole visit (NEES)",
+          "[camera_network][revisit]") {
+  // The SLAM places the whole revisit in submap 7 with one rigid error (a shift and a turn about
+  // the path's centre), shared by every sighting: the per-sighting slam_position_std_m averages
+  // it away, slam_anchor_std_* does not. The calibration visit is exact here, so its anchor term
+  // is left out to isolate the revisit's.
+  auto meanNees = [](double anchor_m, double anchor_rad) {
+    const double shift_std = 0.02, turn_std = 0.007;
+    double sum = 0;
+    int n = 0;
+    for (int trial = 0; trial < 40; ++trial) {
+      CameraWorld w;
+      w.rng.seed(100 + trial);
+      CameraConstraintBuilderOptions o = onlineOptions();
+      o.calibration.anchor_std_m = 0;
+      o.calibration.anchor_std_rad = 0;
+      o.slam_anchor_std_m = anchor_m;
+      o.slam_anchor_std_rad = anchor_rad;
+      CameraConstraintBuilder b(o);
+      auto out = w.visit(b, 1.0, 0.0, true);
+      REQUIRE(out.size() == 1);
+      REQUIRE(out[0].kind == CameraOutput::Kind::kCalibrated);
+      const Pose2 o7_true(9.0, 4.0, 2.0);
+      const Pose2 drift(0.5, -0.6, 0.1);
+      const Pose2 o7_chained = drift * o7_true;
+      REQUIRE(b.addSubmap(7, o7_chained));
+      // The error in submap 7's frame: turn phi about the camera site (the path's centre), shift d.
+      std::normal_distribution<double> g(0.0, 1.0);
+      const Eigen::Vector2d c = o7_true.inverse() * w.camera.site().position;
+      const double phi = turn_std * g(w.rng);
+      const Eigen::Vector2d d(shift_std * g(w.rng), shift_std * g(w.rng));
+      const Pose2 a = Pose2(c + d, 0.0) * Pose2(0, 0, phi) * Pose2(-c, 0.0);
+      const Pose2 chain = o7_chained * a * o7_chained.inverse() * drift;
+      out = w.visit(b, 0.4, 2.5, false, chain);
+      REQUIRE(out.size() == 1);
+      REQUIRE(out[0].kind == CameraOutput::Kind::kRevisit);
+      const Pose2 truth = o7_true.inverse();
+      const Eigen::Vector3d e(out[0].relative.x - truth.x, out[0].relative.y - truth.y,
+                              tessera::angleDiff(out[0].relative.theta, truth.theta));
+      sum += e.dot(out[0].covariance.inverse() * e);
+      ++n;
+    }
+    return sum / n;
+  };
+  const double with = meanNees(0.02, 0.007), without = meanNees(0, 0);
+  INFO("mean NEES with the SLAM's anchor " << with << ", without " << without);
+  // chi-squared with 3 degrees of freedom: 3 on average; the fit and the calibration's pixel
+  // noise add a little variance of their own, so a little under 3.
+  CHECK(with > 1.5);
+  CHECK(with < 4.5);
+  CHECK(without > 3 * with);
+}
+
 TEST_CASE("a straight first pass is refused, the next visit's loop calibrates",
           "[camera_network][revisit]") {
   CameraWorld w;
@@ -484,6 +537,12 @@ TEST_CASE("camera constraint builder options are checked", "[camera_network][rev
   CHECK_THROWS_WITH(CameraConstraintBuilder(o), Catch::Contains("relocalisation_covariance_scale"));
   o.relocalisation_covariance_scale = std::nan("");
   CHECK_THROWS_WITH(CameraConstraintBuilder(o), Catch::Contains("relocalisation_covariance_scale"));
+  o = {};
+  o.slam_anchor_std_m = -0.01;
+  CHECK_THROWS_WITH(CameraConstraintBuilder(o), Catch::Contains("slam_anchor_std_m"));
+  o = {};
+  o.slam_anchor_std_rad = std::nan("");
+  CHECK_THROWS_WITH(CameraConstraintBuilder(o), Catch::Contains("slam_anchor_std_rad"));
   o = {};
   o.odometry_shape_max_s = 0;
   CHECK_THROWS_WITH(CameraConstraintBuilder(o), Catch::Contains("odometry_shape_max_s"));

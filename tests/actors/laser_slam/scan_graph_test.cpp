@@ -113,6 +113,40 @@ TEST_CASE("scan graph: a consistent graph stays where its submaps and smoothed p
   CHECK_FALSE(g.scanPose(100 * kSecond, none));
 }
 
+TEST_CASE("scan graph: a submap started lost does not share its first scan with the one before",
+          "[scan_graph]") {
+  // The robot was carried 50 m to the left unseen at t = 4 s: the builder, lost, started submap 1
+  // where the odometry says (the lost hand-over, wide), and a camera revisit later placed it.
+  auto build = [](bool lost) {
+    ScanGraph g(plain());
+    REQUIRE(g.addSubmap(0, straight(0)));
+    REQUIRE(g.addSubmap(1, straight(4)));
+    SubmapConstraintInput h = handOver();
+    h.lost = lost;
+    h.covariance = covariance(10.0, 1.0);
+    REQUIRE(g.addConstraint(h));
+    SubmapConstraintInput r;  // pose of submap 0's origin in submap 1: submap 1 is at (4, 50)
+    r.from = 1;
+    r.to = 0;
+    r.relative = Pose2(4, 50, 0).inverse();
+    r.covariance = covariance(0.05, 0.01);
+    r.revisit = true;
+    REQUIRE(g.addConstraint(r));
+    g.optimize({{0, Pose2()}, {1, Pose2(4, 0, 0)}});
+    return g;
+  };
+  const ScanGraph lost = build(true);
+  CHECK(lost.scanNodes() == 10);  // t = 4 s twice: the end of submap 0 and the start of 1
+  CHECK(lost.submapPoses().at(1).y == Approx(50).margin(0.05));
+  CHECK(scanAt(lost, 8).y == Approx(50).margin(0.05));
+  // Submap 0's scans stay where it is; the shared stamp answers for the submap that ended there.
+  CHECK(scanAt(lost, 4).y == Approx(0).margin(0.05));
+  // A hand-over that was not lost joins the two at the shared scan, against the revisit.
+  const ScanGraph joined = build(false);
+  CHECK(joined.scanNodes() == 9);
+  CHECK(joined.submapPoses().at(1).y < 40);
+}
+
 TEST_CASE("scan graph: a closure on one scan pulls the scan and its submap toward the match",
           "[scan_graph]") {
   ScanGraph g = twoSubmaps();

@@ -277,6 +277,17 @@ void CameraNetworkSlamActor::publishRevisit(const CameraOutput& o) {
           options_.truth_tolerance_linear &&
       std::abs(angleDiff(truth.theta, o.relative.theta)) <= options_.truth_tolerance_angular;
   ++(ok ? revisits_true_ : revisits_false_);
+  // Consistency of the revisit's covariance with its error (3 on average when consistent).
+  const Eigen::Vector3d err(o.relative.x - truth.x, o.relative.y - truth.y,
+                            angleDiff(o.relative.theta, truth.theta));
+  if (o.covariance.allFinite() && o.covariance.determinant() > 0) {
+    const double nees = err.dot(o.covariance.inverse() * err);
+    revisit_nees_ += nees;
+    ++revisit_nees_count_;
+    std::cerr << std::fixed << std::setprecision(3) << "[camera_network_slam] camera " << o.camera
+              << ": revisit " << o.from << " -> " << o.to << " error " << err.head<2>().norm()
+              << " m, " << err(2) << " rad, NEES " << nees << "\n";
+  }
   if (!ok)
     std::cerr << std::fixed << std::setprecision(3) << "[camera_network_slam] camera " << o.camera
               << ": revisit " << o.from << " -> " << o.to << " is off the truth by "
@@ -349,6 +360,8 @@ void CameraNetworkSlamActor::summarize(Summary& out) const {
       out["camera_localisation_max_m"] = loc_max_;
       out["camera_localisation_sightings"] = loc_count_;
     }
+    if (revisit_nees_count_ > 0)
+      out["revisit_nees"] = revisit_nees_ / static_cast<double>(revisit_nees_count_);
     if (heading_count_ > 0) {
       out["camera_heading_rms_rad"] = std::sqrt(heading_sq_ / static_cast<double>(heading_count_));
       out["camera_pose_nees"] = heading_nees_ / static_cast<double>(heading_count_);

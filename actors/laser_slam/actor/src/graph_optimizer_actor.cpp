@@ -119,6 +119,7 @@ void GraphOptimizerActor::onConstraint(const Message<msg::SubmapConstraint>& m) 
   c.to = static_cast<int>(m->getToId());
   c.relative = toPose2(m->getRelative());
   c.revisit = m->getKind() == msg::SubmapConstraint::Kind::REVISIT;
+  c.lost = !c.revisit && m->getLost();
   if (!readCovariance(m->getRelative(), c.covariance)) {
     std::cerr << "[graph_optimizer] constraint " << c.from << " -> " << c.to
               << " has no covariance (9 values expected); rejected\n";

@@ -18,7 +18,8 @@
 //  * Calibrated in submap j: a visit while the robot is in another submap i gives, at its end,
 //    the marker's positions in j (camera localisation through the homography) beside the SLAM's
 //    in i; their rigid fit (fitMapTransform) is the revisit constraint i -> j (pose of j's origin
-//    in i), its covariance that of the fit plus the calibration's, propagated to first order. A
+//    in i), its covariance that of the fit plus the calibration's, propagated to first order, plus
+//    the SLAM's one rigid error of the whole visit in i (slam_anchor_std_*). A
 //    visit while still in j checks the calibration: its positions against the SLAM's.
 //  * Stale: a visit whose camera positions disagree with the SLAM (fit RMS above
 //    revisit.max_rms_m, i.e. the camera moved or its calibration was poor) gives no constraint;
@@ -88,6 +89,13 @@ struct CameraConstraintBuilderOptions {
   /// Position std [m] of the SLAM's robot pose within its submap, per axis, used in the revisit
   /// fit (a fresh submap's particle spread is a few cm).
   double slam_position_std_m = 0.03;
+  /// The SLAM places a revisit's whole path in submap i with one error, as it does a calibration
+  /// visit's in j (the calibration's anchor): a shift [m] per axis and a turn [rad] about the
+  /// path's centroid, shared by every sighting, so it does not average down. Added to the
+  /// revisit's covariance. Without it the revisits' NEES against the truth was 4-7 over the
+  /// camera floor's route (docs/algorithms.md#camera-network-calibration).
+  double slam_anchor_std_m = 0.02;
+  double slam_anchor_std_rad = 0.007;
   bool smoothed_poses = true;
   int stale_visits = 2;
   int max_visit_sightings = 3000;  ///< a visit keeps at most this many (later ones are dropped)
@@ -107,6 +115,10 @@ struct CameraConstraintBuilderOptions {
     v("image_height_px", image_height_px, "camera image height [px]");
     v("slam_position_std_m", slam_position_std_m,
       "std of the SLAM's robot position in its submap, per axis, in revisit fits [m]");
+    v("slam_anchor_std_m", slam_anchor_std_m,
+      "std of the shift, per axis, shared by a revisit's whole path in the SLAM's submap [m]");
+    v("slam_anchor_std_rad", slam_anchor_std_rad,
+      "std of the turn about its centroid shared by a revisit's whole path [rad]");
     v("smoothed_poses", smoothed_poses,
       "hold each visit until its submaps have finished and use their smoothed trajectories "
       "instead of the online poses");

@@ -11,7 +11,10 @@
 //     node), fused as in SubmapGraph.
 // A scan shared by two submaps (the one that ended a submap starts the next) is one node with an
 // edge from each. A closure can so hold a scan between its own submap and the one it closed
-// against, and a submap's internal drift is no longer carried rigidly by all its scans.
+// against, and a submap's internal drift is no longer carried rigidly by all its scans. Not after
+// a lost hand-over (SubmapConstraintInput::lost: the builder lost the map, e.g. a kidnapped
+// robot): the new submap's first scan is a node of its own, or the shared node would tie the new
+// submap to where the old one ended, which is what being lost says is wrong.
 //
 // Inputs are collected as they come (any order); optimize() builds the graph from all of them,
 // starting each node where the previous optimize() left it (warm start), and new ones where the
@@ -160,6 +163,7 @@ class ScanGraph {
   ScanGraphOptions options_;
   std::map<int, Trajectory> trajectories_;
   std::vector<SubmapConstraintInput> constraints_;
+  std::set<int> lost_starts_;  // submaps started by a lost hand-over: no shared first scan
   std::vector<Loop> loops_;
   std::map<int, Eigen::Vector3d> warm_submaps_;         // id -> last optimised origin
   std::map<std::int64_t, Eigen::Vector3d> warm_scans_;  // scan stamp -> last optimised pose

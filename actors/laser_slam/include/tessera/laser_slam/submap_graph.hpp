@@ -64,6 +64,9 @@ struct SubmapConstraintInput {
   tessera::Pose2 relative;  ///< pose of `to`'s origin in `from`'s frame
   Eigen::Matrix3d covariance = Eigen::Matrix3d::Identity();
   bool revisit = false;  ///< false: the hand-over from `from` to the new submap `to`
+  /// Hand-overs: the builder was lost when `to` started (msg lost), so `to` is not where the
+  /// hand-over says; the scan-level graph then does not join the two submaps at their shared scan.
+  bool lost = false;
 };
 
 class SubmapGraph {

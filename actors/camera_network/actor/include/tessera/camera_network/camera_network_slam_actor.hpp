@@ -42,11 +42,12 @@
 // sightings_with_odometry, visits_odometry_shaped and odometry_ignored (non-finite poses),
 // calibration_rms_px (mean over the calibrations in force); with score_ground_truth also
 // revisits_true / revisits_false (against the true relative pose of the two submaps' start poses,
-// within truth_tolerance_*) and camera_localisation_rms_m / camera_localisation_max_m: every
-// sighting of a calibrated camera localised through its homography, against the true marker
-// position in that submap; for detections with corners (marker_camera) also camera_heading_rms_rad
-// and camera_pose_nees (the full pose from the corners, localizeMarkerPose, against the truth; 3
-// when consistent).
+// within truth_tolerance_*), revisit_nees (each scored revisit's error against that truth in its
+// covariance's metric, averaged; 3 when consistent) and camera_localisation_rms_m /
+// camera_localisation_max_m: every sighting of a calibrated camera localised through its
+// homography, against the true marker position in that submap; for detections with corners
+// (marker_camera) also camera_heading_rms_rad and camera_pose_nees (the full pose from the corners,
+// localizeMarkerPose, against the truth; 3 when consistent).
 #pragma once
 
 #include <tessera/msg/camera.capnp.h>
@@ -146,8 +147,8 @@ class CameraNetworkSlamActor final : public Actor {
   std::string last_refusal_;
   double loc_sq_ = 0, loc_max_ = 0;
   std::int64_t loc_count_ = 0;
-  double heading_sq_ = 0, heading_nees_ = 0;
-  std::int64_t heading_count_ = 0;
+  double heading_sq_ = 0, heading_nees_ = 0, revisit_nees_ = 0;
+  std::int64_t heading_count_ = 0, revisit_nees_count_ = 0;
 };
 
 }  // namespace tessera::camera_network
