@@ -5,8 +5,6 @@
 #include <yaml-cpp/yaml.h>
 
 #include <filesystem>
-#include <fstream>
-#include <iterator>
 #include <set>
 #include <sstream>
 #include <string>
@@ -96,10 +94,7 @@ TEST_CASE("bench camera_network runs each seed, and a seed repeats exactly",
   CHECK(a == c);
   CHECK(a < 0.5);
   CHECK(b < 0.5);
-  const auto slurp = [](const std::filesystem::path& f) {
-    std::ifstream in(f);
-    return std::string(std::istreambuf_iterator<char>(in), {});
-  };
   const auto runs = dir / "out/two_level_ceres_cameras";
-  CHECK(slurp(runs / "seed_1/trajectory_final.tum") != slurp(runs / "seed_2/trajectory_final.tum"));
+  CHECK(tessera::test::fileText(runs / "seed_1/trajectory_final.tum") !=
+        tessera::test::fileText(runs / "seed_2/trajectory_final.tum"));
 }

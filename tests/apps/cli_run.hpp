@@ -19,6 +19,14 @@ struct CliRun {
   std::string out, err;
 };
 
+/// A file's whole contents (bytes as they are), empty when it cannot be read.
+inline std::string fileText(const std::filesystem::path& file) {
+  std::ifstream in(file, std::ios::binary);
+  std::ostringstream s;
+  s << in.rdbuf();
+  return s.str();
+}
+
 /// `tessera ARGS` with stderr captured in dir/stderr.txt.
 inline CliRun runCli(const std::string& args, const std::filesystem::path& dir) {
   const std::filesystem::path err_file = dir / "stderr.txt";
@@ -32,10 +40,7 @@ inline CliRun runCli(const std::string& args, const std::filesystem::path& dir) 
   while ((n = std::fread(buf, 1, sizeof buf, pipe)) > 0) run.out.append(buf, n);
   const int status = ::pclose(pipe);
   run.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
-  std::ifstream in(err_file);
-  std::ostringstream s;
-  s << in.rdbuf();
-  run.err = s.str();
+  run.err = fileText(err_file);
   return run;
 }
 

@@ -10,15 +10,9 @@
 #include <iterator>
 
 using namespace tessera;
+using tessera::test::fileText;
 using tessera::test::runCli;
 namespace fs = std::filesystem;
-
-namespace {
-std::string slurp(const fs::path& p) {
-  std::ifstream in(p, std::ios::binary);
-  return {std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()};
-}
-}  // namespace
 
 TEST_CASE("tessera record then replay reproduces the sim_mapping map byte for byte",
           "[recording][e2e]") {
@@ -50,13 +44,14 @@ TEST_CASE("tessera record then replay reproduces the sim_mapping map byte for by
   REQUIRE(replay.exit_code == 0);
   CHECK_THAT(replay.err, Catch::Contains("not running 'sim'") &&
                              Catch::Contains("not running 'odometry_writer'"));
-  const std::string live_map = slurp(dir / "live" / "map.pgm");
+  const std::string live_map = fileText(dir / "live" / "map.pgm");
   REQUIRE(live_map.size() > 1000);
-  CHECK(slurp(dir / "replay" / "map.pgm") == live_map);
-  CHECK(slurp(dir / "replay" / "ground_truth.tum") == slurp(dir / "live" / "ground_truth.tum"));
+  CHECK(fileText(dir / "replay" / "map.pgm") == live_map);
+  CHECK(fileText(dir / "replay" / "ground_truth.tum") ==
+        fileText(dir / "live" / "ground_truth.tum"));
 
   {  // a truncated recording replays its intact prefix and reports the loss
-    const auto bytes = slurp(rec);
+    const auto bytes = fileText(rec);
     const fs::path cut = dir / "cut.trec";
     std::ofstream(cut, std::ios::binary) << bytes.substr(0, bytes.size() * 2 / 3);
     const auto cut_info = runCli("replay " + cut.string() + " --info", dir);

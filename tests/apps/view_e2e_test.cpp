@@ -32,15 +32,9 @@
 namespace view_e2e_test {
 
 namespace fs = std::filesystem;
+using tessera::test::fileText;
 
 namespace {
-
-std::string slurp(const fs::path& p) {
-  std::ifstream in(p);
-  std::ostringstream s;
-  s << in.rdbuf();
-  return s.str();
-}
 
 void skipOrFail(const std::string& why) {
   const char* ci = std::getenv("CI");
@@ -98,7 +92,7 @@ TEST_CASE("a browser and Foxglove's client watch sim_slam_global live; the brows
                                   (dir / "goal.trec").string() + " --dir " + (dir / "out").string(),
                               err);
   const std::string url = tessera::test::waitForViewerUrl(err);
-  INFO(slurp(err));
+  INFO(fileText(err));
   REQUIRE_FALSE(url.empty());
 
   const fs::path result = dir / "result.json";
@@ -114,13 +108,13 @@ TEST_CASE("a browser and Foxglove's client watch sim_slam_global live; the brows
                            (dir / "foxglove.err").string();
   const int foxglove = std::system(fcmd.c_str());
   const int stopped = run.interrupt();
-  INFO(slurp(dir / "foxglove.err"));
-  INFO(slurp(dir / "e2e.log"));
-  INFO(slurp(err));
+  INFO(fileText(dir / "foxglove.err"));
+  INFO(fileText(dir / "e2e.log"));
+  INFO(fileText(err));
   REQUIRE(e2e == 0);
   REQUIRE(foxglove == 0);
   CHECK(stopped == 130);  // stopped by Ctrl-C, outputs written
-  const auto r = nlohmann::json::parse(slurp(result));
+  const auto r = nlohmann::json::parse(fileText(result));
   CHECK(r["ok"] == true);
   CHECK(r["errors"].empty());
   CHECK(r["tiles"].get<int>() > 0);
@@ -140,7 +134,7 @@ TEST_CASE("a browser and Foxglove's client watch sim_slam_global live; the brows
   CHECK(std::regex_search(info.out, std::regex(R"(goal\b.*\b1 message)")));
 
   // What Foxglove's client decoded matches the run.
-  const auto f = nlohmann::json::parse(slurp(dir / "foxglove.json"));
+  const auto f = nlohmann::json::parse(fileText(dir / "foxglove.json"));
   CHECK(f["server"]["name"] == "tessera");
   CHECK(f["decoded"]["scan"]["ranges"].get<int>() > 100);
   CHECK(f["decoded"]["scan"]["finite"].get<int>() > 0);
@@ -153,7 +147,7 @@ TEST_CASE("a browser and Foxglove's client watch sim_slam_global live; the brows
   const auto actors = f["decoded"]["tessera/metrics"]["actors"];
   CHECK(std::find(actors.begin(), actors.end(), "slam") != actors.end());
 
-  const auto summary = nlohmann::json::parse(slurp(dir / "out" / "summary.json"));
+  const auto summary = nlohmann::json::parse(fileText(dir / "out" / "summary.json"));
   CHECK(summary["actors"]["viewer"]["goals"] == 1);
   CHECK(summary["actors"]["viewer"]["clients_total"].get<int>() >= 1);
 }
@@ -175,7 +169,7 @@ TEST_CASE("an initial pose placed in the browser restarts the localiser, which k
       // when the tool is picked, dragged along the heading) is a few centimetres old on arrival.
       "run sim_nav --view 0 --rate 2 --quiet --out " + (dir / "out").string(), err);
   const std::string url = tessera::test::waitForViewerUrl(err);
-  INFO(slurp(err));
+  INFO(fileText(err));
   REQUIRE_FALSE(url.empty());
   const std::string cmd = "node " + (js / "viewer_e2e.mjs").string() + " --url " + url +
                           " --initial-pose robot --need map,robot,costmap,local_plan" +
@@ -186,12 +180,12 @@ TEST_CASE("an initial pose placed in the browser restarts the localiser, which k
   // Some more driving after the restart before stopping.
   std::this_thread::sleep_for(std::chrono::seconds(5));
   const int stopped = run.interrupt();
-  INFO(slurp(dir / "e2e.log"));
+  INFO(fileText(dir / "e2e.log"));
   REQUIRE(e2e == 0);
   CHECK(stopped == 130);
-  const auto r = nlohmann::json::parse(slurp(dir / "result.json"));
+  const auto r = nlohmann::json::parse(fileText(dir / "result.json"));
   REQUIRE_FALSE(r["initialPoseSent"].is_null());
-  const auto summary = nlohmann::json::parse(slurp(dir / "out" / "summary.json"));
+  const auto summary = nlohmann::json::parse(fileText(dir / "out" / "summary.json"));
   CHECK(summary["actors"]["viewer"]["initial_poses"] == 1);
   CHECK(summary["actors"]["mcl"]["initial_poses"] == 1);
   // Restarted where the page drew the robot, MCL still follows the truth at the end.
@@ -214,7 +208,7 @@ nlohmann::json watch(const std::string& profile, const std::string& args, const 
   tessera::test::CliChild run(
       "run " + profile + " --view 0 --quiet " + args + " --out " + (dir / "out").string(), err);
   const std::string url = tessera::test::waitForViewerUrl(err);
-  INFO(slurp(err));
+  INFO(fileText(err));
   REQUIRE_FALSE(url.empty());
   const std::string cmd = "node " + (js / "viewer_e2e.mjs").string() + " --url " + url +
                           " --need " + need + " --screenshot " + (dir / "viewer.png").string() +
@@ -222,10 +216,10 @@ nlohmann::json watch(const std::string& profile, const std::string& args, const 
                           (dir / "e2e.log").string() + " 2>&1";
   const int e2e = std::system(cmd.c_str());
   const int stopped = run.interrupt();
-  INFO(slurp(dir / "e2e.log"));
+  INFO(fileText(dir / "e2e.log"));
   REQUIRE(e2e == 0);
   CHECK(stopped == 130);
-  return nlohmann::json::parse(slurp(dir / "result.json"));
+  return nlohmann::json::parse(fileText(dir / "result.json"));
 }
 
 TEST_CASE("the browser draws the camera network's footprints and the RGB-D SLAM's 3D map",

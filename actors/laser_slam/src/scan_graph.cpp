@@ -135,17 +135,13 @@ void ScanGraph::addScanNodes(int submap, Trajectory& t, const std::vector<std::i
     const bool is_closed = c != closed.end() && *c <= stamp + tol;
     if (!(i % static_cast<std::size_t>(options_.node_every) == 0 || i + 1 == n || is_closed))
       continue;
-    // The scan that ended the previous submap starts this one: one node, an edge from each.
+    // The scan that ended the previous submap starts this one: one node, an edge from each;
+    // not for a submap started lost, whose first scan gets a node of its own (the stamp keeps
+    // naming the other's node).
     int node = -1;
     const auto same = node_by_stamp.lower_bound(stamp - tol);
     const bool taken = same != node_by_stamp.end() && same->first <= stamp + tol;
-    if (taken && lost_starts_.count(submap)) {
-      // Started lost: its own node where its submap puts it (the stamp stays the other's).
-      node = graph_.addNode(
-          -1 - static_cast<std::int64_t>(scan_nodes_),
-          pose_graph::compose(graph_.poses[static_cast<std::size_t>(k)], vec(t.scans[i].pose)));
-      ++scan_nodes_;
-    } else if (taken) {
+    if (taken && !lost_starts_.count(submap)) {
       node = same->second;
       // The node's own submap is the one whose intra edge made it: the first edge into it.
       for (const auto& e : graph_.edges)
@@ -155,13 +151,13 @@ void ScanGraph::addScanNodes(int submap, Trajectory& t, const std::vector<std::i
           break;
         }
     } else {
-      const auto warm = warm_scans_.find(stamp);
+      const auto warm = taken ? warm_scans_.end() : warm_scans_.find(stamp);
       const Eigen::Vector3d initial =
           warm != warm_scans_.end() ? warm->second
                                     : pose_graph::compose(graph_.poses[static_cast<std::size_t>(k)],
                                                           vec(t.scans[i].pose));
       node = graph_.addNode(-1 - static_cast<std::int64_t>(scan_nodes_), initial);
-      node_by_stamp.emplace(stamp, node);
+      if (!taken) node_by_stamp.emplace(stamp, node);
       ++scan_nodes_;
     }
     t.node_of[i] = node;
