@@ -195,9 +195,10 @@ pose_graph::OptimizerSummary ScanGraph::optimize(const std::map<int, tessera::Po
   std::vector<pose_graph::Edge2D> submap_edges;
   auto submapEdge = [&](const SubmapConstraintInput& c) {
     if (!graph_.contains(c.from) || !graph_.contains(c.to)) return;
-    pose_graph::addOrFuse(graph_,
-                          {graph_.index(c.from), graph_.index(c.to), vec(c.relative),
-                           (0.5 * (c.covariance + c.covariance.transpose())).inverse(), c.revisit});
+    pose_graph::addOrFuse(
+        graph_,
+        {graph_.index(c.from), graph_.index(c.to), vec(c.relative),
+         pose_graph::informationFromFrameCovariance(vec(c.relative), c.covariance), c.revisit});
   };
   for (const auto& c : constraints_)
     if (c.revisit || options_.shared_handovers ||
@@ -208,9 +209,9 @@ pose_graph::OptimizerSummary ScanGraph::optimize(const std::map<int, tessera::Po
     const auto node = node_by_stamp.lower_bound(l.scan.stamp_ns - tol);
     if (graph_.contains(l.scan.matched) && node != node_by_stamp.end() &&
         node->first <= l.scan.stamp_ns + tol) {
-      const Eigen::Matrix3d cov = 0.5 * (l.scan.covariance + l.scan.covariance.transpose());
       graph_.edges.push_back(
-          {graph_.index(l.scan.matched), node->second, vec(l.scan.pose), cov.inverse(), true});
+          {graph_.index(l.scan.matched), node->second, vec(l.scan.pose),
+           pose_graph::informationFromFrameCovariance(vec(l.scan.pose), l.scan.covariance), true});
       ++loops_on_scans_;
     } else if (graph_.contains(l.fallback.from) && graph_.contains(l.fallback.to)) {
       submapEdge(l.fallback);

@@ -22,6 +22,15 @@ std::string describe(const SubmapConstraintInput& c) {
 SubmapGraph::SubmapGraph(SubmapGraphOptions options) : options_(std::move(options)) {
   if (const std::string e = pose_graph::optionsError(options_.optimizer); !e.empty())
     throw std::invalid_argument("optimizer." + e);
+  for (const auto& [key, value] :
+       {std::pair{"closure_shared_std_linear", options_.closure_shared_std_linear},
+        std::pair{"closure_shared_std_angular", options_.closure_shared_std_angular}})
+    if (!(std::isfinite(value) && value >= 0.0))
+      throw std::invalid_argument(std::string(key) + " must be finite and >= 0 (got " +
+                                  std::to_string(value) + ")");
+  if ((options_.closure_shared_std_linear > 0.0) != (options_.closure_shared_std_angular > 0.0))
+    throw std::invalid_argument(
+        "closure_shared_std_linear and closure_shared_std_angular are both 0 (off) or both > 0");
 }
 
 void SubmapGraph::addSubmap(int id, const tessera::Pose2& guess) {
@@ -97,10 +106,58 @@ SubmapGraph::Outcome SubmapGraph::insert(const SubmapConstraintInput& c) {
   } else {
     placed_by_composition = false;
   }
-  const pose_graph::Edge2D edge{a, b, vec(c.relative), cov.inverse(), c.revisit};
-  const bool fused = pose_graph::addOrFuse(graph_, edge);
+  const pose_graph::Edge2D edge{a, b, vec(c.relative),
+                                pose_graph::informationFromFrameCovariance(vec(c.relative), cov),
+                                c.revisit};
+  const bool scan_match = c.revisit && c.scan_match;
+  const bool tracked = options_.closure_shared_std_linear > 0.0 &&
+                       (scan_match || pair_parts_.count(std::minmax(c.from, c.to)));
+  const bool fused =
+      tracked ? fuseIntoPair(edge, c.from, c.to, scan_match) : pose_graph::addOrFuse(graph_, edge);
   if (!placed_by_composition) dirty_ = true;
   return fused ? Outcome::kFused : Outcome::kAdded;
+}
+
+bool SubmapGraph::fuseIntoPair(const pose_graph::Edge2D& edge, int from_id, int to_id,
+                               bool scan_match) {
+  using pose_graph::Measurement2D;
+  const bool forward = from_id < to_id;
+  const std::pair<int, int> key = std::minmax(from_id, to_id);
+  const int lo = graph_.index(key.first), hi = graph_.index(key.second);
+  auto orient = [](const Measurement2D& m, bool keep) { return keep ? m : pose_graph::invert(m); };
+  const auto existing = std::find_if(graph_.edges.begin(), graph_.edges.end(), [&](const auto& e) {
+    return (e.from == lo && e.to == hi) || (e.from == hi && e.to == lo);
+  });
+  PairParts& parts = pair_parts_[key];
+  // An edge this bookkeeping has not seen (made before, or by a marginalisation): all "others".
+  if (existing != graph_.edges.end() && !parts.scan_matches && !parts.others)
+    parts.others = orient({existing->measurement, existing->information}, existing->from == lo);
+  const Measurement2D incoming = orient({edge.measurement, edge.information}, forward);
+  std::optional<Measurement2D>& part = scan_match ? parts.scan_matches : parts.others;
+  part = part ? pose_graph::fuse(*part, incoming) : incoming;
+  const Eigen::Matrix3d shared_cov =
+      Eigen::Vector3d(options_.closure_shared_std_linear * options_.closure_shared_std_linear,
+                      options_.closure_shared_std_linear * options_.closure_shared_std_linear,
+                      options_.closure_shared_std_angular * options_.closure_shared_std_angular)
+          .asDiagonal();
+  // The matches' part: independent errors fused, then the shared one added (isotropic in
+  // (x, y), so the same in every frame and added in the edge's chart as it is).
+  Measurement2D together = *part;
+  if (parts.scan_matches) {
+    const Eigen::Matrix3d cov = shared_cov + parts.scan_matches->information.inverse();
+    together = {parts.scan_matches->mean, cov.inverse()};
+    together.information = 0.5 * (together.information + together.information.transpose()).eval();
+    if (parts.others) together = pose_graph::fuse(*parts.others, together);
+  }
+  if (existing == graph_.edges.end()) {
+    graph_.edges.push_back({lo, hi, together.mean, together.information, edge.robust});
+    return false;
+  }
+  const Measurement2D stored = orient(together, existing->from == lo);
+  existing->measurement = stored.mean;
+  existing->information = stored.information;
+  existing->robust = existing->robust || edge.robust;
+  return true;
 }
 
 void SubmapGraph::resolvePending() {
@@ -131,6 +188,8 @@ bool SubmapGraph::removeSubmap(int id) {
     return false;
   }
   pose_graph::marginalizeNode(graph_, id);
+  // Marginalising rewrote edges between the neighbours: their parts start again from the edges.
+  pair_parts_.clear();
   removed_.insert(id);
   std::erase_if(pending_,
                 [id](const SubmapConstraintInput& c) { return c.from == id || c.to == id; });

@@ -203,49 +203,62 @@ void validate(const Graph3D& graph) {
   validateGraph(graph);
 }
 
+namespace {
+
+/// Adj(Z) of SE(2) in the (x, y, θ) chart: Z ⊕ δ ⊕ Z⁻¹ = Adj(Z) δ to first order.
+Eigen::Matrix3d adjoint(const Eigen::Vector3d& z) {
+  const double c = std::cos(z.z()), s = std::sin(z.z());
+  Eigen::Matrix3d a;
+  a << c, -s, z.y(),  //
+      s, c, -z.x(),   //
+      0, 0, 1;
+  return a;
+}
+
+/// (M + Mᵀ) / 2: exactly symmetric, whatever rounding did to M.
+template <class Derived>
+typename Derived::PlainObject symmetric(const Eigen::MatrixBase<Derived>& m) {
+  return 0.5 * (m + m.transpose());
+}
+
+}  // namespace
+
+Eigen::Matrix3d informationFromFrameCovariance(const Eigen::Vector3d& measurement,
+                                               const Eigen::Matrix3d& covariance) {
+  // A shift δ of Z's (x, y) given in the from frame is the error R(θ_Z)ᵀ δ: Σ_e = A Σ Aᵀ with A
+  // a rotation, so Ω_e = A Σ⁻¹ Aᵀ.
+  Eigen::Matrix3d a = Eigen::Matrix3d::Identity();
+  a.topLeftCorner<2, 2>() = Eigen::Rotation2Dd(-measurement.z()).toRotationMatrix();
+  return symmetric(a * symmetric(covariance).inverse() * a.transpose());
+}
+
 Measurement2D fuse(const Measurement2D& first, const Measurement2D& second) {
-  Eigen::Vector3d z2 = second.mean;
-  z2.z() = first.mean.z() + normalizeAngle(z2.z() - first.mean.z());
+  // One Gauss-Newton step from the first in the edge chart (as in SE(3)):
+  // Z = Z1 ⊕ Ω⁻¹ Ω2 (Z1⁻¹ ⊕ Z2).
+  const Eigen::Vector3d delta = compose(inverse(first.mean), second.mean);
   Measurement2D out;
   out.information = first.information + second.information;
-  out.mean = out.information.ldlt().solve(first.information * first.mean + second.information * z2);
-  out.mean.z() = normalizeAngle(out.mean.z());
+  out.mean = compose(first.mean, out.information.ldlt().solve(second.information * delta));
   return out;
 }
 
 Measurement2D invert(const Measurement2D& m) {
-  // inv(t, θ) = (−R(θ)ᵀ t, −θ); J is its Jacobian, and Ω' = J⁻ᵀ Ω J⁻¹.
-  const double c = std::cos(m.mean.z()), s = std::sin(m.mean.z());
-  const double x = m.mean.x(), y = m.mean.y();
-  Eigen::Matrix3d J;
-  J << -c, -s, s * x - c * y,  //
-      s, -c, c * x + s * y,    //
-      0, 0, -1;
-  const Eigen::Matrix3d Jinv = J.inverse();
+  // The inverse's error is −Adj(Z) e: Ω' = Adj⁻ᵀ Ω Adj⁻¹.
+  const Eigen::Matrix3d adj_inv = adjoint(m.mean).inverse();
   Measurement2D out;
   out.mean = inverse(m.mean);
-  out.information = Jinv.transpose() * m.information * Jinv;
-  out.information = 0.5 * (out.information + out.information.transpose()).eval();
+  out.information = symmetric(adj_inv.transpose() * m.information * adj_inv);
   return out;
 }
 
 Measurement2D chain(const Measurement2D& a_to_x, const Measurement2D& x_to_b) {
-  const Eigen::Vector3d& p = a_to_x.mean;
-  const Eigen::Vector3d& q = x_to_b.mean;
-  const double c = std::cos(p.z()), s = std::sin(p.z());
-  Eigen::Matrix3d jp, jq;              // d(p ⊕ q)/dp and d(p ⊕ q)/dq
-  jp << 1, 0, -s * q.x() - c * q.y(),  //
-      0, 1, c * q.x() - s * q.y(),     //
-      0, 0, 1;
-  jq << c, -s, 0,  //
-      s, c, 0,     //
-      0, 0, 1;
-  const Eigen::Matrix3d cov = jp * a_to_x.information.inverse() * jp.transpose() +
-                              jq * x_to_b.information.inverse() * jq.transpose();
+  // (Z1 ⊕ e1) ⊕ (Z2 ⊕ e2) = Z1 Z2 ⊕ (Adj(Z2⁻¹) e1 + e2) to first order.
+  const Eigen::Matrix3d j1 = adjoint(inverse(x_to_b.mean));
+  const Eigen::Matrix3d cov =
+      j1 * a_to_x.information.inverse() * j1.transpose() + x_to_b.information.inverse();
   Measurement2D out;
-  out.mean = compose(p, q);
-  out.information = cov.inverse();
-  out.information = 0.5 * (out.information + out.information.transpose()).eval();
+  out.mean = compose(a_to_x.mean, x_to_b.mean);
+  out.information = symmetric(cov.inverse());
   return out;
 }
 
@@ -342,10 +355,6 @@ Matrix6d numericJacobian(const F& f) {
     j.col(i) = (f(d) - f(-d)) / (2 * h);
   }
   return j;
-}
-
-Matrix6d symmetric(const Matrix6d& m) {
-  return 0.5 * (m + m.transpose());
 }
 
 }  // namespace

@@ -155,6 +155,10 @@ struct PlanarModel {
   static Eigen::Vector3d& coords(Pose& p) { return p; }
   static Pose shifted(const Pose& p, const Eigen::Vector3d& s) { return p + s; }
   static Eigen::Matrix3d rotation(const Pose& p) { return planarRotation(p.z()); }
+  /// The frame Ω is expressed in: g2o's error Z⁻¹ (X_a⁻¹ X_b) lives in the frame of X_a ⊕ Z.
+  static Eigen::Matrix3d errorFrame(const Pose& pa, const Pose& z) {
+    return planarRotation(pa.z() + z.z());
+  }
   static Eigen::Vector3d residual(const Pose& pa, const Pose& pb, const Pose& z) {
     Eigen::Vector3d target = pa;
     target.head<2>() += rotation(pa).topLeftCorner<2, 2>() * z.head<2>();
@@ -173,13 +177,17 @@ struct SpatialModel {
   static Constraint<Pose> orient(const Edge3D& e) {
     const Eigen::Matrix3d omega = e.information.topLeftCorner<3, 3>();
     if (e.from < e.to) return {e.from, e.to, e.measurement, omega};
-    // The inverse measurement's translation is −Rᵀ t: its information turns with R.
+    // Ω weighs along R_a R_Z (≈ b's axes); the inverse's error frame is R_b R_Zᵀ, in which the
+    // same axes are R_Z Ω R_Zᵀ.
     const Eigen::Matrix3d r = e.measurement.q.toRotationMatrix();
-    return {e.to, e.from, e.measurement.inverse(), r.transpose() * omega * r};
+    return {e.to, e.from, e.measurement.inverse(), r * omega * r.transpose()};
   }
   static Eigen::Vector3d& coords(Pose& p) { return p.t; }
   static Pose shifted(const Pose& p, const Eigen::Vector3d& s) { return {p.t + s, p.q}; }
   static Eigen::Matrix3d rotation(const Pose& p) { return p.q.toRotationMatrix(); }
+  static Eigen::Matrix3d errorFrame(const Pose& pa, const Pose& z) {
+    return (pa.q * z.q).toRotationMatrix();
+  }
   static Eigen::Vector3d residual(const Pose& pa, const Pose& pb, const Pose& z) {
     return pa.t + rotation(pa) * z.t - pb.t;
   }
@@ -207,14 +215,14 @@ StageResult runPasses(G& graph, const SgdOptions& options) {
   for (int pass = 1; pass <= options.iterations; ++pass) {
     diag.clear();
     for (const auto& c : constraints) {
-      const Eigen::Matrix3d r = Model::rotation(graph.poses[c.a]);
+      const Eigen::Matrix3d r = Model::errorFrame(graph.poses[c.a], c.z);
       diag.push_back((r * c.omega * r.transpose()).diagonal());
     }
     precond.build(n, spans, diag);
     for (std::size_t idx : shuffledOrder(constraints.size(), rng)) {
       const auto& c = constraints[idx];
       const Pose pa = pose(c.a);
-      const Eigen::Matrix3d r = Model::rotation(pa);
+      const Eigen::Matrix3d r = Model::errorFrame(pa, c.z);
       const Eigen::Vector3d residual = Model::residual(pa, pose(c.b), c.z);
       const Eigen::Vector3d d = 2.0 * (r * c.omega * r.transpose()) * residual;
       const Eigen::Vector3d beta =

@@ -111,6 +111,75 @@ TEST_CASE("a second revisit between the same submaps is fused, an exact repeat i
   CHECK(fused.measurement.x() == Approx(-10.0).margin(1e-6));
 }
 
+TEST_CASE("a constraint's covariance is read in its from submap's frame, whatever its turn",
+          "[graph_optimizer]") {
+  // Submap 1 starts 10 m ahead of submap 0, turned 90 degrees. The hand-over is loose along
+  // submap 0's x (1 m) and tight along its y (1 cm): moving submap 1 along 0's x costs little,
+  // along 0's y a lot, though in submap 1's own frame those axes are swapped.
+  SubmapGraph g;
+  g.addSubmap(0, Pose2());
+  auto c = constraint(0, 1, Pose2(10, 0, std::numbers::pi / 2), false);
+  c.covariance = Eigen::Vector3d(1.0, 1e-4, 1e-4).asDiagonal();
+  REQUIRE(g.addConstraint(c) == Outcome::kAdded);
+  auto chi2Moved = [&](double dx, double dy) {
+    pose_graph::Graph2D moved = g.graph();
+    moved.poses[1] += Eigen::Vector3d(dx, dy, 0);
+    return pose_graph::chi2(moved);
+  };
+  CHECK(chi2Moved(0.1, 0) == Approx(0.01));
+  CHECK(chi2Moved(0, 0.1) == Approx(100.0));
+}
+
+TEST_CASE("scan matches of one pass fused into an edge saturate at their shared error",
+          "[graph_optimizer]") {
+  // 50 scan matches 2 -> 0 of 1 cm each: as independent they would give 1.4 mm; sharing a 5 cm
+  // placement error they give about 5 cm. A camera revisit on the same pair is independent of
+  // them and adds its information.
+  laser_slam::SubmapGraphOptions o;  // the defaults: 0.05 m, 0.01 rad
+  REQUIRE(o.closure_shared_std_linear == 0.05);
+  laser_slam::SubmapGraphOptions off;
+  off.closure_shared_std_linear = off.closure_shared_std_angular = 0;
+  SubmapGraph shared(o), independent(off);
+  for (SubmapGraph* g : {&shared, &independent}) {
+    g->addSubmap(0, Pose2());
+    g->addConstraint(constraint(0, 1, Pose2(5, 0, 0), false));
+    g->addConstraint(constraint(1, 2, Pose2(5, 0, std::numbers::pi / 2), false));
+    for (int k = 0; k < 50; ++k) {
+      auto m = constraint(2, 0, Pose2(0.001 * k, 10, -std::numbers::pi / 2), true, 0.01);
+      m.scan_match = true;
+      g->addConstraint(m);
+    }
+    CHECK(g->edges() == 3);
+  }
+  auto closureStd = [](const SubmapGraph& g) {
+    const auto& e = g.graph().edges.back();
+    return std::sqrt(e.information.inverse()(0, 0));
+  };
+  CHECK(closureStd(independent) == Approx(0.01 / std::sqrt(50.0)).epsilon(0.01));
+  CHECK(closureStd(shared) == Approx(std::sqrt(0.05 * 0.05 + 0.01 * 0.01 / 50)).epsilon(0.01));
+  // The fused mean is the matches' mean, 0.0245 m along submap 2's x, which is -y of submap 0's
+  // (the edge is kept 0 -> 2, lower id first).
+  const auto& e = shared.graph().edges.back();
+  REQUIRE(e.from == 0);
+  CHECK(e.measurement.x() == Approx(10.0).epsilon(1e-9));
+  CHECK(e.measurement.y() == Approx(-0.0245).epsilon(1e-6));
+  const double before = shared.graph().edges.back().information(0, 0);
+  auto camera = constraint(2, 0, Pose2(0.0123, 10, -std::numbers::pi / 2), true, 0.05);
+  CHECK(shared.addConstraint(camera) == Outcome::kFused);
+  CHECK(shared.graph().edges.back().information(0, 0) == Approx(before + 1 / 0.0025).epsilon(0.05));
+  CHECK(shared.edges() == 3);
+}
+
+TEST_CASE("the shared closure error is refused when negative or half set", "[graph_optimizer]") {
+  laser_slam::SubmapGraphOptions o;
+  o.closure_shared_std_linear = -0.1;
+  o.closure_shared_std_angular = 0.01;
+  CHECK_THROWS_WITH(SubmapGraph(o), Catch::Contains("closure_shared_std_linear must be"));
+  o.closure_shared_std_linear = 0.05;
+  o.closure_shared_std_angular = 0;
+  CHECK_THROWS_WITH(SubmapGraph(o), Catch::Contains("both 0 (off) or both > 0"));
+}
+
 TEST_CASE("constraints arriving before their submaps wait and are resolved in any order",
           "[graph_optimizer]") {
   SubmapGraph g;

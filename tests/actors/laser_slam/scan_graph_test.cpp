@@ -11,8 +11,10 @@
 
 #include <catch2/catch.hpp>
 
+#include <algorithm>
 #include <cmath>
 #include <limits>
+#include <numbers>
 
 using namespace tessera;
 using laser_slam::ScanGraph;
@@ -180,6 +182,33 @@ TEST_CASE("scan graph: a closure on one scan pulls the scan and its submap towar
   robust.optimize(kStart);
   CHECK(scanAt(robust, 8).y < closed.y - 0.05);
   CHECK(scanAt(robust, 8).y > 0.01);
+}
+
+TEST_CASE("scan graph: a closure's covariance is read in its matched submap's frame",
+          "[scan_graph]") {
+  // The scan at t = 8 s matched in submap 0 turned 90 degrees, loose along submap 0's x (1 m)
+  // and tight along its y (1 cm). The edge must weigh those axes, whatever the scan's heading.
+  ScanGraph g = twoSubmaps();
+  auto [loop, fallback] = closure();
+  loop.pose = Pose2(8, 0, std::numbers::pi / 2);
+  loop.covariance = Eigen::Vector3d(1.0, 1e-4, 1e-4).asDiagonal();
+  REQUIRE(g.addLoop(loop, fallback));
+  g.optimize(kStart);
+  REQUIRE(g.loopsOnScans() == 1);
+  const auto& graph = g.graph();
+  const auto edge = std::find_if(graph.edges.begin(), graph.edges.end(),
+                                 [](const pose_graph::Edge2D& e) { return e.robust; });
+  REQUIRE(edge != graph.edges.end());
+  auto chi2Moved = [&](double dx, double dy) {
+    pose_graph::Graph2D one;
+    one.addNode(0, Eigen::Vector3d::Zero());
+    one.addNode(1, pose_graph::compose(Eigen::Vector3d::Zero(), edge->measurement) +
+                       Eigen::Vector3d(dx, dy, 0));
+    one.edges.push_back({0, 1, edge->measurement, edge->information});
+    return pose_graph::chi2(one);
+  };
+  CHECK(chi2Moved(0.1, 0) == Approx(0.01));
+  CHECK(chi2Moved(0, 0.1) == Approx(100.0));
 }
 
 TEST_CASE("scan graph defaults: loose intra-submap edges let a closure pull its scan further",

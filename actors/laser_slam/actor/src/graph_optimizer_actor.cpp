@@ -120,6 +120,7 @@ void GraphOptimizerActor::onConstraint(const Message<msg::SubmapConstraint>& m) 
   c.relative = toPose2(m->getRelative());
   c.revisit = m->getKind() == msg::SubmapConstraint::Kind::REVISIT;
   c.lost = !c.revisit && m->getLost();
+  c.scan_match = c.revisit && m->hasScanInTo();
   if (!readCovariance(m->getRelative(), c.covariance)) {
     std::cerr << "[graph_optimizer] constraint " << c.from << " -> " << c.to
               << " has no covariance (9 values expected); rejected\n";

@@ -3,9 +3,11 @@
 // are submap origins (local map poses) in the map frame; edges are constraints between submaps
 // (hand-overs from the submap builder, revisits from the loop detector or the camera network). A
 // second constraint between the same two submaps is fused into the first by information weighting,
-// so revisits do not grow the graph. The graph is re-optimised (pose_graph::optimize, warm-started
-// from the current poses) whenever a constraint can change the optimum: a new revisit or a fusion.
-// A hand-over to a new submap only extends the graph by a leaf and places it by composition.
+// so revisits do not grow the graph; the loop detector's scan matches of one pair share an error
+// (closure_shared_std_*) that fusing them does not average away. The graph is re-optimised
+// (pose_graph::optimize, warm-started from the current poses) whenever a constraint can change the
+// optimum: a new revisit or a fusion. A hand-over to a new submap only extends the graph by a leaf
+// and places it by composition.
 //
 // Lifelong mapping (docs/algorithms.md#lifelong-mapping): removeSubmap() marginalises a submap
 // out of the graph (its neighbours tied by chained constraints, pose_graph::marginalizeNode); any
@@ -26,6 +28,7 @@
 #include <cstdint>
 #include <deque>
 #include <map>
+#include <optional>
 #include <set>
 #include <string>
 #include <tuple>
@@ -48,6 +51,13 @@ struct SubmapGraphOptions {
   /// Constraints waiting for an unknown submap beyond this many are rejected (oldest first), so
   /// a stream naming submaps that never come cannot grow memory without bound.
   std::size_t max_pending = 1000;
+  /// The scan matches fused into one edge i -> j were all found while the robot was in submap
+  /// i, so they share one error: where the SLAM had placed that stretch of path in i. Fused,
+  /// their information grows with their number only up to this shared error's (std per axis,
+  /// isotropic; docs/algorithms.md#constraint-fusion). 0 = taken as independent, which made
+  /// the camera floor's fused closures 0.15 m off against a 1 cm std (docs/benchmarks.md).
+  double closure_shared_std_linear = 0.05;   ///< [m]
+  double closure_shared_std_angular = 0.01;  ///< [rad]
 
   template <class V>
   void visit(V& v) {
@@ -55,6 +65,10 @@ struct SubmapGraphOptions {
       "solver of each re-optimisation (Huber on revisit edges, i.e. loop closures)");
     v("max_pending", max_pending,
       "constraints kept waiting for a submap not seen yet; beyond, the oldest are rejected");
+    v("closure_shared_std_linear", closure_shared_std_linear,
+      "[m] error the scan matches fused into one edge share (their pass's placement in the "
+      "current submap); 0 = independent");
+    v("closure_shared_std_angular", closure_shared_std_angular, "[rad] the same for heading");
   }
 };
 
@@ -67,6 +81,9 @@ struct SubmapConstraintInput {
   /// Hand-overs: the builder was lost when `to` started (msg lost), so `to` is not where the
   /// hand-over says; the scan-level graph then does not join the two submaps at their shared scan.
   bool lost = false;
+  /// A revisit found by matching one scan (loop detector): it shares its pass's error with the
+  /// other matches of the same pair (SubmapGraphOptions::closure_shared_std_linear).
+  bool scan_match = false;
 };
 
 class SubmapGraph {
@@ -115,6 +132,9 @@ class SubmapGraph {
  private:
   Outcome insert(const SubmapConstraintInput& c);
   void resolvePending();
+  /// Fuses a constraint into its pair's edge, scan matches with their pass's shared error (see
+  /// options). True when the pair had an edge.
+  bool fuseIntoPair(const pose_graph::Edge2D& edge, int from_id, int to_id, bool scan_match);
 
   SubmapGraphOptions options_;
   pose_graph::Graph2D graph_;
@@ -124,6 +144,14 @@ class SubmapGraph {
   std::set<std::tuple<int, int, double, double, double>> seen_;
   std::deque<std::tuple<int, int, double, double, double>> seen_order_;
   std::set<int> removed_;
+  // Per submap pair (lower id first, measurements in that direction): the scan matches fused as
+  // independent, and everything else the pair's edge holds. The edge is their fusion, the
+  // matches' part with the shared error added.
+  struct PairParts {
+    std::optional<pose_graph::Measurement2D> scan_matches;
+    std::optional<pose_graph::Measurement2D> others;
+  };
+  std::map<std::pair<int, int>, PairParts> pair_parts_;
   bool dirty_ = false;
   std::string last_error_;
 };

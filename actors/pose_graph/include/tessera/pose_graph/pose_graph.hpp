@@ -96,19 +96,26 @@ void validate(const Graph3D& graph);
 
 // --- Constraint fusion (docs/algorithms.md#constraint-fusion)
 // ---------------------------------------------------------------
-/// Information-weighted mean of two measurements of the same relative pose:
-/// Ω = Ω1 + Ω2, Z = Ω⁻¹ (Ω1 Z1 + Ω2 Z2), the angle of Z2 unwrapped next to Z1's first.
+// Uncertainty lives in the chart of the edge error, as in g2o's objective: Z ⊞ δ = Z ⊕ δ, so
+// an information matrix weighs (x, y) along the axes of the end frame X_a ⊕ Z, not of a's frame.
 struct Measurement2D {
   Eigen::Vector3d mean = Eigen::Vector3d::Zero();
   Eigen::Matrix3d information = Eigen::Matrix3d::Identity();
 };
+/// The information of an edge whose covariance is given over Z's (x [m], y [m], θ [rad]) in the
+/// from node's frame, as the scan matchers and cameras report it: the (x, y) block turned by
+/// −θ_Z into the edge's chart. The same matrix when θ_Z = 0 or the (x, y) block is isotropic.
+Eigen::Matrix3d informationFromFrameCovariance(const Eigen::Vector3d& measurement,
+                                               const Eigen::Matrix3d& covariance);
+/// Information-weighted mean of two measurements of the same relative pose, one Gauss-Newton
+/// step from the first: Ω = Ω1 + Ω2, Z = Z1 ⊕ Ω⁻¹ Ω2 (Z1⁻¹ ⊕ Z2).
 Measurement2D fuse(const Measurement2D& first, const Measurement2D& second);
 /// The same relative pose seen from the other end: Z⁻¹, with the information carried through
-/// the Jacobian of the inversion.
+/// the adjoint (the inverse's error is −Adj(Z) e).
 Measurement2D invert(const Measurement2D& m);
 
 /// Chains two measurements: a -> x then x -> b gives a -> b, Z = Z1 ⊕ Z2, the covariances carried
-/// through the Jacobians of the composition (first order; the two taken as independent).
+/// to the end frame (first order; the two taken as independent).
 Measurement2D chain(const Measurement2D& a_to_x, const Measurement2D& x_to_b);
 
 /// Removes node `id` and keeps what its edges said about its neighbours
