@@ -128,27 +128,31 @@ bool SubmapGraph::fuseIntoPair(const pose_graph::Edge2D& edge, int from_id, int 
   const auto existing = std::find_if(graph_.edges.begin(), graph_.edges.end(), [&](const auto& e) {
     return (e.from == lo && e.to == hi) || (e.from == hi && e.to == lo);
   });
-  PairParts& parts = pair_parts_[key];
-  // An edge this bookkeeping has not seen (made before, or by a marginalisation): all "others".
-  if (existing != graph_.edges.end() && !parts.scan_matches && !parts.others)
-    parts.others = orient({existing->measurement, existing->information}, existing->from == lo);
   const Measurement2D incoming = orient({edge.measurement, edge.information}, forward);
-  std::optional<Measurement2D>& part = scan_match ? parts.scan_matches : parts.others;
-  part = part ? pose_graph::fuse(*part, incoming) : incoming;
-  const Eigen::Matrix3d shared_cov =
-      Eigen::Vector3d(options_.closure_shared_std_linear * options_.closure_shared_std_linear,
-                      options_.closure_shared_std_linear * options_.closure_shared_std_linear,
-                      options_.closure_shared_std_angular * options_.closure_shared_std_angular)
-          .asDiagonal();
+  auto parts = pair_parts_.find(key);
+  if (parts == pair_parts_.end()) {
+    // The pair's first scan match (insert() sends nothing else here for an untracked pair). An
+    // edge already there (a hand-over, a camera revisit, a marginalisation) is all "others".
+    PairParts fresh{incoming, std::nullopt};
+    if (existing != graph_.edges.end())
+      fresh.others = orient({existing->measurement, existing->information}, existing->from == lo);
+    parts = pair_parts_.emplace(key, fresh).first;
+  } else if (scan_match) {
+    parts->second.scan_matches = pose_graph::fuse(parts->second.scan_matches, incoming);
+  } else {
+    auto& others = parts->second.others;
+    others = others ? pose_graph::fuse(*others, incoming) : incoming;
+  }
   // The matches' part: independent errors fused, then the shared one added (isotropic in
   // (x, y), so the same in every frame and added in the edge's chart as it is).
-  Measurement2D together = *part;
-  if (parts.scan_matches) {
-    const Eigen::Matrix3d cov = shared_cov + parts.scan_matches->information.inverse();
-    together = {parts.scan_matches->mean, cov.inverse()};
-    together.information = 0.5 * (together.information + together.information.transpose()).eval();
-    if (parts.others) together = pose_graph::fuse(*parts.others, together);
-  }
+  const double sl = options_.closure_shared_std_linear, sa = options_.closure_shared_std_angular;
+  const Measurement2D& matches = parts->second.scan_matches;
+  const Eigen::Matrix3d cov =
+      Eigen::Vector3d(sl * sl, sl * sl, sa * sa).asDiagonal().toDenseMatrix() +
+      matches.information.inverse();
+  Measurement2D together{matches.mean, cov.inverse()};
+  together.information = 0.5 * (together.information + together.information.transpose()).eval();
+  if (parts->second.others) together = pose_graph::fuse(*parts->second.others, together);
   if (existing == graph_.edges.end()) {
     graph_.edges.push_back({lo, hi, together.mean, together.information, edge.robust});
     return false;

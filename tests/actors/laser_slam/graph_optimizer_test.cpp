@@ -178,6 +178,8 @@ TEST_CASE("the shared closure error is refused when negative or half set", "[gra
   o.closure_shared_std_linear = 0.05;
   o.closure_shared_std_angular = 0;
   CHECK_THROWS_WITH(SubmapGraph(o), Catch::Contains("both 0 (off) or both > 0"));
+  o.closure_shared_std_angular = std::numeric_limits<double>::quiet_NaN();
+  CHECK_THROWS_WITH(SubmapGraph(o), Catch::Contains("closure_shared_std_angular must be finite"));
 }
 
 TEST_CASE("constraints arriving before their submaps wait and are resolved in any order",

@@ -155,7 +155,7 @@ void GraphOptimizerActor::addToScanGraph(const Message<msg::SubmapConstraint>& m
                                          const SubmapConstraintInput& c) {
   // Exact repeats were counted as duplicates and are not passed here.
   bool ok = true;
-  if (c.revisit && m->hasScanInTo()) {
+  if (c.scan_match) {
     ScanLoopInput loop;
     loop.matched = c.to;
     loop.stamp_ns = m->getHeader().getStampNs();

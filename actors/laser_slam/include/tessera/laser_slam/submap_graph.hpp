@@ -148,7 +148,7 @@ class SubmapGraph {
   // independent, and everything else the pair's edge holds. The edge is their fusion, the
   // matches' part with the shared error added.
   struct PairParts {
-    std::optional<pose_graph::Measurement2D> scan_matches;
+    pose_graph::Measurement2D scan_matches;  // a pair is tracked from its first scan match
     std::optional<pose_graph::Measurement2D> others;
   };
   std::map<std::pair<int, int>, PairParts> pair_parts_;
