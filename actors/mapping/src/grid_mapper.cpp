@@ -7,14 +7,13 @@
 namespace tessera::mapping {
 namespace {
 
-tessera::grid::OccupancyGrid::Options gridOptions(const GridMapperCoreOptions& o) {
-  tessera::grid::OccupancyGrid::Options g;
+tessera::grid::TiledGrid::Options gridOptions(const GridMapperCoreOptions& o) {
+  tessera::grid::TiledGrid::Options g;
   g.resolution = o.resolution;
   g.log_odds.hit = static_cast<float>(o.l_occ);
   g.log_odds.miss = static_cast<float>(o.l_free);
   g.log_odds.min = static_cast<float>(o.l_min);
   g.log_odds.max = static_cast<float>(o.l_max);
-  g.chunk_cells = o.grow_chunk_cells;
   g.max_side_cells = o.max_side_cells;
   return g;
 }
@@ -32,7 +31,6 @@ const GridMapperCoreOptions& validated(const GridMapperCoreOptions& o) {
   check(std::isfinite(o.l_max) && o.l_max > 0, "l_max", o.l_max, "> 0");
   check(o.max_range > 0, "max_range", o.max_range, "> 0");
   check(o.max_free_range >= 0, "max_free_range", o.max_free_range, ">= 0");
-  check(o.grow_chunk_cells > 0, "grow_chunk_cells", o.grow_chunk_cells, "> 0");
   check(o.max_side_cells > 0, "max_side_cells", o.max_side_cells, "> 0");
   return o;
 }

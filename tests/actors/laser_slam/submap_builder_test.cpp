@@ -10,6 +10,7 @@
 
 #include <catch2/catch.hpp>
 
+#include <algorithm>
 #include <cmath>
 #include <limits>
 #include <numbers>
@@ -39,10 +40,12 @@ Pose2 poseOf(msg::Pose2D::Reader p) {
   return {p.getX(), p.getY(), p.getTheta()};
 }
 
-/// Feeds scans [from, to) of the room loop with their odometry, one at a time.
-void feedScans(ActorHarness& h, const test::SimScans& sim, std::size_t from, std::size_t to) {
+/// Feeds scans [from, to) of the room loop with their odometry, one at a time, stamped
+/// `epoch` + their time in the loop.
+void feedScans(ActorHarness& h, const test::SimScans& sim, std::size_t from, std::size_t to,
+               Nanos epoch = 0) {
   for (std::size_t k = from; k < to; ++k) {
-    const Nanos t = stampOf(sim.scans[k].stamp_s);
+    const Nanos t = epoch + stampOf(sim.scans[k].stamp_s);
     pushOdometry(h, t, sim.scans[k].odometry);
     pushScan(h, t, sim, sim.scans[k].ranges);
     h.runUntilIdle();
@@ -106,6 +109,31 @@ TEST_CASE("submap builder publishes a pose per scan, hand-over constraints and s
   const Pose2 odom_in_map = poseOf(corr->getPose()) * sim.scans[n - 1].odometry;
   CHECK(odom_in_map.x == Approx(last.x).margin(1e-6));
   CHECK(odom_in_map.y == Approx(last.y).margin(1e-6));
+}
+
+TEST_CASE("the smoothed trajectory keeps each scan's exact stamp at epoch times",
+          "[rbpf][submap_builder]") {
+  // A log stamped in Unix time (the Intel log: 976052856.338882 s): a double in seconds holds
+  // such a stamp only to ~0.1 µs, so stamps passed through one would no longer equal the
+  // scans', and a consumer pairing scans with the smoothed poses by stamp would find none.
+  const auto sim = test::simulateRoomLoop();
+  SubmapBuilderOptions o = fastOptions();
+  o.submap_scans = 25;
+  ActorHarness h(std::make_unique<SubmapBuilderActor>(o));
+  const Nanos epoch = 976052856338882123;
+  const std::size_t n = 80;
+  feedScans(h, sim, 0, n, epoch);
+  h.stop();
+  std::vector<Nanos> stamps;
+  for (std::size_t k = 0; k < n; ++k) stamps.push_back(epoch + stampOf(sim.scans[k].stamp_s));
+  const auto final_poses = h.published<msg::PoseStamped>("final_poses");
+  REQUIRE(final_poses.size() == n);
+  for (std::size_t i = 0; i < n; ++i) CHECK(final_poses[i]->getHeader().getStampNs() == stamps[i]);
+  const auto submaps = h.published<msg::Submap>("submaps");
+  REQUIRE(submaps.size() >= 2);
+  for (const auto& submap : submaps)
+    for (const auto p : submap->getTrajectory())
+      CHECK(std::find(stamps.begin(), stamps.end(), p.getStampNs()) != stamps.end());
 }
 
 namespace {

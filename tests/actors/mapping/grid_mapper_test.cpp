@@ -3,6 +3,7 @@
 #include <tessera/mapping/grid_mapper.hpp>
 #include <tessera/mapping/grid_mapper_actor.hpp>
 #include <tessera/mapping/map_io.hpp>
+#include <tessera/mapping/packed_range_scan.hpp>
 #include <tessera/mapping/trajectory_io.hpp>
 #include <tessera/mapping/writer_actors.hpp>
 #include <tessera/messages/types.hpp>
@@ -223,6 +224,160 @@ TEST_CASE("grid_mapper drops scans it cannot pair and counts them", "[grid_mappe
   CHECK(h.publishedCount("map") == 0);  // nothing mapped: no map to publish
 }
 
+namespace {
+
+/// A scan of 181 beams over 180 degrees whose ranges vary with k, with a few beams of no return
+/// (+inf, beyond range_max) and invalid ones (NaN), as a real laser gives.
+ScanSpec variedScan(int k) {
+  std::vector<float> r(181);
+  for (std::size_t i = 0; i < r.size(); ++i)
+    r[i] = 2.0f + 0.013f * static_cast<float>((i * 7 + static_cast<std::size_t>(k) * 3) % 97);
+  r[10] = std::numeric_limits<float>::infinity();
+  r[20] = 25.0f;  // beyond the scan's range_max of 20 m: no return
+  r[30] = std::numeric_limits<float>::quiet_NaN();
+  return beams(std::move(r), static_cast<float>(-std::numbers::pi / 2),
+               static_cast<float>(std::numbers::pi / 180));
+}
+
+Pose2 pathPose(int k) {
+  return Pose2(0.1 * k, 0.02 * k, 0.01 * k);
+}
+
+}  // namespace
+
+TEST_CASE("PackedRangeScan keeps every beam to within half its unit and the special ones exactly",
+          "[grid_mapper]") {
+  const std::vector<float> r{0.0f,
+                             0.031f,
+                             19.99f,
+                             20.0f,
+                             35.0f,
+                             std::numeric_limits<float>::infinity(),
+                             std::numeric_limits<float>::quiet_NaN(),
+                             -1.0f};
+  const tessera::grid::RangeScan scan{r, -1.0, 0.01, 0.05, 20.0};
+  const mapping::PackedRangeScan packed(42, scan, Pose2(0.5, 0.1, 3.0));
+  CHECK(packed.stampNs() == 42);
+  CHECK(packed.mount().x == 0.5);
+  CHECK(packed.beams() == r.size());
+  std::vector<float> buffer;
+  const tessera::grid::RangeScan back = packed.unpack(buffer);
+  CHECK(back.angle_min == Approx(-1.0));
+  CHECK(back.angle_increment == Approx(0.01));
+  CHECK(back.range_min == Approx(0.05));
+  CHECK(back.range_max == Approx(20.0));
+  REQUIRE(back.ranges.size() == r.size());
+  const double half_unit = 20.0 / 65000.0 / 2.0;
+  for (std::size_t i = 0; i < 3; ++i) CHECK(std::abs(back.ranges[i] - r[i]) <= half_unit + 1e-6);
+  for (std::size_t i = 3; i < 6; ++i) CHECK(std::isinf(back.ranges[i]));  // no return
+  CHECK(std::isnan(back.ranges[6]));
+  CHECK(std::isnan(back.ranges[7]));
+  // An empty scan packs and unpacks; a scan without a usable range_max is refused.
+  const std::vector<float> none;
+  CHECK(mapping::PackedRangeScan(0, {none, 0, 0, 0, 10}, {}).unpack(buffer).ranges.empty());
+  for (const double bad : {0.0, -1.0, std::numeric_limits<double>::infinity(),
+                           std::numeric_limits<double>::quiet_NaN()})
+    CHECK_THROWS_AS(mapping::PackedRangeScan(0, {r, 0, 0, 0, bad}, {}), std::invalid_argument);
+}
+
+TEST_CASE("grid_mapper with hold_scans draws scans whose poses come only at the end",
+          "[grid_mapper_actor]") {
+  constexpr int kScans = 60;
+  // The reference: the same scans with their poses already known.
+  GridMapperOptions live_opts;
+  live_opts.pose_queue = 256;
+  auto live_actor = std::make_unique<GridMapperActor>(live_opts);
+  auto* live = live_actor.get();
+  ActorHarness live_h(std::move(live_actor));
+  for (int k = 0; k < kScans; ++k) {
+    pushPose(live_h, "pose", (k + 1) * kSec, pathPose(k));
+    live_h.runUntilIdle();
+    pushScan(live_h, (k + 1) * kSec, variedScan(k));
+    live_h.runUntilIdle();
+  }
+  REQUIRE(summaryInt(*live, "scans_inserted") == kScans);
+
+  // Every scan first, then every pose (as a final trajectory comes at stop); the mapper's
+  // summary after stop().
+  const auto scansThenPoses = [&](const GridMapperOptions& opts, tessera::grid::OccupancyMap* map) {
+    auto actor = std::make_unique<GridMapperActor>(opts);
+    auto* mapper = actor.get();
+    ActorHarness h(std::move(actor));
+    for (int k = 0; k < kScans; ++k) {
+      pushScan(h, (k + 1) * kSec, variedScan(k));
+      h.runUntilIdle();  // the scan mailbox keeps the latest few: a real run keeps up too
+    }
+    CHECK(summaryInt(*mapper, "scans_inserted") == 0);
+    for (int k = 0; k < kScans; ++k) pushPose(h, "pose", (k + 1) * kSec, pathPose(k));
+    h.stop();
+    if (map) *map = mapper->mapper().map();
+    Summary out;
+    mapper->summarize(out);
+    return out;
+  };
+  const auto count = [](const Summary& s, const std::string& key) {
+    REQUIRE(s.count(key) == 1);
+    return std::get<std::int64_t>(s.at(key));
+  };
+  GridMapperOptions opts;
+  opts.pose_queue = 8;  // the poses come in one burst: a reliable mailbox drops none
+  SECTION("held, every scan") {
+    opts.hold_scans = true;
+    tessera::grid::OccupancyMap a;
+    const Summary s = scansThenPoses(opts, &a);
+    CHECK(count(s, "held_scans_peak") == kScans);
+    CHECK(count(s, "scans_inserted") == kScans);
+    CHECK(count(s, "scans_dropped_no_pose") == 0);
+    // Packing moves a beam's end by at most 0.15 mm here: a cell can only change where a beam
+    // ends that close to its border.
+    const auto b = live->mapper().map();
+    REQUIRE(a.width == b.width);
+    REQUIRE(a.height == b.height);
+    std::size_t differ = 0, known = 0;
+    for (std::size_t i = 0; i < a.cells.size(); ++i) {
+      known += b.cells[i] >= 0;
+      differ += a.cells[i] != b.cells[i];
+    }
+    INFO(differ << " of " << known << " known cells differ");
+    CHECK(known > 1000);
+    CHECK(differ * 200 < known);
+  }
+  SECTION("held, one scan per 2.5 s: every third") {
+    opts.hold_scans = true;
+    opts.hold_period_s = 2.5;
+    const Summary s = scansThenPoses(opts, nullptr);
+    CHECK(count(s, "scans_inserted") == kScans / 3);
+    CHECK(count(s, "scans_not_held") == kScans - kScans / 3);
+  }
+  SECTION("not held: the small buffer keeps only the newest") {
+    opts.scan_buffer = 16;
+    opts.pose_queue = 256;
+    CHECK(count(scansThenPoses(opts, nullptr), "scans_inserted") == 16);
+  }
+}
+
+TEST_CASE("grid_mapper holds scans older than every pose no longer than it must",
+          "[grid_mapper_actor]") {
+  GridMapperOptions opts;
+  opts.hold_scans = true;
+  opts.max_pose_gap_s = 3.0;
+  auto actor = std::make_unique<GridMapperActor>(opts);
+  auto* mapper = actor.get();
+  ActorHarness h(std::move(actor));
+  pushScan(h, 1 * kSec, variedScan(0));  // before the trajectory starts: never paired
+  pushScan(h, 5 * kSec, variedScan(1));
+  pushScan(h, 9 * kSec, variedScan(2));  // after its end: still waiting at stop
+  pushPose(h, "pose", 4 * kSec, Pose2());
+  pushPose(h, "pose", 6 * kSec, Pose2(0.2, 0, 0));
+  h.runUntilIdle();
+  CHECK(summaryInt(*mapper, "scans_inserted") == 1);
+  CHECK(summaryInt(*mapper, "scans_interpolated") == 1);
+  CHECK(summaryInt(*mapper, "scans_dropped_no_pose") == 1);
+  h.stop();
+  CHECK(summaryInt(*mapper, "scans_dropped_no_pose") == 2);
+  CHECK(h.publishedCount("map") == 1);
+}
+
 TEST_CASE("grid_mapper publishes the map on its timer when changed and at stop",
           "[grid_mapper_actor]") {
   GridMapperOptions opts;
@@ -273,6 +428,11 @@ TEST_CASE("grid_mapper rejects invalid options with ConfigError", "[grid_mapper_
   o = {};
   o.publish_period_s = -1;
   CHECK_THROWS_AS(GridMapperActor(o), ConfigError);
+  o = {};
+  for (const double bad : {-1.0, std::numeric_limits<double>::quiet_NaN()}) {
+    o.hold_period_s = bad;
+    CHECK_THROWS_WITH(GridMapperActor(o), Catch::Matchers::Contains("hold_period_s"));
+  }
 }
 
 TEST_CASE("grid_mapper reads the core's options as the group grid", "[grid_mapper_actor]") {

@@ -144,7 +144,7 @@ void SubmapBuilderActor::process(const Message<msg::LaserScan>& scan, const tess
     scan_motion_ = scan_motion_ * (last_online_.inverse() * online);
   last_odom_ = odom;
   last_online_ = online;
-  scan_odometry_.emplace_back(nanosToSeconds(stamp), scan_motion_);
+  scan_odometry_.push_back({nanosToSeconds(stamp), stamp, scan_motion_});
 
   const bool by_distance =
       options_.submap_distance > 0 && rbpf_.submapTravelled() >= options_.submap_distance;
@@ -201,13 +201,13 @@ void SubmapBuilderActor::publishPose(Nanos stamp, const tessera::Pose2& odometry
 
 void SubmapBuilderActor::handOver(Nanos stamp, bool lost) {
   if (options_.keep_trajectory) appendBestTrajectory(finished_trajectory_);
-  const std::vector<Rbpf::StampedPose> smoothed = densify(rbpf_.bestTrajectory());
+  const std::vector<ScanPose> smoothed = densify(rbpf_.bestTrajectory());
   if (!options_.keep_trajectory && !scan_odometry_.empty()) {
     // The next submap's trajectory starts at this hand-over's scan: the motion chain before the
     // last scan at or before it is needed by nothing.
     const double at = nanosToSeconds(stamp) + 1e-6;
     auto keep = std::upper_bound(scan_odometry_.begin(), scan_odometry_.end(), at,
-                                 [](double t, const auto& e) { return t < e.first; });
+                                 [](double t, const ScanMotion& e) { return t < e.stamp_s; });
     if (keep != scan_odometry_.begin()) --keep;
     scan_odometry_.erase(scan_odometry_.begin(), keep);
   }
@@ -227,7 +227,7 @@ void SubmapBuilderActor::handOver(Nanos stamp, bool lost) {
 }
 
 void SubmapBuilderActor::publishSubmap(const FinishedSubmap& submap, Nanos stamp,
-                                       const std::vector<Rbpf::StampedPose>& trajectory) {
+                                       const std::vector<ScanPose>& trajectory) {
   const tessera::grid::OccupancyMap map = submap.grid.toOccupancyMap();
   const std::size_t cells = map.cells.size();
   auto loan = submap_pub_.loan(cells + 40 * trajectory.size() + 1024);
@@ -247,7 +247,7 @@ void SubmapBuilderActor::publishSubmap(const FinishedSubmap& submap, Nanos stamp
   loan->setFinished(true);
   auto poses = loan->initTrajectory(static_cast<unsigned>(trajectory.size()));
   for (unsigned i = 0; i < trajectory.size(); ++i) {
-    poses[i].setStampNs(secondsToNanos(trajectory[i].stamp_s));
+    poses[i].setStampNs(trajectory[i].stamp);
     poses[i].setX(trajectory[i].pose.x);
     poses[i].setY(trajectory[i].pose.y);
     poses[i].setTheta(trajectory[i].pose.theta);
@@ -272,54 +272,53 @@ void SubmapBuilderActor::stop() {
   appendBestTrajectory(trajectory);
   for (const auto& p : densify(trajectory)) {
     auto loan = final_pub_.loan();
-    setHeader(loan->initHeader(), secondsToNanos(p.stamp_s), options_.frame_id,
-              final_pub_.nextSeq());
+    setHeader(loan->initHeader(), p.stamp, options_.frame_id, final_pub_.nextSeq());
     writePose(loan->initPose(), p.pose);
     final_pub_.publish(std::move(loan));
   }
 }
 
-std::vector<Rbpf::StampedPose> SubmapBuilderActor::densify(
+std::vector<SubmapBuilderActor::ScanPose> SubmapBuilderActor::densify(
     const std::vector<Rbpf::StampedPose>& updates) const {
   // Every scan after the first update: the smoothed pose of the update before it, moved by the
   // odometry since (the online estimate does the same with the pose the filter had then).
-  std::vector<Rbpf::StampedPose> out;
+  std::vector<ScanPose> out;
   out.reserve(scan_odometry_.size());
   std::size_t k = 0;     // next update to reach
   std::size_t scan = 0;  // scan_odometry_ index of the current update
   bool have_update = false;
   for (std::size_t i = 0; i < scan_odometry_.size(); ++i) {
-    const auto& [stamp, odom] = scan_odometry_[i];
+    const auto& [stamp, stamp_ns, odom] = scan_odometry_[i];
     while (k < updates.size() && updates[k].stamp_s <= stamp + 1e-6) {
       // The update's own scan: the latest scan not after it.
       while (scan + 1 < scan_odometry_.size() &&
-             scan_odometry_[scan + 1].first <= updates[k].stamp_s + 1e-6)
+             scan_odometry_[scan + 1].stamp_s <= updates[k].stamp_s + 1e-6)
         ++scan;
       have_update = true;
       ++k;
     }
     if (!have_update) continue;
     const Rbpf::StampedPose& base = updates[k - 1];
-    const tessera::Pose2& base_odom = scan_odometry_[scan].second;
+    const tessera::Pose2& base_odom = scan_odometry_[scan].motion;
     tessera::Pose2 pose = base.pose * (base_odom.inverse() * odom);
     if (options_.interpolate_updates && k < updates.size()) {
       // The next update's scan: its correction (map ⊕ odometry⁻¹) is where the odometry drift
       // since this update was found; blend toward it by time instead of jumping there.
       std::size_t next = scan;
       while (next + 1 < scan_odometry_.size() &&
-             scan_odometry_[next + 1].first <= updates[k].stamp_s + 1e-6)
+             scan_odometry_[next + 1].stamp_s <= updates[k].stamp_s + 1e-6)
         ++next;
-      const double span = scan_odometry_[next].first - scan_odometry_[scan].first;
+      const double span = scan_odometry_[next].stamp_s - scan_odometry_[scan].stamp_s;
       if (next > scan && span > 0) {
         const tessera::Pose2 from = base.pose * base_odom.inverse();
-        const tessera::Pose2 to = updates[k].pose * scan_odometry_[next].second.inverse();
-        const double f = (stamp - scan_odometry_[scan].first) / span;
+        const tessera::Pose2 to = updates[k].pose * scan_odometry_[next].motion.inverse();
+        const double f = (stamp - scan_odometry_[scan].stamp_s) / span;
         const tessera::Pose2 correction(from.x + f * (to.x - from.x), from.y + f * (to.y - from.y),
                                         from.theta + f * tessera::angleDiff(to.theta, from.theta));
         pose = correction * odom;
       }
     }
-    out.push_back({stamp, pose});
+    out.push_back({stamp_ns, pose});
   }
   return out;
 }

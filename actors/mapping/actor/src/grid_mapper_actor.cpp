@@ -11,6 +11,7 @@
 #include <algorithm>
 #include <cmath>
 #include <stdexcept>
+#include <string>
 
 namespace tessera::mapping {
 namespace {
@@ -29,6 +30,8 @@ GridMapperCoreOptions checkedCore(const GridMapperOptions& o) {
   if (o.scan_queue < 1 || o.pose_queue < 1 || o.scan_buffer < 1 || o.pose_history < 2)
     fail("scan_queue, pose_queue, scan_buffer must be >= 1 and pose_history >= 2");
   if (o.frame_id.empty()) fail("frame_id must not be empty");
+  if (!(std::isfinite(o.hold_period_s) && o.hold_period_s >= 0))
+    fail("hold_period_s must be >= 0 [s] (got " + std::to_string(o.hold_period_s) + ")");
   (void)parsePoseMessage(o.pose_message, "grid_mapper", "pose_message");
   return o.grid;
 }
@@ -44,8 +47,11 @@ void GridMapperActor::configure(ActorContext& ctx) {
   ctx.subscribe<msg::LaserScan>(
       "scan", MailboxPolicy::keepLatest(static_cast<std::size_t>(options_.scan_queue)),
       [this](const Message<msg::LaserScan>& m) { onScan(m); });
+  // Held scans wait for every pose of a trajectory that may come in one burst: none may drop.
+  const auto pose_queue = static_cast<std::size_t>(options_.pose_queue);
   subscribePoses(ctx, "pose",
-                 MailboxPolicy::keepLatest(static_cast<std::size_t>(options_.pose_queue)),
+                 options_.hold_scans ? MailboxPolicy::reliable(pose_queue)
+                                     : MailboxPolicy::keepLatest(pose_queue),
                  parsePoseMessage(options_.pose_message, "grid_mapper", "pose_message"),
                  [this](Nanos stamp, const tessera::Pose2& pose) { onPose(stamp, pose); });
   map_pub_ = ctx.advertise<msg::OccupancyGrid>("map");
@@ -55,6 +61,32 @@ void GridMapperActor::configure(ActorContext& ctx) {
 }
 
 void GridMapperActor::onScan(const Message<msg::LaserScan>& scan) {
+  if (options_.hold_scans) {
+    const Nanos stamp = scan->getHeader().getStampNs();
+    if (held_any_ && static_cast<double>(stamp - last_held_stamp_) <
+                         options_.hold_period_s * static_cast<double>(kNanosPerSecond)) {
+      ++scans_not_held_;
+      return;
+    }
+    held_any_ = true;
+    last_held_stamp_ = stamp;
+    if (held_.empty() && tryInsert(scan)) return;
+    const tessera::grid::RangeScan ranges{view<float>(scan->getRanges()), scan->getAngleMin(),
+                                          scan->getAngleIncrement(), scan->getRangeMin(),
+                                          scan->getRangeMax()};
+    try {
+      held_.emplace_back(
+          scan->getHeader().getStampNs(), ranges,
+          tessera::Pose2(scan->getMountX(), scan->getMountY(), scan->getMountTheta()));
+    } catch (const std::invalid_argument&) {  // no usable range_max: the mapper skips it too
+      ++scans_dropped_no_pose_;
+      return;
+    }
+    held_bytes_ += held_.back().bytes();
+    held_bytes_peak_ = std::max(held_bytes_peak_, held_bytes_);
+    held_peak_ = std::max(held_peak_, held_.size());
+    return;
+  }
   // Scans queued behind this one keep their order: only try it now if none is waiting.
   if (waiting_.empty() && tryInsert(scan)) return;
   if (waiting_.size() >= static_cast<std::size_t>(options_.scan_buffer)) {
@@ -70,10 +102,24 @@ void GridMapperActor::onPose(Nanos stamp, const tessera::Pose2& pose) {
     return;
   }
   while (!waiting_.empty() && tryInsert(waiting_.front())) waiting_.pop_front();
+  while (!held_.empty()) {
+    const PackedRangeScan& h = held_.front();
+    if (!tryInsert(h.stampNs(), h.unpack(unpacked_), h.mount())) break;
+    held_bytes_ -= h.bytes();
+    held_.pop_front();
+  }
 }
 
 bool GridMapperActor::tryInsert(const Message<msg::LaserScan>& scan) {
-  const Nanos stamp = scan->getHeader().getStampNs();
+  const tessera::grid::RangeScan ranges{view<float>(scan->getRanges()), scan->getAngleMin(),
+                                        scan->getAngleIncrement(), scan->getRangeMin(),
+                                        scan->getRangeMax()};
+  return tryInsert(scan->getHeader().getStampNs(), ranges,
+                   tessera::Pose2(scan->getMountX(), scan->getMountY(), scan->getMountTheta()));
+}
+
+bool GridMapperActor::tryInsert(std::int64_t stamp, const tessera::grid::RangeScan& ranges,
+                                const tessera::Pose2& mount) {
   tessera::Pose2 robot;
   switch (poses_.at(stamp, robot)) {
     case tessera::PoseHistory::Lookup::kWait:
@@ -89,10 +135,6 @@ bool GridMapperActor::tryInsert(const Message<msg::LaserScan>& scan) {
       ++scans_interpolated_;
       break;
   }
-  const tessera::grid::RangeScan ranges{view<float>(scan->getRanges()), scan->getAngleMin(),
-                                        scan->getAngleIncrement(), scan->getRangeMin(),
-                                        scan->getRangeMax()};
-  const tessera::Pose2 mount(scan->getMountX(), scan->getMountY(), scan->getMountTheta());
   if (mapper_.insert(ranges, robot, mount)) {
     dirty_ = true;
     last_scan_stamp_ = std::max(last_scan_stamp_, stamp);
@@ -101,7 +143,7 @@ bool GridMapperActor::tryInsert(const Message<msg::LaserScan>& scan) {
 }
 
 void GridMapperActor::publishMap() {
-  const tessera::grid::OccupancyGrid& grid = mapper_.grid();
+  const tessera::grid::TiledGrid& grid = mapper_.grid();
   const tessera::grid::CellBox box = grid.knownBounds();
   if (box.empty()) return;
   const std::size_t cells = static_cast<std::size_t>(box.width()) * box.height();
@@ -122,8 +164,10 @@ void GridMapperActor::publishMap() {
 
 void GridMapperActor::stop() {
   // Upstream has stopped: no pose will come for scans still waiting.
-  scans_dropped_no_pose_ += waiting_.size();
+  scans_dropped_no_pose_ += waiting_.size() + held_.size();
   waiting_.clear();
+  held_.clear();
+  held_bytes_ = 0;
   publishMap();  // the final map, even if a timer just sent the same one
 }
 
@@ -144,6 +188,11 @@ void GridMapperActor::summarize(Summary& out) const {
   out["maps_published"] = i64(maps_published_);
   if (s.cells_clipped > 0) out["cells_clipped"] = i64(s.cells_clipped);
   if (poses_invalid_ > 0) out["poses_invalid"] = i64(poses_invalid_);
+  if (options_.hold_scans) {
+    out["scans_not_held"] = i64(scans_not_held_);  // within hold_period_s of a held one
+    out["held_scans_peak"] = static_cast<std::int64_t>(held_peak_);
+    out["held_mb_peak"] = static_cast<double>(held_bytes_peak_) / (1024.0 * 1024.0);
+  }
 }
 
 TESSERA_REGISTER_ACTOR("grid_mapper", GridMapperActor, GridMapperOptions,

@@ -1,6 +1,7 @@
 // GridMapper: occupancy grid mapping with known poses. Each laser scan is inserted into one
-// growing log-odds grid (tessera::grid::OccupancyGrid) from the robot's pose in the map frame and
-// the laser's mounting on the robot. Plain C++: no runtime or message types; the grid_mapper actor
+// log-odds grid (tessera::grid::TiledGrid: 2 bytes a cell, in tiles allocated where scans reach,
+// so memory follows the mapped area) from the robot's pose in the map frame and the laser's
+// mounting on the robot. Plain C++: no runtime or message types; the grid_mapper actor
 // (grid_mapper_actor.hpp) feeds it from topics.
 //
 // Frames: robot_pose = base_link in map; mount = laser in base_link; both x forward, y left,
@@ -8,7 +9,7 @@
 #pragma once
 
 #include <tessera/geometry/pose2.hpp>
-#include <tessera/grid/occupancy_grid.hpp>
+#include <tessera/grid/tiled_grid.hpp>
 
 #include <cstdint>
 
@@ -23,7 +24,6 @@ struct GridMapperCoreOptions {
   double l_max = 3.5;            ///< upper clamp
   double max_range = 30.0;       ///< [m] returns beyond are not obstacles (clear up to here)
   double max_free_range = 10.0;  ///< [m] no-return beams clear this far (0: not at all)
-  int grow_chunk_cells = 64;     ///< grid growth granularity [cells]
   int max_side_cells = 16384;    ///< grid size limit per axis [cells]
 
   template <class V>
@@ -36,7 +36,6 @@ struct GridMapperCoreOptions {
     v("max_range", max_range, "returns farther than this [m] only clear free space up to it");
     v("max_free_range", max_free_range,
       "beams with no return (+inf or >= range_max) clear free space this far [m]; 0 disables");
-    v("grow_chunk_cells", grow_chunk_cells, "the grid grows in steps of this many cells");
     v("max_side_cells", max_side_cells,
       "the grid never exceeds this many cells per axis (guards against wild poses)");
   }
@@ -66,7 +65,7 @@ class GridMapper {
   bool insertFromSensorPose(const tessera::grid::RangeScan& scan,
                             const tessera::Pose2& sensor_pose);
 
-  const tessera::grid::OccupancyGrid& grid() const { return grid_; }
+  const tessera::grid::TiledGrid& grid() const { return grid_; }
   const GridMapperStats& stats() const { return stats_; }
   const GridMapperCoreOptions& options() const { return options_; }
   /// The map cropped to the known cells, in ROS int8 convention.
@@ -75,7 +74,7 @@ class GridMapper {
  private:
   GridMapperCoreOptions options_;
   tessera::grid::ScanInsertOptions insert_options_;
-  tessera::grid::OccupancyGrid grid_;
+  tessera::grid::TiledGrid grid_;
   GridMapperStats stats_;
 };
 

@@ -191,11 +191,17 @@ class SubmapBuilderActor final : public Actor {
   void publishPose(Nanos stamp, const tessera::Pose2& odometry);
   /// lost: the filter lost the map (RbpfStep::lost); the new submap is unanchored.
   void handOver(Nanos stamp, bool lost = false);
+  /// A smoothed scan pose, stamped exactly as its scan (the filter's stamps are seconds in a
+  /// double, ~0.1 µs off at epoch times, so they only find the scan).
+  struct ScanPose {
+    Nanos stamp;
+    tessera::Pose2 pose;
+  };
   /// `trajectory`: the submap's smoothed scan poses, in its own frame.
   void publishSubmap(const FinishedSubmap& submap, Nanos stamp,
-                     const std::vector<Rbpf::StampedPose>& trajectory);
-  /// The current submap's best trajectory, in the map frame, after `out`'s last stamp.
-  std::vector<Rbpf::StampedPose> densify(const std::vector<Rbpf::StampedPose>& updates) const;
+                     const std::vector<ScanPose>& trajectory);
+  /// Every scan from the first of `updates` on, moved from the update before it.
+  std::vector<ScanPose> densify(const std::vector<Rbpf::StampedPose>& updates) const;
   void appendBestTrajectory(std::vector<Rbpf::StampedPose>& out) const;
 
   SubmapBuilderOptions options_;
@@ -208,9 +214,14 @@ class SubmapBuilderActor final : public Actor {
   Publisher<msg::LaserScan> loop_scan_pub_;
   std::uint64_t loop_scan_count_ = 0;
   std::vector<Rbpf::StampedPose> finished_trajectory_;  // best trajectories of closed submaps
-  // [s], each scan's motion chain: odometry, or with tracking the online pose's scan-matched
+  // Each scan's motion chain: odometry, or with tracking the online pose's scan-matched
   // motion between updates (densify() moves the smoothed update poses by it)
-  std::vector<std::pair<double, tessera::Pose2>> scan_odometry_;
+  struct ScanMotion {
+    double stamp_s;  // as the filter was given it
+    Nanos stamp;     // the scan's own
+    tessera::Pose2 motion;
+  };
+  std::vector<ScanMotion> scan_odometry_;
   tessera::Pose2 scan_motion_, last_odom_, last_online_;
 
   tessera::Pose2 submap_origin_;  // current submap's origin in the map frame

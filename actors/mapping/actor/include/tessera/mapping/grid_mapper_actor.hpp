@@ -10,12 +10,17 @@
 // Each scan is paired with the pose of equal stamp, or interpolated between the two poses that
 // bracket its stamp (at most max_pose_gap_s apart). A scan newer than every pose waits in a
 // small buffer until its pose arrives; scans that cannot be paired are dropped and counted.
+// With hold_scans, a scan (one per hold_period_s) instead waits as long as it takes, packed
+// (PackedRangeScan, 16 bits a beam), and the poses come on a reliable mailbox: for poses that
+// arrive at the end, such as a SLAM's final trajectory published at stop, which gives the map
+// drawn from every scan at its smoothed pose (docs/algorithms.md#final-map-from-the-scans).
 // The laser's pose is robot pose ⊕ the scan's mount fields. The core's options
 // (GridMapperCoreOptions) are the group `grid`.
 #pragma once
 
 #include <tessera/geometry/pose_history.hpp>
 #include <tessera/mapping/grid_mapper.hpp>
+#include <tessera/mapping/packed_range_scan.hpp>
 #include <tessera/messages/types.hpp>
 #include <tessera/runtime/actor.hpp>
 #include <tessera/runtime/options.hpp>
@@ -23,6 +28,7 @@
 #include <cstdint>
 #include <deque>
 #include <string>
+#include <vector>
 
 namespace tessera::mapping {
 
@@ -36,6 +42,8 @@ struct GridMapperOptions {
   int scan_buffer = 16;
   int pose_history = 512;
   double max_pose_gap_s = 0.5;
+  bool hold_scans = false;
+  double hold_period_s = 0.0;
 
   template <class V>
   void visit(V& v) {
@@ -51,6 +59,12 @@ struct GridMapperOptions {
     v("pose_history", pose_history, "poses remembered for pairing with late scans");
     v("max_pose_gap_s", max_pose_gap_s,
       "do not interpolate between poses further apart than this [s]; drop the scan");
+    v("hold_scans", hold_scans,
+      "keep scans (packed, 2 bytes a beam) however long their poses take, and read the poses "
+      "reliably: for a trajectory published at the end of the run (scan_buffer then unused)");
+    v("hold_period_s", hold_period_s,
+      "with hold_scans, keep a scan only when this long [s, scan stamps] has passed since the "
+      "last one kept (0: every scan): less memory and insertion time");
   }
   // The core's keys moved into the group `grid`.
   static constexpr RenamedKey kRenamedKeys[] = {
@@ -61,7 +75,6 @@ struct GridMapperOptions {
       {"l_max", "grid.l_max"},
       {"max_range", "grid.max_range"},
       {"max_free_range", "grid.max_free_range"},
-      {"grow_chunk_cells", "grid.grow_chunk_cells"},
       {"max_side_cells", "grid.max_side_cells"},
   };
 };
@@ -82,6 +95,8 @@ class GridMapperActor final : public Actor {
   void onPose(Nanos stamp, const tessera::Pose2& pose);
   /// Inserts the scan if its pose is known; returns false when it must keep waiting.
   bool tryInsert(const Message<msg::LaserScan>& scan);
+  bool tryInsert(std::int64_t stamp, const tessera::grid::RangeScan& ranges,
+                 const tessera::Pose2& mount);
   void publishMap();
 
   GridMapperOptions options_;
@@ -89,6 +104,12 @@ class GridMapperActor final : public Actor {
   Publisher<msg::OccupancyGrid> map_pub_;
   tessera::PoseHistory poses_;
   std::deque<Message<msg::LaserScan>> waiting_;  // scans newer than every pose, oldest first
+  std::deque<PackedRangeScan> held_;             // with hold_scans: the same, packed, unbounded
+  std::vector<float> unpacked_;                  // ranges of the held scan being inserted
+  std::int64_t last_held_stamp_ = 0;
+  bool held_any_ = false;
+  std::uint64_t scans_not_held_ = 0;
+  std::size_t held_bytes_ = 0, held_bytes_peak_ = 0, held_peak_ = 0;
   Nanos last_scan_stamp_ = 0;
   bool dirty_ = false;  // inserted since the last publish
   std::uint64_t scans_exact_ = 0, scans_interpolated_ = 0;
