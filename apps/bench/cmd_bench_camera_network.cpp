@@ -5,6 +5,8 @@
 //   two_level_sgd    RBPF submaps of 10 particles, loop detector, SGD graph;
 //   two_level_ceres  the same with Ceres, and the profile's scan-level graph at the end (if on;
 //                    a Ceres problem, so the other configurations leave it off).
+// two_level_ceres keeps the profile's map drawn from the scans at the end (map.pgm, the submaps
+// in map_submaps.pgm); the others' map is the submap mosaic.
 // Without cameras the first two build one map and the two-level ones cut a submap every
 // --submap-distance metres; with cameras every configuration cuts a submap on entering a camera,
 // and the cameras calibrate themselves and add revisit constraints (SGD graph for the first two).
@@ -88,7 +90,16 @@ YAML::Node deriveProfile(YAML::Node base, const std::string& config, bool camera
   actors["optimizer"]["params"]["graph"]["optimizer"]["solver"] =
       config == "two_level_ceres" ? "ceres" : "sgd";
   // The scan-level graph of the final optimisation is solved by Ceres: the others stay SGD only.
-  if (config != "two_level_ceres") actors["optimizer"]["params"]["scan_graph"]["enabled"] = false;
+  // The map drawn from the scans needs that graph's trajectory (with the submaps' smoothed
+  // poses alone it draws what the submaps drew, less well): the others score the submap mosaic.
+  if (config != "two_level_ceres") {
+    actors["optimizer"]["params"]["scan_graph"]["enabled"] = false;
+    if (actors["final_mapper"]) {
+      actors.remove("final_mapper");
+      actors.remove("submap_map_writer");
+      actors["map_writer"].remove("remap");
+    }
+  }
   // The true walls, for the map score.
   YAML::Node walls;
   walls["type"] = "world_writer";

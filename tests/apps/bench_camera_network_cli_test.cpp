@@ -48,6 +48,15 @@ TEST_CASE("bench camera_network reports configurations with and without cameras"
   CHECK(j["configurations"][2]["submaps"] == 1);  // scan matching without cameras: one map
   CHECK(j["false_revisit_constraints"] == 0);
   CHECK(std::filesystem::file_size(dir / "out" / "maps.png") > 1000);  // the maps side by side
+  // two_level_ceres draws its map from the scans and keeps the submap mosaic beside it; the
+  // others, without the scan-level graph, have the mosaic as their map.
+  namespace fs = std::filesystem;
+  for (const char* run_dir : {"two_level_ceres", "two_level_ceres_cameras"}) {
+    CHECK(fs::exists(dir / "out" / run_dir / "map.yaml"));
+    CHECK(fs::exists(dir / "out" / run_dir / "map_submaps.yaml"));
+  }
+  CHECK(fs::exists(dir / "out" / "scan_matching" / "map.yaml"));
+  CHECK_FALSE(fs::exists(dir / "out" / "scan_matching" / "map_submaps.yaml"));
 }
 
 TEST_CASE("bench camera_network names a bad option", "[bench_camera_network]") {
