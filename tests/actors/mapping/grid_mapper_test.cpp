@@ -378,6 +378,30 @@ TEST_CASE("grid_mapper holds scans older than every pose no longer than it must"
   CHECK(h.publishedCount("map") == 1);
 }
 
+TEST_CASE("grid_mapper counts a scan it cannot hold and goes on", "[grid_mapper_actor]") {
+  GridMapperOptions opts;
+  opts.hold_scans = true;
+  opts.hold_period_s = 0.5;  // a refused scan does not start the period
+  auto actor = std::make_unique<GridMapperActor>(opts);
+  auto* mapper = actor.get();
+  ActorHarness h(std::move(actor));
+  for (const float bad :
+       {std::numeric_limits<float>::quiet_NaN(), 0.0f, std::numeric_limits<float>::infinity()}) {
+    h.push<msg::LaserScan>("scan", [&](auto& b) {
+      setHeader(b.initHeader(), kSec, "laser", 0);
+      b.setRangeMax(bad);  // the unit of the packed ranges needs a finite, positive range_max
+      auto out = mutableView<float>(b.initRanges(3));
+      std::fill(out.begin(), out.end(), 1.0f);
+    });
+    h.runUntilIdle();
+  }
+  pushScan(h, 2 * kSec, variedScan(0));  // the next good scan is held and drawn
+  pushPose(h, "pose", 2 * kSec, Pose2());
+  h.stop();
+  CHECK(summaryInt(*mapper, "scans_unusable") == 3);
+  CHECK(summaryInt(*mapper, "scans_inserted") == 1);
+}
+
 TEST_CASE("grid_mapper publishes the map on its timer when changed and at stop",
           "[grid_mapper_actor]") {
   GridMapperOptions opts;

@@ -68,20 +68,24 @@ void GridMapperActor::onScan(const Message<msg::LaserScan>& scan) {
       ++scans_not_held_;
       return;
     }
-    held_any_ = true;
-    last_held_stamp_ = stamp;
-    if (held_.empty() && tryInsert(scan)) return;
+    if (held_.empty() && tryInsert(scan)) {
+      held_any_ = true;
+      last_held_stamp_ = stamp;
+      return;
+    }
     const tessera::grid::RangeScan ranges{view<float>(scan->getRanges()), scan->getAngleMin(),
                                           scan->getAngleIncrement(), scan->getRangeMin(),
                                           scan->getRangeMax()};
     try {
       held_.emplace_back(
-          scan->getHeader().getStampNs(), ranges,
+          stamp, ranges,
           tessera::Pose2(scan->getMountX(), scan->getMountY(), scan->getMountTheta()));
-    } catch (const std::invalid_argument&) {  // no usable range_max: the mapper skips it too
-      ++scans_dropped_no_pose_;
+    } catch (const std::invalid_argument&) {  // range_max NaN, infinite or <= 0: no unit
+      ++scans_unusable_;
       return;
     }
+    held_any_ = true;
+    last_held_stamp_ = stamp;
     held_bytes_ += held_.back().bytes();
     held_bytes_peak_ = std::max(held_bytes_peak_, held_bytes_);
     held_peak_ = std::max(held_peak_, held_.size());
@@ -190,6 +194,7 @@ void GridMapperActor::summarize(Summary& out) const {
   if (poses_invalid_ > 0) out["poses_invalid"] = i64(poses_invalid_);
   if (options_.hold_scans) {
     out["scans_not_held"] = i64(scans_not_held_);  // within hold_period_s of a held one
+    out["scans_unusable"] = i64(scans_unusable_);  // no finite, positive range_max to pack by
     out["held_scans_peak"] = static_cast<std::int64_t>(held_peak_);
     out["held_mb_peak"] = static_cast<double>(held_bytes_peak_) / (1024.0 * 1024.0);
   }

@@ -108,7 +108,7 @@ class GridMapperActor final : public Actor {
   std::vector<float> unpacked_;                  // ranges of the held scan being inserted
   std::int64_t last_held_stamp_ = 0;
   bool held_any_ = false;
-  std::uint64_t scans_not_held_ = 0;
+  std::uint64_t scans_not_held_ = 0, scans_unusable_ = 0;
   std::size_t held_bytes_ = 0, held_bytes_peak_ = 0, held_peak_ = 0;
   Nanos last_scan_stamp_ = 0;
   bool dirty_ = false;  // inserted since the last publish
