@@ -144,7 +144,7 @@ void SubmapBuilderActor::process(const Message<msg::LaserScan>& scan, const tess
     scan_motion_ = scan_motion_ * (last_online_.inverse() * online);
   last_odom_ = odom;
   last_online_ = online;
-  scan_odometry_.push_back({nanosToSeconds(stamp), stamp, scan_motion_});
+  scan_odometry_.push_back({stamp, scan_motion_});
 
   const bool by_distance =
       options_.submap_distance > 0 && rbpf_.submapTravelled() >= options_.submap_distance;
@@ -207,7 +207,7 @@ void SubmapBuilderActor::handOver(Nanos stamp, bool lost) {
     // last scan at or before it is needed by nothing.
     const double at = nanosToSeconds(stamp) + 1e-6;
     auto keep = std::upper_bound(scan_odometry_.begin(), scan_odometry_.end(), at,
-                                 [](double t, const ScanMotion& e) { return t < e.stamp_s; });
+                                 [](double t, const ScanMotion& e) { return t < e.seconds(); });
     if (keep != scan_odometry_.begin()) --keep;
     scan_odometry_.erase(scan_odometry_.begin(), keep);
   }
@@ -288,11 +288,12 @@ std::vector<SubmapBuilderActor::ScanPose> SubmapBuilderActor::densify(
   std::size_t scan = 0;  // scan_odometry_ index of the current update
   bool have_update = false;
   for (std::size_t i = 0; i < scan_odometry_.size(); ++i) {
-    const auto& [stamp, stamp_ns, odom] = scan_odometry_[i];
+    const double stamp = scan_odometry_[i].seconds();
+    const tessera::Pose2& odom = scan_odometry_[i].motion;
     while (k < updates.size() && updates[k].stamp_s <= stamp + 1e-6) {
       // The update's own scan: the latest scan not after it.
       while (scan + 1 < scan_odometry_.size() &&
-             scan_odometry_[scan + 1].stamp_s <= updates[k].stamp_s + 1e-6)
+             scan_odometry_[scan + 1].seconds() <= updates[k].stamp_s + 1e-6)
         ++scan;
       have_update = true;
       ++k;
@@ -306,19 +307,19 @@ std::vector<SubmapBuilderActor::ScanPose> SubmapBuilderActor::densify(
       // since this update was found; blend toward it by time instead of jumping there.
       std::size_t next = scan;
       while (next + 1 < scan_odometry_.size() &&
-             scan_odometry_[next + 1].stamp_s <= updates[k].stamp_s + 1e-6)
+             scan_odometry_[next + 1].seconds() <= updates[k].stamp_s + 1e-6)
         ++next;
-      const double span = scan_odometry_[next].stamp_s - scan_odometry_[scan].stamp_s;
+      const double span = scan_odometry_[next].seconds() - scan_odometry_[scan].seconds();
       if (next > scan && span > 0) {
         const tessera::Pose2 from = base.pose * base_odom.inverse();
         const tessera::Pose2 to = updates[k].pose * scan_odometry_[next].motion.inverse();
-        const double f = (stamp - scan_odometry_[scan].stamp_s) / span;
+        const double f = (stamp - scan_odometry_[scan].seconds()) / span;
         const tessera::Pose2 correction(from.x + f * (to.x - from.x), from.y + f * (to.y - from.y),
                                         from.theta + f * tessera::angleDiff(to.theta, from.theta));
         pose = correction * odom;
       }
     }
-    out.push_back({stamp_ns, pose});
+    out.push_back({scan_odometry_[i].stamp, pose});
   }
   return out;
 }

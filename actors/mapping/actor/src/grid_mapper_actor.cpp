@@ -36,6 +36,15 @@ GridMapperCoreOptions checkedCore(const GridMapperOptions& o) {
   return o.grid;
 }
 
+tessera::grid::RangeScan rangesOf(msg::LaserScan::Reader scan) {
+  return {view<float>(scan.getRanges()), scan.getAngleMin(), scan.getAngleIncrement(),
+          scan.getRangeMin(), scan.getRangeMax()};
+}
+
+tessera::Pose2 mountOf(msg::LaserScan::Reader scan) {
+  return {scan.getMountX(), scan.getMountY(), scan.getMountTheta()};
+}
+
 }  // namespace
 
 GridMapperActor::GridMapperActor(GridMapperOptions options)
@@ -62,33 +71,7 @@ void GridMapperActor::configure(ActorContext& ctx) {
 
 void GridMapperActor::onScan(const Message<msg::LaserScan>& scan) {
   if (options_.hold_scans) {
-    const Nanos stamp = scan->getHeader().getStampNs();
-    if (held_any_ && static_cast<double>(stamp - last_held_stamp_) <
-                         options_.hold_period_s * static_cast<double>(kNanosPerSecond)) {
-      ++scans_not_held_;
-      return;
-    }
-    if (held_.empty() && tryInsert(scan)) {
-      held_any_ = true;
-      last_held_stamp_ = stamp;
-      return;
-    }
-    const tessera::grid::RangeScan ranges{view<float>(scan->getRanges()), scan->getAngleMin(),
-                                          scan->getAngleIncrement(), scan->getRangeMin(),
-                                          scan->getRangeMax()};
-    try {
-      held_.emplace_back(
-          stamp, ranges,
-          tessera::Pose2(scan->getMountX(), scan->getMountY(), scan->getMountTheta()));
-    } catch (const std::invalid_argument&) {  // range_max NaN, infinite or <= 0: no unit
-      ++scans_unusable_;
-      return;
-    }
-    held_any_ = true;
-    last_held_stamp_ = stamp;
-    held_bytes_ += held_.back().bytes();
-    held_bytes_peak_ = std::max(held_bytes_peak_, held_bytes_);
-    held_peak_ = std::max(held_peak_, held_.size());
+    holdScan(scan);
     return;
   }
   // Scans queued behind this one keep their order: only try it now if none is waiting.
@@ -98,6 +81,29 @@ void GridMapperActor::onScan(const Message<msg::LaserScan>& scan) {
     ++scans_dropped_buffer_full_;
   }
   waiting_.push_back(scan);
+}
+
+void GridMapperActor::holdScan(const Message<msg::LaserScan>& scan) {
+  const Nanos stamp = scan->getHeader().getStampNs();
+  if (last_held_ && static_cast<double>(stamp - *last_held_) <
+                        options_.hold_period_s * static_cast<double>(kNanosPerSecond)) {
+    ++scans_not_held_;
+    return;
+  }
+  const tessera::grid::RangeScan ranges = rangesOf(*scan);
+  const tessera::Pose2 mount = mountOf(*scan);
+  if (!held_.empty() || !tryInsert(stamp, ranges, mount)) {
+    try {
+      held_.emplace_back(stamp, ranges, mount);
+    } catch (const std::invalid_argument&) {  // range_max NaN, infinite or <= 0: no unit
+      ++scans_unusable_;
+      return;
+    }
+    held_bytes_ += held_.back().bytes();
+    held_bytes_peak_ = std::max(held_bytes_peak_, held_bytes_);
+    held_peak_ = std::max(held_peak_, held_.size());
+  }
+  last_held_ = stamp;
 }
 
 void GridMapperActor::onPose(Nanos stamp, const tessera::Pose2& pose) {
@@ -115,11 +121,7 @@ void GridMapperActor::onPose(Nanos stamp, const tessera::Pose2& pose) {
 }
 
 bool GridMapperActor::tryInsert(const Message<msg::LaserScan>& scan) {
-  const tessera::grid::RangeScan ranges{view<float>(scan->getRanges()), scan->getAngleMin(),
-                                        scan->getAngleIncrement(), scan->getRangeMin(),
-                                        scan->getRangeMax()};
-  return tryInsert(scan->getHeader().getStampNs(), ranges,
-                   tessera::Pose2(scan->getMountX(), scan->getMountY(), scan->getMountTheta()));
+  return tryInsert(scan->getHeader().getStampNs(), rangesOf(*scan), mountOf(*scan));
 }
 
 bool GridMapperActor::tryInsert(std::int64_t stamp, const tessera::grid::RangeScan& ranges,

@@ -12,7 +12,6 @@
 #include <tessera/grid/occupancy_grid.hpp>
 
 #include <cstdint>
-#include <span>
 #include <vector>
 
 namespace tessera::mapping {

@@ -217,9 +217,9 @@ class SubmapBuilderActor final : public Actor {
   // Each scan's motion chain: odometry, or with tracking the online pose's scan-matched
   // motion between updates (densify() moves the smoothed update poses by it)
   struct ScanMotion {
-    double stamp_s;  // as the filter was given it
-    Nanos stamp;     // the scan's own
+    Nanos stamp;  // the scan's own; the filter was given nanosToSeconds(stamp)
     tessera::Pose2 motion;
+    double seconds() const { return nanosToSeconds(stamp); }
   };
   std::vector<ScanMotion> scan_odometry_;
   tessera::Pose2 scan_motion_, last_odom_, last_online_;

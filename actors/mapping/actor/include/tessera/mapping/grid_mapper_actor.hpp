@@ -27,6 +27,7 @@
 
 #include <cstdint>
 #include <deque>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -92,6 +93,8 @@ class GridMapperActor final : public Actor {
 
  private:
   void onScan(const Message<msg::LaserScan>& scan);
+  /// With hold_scans: inserts the scan if its pose is known, else packs it into held_.
+  void holdScan(const Message<msg::LaserScan>& scan);
   void onPose(Nanos stamp, const tessera::Pose2& pose);
   /// Inserts the scan if its pose is known; returns false when it must keep waiting.
   bool tryInsert(const Message<msg::LaserScan>& scan);
@@ -106,8 +109,7 @@ class GridMapperActor final : public Actor {
   std::deque<Message<msg::LaserScan>> waiting_;  // scans newer than every pose, oldest first
   std::deque<PackedRangeScan> held_;             // with hold_scans: the same, packed, unbounded
   std::vector<float> unpacked_;                  // ranges of the held scan being inserted
-  std::int64_t last_held_stamp_ = 0;
-  bool held_any_ = false;
+  std::optional<Nanos> last_held_;               // stamp of the last scan kept (inserted or held)
   std::uint64_t scans_not_held_ = 0, scans_unusable_ = 0;
   std::size_t held_bytes_ = 0, held_bytes_peak_ = 0, held_peak_ = 0;
   Nanos last_scan_stamp_ = 0;
