@@ -1,5 +1,6 @@
 #include <tessera/laser_slam/loop_detector_actor.hpp>
 
+#include <tessera/actor_common/laser_scan.hpp>
 #include <tessera/messages/types.hpp>
 #include <tessera/messages/views.hpp>
 #include <tessera/runtime/options.hpp>
@@ -197,10 +198,8 @@ void LoopDetectorActor::tryScan(const Message<msg::LaserScan>& scan,
     candidates.resize(static_cast<std::size_t>(options_.max_candidates));
   if (candidates.empty()) return;
 
-  const tessera::grid::RangeScan ranges{view<float>(scan->getRanges()), scan->getAngleMin(),
-                                        scan->getAngleIncrement(), scan->getRangeMin(),
-                                        scan->getRangeMax()};
-  const tessera::Pose2 mount(scan->getMountX(), scan->getMountY(), scan->getMountTheta());
+  const tessera::grid::RangeScan ranges = rangeScanOf(*scan);
+  const tessera::Pose2 mount = laserMountOf(*scan);
   const tessera::scan_matching::ScanPoints prepared = points_.prepare(ranges, mount);
   std::vector<Eigen::Vector2d> points;
   points.reserve(prepared.size());

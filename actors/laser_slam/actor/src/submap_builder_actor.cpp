@@ -1,5 +1,6 @@
 #include <tessera/laser_slam/submap_builder_actor.hpp>
 
+#include <tessera/actor_common/laser_scan.hpp>
 #include <tessera/messages/geometry.hpp>
 #include <tessera/messages/views.hpp>
 #include <tessera/runtime/options.hpp>
@@ -125,10 +126,8 @@ tessera::Pose2 SubmapBuilderActor::liveOrigin() const {
 
 void SubmapBuilderActor::process(const Message<msg::LaserScan>& scan, const tessera::Pose2& odom) {
   const Nanos stamp = scan->getHeader().getStampNs();
-  const tessera::grid::RangeScan ranges{view<float>(scan->getRanges()), scan->getAngleMin(),
-                                        scan->getAngleIncrement(), scan->getRangeMin(),
-                                        scan->getRangeMax()};
-  const tessera::Pose2 mount(scan->getMountX(), scan->getMountY(), scan->getMountTheta());
+  const tessera::grid::RangeScan ranges = rangeScanOf(*scan);
+  const tessera::Pose2 mount = laserMountOf(*scan);
   const RbpfStep step = rbpf_.addScan(nanosToSeconds(stamp), ranges, mount, odom);
   last_stamp_ = stamp;
   if (!rbpf_.initialized()) return;  // nothing to publish before the first usable scan

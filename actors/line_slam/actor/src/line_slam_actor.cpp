@@ -1,5 +1,6 @@
 #include <tessera/line_slam/line_slam_actor.hpp>
 
+#include <tessera/actor_common/laser_scan.hpp>
 #include <tessera/messages/geometry.hpp>
 #include <tessera/messages/views.hpp>
 #include <tessera/runtime/options.hpp>
@@ -108,10 +109,8 @@ void LineSlamActor::process(const Message<msg::LaserScan>& scan, const tessera::
   }
   if (update) {
     update_odom_ = odom;
-    const tessera::grid::RangeScan ranges{view<float>(scan->getRanges()), scan->getAngleMin(),
-                                          scan->getAngleIncrement(), scan->getRangeMin(),
-                                          scan->getRangeMax()};
-    const tessera::Pose2 mount(scan->getMountX(), scan->getMountY(), scan->getMountTheta());
+    const tessera::grid::RangeScan ranges = rangeScanOf(*scan);
+    const tessera::Pose2 mount = laserMountOf(*scan);
     std::vector<tessera::line_slam::LineSegment> segments = extractor_.extract(ranges);
     for (auto& s : segments) s = tessera::line_slam::transformSegment(s, mount);
     segments_extracted_ += segments.size();

@@ -2,6 +2,7 @@
 // map_to_odom.
 #include <tessera/localization/monte_carlo_localizer_actor.hpp>
 
+#include <tessera/actor_common/laser_scan.hpp>
 #include <tessera/actor_common/map_message.hpp>
 #include <tessera/mapping/map_io.hpp>
 #include <tessera/messages/geometry.hpp>
@@ -171,7 +172,7 @@ bool MonteCarloLocalizerActor::tryScan(const Message<msg::LaserScan>& scan) {
   }
   const double angle_min = scan->getAngleMin(), increment = scan->getAngleIncrement();
   const double range_min = scan->getRangeMin(), scan_max = scan->getRangeMax();
-  const Pose2 mount(scan->getMountX(), scan->getMountY(), scan->getMountTheta());
+  const Pose2 mount = laserMountOf(*scan);
   if (!(std::isfinite(angle_min) && std::isfinite(increment) && increment != 0 &&
         std::isfinite(scan_max) && scan_max > 0 && std::isfinite(range_min) && mount.isFinite()))
     return bad("scan_fields", "scan with a non-finite or zero angle step, or bad range or mount"),

@@ -2,6 +2,7 @@
 
 #include <tessera/actor_common/pose_source.hpp>
 
+#include <tessera/actor_common/laser_scan.hpp>
 #include <tessera/messages/types.hpp>
 #include <tessera/messages/views.hpp>
 #include <tessera/runtime/options.hpp>
@@ -34,15 +35,6 @@ GridMapperCoreOptions checkedCore(const GridMapperOptions& o) {
     fail("hold_period_s must be >= 0 [s] (got " + std::to_string(o.hold_period_s) + ")");
   (void)parsePoseMessage(o.pose_message, "grid_mapper", "pose_message");
   return o.grid;
-}
-
-tessera::grid::RangeScan rangesOf(msg::LaserScan::Reader scan) {
-  return {view<float>(scan.getRanges()), scan.getAngleMin(), scan.getAngleIncrement(),
-          scan.getRangeMin(), scan.getRangeMax()};
-}
-
-tessera::Pose2 mountOf(msg::LaserScan::Reader scan) {
-  return {scan.getMountX(), scan.getMountY(), scan.getMountTheta()};
 }
 
 }  // namespace
@@ -90,8 +82,8 @@ void GridMapperActor::holdScan(const Message<msg::LaserScan>& scan) {
     ++scans_not_held_;
     return;
   }
-  const tessera::grid::RangeScan ranges = rangesOf(*scan);
-  const tessera::Pose2 mount = mountOf(*scan);
+  const tessera::grid::RangeScan ranges = rangeScanOf(*scan);
+  const tessera::Pose2 mount = laserMountOf(*scan);
   if (!held_.empty() || !tryInsert(stamp, ranges, mount)) {
     try {
       held_.emplace_back(stamp, ranges, mount);
@@ -121,7 +113,7 @@ void GridMapperActor::onPose(Nanos stamp, const tessera::Pose2& pose) {
 }
 
 bool GridMapperActor::tryInsert(const Message<msg::LaserScan>& scan) {
-  return tryInsert(scan->getHeader().getStampNs(), rangesOf(*scan), mountOf(*scan));
+  return tryInsert(scan->getHeader().getStampNs(), rangeScanOf(*scan), laserMountOf(*scan));
 }
 
 bool GridMapperActor::tryInsert(std::int64_t stamp, const tessera::grid::RangeScan& ranges,

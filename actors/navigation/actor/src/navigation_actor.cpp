@@ -1,5 +1,6 @@
 #include <tessera/navigation/navigation_actor.hpp>
 
+#include <tessera/actor_common/laser_scan.hpp>
 #include <tessera/actor_common/map_message.hpp>
 #include <tessera/actor_common/pose_source.hpp>
 #include <tessera/mapping/map_io.hpp>
@@ -286,7 +287,7 @@ void NavigationActor::onScan(const Message<msg::LaserScan>& m) {
   const auto ranges = view<float>(m->getRanges());
   const double a0 = m->getAngleMin(), da = m->getAngleIncrement();
   const double rmin = m->getRangeMin(), rmax = m->getRangeMax();
-  const Pose2 mount(m->getMountX(), m->getMountY(), m->getMountTheta());
+  const Pose2 mount = laserMountOf(*m);
   if (!(std::isfinite(a0) && std::isfinite(da) && std::isfinite(rmin) && std::isfinite(rmax) &&
         rmax > 0 && mount.isFinite()) ||
       ranges.empty())

@@ -48,12 +48,15 @@
 // padding (9.4 bytes per cell in all for a 400 × 400 grid at depth 7). A user
 // matching against many grids can keep their int8 cells and rebuild pyramids on demand: the
 // build is deterministic, so the same cells give the same pyramid and the same matches.
+// Levels of 64 KiB and more are mapped on their own (memory::MappedAllocator), so a dropped
+// pyramid gives its memory back to the system at once.
 // CorrelativeMatcher holds only options. LoopClosureVerifier counts its decisions and is not
 // thread-safe.
 #pragma once
 
 #include <tessera/geometry/pose2.hpp>
 #include <tessera/grid/occupancy_map.hpp>
+#include <tessera/memory/mapped_allocator.hpp>
 
 #include <Eigen/Core>
 
@@ -190,7 +193,7 @@ class MatchGrid {
   struct Level {
     int offset = 0;  // stored column/row 0 is cell −offset
     unsigned width = 0, height = 0;
-    std::vector<std::uint8_t> cells;
+    memory::MappedVector<std::uint8_t> cells;  // unmapped when the pyramid goes
   };
   std::vector<Level> levels_;
   int width_ = 0, height_ = 0;

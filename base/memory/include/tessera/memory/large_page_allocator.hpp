@@ -5,8 +5,9 @@
 // has no transparent huge pages the advice is ignored and the memory is ordinary.
 #pragma once
 
+#include <tessera/memory/block_allocator.hpp>
+
 #include <cstddef>
-#include <new>
 #include <vector>
 
 namespace tessera::memory {
@@ -20,24 +21,7 @@ void* allocateLarge(std::size_t bytes);
 void deallocateLarge(void* block, std::size_t bytes) noexcept;
 
 template <class T>
-struct LargePageAllocator {
-  using value_type = T;
-
-  LargePageAllocator() = default;
-  template <class U>
-  LargePageAllocator(const LargePageAllocator<U>& /*other*/) noexcept {}
-
-  T* allocate(std::size_t n) {
-    if (n > static_cast<std::size_t>(-1) / sizeof(T)) throw std::bad_array_new_length();
-    return static_cast<T*>(allocateLarge(n * sizeof(T)));
-  }
-  void deallocate(T* p, std::size_t n) noexcept { deallocateLarge(p, n * sizeof(T)); }
-
-  template <class U>
-  bool operator==(const LargePageAllocator<U>& /*other*/) const noexcept {
-    return true;
-  }
-};
+using LargePageAllocator = BlockAllocator<T, allocateLarge, deallocateLarge>;
 
 template <class T>
 using LargePageVector = std::vector<T, LargePageAllocator<T>>;
