@@ -44,7 +44,9 @@ TEST_CASE("a big mapped block is page-aligned, zero-filled and unmapped when fre
   const std::size_t bytes = kMappedMinBytes * 16 + 123;
   auto* block = static_cast<unsigned char*>(allocateMapped(bytes));
   REQUIRE(block != nullptr);
-  CHECK(reinterpret_cast<std::uintptr_t>(block) % static_cast<std::uintptr_t>(sysconf(_SC_PAGESIZE)) == 0);
+  CHECK(reinterpret_cast<std::uintptr_t>(block) %
+            static_cast<std::uintptr_t>(sysconf(_SC_PAGESIZE)) ==
+        0);
   CHECK(block[0] == 0);
   CHECK(block[bytes - 1] == 0);
   block[bytes / 2] = 7;
@@ -54,8 +56,7 @@ TEST_CASE("a big mapped block is page-aligned, zero-filled and unmapped when fre
   CHECK(errno == ENOMEM);
 }
 
-TEST_CASE("an impossible mapped allocation throws instead of returning a short block",
-          "[memory]") {
+TEST_CASE("an impossible mapped allocation throws instead of returning a short block", "[memory]") {
   MappedAllocator<std::uint64_t> a;
   CHECK_THROWS_AS(a.allocate(static_cast<std::size_t>(-1) / 4), std::bad_array_new_length);
   CHECK_THROWS_AS(allocateMapped(static_cast<std::size_t>(-1) - 10), std::bad_alloc);
