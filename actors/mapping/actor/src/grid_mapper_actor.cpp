@@ -1,8 +1,7 @@
 #include <tessera/mapping/grid_mapper_actor.hpp>
 
-#include <tessera/actor_common/pose_source.hpp>
-
 #include <tessera/actor_common/laser_scan.hpp>
+#include <tessera/actor_common/pose_source.hpp>
 #include <tessera/messages/types.hpp>
 #include <tessera/messages/views.hpp>
 #include <tessera/runtime/options.hpp>
