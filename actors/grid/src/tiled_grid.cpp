@@ -370,6 +370,14 @@ std::size_t TiledGrid::memoryBytes() const {
   return tileCount() * tileBytes(options_.track_hit_points) + table_.size() * sizeof(Tile*);
 }
 
+double TiledGrid::sharedMemoryBytes() const {
+  double tiles = 0.0;
+  for (const Tile* t : table_)
+    if (t != nullptr) tiles += 1.0 / t->refs.load(std::memory_order_relaxed);
+  return tiles * static_cast<double>(tileBytes(options_.track_hit_points)) +
+         static_cast<double>(table_.size() * sizeof(Tile*));
+}
+
 TiledGrid::Counters TiledGrid::counters() {
   return {g_tiles_allocated.load(std::memory_order_relaxed),
           g_tiles_cloned.load(std::memory_order_relaxed)};

@@ -308,6 +308,8 @@ RbpfStep Rbpf::addScan(double stamp_s, const tessera::grid::RangeScan& scan, con
   travelled_since_update_ = 0.0;
   turned_since_update_ = 0.0;
   ++stats_.updates;
+  // Sampled: walking every tile of every map at each update cost ~3 % of carmen_global's CPU.
+  if (stats_.updates % kMapBytesEvery == 0) noteMapBytes();
   return step;
 }
 
@@ -682,6 +684,7 @@ FinishedSubmap Rbpf::startSubmapLost() {
 }
 
 FinishedSubmap Rbpf::startSubmap() {
+  noteMapBytes();  // the submap's maps at their largest, before they go
   FinishedSubmap done = currentSubmap();
   suspect_run_ = 0;
   ++submap_id_;
@@ -744,11 +747,32 @@ std::vector<double> Rbpf::weights() const {
   return w;
 }
 
-int Rbpf::distinctMaps() const {
+namespace {
+
+/// The particles' map objects, each once (copies made by resampling share one).
+template <class Particles>
+std::vector<const tessera::grid::TiledGrid*> distinctMapsOf(const Particles& particles) {
   std::vector<const tessera::grid::TiledGrid*> maps;
-  for (const auto& p : particles_) maps.push_back(p.map.get());
+  for (const auto& p : particles) maps.push_back(p.map.get());
   std::sort(maps.begin(), maps.end());
-  return static_cast<int>(std::unique(maps.begin(), maps.end()) - maps.begin());
+  maps.erase(std::unique(maps.begin(), maps.end()), maps.end());
+  return maps;
+}
+
+}  // namespace
+
+int Rbpf::distinctMaps() const {
+  return static_cast<int>(distinctMapsOf(particles_).size());
+}
+
+void Rbpf::noteMapBytes() {
+  stats_.map_bytes_peak = std::max(stats_.map_bytes_peak, mapBytes());
+}
+
+std::size_t Rbpf::mapBytes() const {
+  double bytes = 0.0;
+  for (const auto* map : distinctMapsOf(particles_)) bytes += map->sharedMemoryBytes();
+  return static_cast<std::size_t>(std::llround(bytes));
 }
 
 }  // namespace tessera::laser_slam

@@ -210,6 +210,12 @@ TEST_CASE("copying a TiledGrid shares its tiles and a write clones only the tile
   CHECK(copy.uniqueTileCount() == 0);
   CHECK(original.uniqueTileCount() == 0);
   CHECK(sameCells(copy, original));
+  // Shared tiles count half for each of the two grids: together, once.
+  const double tile_bytes = static_cast<double>(TiledGrid::tileBytes());
+  const double table_bytes = static_cast<double>(original.memoryBytes()) - tiles * tile_bytes;
+  CHECK(original.sharedMemoryBytes() == Approx(0.5 * tiles * tile_bytes + table_bytes));
+  CHECK(original.sharedMemoryBytes() + copy.sharedMemoryBytes() ==
+        Approx(tiles * tile_bytes + 2 * table_bytes));
 
   // A short scan from elsewhere: every cell it touches changes value (nothing is at a clamp
   // bound after one scan), so the tiles that differ are exactly the tiles it wrote.

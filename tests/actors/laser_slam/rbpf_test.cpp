@@ -406,6 +406,8 @@ TEST_CASE("particles copied by resampling share their map tiles", "[rbpf]") {
   REQUIRE(rbpf.stats().updates > 3);
   CHECK(rbpf.distinctMaps() == 1);
   CHECK(tessera::grid::TiledGrid::counters().tiles_cloned == before.tiles_cloned);
+  // One map for all 20 particles: it is what they hold.
+  CHECK(rbpf.mapBytes() == rbpf.bestMap().memoryBytes());
 
   // With sampling the particles diverge; each clones only the tiles its scans touch.
   RbpfOptions diverse = fastOptions(20);
@@ -422,6 +424,16 @@ TEST_CASE("particles copied by resampling share their map tiles", "[rbpf]") {
   CHECK(rbpf2.distinctMaps() > 1);
   // Deep copies at every update would create particles × updates × map tiles.
   CHECK(tiles < 20 * rbpf2.stats().updates * map_tiles / 2);
+  // Diverged maps hold more than one map's tiles, and far less than one each: shared tiles
+  // count once.
+  const std::size_t one_map = rbpf2.bestMap().memoryBytes();
+  CHECK(rbpf2.mapBytes() > one_map);
+  CHECK(rbpf2.mapBytes() < static_cast<std::size_t>(rbpf2.distinctMaps()) * one_map);
+  // The peak is sampled at least when a submap closes: the closing submap's maps are in it.
+  const std::size_t held = rbpf2.mapBytes();
+  rbpf2.startSubmap();
+  CHECK(rbpf2.stats().map_bytes_peak >= held);
+  CHECK(rbpf2.mapBytes() < held);  // the new submap starts from one map of the last metres
 }
 
 TEST_CASE("copies of one particle are matched once and still draw their own poses", "[rbpf]") {

@@ -215,6 +215,10 @@ class TiledGrid {
   std::size_t uniqueTileCount() const;
   /// Bytes of cell storage this grid references: its tiles (shared or not) plus its table.
   std::size_t memoryBytes() const;
+  /// This grid's share of the cell storage: each tile's bytes divided among the grids holding
+  /// it, plus its table. Summed over every grid that holds a set of tiles (a particle filter's
+  /// maps), it gives the bytes they hold together, each shared tile counted once.
+  double sharedMemoryBytes() const;
   /// Bytes of one tile (cells, reference count and, when tracked, the hit points).
   static std::size_t tileBytes(bool track_hit_points = false) {
     return track_hit_points ? sizeof(TrackedTile) : sizeof(Tile);

@@ -287,6 +287,9 @@ struct RbpfStats {
   std::uint64_t suspect_updates = 0;       ///< updates whose scan was not inserted (lost_*)
   std::uint64_t lost = 0;                  ///< times the filter declared itself lost
   double match_fraction_min = 1.0;         ///< lowest RbpfStep::match_fraction seen
+  /// largest Rbpf::mapBytes() seen: sampled every Rbpf::kMapBytesEvery updates and when a
+  /// submap closes
+  std::size_t map_bytes_peak = 0;
 };
 
 /// Systematic (low-variance) resampling: n = weights.size() draws at u0 + k/n, k = 0..n-1, on
@@ -366,8 +369,14 @@ class Rbpf {
   /// Distinct map objects the particles hold (copies made by resampling share one until they
   /// diverge), for tests and diagnostics.
   int distinctMaps() const;
+  /// Bytes the particles' maps hold together (tiles shared by several maps counted once; see
+  /// TiledGrid::sharedMemoryBytes), in the current submap.
+  std::size_t mapBytes() const;
+  /// RbpfStats::map_bytes_peak is sampled every this many updates.
+  static constexpr std::uint64_t kMapBytesEvery = 8;
 
  private:
+  void noteMapBytes();
   struct TrajectoryNode {
     double stamp_s;
     tessera::Pose2 pose;

@@ -49,7 +49,9 @@
 // constraints (the graph optimiser moves them later). submaps, constraints and final_poses stay
 // in that chained frame whatever optimized_poses says: the optimiser and the loop detector
 // place them themselves. The summary reports how far the optimised graph moved the live pose
-// at once (`live_correction_max_m`, the largest jump between two scans). Scans wait (bounded) for
+// at once (`live_correction_max_m`, the largest jump between two scans), and the memory the
+// particles' maps hold in the current submap (`memory_mb` at stop, `memory_peak_mb` the largest
+// seen, sampled; MiB, shared tiles once). Scans wait (bounded) for
 // an odometry pose at or after their stamp and are paired by interpolation; unpairable scans are
 // counted.
 #pragma once
