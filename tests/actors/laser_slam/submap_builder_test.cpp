@@ -566,3 +566,21 @@ TEST_CASE("map assembler actor chains hand-over constraints", "[map_assembler]")
   CHECK(maps[0]->getWidth() == 24);  // 0..2.4 m at 0.1 m
   CHECK(maps[0]->getHeight() == 14);
 }
+
+TEST_CASE("the particles' map memory is reported, its peak never below the final figure",
+          "[rbpf][submap_builder]") {
+  // Fewer updates than the peak's sampling period and no submap closed: the peak must still
+  // cover the maps held at stop.
+  const auto sim = test::simulateRoomLoop();
+  SubmapBuilderOptions o = fastOptions();
+  o.rbpf.parallel = false;
+  ActorHarness h(std::make_unique<SubmapBuilderActor>(o));
+  feedAndStop(h, sim, 4);
+  Summary s;
+  h.actor().summarize(s);
+  REQUIRE(std::get<std::int64_t>(s.at("scans_processed")) <
+          static_cast<std::int64_t>(tessera::laser_slam::Rbpf::kMapBytesEvery));
+  const double now = std::get<double>(s.at("memory_mb"));
+  CHECK(now > 0);
+  CHECK(std::get<double>(s.at("memory_peak_mb")) >= now);
+}

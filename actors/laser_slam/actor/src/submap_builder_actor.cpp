@@ -344,8 +344,11 @@ void SubmapBuilderActor::summarize(Summary& out) const {
   out["scans_unpaired"] = i64(pairing_.unpaired());
   out["scans_unusable"] = i64(s.unusable_scans);
   // MiB, as peak_rss_mb and the other actors' memory figures.
-  out["memory_mb"] = static_cast<double>(rbpf_.mapBytes()) / (1024.0 * 1024.0);
-  out["memory_peak_mb"] = static_cast<double>(s.map_bytes_peak) / (1024.0 * 1024.0);
+  const std::size_t map_bytes = rbpf_.mapBytes();
+  out["memory_mb"] = static_cast<double>(map_bytes) / (1024.0 * 1024.0);
+  // The peak is sampled (RbpfStats::map_bytes_peak); the maps held now count too.
+  out["memory_peak_mb"] =
+      static_cast<double>(std::max(s.map_bytes_peak, map_bytes)) / (1024.0 * 1024.0);
   if (camera_handovers_ > 0) out["camera_handovers"] = i64(camera_handovers_);
   if (s.updates > 1) out["match_fraction_min"] = s.match_fraction_min;
   if (options_.rbpf.lost_match_fraction > 0) {
